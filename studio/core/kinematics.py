@@ -1,0 +1,454 @@
+"""Baxter kinematics: the model from example-robot-data's URDF (pinocchio), FK, IK and the paper's DH table.
+
+The end-effector frame is ``<arm>_gripper``: the point between the fingertips, 0.1577 m past the hand.
+It is the frame the Baxter SDK reports as the endpoint pose and the one its IK service (which the paper
+uses for execution) solves for, so demonstrations, the learned skill and execution all speak of it.
+
+Poses are expressed in the URDF root frame ``base`` (Baxter's torso base), positions in metres and
+orientations as unit quaternions w, x, y, z.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import sys
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from studio.core.errors import InvalidInput
+from studio.core.types import ARM_JOINTS, ARMS, check_arm, readonly
+
+#: The paper's Table I (Denavit–Hartenberg, standard convention): rows (d, a, alpha) for joints 1..7.
+DH_TABLE: np.ndarray = readonly(
+    [
+        [0.2703, 0.069, -1.571],
+        [0.0, 0.0, 1.571],
+        [0.3644, 0.069, -1.571],
+        [0.0, 0.0, 1.571],
+        [0.3743, 0.01, -1.571],
+        [0.0, 0.0, 1.571],
+        [0.2295, 0.0, 0.0],
+    ]
+)
+#: Joint offset that maps URDF joint angles onto the table's θ (measured: only s1 differs, by +π/2).
+DH_JOINT_OFFSET: np.ndarray = readonly([0.0, math.pi / 2, 0.0, 0.0, 0.0, 0.0, 0.0])
+#: Constant translation from ``<arm>_arm_mount`` to the DH base frame, metres.
+DH_BASE_OFFSET: np.ndarray = readonly([0.055695, 0.0, 0.011038])
+
+EE_FRAME = "{arm}_gripper"
+
+
+def baxter_description_dir() -> Path:
+    """Folder ``baxter_description`` installed by the ``example-robot-data`` wheel.
+
+    example-robot-data >= 4.4 ships no importable module; its files live under pinocchio's
+    ``cmeel.prefix/share`` in site-packages.
+    """
+    for base in map(Path, sys.path):
+        cand = base / "cmeel.prefix" / "share" / "example-robot-data" / "robots" / "baxter_description"
+        if (cand / "urdf" / "baxter.urdf").is_file():
+            return cand
+    raise FileNotFoundError(
+        "The Baxter robot description was not found. Install the studio's dependencies "
+        "(pip install -e .) so that the example-robot-data package is present."
+    )
+
+
+def package_share_dir() -> Path:
+    """Directory that ``package://example-robot-data/...`` mesh URIs are relative to."""
+    return baxter_description_dir().parents[2]
+
+
+def baxter_urdf_path() -> Path:
+    return baxter_description_dir() / "urdf" / "baxter.urdf"
+
+
+@dataclass(frozen=True)
+class IkResult:
+    """Outcome of one IK solve.
+
+    Attributes:
+        q: (7,) joint angles in radians, always within the URDF limits and finite.
+        converged: True when both errors are within the requested tolerances.
+        position_error: distance between reached and requested position, metres.
+        orientation_error: rotation angle between reached and requested orientation, radians.
+        iterations: damped least-squares iterations used.
+    """
+
+    q: np.ndarray
+    converged: bool
+    position_error: float
+    orientation_error: float
+    iterations: int
+
+
+def _as_array(name: str, value: object, shape: tuple[int, ...]) -> np.ndarray:
+    try:
+        a = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InvalidInput(f"The {name} must be numbers, got {value!r}.") from exc
+    if a.shape != shape:
+        raise InvalidInput(f"The {name} must have shape {shape}, got {a.shape}.")
+    if not np.all(np.isfinite(a)):
+        raise InvalidInput(f"The {name} contains missing or invalid values (NaN or infinity).")
+    return a
+
+
+def quat_wxyz_from_matrix(R: np.ndarray) -> np.ndarray:
+    """Unit quaternions (…, 4) w, x, y, z from rotation matrices (…, 3, 3); w >= 0 (Shepperd's method)."""
+    R = np.asarray(R, dtype=np.float64)
+    shape = R.shape[:-2]
+    R = R.reshape(-1, 3, 3)
+    m00, m11, m22 = R[:, 0, 0], R[:, 1, 1], R[:, 2, 2]
+    tr = m00 + m11 + m22
+    cand = np.stack([tr, m00, m11, m22], axis=1)
+    k = np.argmax(cand, axis=1)
+    q = np.empty((R.shape[0], 4))
+    r = np.sqrt(np.maximum(1.0 + 2.0 * cand[np.arange(R.shape[0]), k] - tr, 1e-300))
+    s = 0.5 / r
+    # case w largest
+    i = k == 0
+    q[i, 0] = 0.5 * r[i]
+    q[i, 1] = (R[i, 2, 1] - R[i, 1, 2]) * s[i]
+    q[i, 2] = (R[i, 0, 2] - R[i, 2, 0]) * s[i]
+    q[i, 3] = (R[i, 1, 0] - R[i, 0, 1]) * s[i]
+    i = k == 1
+    q[i, 0] = (R[i, 2, 1] - R[i, 1, 2]) * s[i]
+    q[i, 1] = 0.5 * r[i]
+    q[i, 2] = (R[i, 0, 1] + R[i, 1, 0]) * s[i]
+    q[i, 3] = (R[i, 0, 2] + R[i, 2, 0]) * s[i]
+    i = k == 2
+    q[i, 0] = (R[i, 0, 2] - R[i, 2, 0]) * s[i]
+    q[i, 1] = (R[i, 0, 1] + R[i, 1, 0]) * s[i]
+    q[i, 2] = 0.5 * r[i]
+    q[i, 3] = (R[i, 1, 2] + R[i, 2, 1]) * s[i]
+    i = k == 3
+    q[i, 0] = (R[i, 1, 0] - R[i, 0, 1]) * s[i]
+    q[i, 1] = (R[i, 0, 2] + R[i, 2, 0]) * s[i]
+    q[i, 2] = (R[i, 1, 2] + R[i, 2, 1]) * s[i]
+    q[i, 3] = 0.5 * r[i]
+    q *= np.where(q[:, :1] < 0, -1.0, 1.0)
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    return q.reshape(*shape, 4)
+
+
+def matrix_from_quat_wxyz(q: np.ndarray) -> np.ndarray:
+    """Rotation matrices (…, 3, 3) from quaternions (…, 4) w, x, y, z (normalised first)."""
+    q = np.asarray(q, dtype=np.float64)
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    w, x, y, z = np.moveaxis(q, -1, 0)
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
+            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
+            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        -2,
+    )
+
+
+def make_sign_continuous(wxyz: np.ndarray) -> np.ndarray:
+    """Flip quaternions (N, 4) so consecutive ones have a non-negative dot product (q and −q are equal)."""
+    q = np.array(wxyz, dtype=np.float64, copy=True)
+    if len(q) < 2:
+        return q
+    flips = np.einsum("ij,ij->i", q[1:], q[:-1]) < 0
+    sign = np.concatenate([[1.0], np.where(np.cumsum(flips) % 2 == 1, -1.0, 1.0)])
+    return q * sign[:, None]
+
+
+def quat_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Rotation angle (rad) between quaternions ``a`` and ``b`` (…, 4), treating q and −q as equal."""
+    d = np.abs(np.sum(np.asarray(a) * np.asarray(b), axis=-1))
+    d = d / (np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1))
+    return 2.0 * np.arccos(np.clip(d, 0.0, 1.0))
+
+
+def dh_fk(q: np.ndarray, table: np.ndarray = DH_TABLE) -> np.ndarray:
+    """Forward kinematics by the paper's DH table (Eq. 2 per joint, Eq. 3 for the chain).
+
+    Args:
+        q: (7,) the table's θ1..θ7 in radians (URDF angles + :data:`DH_JOINT_OFFSET`).
+        table: (7, 3) rows d, a, α.
+
+    Returns:
+        (4, 4) homogeneous transform T = A1 · … · A7 from the DH base to the hand frame, metres.
+    """
+    q = _as_array("joint angles", q, (7,))
+    T = np.eye(4)
+    for th, (d, a, al) in zip(q, table, strict=True):
+        ct, st, ca, sa = math.cos(th), math.sin(th), math.cos(al), math.sin(al)
+        A = np.array(
+            [[ct, -st * ca, st * sa, a * ct], [st, ct * ca, -ct * sa, a * st], [0.0, sa, ca, d], [0, 0, 0, 1.0]]
+        )
+        T = T @ A
+    return T
+
+
+class _ArmChain:
+    """One arm as seven z-axis revolute joints with fixed placements: FK vectorised over N configurations."""
+
+    def __init__(self, model: pin.Model, arm: str) -> None:
+        names = ARM_JOINTS[arm]
+        self.joint_ids = [model.getJointId(n) for n in names]
+        self.idx_q = np.array([model.joints[j].idx_q for j in self.joint_ids])
+        first = self.joint_ids[0]
+        # Placement of s0 in the world: chain of parents up to the root (all fixed for an arm).
+        M = pin.SE3.Identity()
+        j = model.parents[first]
+        while j > 0:  # pragma: no cover - Baxter's arms hang off the root
+            M = model.jointPlacements[j] * M
+            j = model.parents[j]
+        self.base = np.asarray(M.homogeneous)
+        self.placements = np.stack([np.asarray(model.jointPlacements[j].homogeneous) for j in self.joint_ids])
+        fid = model.getFrameId(EE_FRAME.format(arm=arm))
+        if model.frames[fid].parentJoint != self.joint_ids[-1]:  # pragma: no cover - URDF sanity
+            raise RuntimeError("Unexpected Baxter URDF: gripper frame not attached to w2")
+        self.ee = np.asarray(model.frames[fid].placement.homogeneous)
+        self.lower = model.lowerPositionLimit[self.idx_q].copy()
+        self.upper = model.upperPositionLimit[self.idx_q].copy()
+        self.velocity = model.velocityLimit[[model.joints[j].idx_v for j in self.joint_ids]].copy()
+
+    def transforms(self, Q: np.ndarray) -> np.ndarray:
+        """(N, 4, 4) world transforms of the gripper frame for joint angles Q (N, 7)."""
+        n = Q.shape[0]
+        c, s = np.cos(Q), np.sin(Q)
+        R = np.ascontiguousarray(np.broadcast_to(self.base[:3, :3], (n, 3, 3)))
+        p = np.broadcast_to(self.base[:3, 3], (n, 3))
+        for i in range(7):
+            P = self.placements[i]
+            # (N,3,3) @ (3,3) as one (3N,3) GEMM: numpy's stacked matmul loops per matrix and is ~10x slower.
+            R2 = R.reshape(3 * n, 3)
+            p = p + (R2 @ P[:3, 3]).reshape(n, 3)
+            A = (R2 @ P[:3, :3]).reshape(n, 3, 3)
+            # A · Rz(q): only the first two columns mix, so avoid a full matrix product.
+            R = np.empty((n, 3, 3))
+            ci, si = c[:, i, None], s[:, i, None]
+            R[:, :, 0] = ci * A[:, :, 0] + si * A[:, :, 1]
+            R[:, :, 1] = ci * A[:, :, 1] - si * A[:, :, 0]
+            R[:, :, 2] = A[:, :, 2]
+        T = np.zeros((n, 4, 4))
+        R2 = R.reshape(3 * n, 3)
+        T[:, :3, :3] = (R2 @ self.ee[:3, :3]).reshape(n, 3, 3)
+        T[:, :3, 3] = p + (R2 @ self.ee[:3, 3]).reshape(n, 3)
+        T[:, 3, 3] = 1.0
+        return T
+
+
+class Baxter:
+    """The Baxter model: both arms (7 joints each), grippers and head pan, loaded once per process.
+
+    Use :meth:`load`; the instance is shared and thread-safe for FK and IK (each call uses its own data).
+    """
+
+    def __init__(self, urdf: Path) -> None:
+        self.urdf_path = Path(urdf)
+        self.model: pin.Model = pin.buildModelFromUrdf(str(self.urdf_path))
+        self._chains = {arm: _ArmChain(self.model, arm) for arm in ARMS}
+        self._local = threading.local()
+        self._reduced: dict[str, tuple[pin.Model, int]] = {}
+        for arm in ARMS:
+            keep = set(ARM_JOINTS[arm])
+            lock = [j for j in range(1, self.model.njoints) if self.model.names[j] not in keep]
+            red = pin.buildReducedModel(self.model, lock, pin.neutral(self.model))
+            self._reduced[arm] = (red, red.getFrameId(EE_FRAME.format(arm=arm)))
+
+    @classmethod
+    @functools.cache
+    def load(cls) -> Baxter:
+        """The process-wide Baxter model built from example-robot-data's URDF."""
+        return cls(baxter_urdf_path())
+
+    # -- limits -------------------------------------------------------------------------------------------
+    def lower_limits(self, arm: str) -> np.ndarray:
+        """(7,) lower joint limits of ``arm`` in radians (URDF)."""
+        return self._chains[check_arm(arm)].lower.copy()
+
+    def upper_limits(self, arm: str) -> np.ndarray:
+        """(7,) upper joint limits of ``arm`` in radians (URDF)."""
+        return self._chains[check_arm(arm)].upper.copy()
+
+    def velocity_limits(self, arm: str) -> np.ndarray:
+        """(7,) joint velocity limits of ``arm`` in rad/s (URDF)."""
+        return self._chains[check_arm(arm)].velocity.copy()
+
+    def neutral(self, arm: str) -> np.ndarray:
+        """A comfortable working configuration in front of the robot (the Baxter SDK's "untuck" pose)."""
+        q = np.array([0.08, -1.0, -1.19, 1.94, 0.67, 1.03, -0.50])
+        if check_arm(arm) == "right":
+            q = q * np.array([-1, 1, -1, 1, -1, 1, -1])
+        return q
+
+    # -- forward kinematics -------------------------------------------------------------------------------
+    def fk(self, arm: str, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Gripper pose for one configuration.
+
+        Args:
+            arm: "left" or "right".
+            q: (7,) joint angles s0..w2, radians.
+
+        Returns:
+            position (3,) in metres and orientation (4,) unit quaternion w, x, y, z with w >= 0.
+        """
+        chain = self._chains[check_arm(arm)]
+        q = _as_array("joint angles", q, (7,))
+        T = chain.transforms(q[None, :])[0]
+        return T[:3, 3].copy(), quat_wxyz_from_matrix(T[:3, :3])
+
+    def fk_batch(self, arm: str, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Gripper poses for N configurations, vectorised.
+
+        Args:
+            arm: "left" or "right".
+            Q: (N, 7) joint angles, radians.
+
+        Returns:
+            positions (N, 3) in metres and orientations (N, 4) w, x, y, z, made sign-continuous along N
+            (so a demonstration's quaternion series has no jumps between q and −q).
+        """
+        chain = self._chains[check_arm(arm)]
+        Q = np.asarray(Q, dtype=np.float64)
+        if Q.ndim != 2 or Q.shape[1] != 7:
+            raise InvalidInput(f"Joint angles must have shape (N, 7), got {Q.shape}.")
+        if not np.all(np.isfinite(Q)):
+            raise InvalidInput("The joint angles contain missing or invalid values (NaN or infinity).")
+        if Q.shape[0] == 0:
+            return np.zeros((0, 3)), np.zeros((0, 4))
+        T = chain.transforms(Q)
+        return T[:, :3, 3].copy(), make_sign_continuous(quat_wxyz_from_matrix(T[:, :3, :3]))
+
+    def frame_transform(self, q_full: np.ndarray, frame: str) -> np.ndarray:
+        """(4, 4) world transform of any URDF frame for a full pinocchio configuration (nq = 19)."""
+        q_full = _as_array("configuration", q_full, (self.model.nq,))
+        data = self._data()
+        pin.framesForwardKinematics(self.model, data, q_full)
+        return np.asarray(data.oMf[self.model.getFrameId(frame)].homogeneous).copy()
+
+    def _data(self) -> pin.Data:
+        d = getattr(self._local, "data", None)
+        if d is None:
+            d = self._local.data = self.model.createData()
+        return d
+
+    # -- inverse kinematics -------------------------------------------------------------------------------
+    def ik(
+        self,
+        arm: str,
+        position: np.ndarray,
+        wxyz: np.ndarray,
+        q_seed: np.ndarray,
+        *,
+        max_iterations: int = 100,
+        position_tolerance: float = 1e-4,
+        orientation_tolerance: float = 1e-3,
+        damping: float = 1e-3,
+    ) -> IkResult:
+        """Full 6-D pose IK by damped least squares, clamped to the URDF joint limits at every step.
+
+        Damped least squares (Levenberg–Marquardt with adaptive damping on the SE(3) log error) is used
+        rather than a QP (pink): it needs no extra solver package, converges in a handful of iterations from
+        a nearby seed (the studio always warm-starts from the current pose), and limit clamping keeps every
+        iterate valid. A target the arm cannot reach ends at the closest pose found, ``converged=False``.
+
+        Args:
+            arm: "left" or "right".
+            position: (3,) target gripper position, metres.
+            wxyz: (4,) target orientation, quaternion w, x, y, z (normalised here).
+            q_seed: (7,) starting joint angles, radians (clamped into the limits first).
+
+        Returns:
+            :class:`IkResult`; never raises for an unreachable target, never returns NaN.
+        """
+        check_arm(arm)
+        p = _as_array("target position", position, (3,))
+        qt = _as_array("target orientation", wxyz, (4,))
+        nrm = float(np.linalg.norm(qt))
+        if nrm < 1e-9:
+            raise InvalidInput("The target orientation must be a non-zero quaternion (w, x, y, z).")
+        seed = _as_array("seed joint angles", q_seed, (7,))
+        model, fid = self._reduced[arm]
+        data = self._reduced_data(arm)
+        lo, hi = model.lowerPositionLimit, model.upperPositionLimit
+        R_t = matrix_from_quat_wxyz(qt / nrm)
+        target = pin.SE3(R_t, p)
+        q = np.clip(seed, lo, hi)
+        lam = damping
+        best_q, best_cost, best_err = q.copy(), math.inf, (math.inf, math.inf)
+        it = 0
+        for it in range(1, max_iterations + 1):
+            pin.forwardKinematics(model, data, q)
+            pin.updateFramePlacement(model, data, fid)
+            cur = data.oMf[fid]
+            # Error in the world-aligned frame at the gripper: translation and rotation vector.
+            e_pos = p - cur.translation
+            e_rot = pin.log3(R_t @ cur.rotation.T)
+            pe, oe = float(np.linalg.norm(e_pos)), float(np.linalg.norm(e_rot))
+            cost = pe + 0.1 * oe
+            if cost < best_cost:
+                best_q, best_cost, best_err = q.copy(), cost, (pe, oe)
+            if pe <= position_tolerance and oe <= orientation_tolerance:
+                break
+            J = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL_WORLD_ALIGNED)
+            e = np.concatenate([e_pos, e_rot])
+            JJt = J @ J.T
+            dq = J.T @ np.linalg.solve(JJt + lam * np.eye(6), e)
+            q_new = np.clip(q + dq, lo, hi)
+            # Adaptive damping: relax when progress is good, damp harder near singularities/limits.
+            lam = max(lam * 0.5, 1e-6) if np.linalg.norm(dq) < 0.5 else min(lam * 4.0, 1.0)
+            q = q_new
+        pe, oe = best_err
+        converged = pe <= position_tolerance * 10 and oe <= orientation_tolerance * 10
+        return IkResult(
+            q=readonly(best_q), converged=bool(converged), position_error=pe, orientation_error=oe, iterations=it
+        )
+
+    def _reduced_data(self, arm: str) -> pin.Data:
+        key = f"rdata_{arm}"
+        d = getattr(self._local, key, None)
+        if d is None:
+            d = self._reduced[arm][0].createData()
+            setattr(self._local, key, d)
+        return d
+
+    def clamp(self, arm: str, q: np.ndarray) -> np.ndarray:
+        """Joint angles clipped into the URDF limits."""
+        c = self._chains[check_arm(arm)]
+        return np.clip(np.asarray(q, dtype=np.float64), c.lower, c.upper)
+
+    def random_configuration(self, arm: str, rng: np.random.Generator, n: int | None = None) -> np.ndarray:
+        """Uniform random joint angles within the limits: (7,) or (n, 7)."""
+        c = self._chains[check_arm(arm)]
+        size = (7,) if n is None else (n, 7)
+        return rng.uniform(c.lower, c.upper, size=size)
+
+    def hand_in_mount(self, arm: str, q: np.ndarray) -> np.ndarray:
+        """(4, 4) transform from ``<arm>_arm_mount`` to ``<arm>_hand_link`` from the URDF (for the DH check)."""
+        check_arm(arm)
+        q = _as_array("joint angles", q, (7,))
+        full = pin.neutral(self.model)
+        full[self._chains[arm].idx_q] = q
+        Tm = self.frame_transform(full, f"{arm}_arm_mount")
+        Th = self.frame_transform(full, f"{arm}_hand_link")
+        return np.linalg.inv(Tm) @ Th
+
+
+__all__ = [
+    "DH_BASE_OFFSET",
+    "DH_JOINT_OFFSET",
+    "DH_TABLE",
+    "Baxter",
+    "IkResult",
+    "baxter_description_dir",
+    "baxter_urdf_path",
+    "dh_fk",
+    "make_sign_continuous",
+    "matrix_from_quat_wxyz",
+    "package_share_dir",
+    "quat_angle",
+    "quat_wxyz_from_matrix",
+]

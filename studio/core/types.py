@@ -1,0 +1,240 @@
+"""Frozen data types shared by every stage of the pipeline.
+
+Arrays stored in these types are made read-only on construction so that no panel or stage can mutate a
+demonstration by accident (the pattern pink uses for its configurations).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from studio.core.errors import InvalidInput
+
+ARMS: tuple[str, str] = ("left", "right")
+JOINT_SUFFIXES: tuple[str, ...] = ("s0", "s1", "e0", "e1", "w0", "w1", "w2")
+ARM_JOINTS: dict[str, tuple[str, ...]] = {
+    arm: tuple(f"{arm}_{s}" for s in JOINT_SUFFIXES) for arm in ARMS
+}
+#: The 14 arm joints in the order the backend streams them (and the Baxter SDK CSV lists them).
+ALL_ARM_JOINTS: tuple[str, ...] = ARM_JOINTS["left"] + ARM_JOINTS["right"]
+
+
+def readonly(a: np.ndarray | list | tuple, dtype: type = np.float64) -> np.ndarray:
+    """Return a C-contiguous read-only copy of ``a`` (a view is not enough: the caller keeps ``a``)."""
+    out = np.array(a, dtype=dtype, copy=True, order="C")
+    out.setflags(write=False)
+    return out
+
+
+def check_arm(arm: str) -> str:
+    """Return ``arm`` if it is "left" or "right", else raise :class:`InvalidInput`."""
+    if arm not in ARMS:
+        raise InvalidInput(f'Unknown arm "{arm}": choose "left" or "right".')
+    return arm
+
+
+def _check_finite(name: str, a: np.ndarray) -> None:
+    if not np.all(np.isfinite(a)):
+        bad = int(np.count_nonzero(~np.isfinite(a)))
+        raise InvalidInput(
+            f"The {name} contains {bad} missing or invalid values (NaN or infinity); "
+            "record the demonstration again or trim the damaged part."
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class Demo:
+    """One arm's demonstration as the paper's 8-D pose series.
+
+    Attributes:
+        t: (N,) sample times in seconds, strictly increasing.
+        position: (N, 3) gripper position in metres (robot base frame).
+        orientation: (N, 4) unit quaternion w, x, y, z of the gripper frame, sign-continuous.
+        gripper: (N,) opening in percent, 0 = closed .. 100 = open.
+        q: optional (N, 7) joint angles in radians that produced the pose (used to seed IK).
+        name: a label for messages and panels.
+    """
+
+    t: np.ndarray
+    position: np.ndarray
+    orientation: np.ndarray
+    gripper: np.ndarray
+    q: np.ndarray | None = None
+    name: str = "demonstration"
+
+    def __post_init__(self) -> None:
+        t = readonly(self.t)
+        pos = readonly(self.position)
+        ori = readonly(self.orientation)
+        grip = readonly(self.gripper)
+        n = t.shape[0] if t.ndim == 1 else -1
+        if t.ndim != 1:
+            raise InvalidInput(f"{self.name}: the time stamps must be a list of numbers (got shape {t.shape}).")
+        if pos.shape != (n, 3) or ori.shape != (n, 4) or grip.shape != (n,):
+            raise InvalidInput(
+                f"{self.name}: time, position, orientation and gripper must have the same number of samples "
+                f"(got {n}, {pos.shape[0] if pos.ndim else 0}, {ori.shape[0] if ori.ndim else 0}, "
+                f"{grip.shape[0] if grip.ndim else 0})."
+            )
+        for nm, a in (("time stamps", t), ("positions", pos), ("orientations", ori), ("gripper values", grip)):
+            _check_finite(f"{self.name} {nm}", a)
+        if n >= 2 and np.any(np.diff(t) <= 0):
+            raise InvalidInput(f"{self.name}: the time stamps must increase from sample to sample.")
+        norms = np.linalg.norm(ori, axis=1)
+        if n and np.any(np.abs(norms - 1.0) > 1e-3):
+            raise InvalidInput(f"{self.name}: the orientations must be unit quaternions (w, x, y, z).")
+        object.__setattr__(self, "t", t)
+        object.__setattr__(self, "position", pos)
+        object.__setattr__(self, "orientation", ori)
+        object.__setattr__(self, "gripper", grip)
+        if self.q is not None:
+            q = readonly(self.q)
+            if q.shape != (n, 7):
+                raise InvalidInput(f"{self.name}: joint angles must have shape ({n}, 7), got {q.shape}.")
+            _check_finite(f"{self.name} joint angles", q)
+            object.__setattr__(self, "q", q)
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+    @property
+    def duration(self) -> float:
+        """Length of the demonstration in seconds."""
+        return float(self.t[-1] - self.t[0]) if len(self) else 0.0
+
+    @property
+    def features(self) -> np.ndarray:
+        """(N, 8) array x, y, z, qw, qx, qy, qz, gripper: the paper's 8-D observation vector."""
+        return np.column_stack([self.position, self.orientation, self.gripper])
+
+
+@dataclass(frozen=True)
+class Recording:
+    """A raw demonstration as the robot streamed it: both arms' joints and grippers at 1 kHz.
+
+    Attributes:
+        t: (N,) seconds since the start of the recording.
+        q: (N, 14) joint angles in radians, order :data:`ALL_ARM_JOINTS` (left s0..w2, right s0..w2).
+        gripper: (N, 2) opening percent 0..100, columns left, right.
+        arms: the arms the teacher taught in this demonstration ("left", "right" or both).
+        name: the demonstration's name shown in the demo list.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    gripper: np.ndarray
+    arms: tuple[str, ...] = ("left",)
+    name: str = "demo"
+
+    def __post_init__(self) -> None:
+        t, q, g = readonly(self.t), readonly(self.q), readonly(self.gripper)
+        n = t.shape[0] if t.ndim == 1 else -1
+        if t.ndim != 1 or q.shape != (n, 14) or g.shape != (n, 2):
+            raise InvalidInput(
+                f"{self.name}: expected times (N,), joints (N, 14) and grippers (N, 2); "
+                f"got {t.shape}, {q.shape}, {g.shape}."
+            )
+        for nm, a in (("time stamps", t), ("joint angles", q), ("gripper values", g)):
+            _check_finite(f"{self.name} {nm}", a)
+        if n >= 2 and np.any(np.diff(t) <= 0):
+            raise InvalidInput(f"{self.name}: the time stamps must increase from sample to sample.")
+        arms = tuple(self.arms)
+        if not arms or any(a not in ARMS for a in arms):
+            raise InvalidInput(f'{self.name}: taught arms must be "left", "right" or both, got {arms}.')
+        object.__setattr__(self, "t", t)
+        object.__setattr__(self, "q", q)
+        object.__setattr__(self, "gripper", g)
+        object.__setattr__(self, "arms", arms)
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1] - self.t[0]) if len(self) else 0.0
+
+    def arm_q(self, arm: str) -> np.ndarray:
+        """(N, 7) joint angles of one arm."""
+        return self.q[:, :7] if check_arm(arm) == "left" else self.q[:, 7:]
+
+    def arm_gripper(self, arm: str) -> np.ndarray:
+        """(N,) gripper opening of one arm, percent."""
+        return self.gripper[:, 0] if check_arm(arm) == "left" else self.gripper[:, 1]
+
+
+_TWO_PI = 2.0 * math.pi
+
+
+@dataclass(frozen=True)
+class KeypointParams:
+    """The paper's fourteen key-point thresholds (§ Key-point Extraction, Eqs. for P and O).
+
+    Speeds are per second and durations in seconds so the defaults hold at any sampling rate (the paper
+    counts samples at 1 kHz). Position thresholds ε1–ε7, orientation thresholds ε8–ε14 (orientation
+    distances are rotation angles in radians, so q and −q are the same orientation).
+
+    Attributes:
+        eps1: corner test, rad in [π, 2π]: a sample is a corner if the angle at it between the directions
+            to its neighbours is below 2π − ε1 (straight line = π). Higher keeps only sharper corners.
+        eps2: pause test, speed below which the arm counts as still, m/s.
+        eps3: pause test, the stillness must come this long after the last key-point, s.
+        eps4: pause test, and this far from the last key-point, m.
+        eps5: distance test, radius of the ball around the last key-point whose exit is a key-point, m.
+        eps6: distance test, minimum time since the last key-point, s.
+        eps7: distance test, all samples since the last key-point stayed within this radius, m.
+        eps8..eps14: the same seven thresholds for orientation (rad, rad/s, s, rad, rad, s, rad).
+    """
+
+    eps1: float = _TWO_PI - 2.2
+    eps2: float = 0.01
+    eps3: float = 0.5
+    eps4: float = 0.02
+    eps5: float = 0.12
+    eps6: float = 0.5
+    eps7: float = 0.12
+    eps8: float = _TWO_PI - 2.2
+    eps9: float = 0.02
+    eps10: float = 0.5
+    eps11: float = 0.1
+    eps12: float = 0.6
+    eps13: float = 0.5
+    eps14: float = 0.6
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise InvalidInput(f"Threshold {f.name} must be a number, got {v!r}.")
+            if f.name in ("eps1", "eps8"):
+                if not (math.pi <= v <= _TWO_PI):
+                    raise InvalidInput(
+                        f"Corner sharpness ({f.name}) must lie between π and 2π (got {v:.3f})."
+                    )
+            elif v < 0:
+                raise InvalidInput(f"Threshold {f.name} cannot be negative (got {v}).")
+
+    def as_dict(self) -> dict[str, float]:
+        return {f.name: float(getattr(self, f.name)) for f in fields(self)}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, float]) -> KeypointParams:
+        names = {f.name for f in fields(cls)}
+        unknown = set(d) - names
+        if unknown:
+            raise InvalidInput(f"Unknown key-point thresholds: {', '.join(sorted(unknown))}.")
+        return cls(**{k: float(v) for k, v in d.items()})
+
+
+__all__ = [
+    "ALL_ARM_JOINTS",
+    "ARMS",
+    "ARM_JOINTS",
+    "Demo",
+    "KeypointParams",
+    "Recording",
+    "check_arm",
+    "readonly",
+]
