@@ -11,36 +11,20 @@ from studio.core.errors import StudioError
 DEFAULT_SESSIONS = Path(__file__).resolve().parent.parent / "sessions"
 
 
+COMMANDS = ("serve", "learn", "import-csv", "export-csv", "make-examples")
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="studio",
-        description="Teaching Studio: teach a Baxter robot a skill by showing it a few times, in your browser.",
+        description="Teaching Studio: teach a Baxter robot a skill by showing it a few times, in your browser. "
+        "Without a command, `studio` starts the studio (same as `studio serve`).",
     )
-    p.add_argument("--sessions-dir", type=Path, default=DEFAULT_SESSIONS, help="folder that holds the sessions")
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--sessions-dir", type=Path, default=DEFAULT_SESSIONS, help="folder that holds the sessions")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
-    s = sub.add_parser("serve", help="start the studio in the browser (the default command)")
-    _serve_args(s)
-
-    s = sub.add_parser("learn", help="learn the skill of a session without the browser and print a report")
-    s.add_argument("session", help="session name (a folder under the sessions folder)")
-    s.add_argument("--arm", choices=["left", "right", "both"], default=None, help="arm(s) to learn (default: as taught)")
-
-    s = sub.add_parser("import-csv", help="import Baxter SDK joint-recorder CSV files as demonstrations")
-    s.add_argument("files", nargs="+", type=Path, help="CSV files written by the Baxter SDK joint recorder")
-    s.add_argument("--session", required=True, help="session to add them to (created if missing)")
-    s.add_argument("--arm", choices=["left", "right", "both"], default="left", help="arm(s) taught in the files")
-
-    s = sub.add_parser("export-csv", help="export a session's learned joint trajectory as Baxter SDK CSV")
-    s.add_argument("session", help="session name")
-    s.add_argument("--out", type=Path, required=True, help="CSV file to write")
-
-    s = sub.add_parser("make-examples", help="(re)create the example sessions with the scripted teacher")
-    s.add_argument("--only", choices=["stack-cup", "pick-place"], default=None)
-    return p
-
-
-def _serve_args(s: argparse.ArgumentParser) -> None:
+    s = sub.add_parser("serve", parents=[common], help="start the studio in the browser (the default command)")
     s.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1: this computer only)")
     s.add_argument("--port", type=int, default=8080, help="port to listen on (default 8080)")
     s.add_argument("--session", default="stack-cup", help='session to open (default "stack-cup")')
@@ -51,25 +35,31 @@ def _serve_args(s: argparse.ArgumentParser) -> None:
         help="robot meshes: light (decimated, fast without a GPU), full (original), auto (light)",
     )
 
+    s = sub.add_parser("learn", parents=[common], help="learn a session's skill without the browser, print a report")
+    s.add_argument("session", help="session name (a folder under the sessions folder)")
+    s.add_argument(
+        "--arm", choices=["left", "right", "both"], default=None, help="arm(s) to learn (default: as taught)"
+    )
+
+    s = sub.add_parser("import-csv", parents=[common], help="import Baxter SDK joint-recorder CSV files as demos")
+    s.add_argument("files", nargs="+", type=Path, help="CSV files written by the Baxter SDK joint recorder")
+    s.add_argument("--session", required=True, help="session to add them to (created if missing)")
+    s.add_argument("--arm", choices=["left", "right", "both"], default="left", help="arm(s) taught in the files")
+
+    s = sub.add_parser("export-csv", parents=[common], help="export a learned joint trajectory as Baxter SDK CSV")
+    s.add_argument("session", help="session name")
+    s.add_argument("--out", type=Path, required=True, help="CSV file to write")
+
+    s = sub.add_parser("make-examples", parents=[common], help="(re)create the example sessions (scripted teacher)")
+    s.add_argument("--only", choices=["stack-cup", "pick-place"], default=None)
+    return p
+
 
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    parser = build_parser()
-    if not argv or argv[0].startswith("-") and argv[0] not in ("-h", "--help"):
-        # `studio` alone, or `studio --port 9000`, starts the studio.
-        if not any(a in ("-h", "--help") for a in argv):
-            sp = argparse.ArgumentParser(prog="studio")
-            sp.add_argument("--sessions-dir", type=Path, default=DEFAULT_SESSIONS)
-            _serve_args(sp)
-            args = sp.parse_args(argv)
-            args.command = "serve"
-            return _dispatch(args)
-    args = parser.parse_args(argv)
-    if args.command is None:
-        args.command = "serve"
-        for k, v in vars(build_parser().parse_args(["serve"])).items():
-            setattr(args, k, getattr(args, k, v))
-    return _dispatch(args)
+    if not (argv and (argv[0] in COMMANDS or argv[0] in ("-h", "--help"))):
+        argv = ["serve", *argv]  # `studio` alone, or `studio --port 9000`, starts the studio
+    return _dispatch(build_parser().parse_args(argv))
 
 
 def _dispatch(args: argparse.Namespace) -> int:
@@ -77,7 +67,13 @@ def _dispatch(args: argparse.Namespace) -> int:
         if args.command == "serve":
             from studio.app import serve
 
-            serve(host=args.host, port=args.port, session=args.session, sessions_dir=args.sessions_dir, meshes=args.meshes)
+            serve(
+                host=args.host,
+                port=args.port,
+                session=args.session,
+                sessions_dir=args.sessions_dir,
+                meshes=args.meshes,
+            )
             return 0
         from studio import commands
 

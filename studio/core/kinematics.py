@@ -35,6 +35,10 @@ DH_TABLE: np.ndarray = readonly(
         [0.2295, 0.0, 0.0],
     ]
 )
+#: Table I with α = ±π/2 exactly (the paper prints ±1.571): the URDF's joints are exactly perpendicular.
+DH_TABLE_EXACT_ALPHA: np.ndarray = readonly(
+    np.column_stack([DH_TABLE[:, :2], np.round(DH_TABLE[:, 2] / 1.571) * math.pi / 2])
+)
 #: Joint offset that maps URDF joint angles onto the table's θ (measured: only s1 differs, by +π/2).
 DH_JOINT_OFFSET: np.ndarray = readonly([0.0, math.pi / 2, 0.0, 0.0, 0.0, 0.0, 0.0])
 #: Constant translation from ``<arm>_arm_mount`` to the DH base frame, metres.
@@ -295,10 +299,15 @@ class Baxter:
         Returns:
             position (3,) in metres and orientation (4,) unit quaternion w, x, y, z with w >= 0.
         """
-        chain = self._chains[check_arm(arm)]
+        check_arm(arm)
         q = _as_array("joint angles", q, (7,))
-        T = chain.transforms(q[None, :])[0]
-        return T[:3, 3].copy(), quat_wxyz_from_matrix(T[:3, :3])
+        model, fid = self._reduced[arm]
+        data = self._reduced_data(arm)
+        pin.forwardKinematics(model, data, q)
+        M = pin.updateFramePlacement(model, data, fid)
+        x, y, z, w = pin.Quaternion(M.rotation).coeffs()
+        quat = np.array([w, x, y, z]) if w >= 0 else -np.array([w, x, y, z])
+        return np.array(M.translation), quat / np.linalg.norm(quat)
 
     def fk_batch(self, arm: str, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Gripper poses for N configurations, vectorised.
@@ -375,12 +384,11 @@ class Baxter:
         data = self._reduced_data(arm)
         lo, hi = model.lowerPositionLimit, model.upperPositionLimit
         R_t = matrix_from_quat_wxyz(qt / nrm)
-        target = pin.SE3(R_t, p)
         q = np.clip(seed, lo, hi)
         lam = damping
         best_q, best_cost, best_err = q.copy(), math.inf, (math.inf, math.inf)
-        it = 0
-        for it in range(1, max_iterations + 1):
+        iterations = 0
+        for iterations in range(1, max_iterations + 1):  # noqa: B007 - reported in the result
             pin.forwardKinematics(model, data, q)
             pin.updateFramePlacement(model, data, fid)
             cur = data.oMf[fid]
@@ -404,7 +412,11 @@ class Baxter:
         pe, oe = best_err
         converged = pe <= position_tolerance * 10 and oe <= orientation_tolerance * 10
         return IkResult(
-            q=readonly(best_q), converged=bool(converged), position_error=pe, orientation_error=oe, iterations=it
+            q=readonly(best_q),
+            converged=bool(converged),
+            position_error=pe,
+            orientation_error=oe,
+            iterations=iterations,
         )
 
     def _reduced_data(self, arm: str) -> pin.Data:
@@ -441,6 +453,7 @@ __all__ = [
     "DH_BASE_OFFSET",
     "DH_JOINT_OFFSET",
     "DH_TABLE",
+    "DH_TABLE_EXACT_ALPHA",
     "Baxter",
     "IkResult",
     "baxter_description_dir",

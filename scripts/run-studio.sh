@@ -1,0 +1,7 @@
+#!/usr/bin/env bash
+# Starts Teaching Studio on http://127.0.0.1:8080 with the bundled "stack-cup" example session.
+# Extra arguments go to `studio` (e.g. --port 9000, --session pick-place).
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+bash "$ROOT/scripts/bootstrap.sh" ""
+exec "$ROOT/.venv/bin/studio" "$@"
