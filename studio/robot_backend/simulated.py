@@ -1,0 +1,338 @@
+"""A simulated Baxter: both arms (14 joints) and both grippers on simulated time at 1 kHz.
+
+The paper raises Baxter's joint-state rate from 100 Hz to 1 kHz (§ Data Collection, Demonstrations); the
+simulator streams at the same rate. It follows commanded joint targets within the URDF's position and
+velocity limits (that is how a dragged gizmo or a slider moves the arm in kinesthetic mode) and moves the
+grippers 0 (closed) … 100 (open) at a finite speed, stopping at any width.
+
+Two ways to drive it:
+
+* **real time** — :meth:`start` runs a :class:`~studio.robot_backend._clock.BatchClock` that wakes every
+  ~15 ms of wall time and computes all due 1 ms samples at once, vectorised. Time stamps are ``k / rate``
+  for the sample counter ``k``: exact, gap-free, whatever the wakeup jitter. ``time_scale`` > 1 runs
+  faster than real time (tests).
+* **manual steps** — without :meth:`start`, :meth:`step` and :meth:`run_targets` advance simulated time
+  synchronously; generation of example sessions uses this to run far faster than real time, deterministic
+  by seed.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+from collections.abc import Callable
+
+import numpy as np
+
+from studio.core.errors import InvalidInput
+from studio.core.types import ARMS, check_arm
+from studio.robot_backend._clock import BatchClock
+from studio.robot_backend.base import JointStateBatch, RobotBackend, RobotState, StateListener
+
+log = logging.getLogger(__name__)
+
+#: Gripper travel speed, percent of the full stroke per second (Baxter's electric gripper: ~0.5 s stroke).
+GRIPPER_SPEED = 200.0
+#: Largest batch handed to listeners at once (a long stall is delivered as several batches).
+MAX_BATCH = 1000
+
+
+def _limits() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(14,) lower, upper, velocity limits and the neutral pose for both arms, from the URDF."""
+    from studio.core.kinematics import Baxter
+
+    b = Baxter.load()
+    lo = np.concatenate([b.lower_limits(a) for a in ARMS])
+    hi = np.concatenate([b.upper_limits(a) for a in ARMS])
+    v = np.concatenate([b.velocity_limits(a) for a in ARMS])
+    q0 = np.concatenate([b.neutral(a) for a in ARMS])
+    return lo, hi, v, q0
+
+
+def _ro(a: np.ndarray) -> np.ndarray:
+    a = np.ascontiguousarray(a)
+    a.setflags(write=False)
+    return a
+
+
+def rate_limited(q0: np.ndarray, target: np.ndarray, step: np.ndarray, n: int) -> np.ndarray:
+    """(n, d) positions moving from ``q0`` towards a fixed ``target`` by at most ``step`` per sample.
+
+    Closed form of ``q[k] = q[k-1] + clip(target - q[k-1], -step, step)`` for k = 1..n: vectorised over
+    samples, which is what lets one wakeup compute 15 samples at once.
+    """
+    d = target - q0
+    k = np.arange(1, n + 1, dtype=np.float64)[:, None]
+    return q0 + np.sign(d) * np.minimum(np.abs(d), step * k)
+
+
+def rate_limited_series(q0: np.ndarray, targets: np.ndarray, step: np.ndarray) -> np.ndarray:
+    """(n, d) positions following per-sample ``targets`` (n, d), moving at most ``step`` per sample."""
+    n = targets.shape[0]
+    if n == 0:
+        return np.empty((0, q0.shape[0]))
+    # Fast path: targets that respect the limits from where we are are followed exactly.
+    jumps = np.abs(np.diff(np.vstack([q0[None, :], targets]), axis=0))
+    if np.all(jumps <= step * (1.0 + 1e-9)):
+        return targets.astype(np.float64, copy=True)
+    out = np.empty((n, q0.shape[0]))
+    q = q0.astype(np.float64, copy=True)
+    for i in range(n):
+        q = q + np.clip(targets[i] - q, -step, step)
+        out[i] = q
+    return out
+
+
+class SimulatedBaxter(RobotBackend):
+    """Baxter's two arms and grippers, simulated at ``rate_hz`` with exact time stamps.
+
+    Args:
+        rate_hz: joint-state rate (1000 like the paper).
+        time_scale: simulated seconds per wall second when started in real time (1.0 = real time).
+        period: wall seconds between batches in real time (10–20 ms).
+        q0: (14,) initial joint angles (default: both arms in the SDK's untuck pose), clipped into limits.
+        gripper0: (2,) initial gripper opening percent (default fully open).
+        gripper_speed: gripper speed in percent per second.
+        sensor_noise: standard deviation (rad) of Gaussian noise added to the streamed joint angles
+            (the true state is noise-free); 0 disables it.
+        seed: seed of the sensor-noise generator (deterministic streams).
+    """
+
+    def __init__(
+        self,
+        *,
+        rate_hz: float = 1000.0,
+        time_scale: float = 1.0,
+        period: float = 0.015,
+        q0: np.ndarray | None = None,
+        gripper0: tuple[float, float] | np.ndarray = (100.0, 100.0),
+        gripper_speed: float = GRIPPER_SPEED,
+        sensor_noise: float = 0.0,
+        seed: int = 0,
+    ) -> None:
+        if not (rate_hz > 0 and math.isfinite(rate_hz)):
+            raise InvalidInput(f"The joint-state rate must be a positive number of samples per second, got {rate_hz}.")
+        self.rate_hz = float(rate_hz)
+        self.dt = 1.0 / self.rate_hz
+        self.lower, self.upper, self.velocity, neutral = _limits()
+        self._qstep = self.velocity * self.dt
+        self._gstep = float(gripper_speed) * self.dt
+        self.sensor_noise = float(sensor_noise)
+        self._rng = np.random.default_rng(seed)
+        self._lock = threading.RLock()
+        self._deliver_lock = threading.RLock()
+        self._listeners: list[StateListener] = []
+        self._listeners_lock = threading.Lock()
+        self._k = 0  # index of the next sample to produce
+        q = neutral if q0 is None else self._check_q("initial joint angles", q0, (14,))
+        self._q = np.clip(q, self.lower, self.upper)
+        self._qt = self._q.copy()
+        self._g = np.clip(self._check_q("initial gripper opening", gripper0, (2,)), 0.0, 100.0)
+        self._gt = self._g.copy()
+        self._last_q = self._q.copy()
+        self._last_g = self._g.copy()
+        self._clock = BatchClock(self._advance_to, period=period, time_scale=time_scale, name="sim-baxter")
+        self.listener_errors = 0
+
+    # -- helpers -------------------------------------------------------------------------------------------
+    @staticmethod
+    def _check_q(name: str, value: object, shape: tuple[int, ...]) -> np.ndarray:
+        try:
+            a = np.asarray(value, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise InvalidInput(f"The {name} must be numbers, got {value!r}.") from exc
+        if a.shape != shape:
+            raise InvalidInput(f"The {name} must be {shape[0]} numbers, got shape {a.shape}.")
+        if not np.all(np.isfinite(a)):
+            raise InvalidInput(f"The {name} contain missing or invalid values (NaN or infinity); the command was ignored.")
+        return a.copy()
+
+    @staticmethod
+    def _cols(arm: str) -> slice:
+        return slice(0, 7) if check_arm(arm) == "left" else slice(7, 14)
+
+    # -- RobotBackend -------------------------------------------------------------------------------------
+    @property
+    def running(self) -> bool:
+        """True while the real-time clock streams."""
+        return self._clock.running
+
+    @property
+    def time_scale(self) -> float:
+        return self._clock.time_scale
+
+    def start(self) -> None:
+        """Stream in real time (scaled by ``time_scale``) from the current simulated time."""
+        with self._lock:
+            if self._clock.running:
+                return
+            self._clock.start(sim_start=self._k * self.dt)
+
+    def stop(self) -> None:
+        """Stop the real-time stream; simulated time stays where it is (manual stepping allowed again)."""
+        self._clock.stop()
+
+    def subscribe(self, listener: StateListener) -> Callable[[], None]:
+        with self._listeners_lock:
+            self._listeners.append(listener)
+
+        def unsubscribe() -> None:
+            with self._listeners_lock:
+                if listener in self._listeners:
+                    self._listeners.remove(listener)
+
+        return unsubscribe
+
+    def command_joints(self, arm: str, q: np.ndarray) -> None:
+        """Move ``arm`` towards ``q`` (7,) rad; targets outside the joint limits are clipped into them."""
+        cols = self._cols(arm)
+        qa = self._check_q(f"{arm} arm joint angles", q, (7,))
+        with self._lock:
+            self._qt[cols] = np.clip(qa, self.lower[cols], self.upper[cols])
+
+    def command_gripper(self, arm: str, width: float) -> None:
+        """Move ``arm``'s gripper towards ``width`` percent open (clipped to 0..100) at the gripper speed."""
+        i = 0 if check_arm(arm) == "left" else 1
+        w = self._check_q(f"{arm} gripper opening", [width], (1,))[0]
+        with self._lock:
+            self._gt[i] = min(max(w, 0.0), 100.0)
+
+    def state(self) -> RobotState:
+        with self._lock:
+            return RobotState(
+                t=max(self._k - 1, 0) * self.dt,
+                q=_ro(self._last_q.copy()),
+                gripper=_ro(self._last_g.copy()),
+                moving=bool(np.any(np.abs(self._qt - self._q) > 1e-9) or np.any(np.abs(self._gt - self._g) > 1e-9)),
+            )
+
+    # -- extras -------------------------------------------------------------------------------------------
+    @property
+    def sim_time(self) -> float:
+        """Time stamp (s) of the next sample to be produced."""
+        return self._k * self.dt
+
+    @property
+    def samples_produced(self) -> int:
+        return self._k
+
+    def targets(self) -> tuple[np.ndarray, np.ndarray]:
+        """Current joint targets (14,) and gripper targets (2,)."""
+        with self._lock:
+            return self._qt.copy(), self._gt.copy()
+
+    def true_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """Noise-free joint angles (14,) and gripper openings (2,) of the simulated robot."""
+        with self._lock:
+            return self._q.copy(), self._g.copy()
+
+    def teleport(self, q: np.ndarray | None = None, gripper: np.ndarray | None = None) -> None:
+        """Put the robot at ``q`` (14,) / ``gripper`` (2,) instantly and hold it there (reset, not physics)."""
+        with self._lock:
+            if q is not None:
+                qa = np.clip(self._check_q("joint angles", q, (14,)), self.lower, self.upper)
+                self._q, self._qt, self._last_q = qa.copy(), qa.copy(), qa.copy()
+            if gripper is not None:
+                ga = np.clip(self._check_q("gripper opening", gripper, (2,)), 0.0, 100.0)
+                self._g, self._gt, self._last_g = ga.copy(), ga.copy(), ga.copy()
+
+    def step(self, n: int = 1) -> JointStateBatch:
+        """Advance ``n`` samples with the current targets (manual mode) and stream them; returns them."""
+        self._require_manual()
+        with self._deliver_lock:
+            with self._lock:
+                batch = self._produce(int(n))
+            self._deliver(batch)
+        return batch
+
+    def run_targets(
+        self, q_targets: np.ndarray, gripper_targets: np.ndarray | None = None, *, batch: int = 20
+    ) -> int:
+        """Manual mode: follow per-sample joint targets (n, 14) (and gripper targets (n, 2)).
+
+        Sample i is produced after target i is commanded, so targets that respect the velocity limits are
+        reproduced exactly (plus sensor noise). Samples reach listeners in batches of ``batch``, as in real
+        time. Returns the number of samples produced.
+        """
+        self._require_manual()
+        qt = np.asarray(q_targets, dtype=np.float64)
+        if qt.ndim != 2 or qt.shape[1] != 14:
+            raise InvalidInput(f"Joint targets must have shape (N, 14), got {qt.shape}.")
+        if not np.all(np.isfinite(qt)):
+            raise InvalidInput("The joint targets contain missing or invalid values (NaN or infinity).")
+        n = qt.shape[0]
+        gt = None
+        if gripper_targets is not None:
+            gt = np.asarray(gripper_targets, dtype=np.float64)
+            if gt.shape != (n, 2) or not np.all(np.isfinite(gt)):
+                raise InvalidInput(f"Gripper targets must be finite with shape ({n}, 2), got {gt.shape}.")
+            gt = np.clip(gt, 0.0, 100.0)
+        qt = np.clip(qt, self.lower, self.upper)
+        step = max(1, int(batch))
+        with self._deliver_lock:
+            for s in range(0, n, step):
+                e = min(n, s + step)
+                with self._lock:
+                    q = rate_limited_series(self._q, qt[s:e], self._qstep)
+                    if gt is None:
+                        g = rate_limited(self._g, self._gt, np.full(2, self._gstep), e - s)
+                    else:
+                        g = rate_limited_series(self._g, gt[s:e], np.full(2, self._gstep))
+                        self._gt = gt[e - 1].copy()
+                    self._qt = qt[e - 1].copy()
+                    out = self._emit(q, g)
+                self._deliver(out)
+        return n
+
+    # -- internals ----------------------------------------------------------------------------------------
+    def _require_manual(self) -> None:
+        if self._clock.running:
+            raise InvalidInput("The simulated robot is streaming in real time; stop it before stepping by hand.")
+
+    def _advance_to(self, sim_t: float) -> None:
+        with self._deliver_lock:
+            last_due = math.floor(sim_t * self.rate_hz + 1e-6)
+            n = last_due - self._k + 1
+            while n > 0:
+                m = min(n, MAX_BATCH)
+                with self._lock:
+                    batch = self._produce(m)
+                self._deliver(batch)
+                n -= m
+
+    def _produce(self, n: int) -> JointStateBatch:
+        if n <= 0:
+            return JointStateBatch(_ro(np.empty(0)), _ro(np.empty((0, 14))), _ro(np.empty((0, 2))))
+        q = rate_limited(self._q, self._qt, self._qstep, n)
+        g = rate_limited(self._g, self._gt, np.full(2, self._gstep), n)
+        return self._emit(q, g)
+
+    def _emit(self, q: np.ndarray, g: np.ndarray) -> JointStateBatch:
+        n = q.shape[0]
+        self._q = q[-1].copy()
+        self._g = g[-1].copy()
+        t = (self._k + np.arange(n, dtype=np.float64)) / self.rate_hz
+        self._k += n
+        qm = q + self._rng.normal(0.0, self.sensor_noise, q.shape) if self.sensor_noise > 0 else q
+        batch = JointStateBatch(t=_ro(t), q=_ro(qm), gripper=_ro(g))
+        self._last_q = qm[-1].copy()
+        self._last_g = g[-1].copy()
+        return batch
+
+    def _deliver(self, batch: JointStateBatch) -> None:
+        # Outside the state lock (a listener may read state() or command the robot), inside the delivery
+        # lock (batches reach listeners in order).
+        if len(batch) == 0:
+            return
+        with self._listeners_lock:
+            listeners = list(self._listeners)
+        for fn in listeners:
+            try:
+                fn(batch)
+            except Exception:  # one faulty listener must not stop the robot's stream
+                self.listener_errors += 1
+                log.exception("joint-state listener failed")
+
+
+__all__ = ["GRIPPER_SPEED", "SimulatedBaxter", "rate_limited", "rate_limited_series"]
