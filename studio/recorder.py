@@ -191,7 +191,7 @@ class Recorder:
                 "pid": os.getpid(),
             }
             hb = json.dumps(header).encode()
-            f = open(self.path, "xb")  # noqa: SIM115 - held open for the whole recording
+            f = open(self.path, "xb")
             # An exclusive lock marks the file as "being written": recovery skips locked files, and the
             # operating system releases the lock when this process dies, however it dies.
             fcntl.flock(f.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -423,7 +423,10 @@ def read_recording_file(path: str | os.PathLike[str], *, name: str | None = None
         return None
     t = data[:, 0] - data[0, 0]
     rec = Recording(
-        t=t, q=data[:, 1:15], gripper=np.clip(data[:, 15:17], 0.0, 100.0), arms=arms,
+        t=t,
+        q=data[:, 1:15],
+        gripper=np.clip(data[:, 15:17], 0.0, 100.0),
+        arms=arms,
         name=name or str(header.get("name") or "demo"),
     )
     poses = {a: data[:, 17 + 7 * i : 24 + 7 * i].copy() for i, a in enumerate(arms)}
@@ -451,9 +454,7 @@ def pending_recordings(directory: str | os.PathLike[str]) -> list[Path]:
     return sorted(p for p in d.glob(f"*{SUFFIX}") if p.is_file() and not _is_locked(p))
 
 
-def recover_recordings(
-    directory: str | os.PathLike[str], session: Any = None
-) -> tuple[list[Recording], str]:
+def recover_recordings(directory: str | os.PathLike[str], session: Any = None) -> tuple[list[Recording], str]:
     """Recover recordings interrupted by a crash.
 
     Reads every unlocked ``*.rec`` file in ``directory`` (a file still being written by a live recorder is

@@ -25,7 +25,12 @@ class BatchClock:
     """
 
     def __init__(
-        self, advance_to: Callable[[float], None], *, period: float = 0.015, time_scale: float = 1.0, name: str = "clock"
+        self,
+        advance_to: Callable[[float], None],
+        *,
+        period: float = 0.015,
+        time_scale: float = 1.0,
+        name: str = "clock",
     ) -> None:
         if not period > 0 or not time_scale > 0:
             raise ValueError("period and time_scale must be positive")

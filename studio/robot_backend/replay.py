@@ -100,7 +100,9 @@ class ReplayBackend(RobotBackend):
             i = self._cur
             rec = self.recording
             return RobotState(
-                t=float(rec.t[i] + self._offset), q=_ro(rec.q[i].copy()), gripper=_ro(rec.gripper[i].copy()),
+                t=float(rec.t[i] + self._offset),
+                q=_ro(rec.q[i].copy()),
+                gripper=_ro(rec.gripper[i].copy()),
                 moving=self._clock.running and not self.finished,
             )
 

@@ -145,7 +145,9 @@ class SimulatedBaxter(RobotBackend):
         if a.shape != shape:
             raise InvalidInput(f"The {name} must be {shape[0]} numbers, got shape {a.shape}.")
         if not np.all(np.isfinite(a)):
-            raise InvalidInput(f"The {name} contain missing or invalid values (NaN or infinity); the command was ignored.")
+            raise InvalidInput(
+                f"The {name} contain missing or invalid values (NaN or infinity); the command was ignored."
+            )
         return a.copy()
 
     @staticmethod
@@ -246,9 +248,7 @@ class SimulatedBaxter(RobotBackend):
             self._deliver(batch)
         return batch
 
-    def run_targets(
-        self, q_targets: np.ndarray, gripper_targets: np.ndarray | None = None, *, batch: int = 20
-    ) -> int:
+    def run_targets(self, q_targets: np.ndarray, gripper_targets: np.ndarray | None = None, *, batch: int = 20) -> int:
         """Manual mode: follow per-sample joint targets (n, 14) (and gripper targets (n, 2)).
 
         Sample i is produced after target i is commanded, so targets that respect the velocity limits are

@@ -1,0 +1,230 @@
+"""Baxter SDK joint-recorder CSV: import real-robot recordings, export learned joint trajectories.
+
+The Baxter SDK's ``joint_recorder.py`` example writes one header line
+``time,left_s0,…,left_w2,left_gripper,right_s0,…,right_w2,right_gripper`` and then one line per sample:
+seconds since the start, 7 left joint angles (rad), the left gripper position (percent, 0 = closed ..
+100 = open), the same for the right arm. Its ``joint_trajectory_file_playback.py`` example reads the same
+format (columns by header name, first column time) and sends it as a joint trajectory, so an exported
+skill can be run on a real Baxter with it.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from studio.core.errors import InvalidInput, NotEnoughData
+from studio.core.types import ALL_ARM_JOINTS, ARM_JOINTS, ARMS, Recording, check_arm
+
+#: The SDK's column order.
+CSV_COLUMNS: tuple[str, ...] = (
+    "time",
+    *ARM_JOINTS["left"],
+    "left_gripper",
+    *ARM_JOINTS["right"],
+    "right_gripper",
+)
+#: Largest CSV accepted (bytes): ~4 hours at 1 kHz.
+MAX_CSV_BYTES = 2 * 1024**3
+TIME_DECIMALS = 6
+JOINT_DECIMALS = 8
+GRIPPER_DECIMALS = 4
+
+
+class CsvFormatError(InvalidInput):
+    """A CSV file is not in the Baxter SDK joint-recorder format (the message names the file and line)."""
+
+
+def import_csv(
+    path: str | os.PathLike[str], arms: tuple[str, ...] | str = ("left",), name: str | None = None
+) -> Recording:
+    """Read a Baxter SDK joint-recorder CSV as a :class:`Recording`.
+
+    Columns are found by header name, in any order; times are made to start at 0. Rows whose time does not
+    increase (the SDK sometimes writes the same time stamp twice) are dropped.
+
+    Args:
+        path: the CSV file.
+        arms: the arm(s) taught in it ("left", "right", "both" or a tuple).
+        name: the demonstration name (default: the file name without extension).
+
+    Raises:
+        CsvFormatError: missing columns, non-numbers, NaN, too few rows — with file and line number.
+    """
+    p = Path(path)
+    if isinstance(arms, str):
+        arms = ("left", "right") if arms == "both" else (check_arm(arms),)
+    label = p.name
+    try:
+        size = p.stat().st_size
+    except OSError as exc:
+        raise CsvFormatError(f'The file "{label}" cannot be opened ({exc.strerror}).') from exc
+    if size > MAX_CSV_BYTES:
+        raise CsvFormatError(f'The file "{label}" is too large to be a joint recording ({size / 1e9:.1f} GB).')
+    try:
+        with open(p, encoding="utf-8-sig", newline="") as f:
+            header_line = f.readline()
+            body = f.read()
+    except UnicodeDecodeError as exc:
+        raise CsvFormatError(f'The file "{label}" is not a text (CSV) file.') from exc
+    except OSError as exc:
+        raise CsvFormatError(f'The file "{label}" cannot be read ({exc.strerror}).') from exc
+    header = [h.strip() for h in header_line.strip().split(",")]
+    if not header or header[0] != "time":
+        raise CsvFormatError(
+            f'"{label}" is not a Baxter joint-recorder file: its first line must start with "time," '
+            f"(it starts with {header_line[:40]!r})."
+        )
+    missing = [c for c in CSV_COLUMNS if c not in header]
+    if missing:
+        raise CsvFormatError(f'"{label}" lacks the column(s) {", ".join(missing)} of the Baxter joint-recorder format.')
+    if len(set(header)) != len(header):
+        raise CsvFormatError(f'"{label}" has a column name twice in its first line.')
+    lines = body.splitlines()
+    while lines and not lines[-1].strip():
+        lines.pop()
+    ncol = len(header)
+    rows = np.empty((len(lines), ncol))
+    for i, ln in enumerate(lines):
+        parts = ln.split(",")
+        if len(parts) != ncol:
+            if not ln.strip():
+                raise CsvFormatError(f'"{label}" line {i + 2} is empty.')
+            raise CsvFormatError(f'"{label}" line {i + 2} has {len(parts)} values, expected {ncol}.')
+        try:
+            rows[i] = [float(x) for x in parts]
+        except ValueError as exc:
+            raise CsvFormatError(f'"{label}" line {i + 2} contains something that is not a number.') from exc
+    bad = ~np.all(np.isfinite(rows), axis=1)
+    if bad.any():
+        raise CsvFormatError(
+            f'"{label}" line {int(np.argmax(bad)) + 2} contains a missing or invalid value (NaN or infinity).'
+        )
+    col = {h: i for i, h in enumerate(header)}
+    t = rows[:, col["time"]]
+    keep = np.concatenate([[True], np.diff(t) > 0]) if len(t) else np.zeros(0, bool)
+    # A time stamp that goes backwards (not just repeats) means the file is not one recording.
+    if len(t) > 1 and np.any(np.diff(t) < 0):
+        i = int(np.argmax(np.diff(t) < 0)) + 3
+        raise CsvFormatError(f'"{label}" line {i}: the time goes backwards.')
+    rows = rows[keep]
+    if rows.shape[0] < 2:
+        raise NotEnoughData(f'"{label}" holds fewer than two samples; there is nothing to learn from.')
+    q = rows[:, [col[j] for j in ALL_ARM_JOINTS]]
+    g = rows[:, [col["left_gripper"], col["right_gripper"]]]
+    if np.any(g < -0.5) or np.any(g > 100.5):
+        raise CsvFormatError(f'"{label}": gripper positions must be percent 0..100.')
+    t = rows[:, col["time"]]
+    return Recording(t=t - t[0], q=q, gripper=np.clip(g, 0.0, 100.0), arms=tuple(arms), name=name or p.stem)
+
+
+def _fmt_rows(t: np.ndarray, q: np.ndarray, g: np.ndarray) -> str:
+    n = t.shape[0]
+    cols = np.column_stack([t, q[:, :7], g[:, 0], q[:, 7:], g[:, 1]])
+    fmt = (
+        [f"%.{TIME_DECIMALS}f"]
+        + [f"%.{JOINT_DECIMALS}f"] * 7
+        + [f"%.{GRIPPER_DECIMALS}f"]
+        + [f"%.{JOINT_DECIMALS}f"] * 7
+        + [f"%.{GRIPPER_DECIMALS}f"]
+    )
+    line = ",".join(fmt)
+    out = [",".join(CSV_COLUMNS)]
+    out += [line % tuple(r) for r in cols] if n else []
+    return "\n".join(out) + "\n"
+
+
+def write_csv(path: str | os.PathLike[str], t: np.ndarray, q: np.ndarray, gripper: np.ndarray) -> None:
+    """Write samples in the SDK format: t (N,) s, q (N, 14) rad in :data:`ALL_ARM_JOINTS` order, gripper (N, 2) %."""
+    t = np.asarray(t, dtype=np.float64)
+    q = np.asarray(q, dtype=np.float64)
+    g = np.asarray(gripper, dtype=np.float64)
+    n = t.shape[0]
+    if t.ndim != 1 or q.shape != (n, 14) or g.shape != (n, 2):
+        raise InvalidInput(f"Expected t (N,), q (N, 14), gripper (N, 2); got {t.shape}, {q.shape}, {g.shape}.")
+    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(q)) and np.all(np.isfinite(g))):
+        raise InvalidInput("The trajectory contains missing or invalid values (NaN or infinity); nothing was written.")
+    from studio.sessions import atomic_write_bytes
+
+    atomic_write_bytes(Path(path), _fmt_rows(t, q, g).encode())
+
+
+def export_recording_csv(rec: Recording, path: str | os.PathLike[str]) -> None:
+    """Write a recorded demonstration as an SDK joint-recorder CSV."""
+    write_csv(path, rec.t, rec.q, rec.gripper)
+
+
+def _resample(t_src: np.ndarray, values: np.ndarray, t_new: np.ndarray) -> np.ndarray:
+    values = np.asarray(values, dtype=np.float64)
+    if values.ndim == 1:
+        return np.interp(t_new, t_src, values)
+    return np.column_stack([np.interp(t_new, t_src, values[:, j]) for j in range(values.shape[1])])
+
+
+def export_joint_trajectory_csv(
+    skills: Mapping[str, Any],
+    path: str | os.PathLike[str],
+    *,
+    rest: np.ndarray | None = None,
+    rate_hz: float = 100.0,
+    rest_gripper: tuple[float, float] = (100.0, 100.0),
+) -> int:
+    """Write learned skills' joint trajectories as a CSV the Baxter SDK playback example can run.
+
+    Each skill (arm -> Skill) must have ``joint_trajectory`` (t (M,), q (M, 7)); its gripper comes from
+    ``skill.trajectory`` (resampled onto the same times). An arm without a skill holds ``rest`` (the
+    Baxter untuck pose by default) with its gripper at ``rest_gripper``.
+
+    Args:
+        rate_hz: rows per second in the file (the SDK's recorder default is 100; its playback interpolates).
+
+    Returns:
+        The number of rows written.
+    """
+    if not skills:
+        raise NotEnoughData("There is no learned skill to export yet; learn the skill first.")
+    if not (rate_hz > 0 and math.isfinite(rate_hz)):
+        raise InvalidInput("The export rate must be a positive number of rows per second.")
+    trajs = {}
+    for arm, sk in skills.items():
+        check_arm(arm)
+        jt = getattr(sk, "joint_trajectory", None)
+        if jt is None:
+            raise NotEnoughData(
+                f"The {arm} arm's skill has no joint trajectory (inverse kinematics was not run); learn it again."
+            )
+        trajs[arm] = (np.asarray(jt.t, dtype=np.float64), np.asarray(jt.q, dtype=np.float64), sk)
+    t_end = max(float(tt[-1] - tt[0]) for tt, _, _ in trajs.values())
+    n = math.floor(t_end * rate_hz + 1e-9) + 1
+    t = np.arange(n) / rate_hz
+    if rest is None:
+        from studio.core.kinematics import Baxter
+
+        b = Baxter.load()
+        rest = np.concatenate([b.neutral(a) for a in ARMS])
+    q = np.tile(np.asarray(rest, dtype=np.float64), (n, 1))
+    g = np.tile(np.asarray(rest_gripper, dtype=np.float64), (n, 1))
+    for arm, (tt, qq, sk) in trajs.items():
+        ts = tt - tt[0]
+        cols = slice(0, 7) if arm == "left" else slice(7, 14)
+        q[:, cols] = _resample(ts, qq, np.minimum(t, ts[-1]))
+        tr = sk.trajectory
+        gt = np.asarray(tr.t, dtype=np.float64) - float(tr.t[0])
+        g[:, 0 if arm == "left" else 1] = np.clip(_resample(gt, tr.gripper, np.minimum(t, gt[-1])), 0, 100)
+    write_csv(path, t, q, g)
+    return n
+
+
+__all__ = [
+    "CSV_COLUMNS",
+    "CsvFormatError",
+    "export_joint_trajectory_csv",
+    "export_recording_csv",
+    "import_csv",
+    "write_csv",
+]
