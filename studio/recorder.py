@@ -125,6 +125,7 @@ class Recorder:
         self._file: Any = None
         self.path: Path | None = None
         self._t0: float | None = None
+        self._first_seen: float | None = None
         self._last_t: float | None = None
         self._n = 0
         self._dropped_invalid = 0
@@ -146,7 +147,10 @@ class Recorder:
         """Recorded time so far, seconds."""
         with self._lock:
             last = self._pending[-1].t[-1] if self._pending and len(self._pending[-1]) else self._last_t
-            return 0.0 if last is None or self._t0 is None else float(last - self._t0)
+            t0 = self._t0 if self._t0 is not None else self._first_seen
+            if last is None or t0 is None or not np.isfinite(last):
+                return 0.0
+            return max(0.0, float(last - t0))
 
     @property
     def recording(self) -> bool:
@@ -273,6 +277,8 @@ class Recorder:
         if self.state != "recording":
             return
         with self._lock:
+            if self._first_seen is None and len(batch) and np.isfinite(batch.t[0]):
+                self._first_seen = float(batch.t[0])
             self._pending.append(batch)
 
     def _write_loop(self) -> None:

@@ -96,6 +96,9 @@ class SimulatedBaxter(RobotBackend):
         gripper_speed: gripper speed in percent per second.
         sensor_noise: standard deviation (rad) of Gaussian noise added to the streamed joint angles
             (the true state is noise-free); 0 disables it.
+        quantum: encoder resolution (rad); streamed joint angles are rounded to multiples of it (Baxter's
+            14-bit encoders: 2π/2¹⁴); 0 disables it.
+        gripper_noise: standard deviation (percent) of noise on the streamed gripper openings.
         seed: seed of the sensor-noise generator (deterministic streams).
     """
 
@@ -109,6 +112,8 @@ class SimulatedBaxter(RobotBackend):
         gripper0: tuple[float, float] | np.ndarray = (100.0, 100.0),
         gripper_speed: float = GRIPPER_SPEED,
         sensor_noise: float = 0.0,
+        quantum: float = 0.0,
+        gripper_noise: float = 0.0,
         seed: int = 0,
     ) -> None:
         if not (rate_hz > 0 and math.isfinite(rate_hz)):
@@ -119,6 +124,8 @@ class SimulatedBaxter(RobotBackend):
         self._qstep = self.velocity * self.dt
         self._gstep = float(gripper_speed) * self.dt
         self.sensor_noise = float(sensor_noise)
+        self.quantum = float(quantum)
+        self.gripper_noise = float(gripper_noise)
         self._rng = np.random.default_rng(seed)
         self._lock = threading.RLock()
         self._deliver_lock = threading.RLock()
@@ -315,9 +322,14 @@ class SimulatedBaxter(RobotBackend):
         t = (self._k + np.arange(n, dtype=np.float64)) / self.rate_hz
         self._k += n
         qm = q + self._rng.normal(0.0, self.sensor_noise, q.shape) if self.sensor_noise > 0 else q
-        batch = JointStateBatch(t=_ro(t), q=_ro(qm), gripper=_ro(g))
+        if self.quantum > 0:
+            qm = np.round(qm / self.quantum) * self.quantum
+        gm = g
+        if self.gripper_noise > 0:
+            gm = np.clip(g + self._rng.normal(0.0, self.gripper_noise, g.shape), 0.0, 100.0)
+        batch = JointStateBatch(t=_ro(t), q=_ro(qm), gripper=_ro(gm))
         self._last_q = qm[-1].copy()
-        self._last_g = g[-1].copy()
+        self._last_g = gm[-1].copy()
         return batch
 
     def _deliver(self, batch: JointStateBatch) -> None:

@@ -1,0 +1,209 @@
+"""Recorder: what is recorded, crash safety (kill -9), recovery, bad samples from the stream."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from studio.core.errors import RecordingError
+from studio.core.kinematics import Baxter
+from studio.recorder import Recorder, pending_recordings, read_recording_file, recover_recordings
+from studio.robot_backend.base import JointStateBatch, RobotBackend, RobotState
+from studio.robot_backend.simulated import SimulatedBaxter
+from studio.sessions import SessionStore
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+class FakeBackend(RobotBackend):
+    """Delivers hand-made batches (NaN, repeated time stamps...)."""
+
+    def __init__(self) -> None:
+        self.listeners: list[Callable[[JointStateBatch], None]] = []
+
+    def start(self) -> None: ...
+    def stop(self) -> None: ...
+
+    def subscribe(self, listener):  # type: ignore[no-untyped-def]
+        self.listeners.append(listener)
+        return lambda: self.listeners.remove(listener)
+
+    def command_joints(self, arm, q) -> None: ...  # type: ignore[no-untyped-def]
+    def command_gripper(self, arm, width) -> None: ...  # type: ignore[no-untyped-def]
+
+    def state(self) -> RobotState:
+        return RobotState(0.0, np.zeros(14), np.zeros(2))
+
+    def push(self, t: np.ndarray, q: np.ndarray | None = None, g: np.ndarray | None = None) -> None:
+        n = len(t)
+        q = np.tile(Baxter.load().neutral("left").tolist() * 2, (n, 1)) if q is None else q
+        g = np.full((n, 2), 50.0) if g is None else g
+        for fn in list(self.listeners):
+            fn(JointStateBatch(np.asarray(t, float), np.asarray(q, float), np.asarray(g, float)))
+
+
+def test_records_time_joints_grippers_and_fk_pose_of_taught_arms(tmp_path: Path) -> None:
+    sim = SimulatedBaxter(sensor_noise=1e-4, seed=1)
+    rec = Recorder(sim, tmp_path, arms="both", name="take 1")
+    sim.step(7)  # before start: not recorded
+    rec.start()
+    sim.command_joints("left", np.zeros(7))
+    sim.command_gripper("right", 10)
+    sim.step(1500)
+    assert rec.n_samples == 1500
+    assert rec.elapsed == pytest.approx(1.499)
+    demo = rec.stop_demo()
+    r = demo.recording
+    assert r.name == "take 1" and r.arms == ("left", "right") and len(r) == 1500
+    assert np.allclose(np.diff(r.t), 1e-3) and r.t[0] == 0.0
+    b = Baxter.load()
+    for arm, cols in (("left", slice(0, 7)), ("right", slice(7, 14))):
+        pos, wxyz = b.fk_batch(arm, r.q[:, cols])
+        assert np.allclose(demo.poses[arm][:, :3], pos) and np.allclose(demo.poses[arm][:, 3:], wxyz)
+    assert r.gripper[-1, 1] == pytest.approx(10.0)
+    assert rec.path is not None and rec.path.exists()  # kept until saved
+    rec.discard()
+    assert not rec.path.exists()
+
+
+def test_flushes_to_disk_while_recording(tmp_path: Path) -> None:
+    sim = SimulatedBaxter()
+    rec = Recorder(sim, tmp_path, arms="left", flush_interval=0.5)
+    rec.start()
+    sim.start()
+    try:
+        time.sleep(1.6)
+        # Read the file as a crash would leave it, without asking the recorder to flush.
+        on_disk = read_recording_file(rec.path)  # type: ignore[arg-type]
+        assert on_disk is not None
+        assert len(on_disk.recording) >= (sim.sim_time - 1.0) * 1000
+    finally:
+        sim.stop()
+        rec.discard()
+
+
+def test_nan_and_out_of_order_samples_are_skipped_with_a_message(tmp_path: Path) -> None:
+    fb = FakeBackend()
+    rec = Recorder(fb, tmp_path, arms="left")
+    rec.start()
+    q = np.tile(Baxter.load().neutral("left").tolist() * 2, (10, 1))
+    q[3, 2] = np.nan
+    fb.push(np.arange(10) / 1000.0, q)
+    fb.push(np.array([0.005, 0.009, 0.010, 0.011]))  # two stale, two new
+    r = rec.stop()
+    assert len(r) == 9 + 2
+    text = " ".join(rec.messages)
+    assert "1 samples" in text and "invalid joint values" in text and "the rest of the demonstration is kept" in text
+    assert "2 samples arrived out of order" in text
+
+
+def test_stops_by_itself_at_the_length_limit(tmp_path: Path) -> None:
+    sim = SimulatedBaxter()
+    rec = Recorder(sim, tmp_path, arms="left", max_seconds=1.0)
+    rec.start()
+    sim.step(3000)
+    rec.flush()
+    sim.step(1000)
+    r = rec.stop()
+    assert len(r) == 1001 and r.duration == pytest.approx(1.0)
+    assert any("longest allowed length" in m for m in rec.messages)
+
+
+def test_empty_recording_is_an_error_in_plain_words(tmp_path: Path) -> None:
+    rec = Recorder(SimulatedBaxter(), tmp_path, arms="left")
+    rec.start()
+    with pytest.raises(RecordingError, match="no joint states"):
+        rec.stop()
+    with pytest.raises(RecordingError, match="already been used"):
+        rec.start()
+
+
+def test_unwritable_folder_is_reported(tmp_path: Path) -> None:
+    f = tmp_path / "file"
+    f.write_text("x")
+    with pytest.raises(RecordingError, match="cannot be written"):
+        Recorder(SimulatedBaxter(), f / "sub", arms="left").start()
+
+
+def test_torn_last_row_is_dropped_on_recovery(tmp_path: Path) -> None:
+    sim = SimulatedBaxter()
+    rec = Recorder(sim, tmp_path, arms="left")
+    rec.start()
+    sim.step(500)
+    rec.flush()
+    assert rec.path is not None
+    with open(rec.path, "ab") as f:
+        f.write(b"\x00" * 8 * 30)  # a crash in the middle of a row, zero-filled (30 of 24 columns)
+    rec._finish()  # stop without reading (as if the process had died)
+    recs, msg = recover_recordings(tmp_path)
+    assert len(recs) == 1 and len(recs[0]) == 500
+    assert "recovered" in msg and "500 samples" in msg
+
+
+def test_live_recording_is_not_recovered_by_another_reader(tmp_path: Path) -> None:
+    sim = SimulatedBaxter()
+    rec = Recorder(sim, tmp_path, arms="left")
+    rec.start()
+    sim.step(100)
+    rec.flush()
+    assert pending_recordings(tmp_path) == []  # locked: still being written
+    assert recover_recordings(tmp_path) == ([], "")
+    rec.stop()
+    assert pending_recordings(tmp_path) == [rec.path]
+
+
+CHILD = textwrap.dedent(
+    """
+    import sys, time
+    from studio.robot_backend.simulated import SimulatedBaxter
+    from studio.recorder import Recorder
+    import numpy as np
+    sim = SimulatedBaxter(time_scale=2.0)
+    rec = Recorder(sim, sys.argv[1], arms="left", name="interrupted take", flush_interval=0.2)
+    rec.start()
+    sim.command_joints("left", np.zeros(7))
+    sim.start()
+    time.sleep(1.2)
+    print("recording", flush=True)
+    time.sleep(60)
+    """
+)
+
+
+def test_kill_dash_nine_mid_recording_then_recover_on_next_open(tmp_path: Path) -> None:
+    store = SessionStore(tmp_path / "sessions")
+    session = store.create("crash test")
+    proc = subprocess.Popen(
+        [sys.executable, "-c", CHILD, str(session.recording_dir)],
+        stdout=subprocess.PIPE,
+        cwd=REPO,
+        env={**os.environ, "PYTHONPATH": str(REPO)},
+    )
+    try:
+        assert proc.stdout is not None
+        assert proc.stdout.readline().strip() == b"recording"
+        time.sleep(0.5)
+    finally:
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=10)
+        if proc.stdout is not None:
+            proc.stdout.close()
+    assert proc.returncode == -signal.SIGKILL
+    reopened = store.open("crash test")
+    assert "stopped while recording" in reopened.recovery_message
+    assert reopened.demo_names == ["interrupted take (recovered)"]
+    r = reopened.recordings[0]
+    # ~1.7 s wall at 2x real time = ~3.4 s simulated; at most the last ~0.2 s + one wakeup may be lost.
+    assert r.duration > 2.0
+    assert np.allclose(np.diff(r.t), 1e-3)
+    assert list(session.recording_dir.glob("*.rec")) == []  # saved into the session, file removed
+    assert store.open("crash test").recovery_message == ""  # recovered once, not again
