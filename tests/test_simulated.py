@@ -231,7 +231,7 @@ def test_replay_real_time_seek_and_loop_keep_time_increasing() -> None:
     rp.seek(0.25)
     time.sleep(0.05)
     rp.stop()
-    t, q, _ = col.arrays()
+    t, _, _ = col.arrays()
     assert t.shape[0] > 1000
     assert np.all(np.diff(t) > 0)
     assert np.allclose(np.diff(t), 1e-3)  # no gaps, also across loops
