@@ -1,0 +1,948 @@
+"""The browser studio: builds the viser server, the robot backend and the panels, and runs the pose pump.
+
+Everything a user sees is shared by all browser tabs (viser's server-level GUI and scene are broadcast),
+so two tabs show the same robot and session and a reloaded page gets the current state replayed.
+
+Threads:
+    * viser's thread pool runs GUI callbacks; each is wrapped by :meth:`Studio.guarded` so a failure is a
+      notification in plain words and never stops the studio;
+    * one *pose pump* thread pushes the latest robot pose to the scene at ~60 Hz (never per 1 kHz sample);
+    * one *work* thread runs heavy jobs (training, IK along a trajectory, session files) one at a time;
+    * one *key-point* thread recomputes key-points for the latest ε values (older slider positions are
+      skipped, so dragging a slider never queues work).
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, field, replace
+import logging
+import sys
+import threading
+import time
+import traceback
+from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
+from pathlib import Path
+from typing import Any, TypeVar
+
+import numpy as np
+import viser
+
+from studio.core.errors import NotEnoughData, StudioError
+from studio.core.kinematics import Baxter, baxter_urdf_path
+from studio.core.types import ALL_ARM_JOINTS, ARMS, KeypointParams
+from studio.robot_backend.base import JointStateBatch, RobotBackend
+
+log = logging.getLogger("studio")
+
+ROOT = Path(__file__).resolve().parent.parent
+LIGHT_URDF = ROOT / "urdf" / "baxter_light.urdf"
+DEFAULT_SESSION = "stack-cup"
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+#: Demo colours (RGB), distinct on the light background and never red (red marks the cluster centroids).
+PALETTE: tuple[tuple[int, int, int], ...] = (
+    (31, 119, 180), (44, 160, 44), (255, 127, 14), (148, 103, 189), (140, 86, 75), (227, 119, 194),
+    (127, 127, 127), (188, 189, 34), (23, 190, 207), (57, 59, 121),
+)
+
+
+def robot_urdf_path(meshes: str = "auto") -> Path:
+    """The URDF the scene draws: the light one (decimated meshes, fast without a GPU) unless ``full``."""
+    if meshes not in ("auto", "light", "full"):
+        raise StudioError(f'Unknown mesh choice "{meshes}": use auto, light or full.')
+    if meshes == "full":
+        return baxter_urdf_path()
+    if LIGHT_URDF.is_file():
+        return LIGHT_URDF
+    if meshes == "light":
+        raise StudioError(
+            "The light robot meshes are missing (urdf/baxter_light.urdf). Run: python scripts/decimate_meshes.py"
+        )
+    return baxter_urdf_path()
+
+
+class Events:
+    """A tiny observer list per topic; callbacks run on the caller's thread."""
+
+    def __init__(self) -> None:
+        self._subs: dict[str, list[Callable[[], None]]] = {}
+
+    def on(self, topic: str, fn: Callable[[], None]) -> None:
+        self._subs.setdefault(topic, []).append(fn)
+
+    def emit(self, topic: str) -> None:
+        for fn in list(self._subs.get(topic, ())):
+            try:
+                fn()
+            except Exception:  # a broken view must not break the others
+                log.exception("view update for %s failed", topic)
+
+
+class PoseSource:
+    """Where the scene's robot pose comes from: the live backend, a demo replay or the skill preview."""
+
+    def __init__(self) -> None:
+        self.q = np.zeros(14)
+        self.gripper = np.full(2, 100.0)
+        self.t = 0.0
+        self.version = 0
+        self._lock = threading.Lock()
+
+    def set(self, t: float, q: np.ndarray, gripper: np.ndarray) -> None:
+        with self._lock:
+            self.t = float(t)
+            self.q = np.asarray(q, dtype=np.float64)
+            self.gripper = np.asarray(gripper, dtype=np.float64)
+            self.version += 1
+
+    def get(self) -> tuple[int, float, np.ndarray, np.ndarray]:
+        with self._lock:
+            return self.version, self.t, self.q, self.gripper
+
+
+@dataclass
+class KeypointItem:
+    index: int
+    arm: str
+    name: str
+    color: tuple[int, int, int]
+    count: int
+    points: np.ndarray
+
+
+@dataclass
+class KeypointView:
+    """What the key-points panel draws: per-demo key-points, per-arm centroids (k, 8), notes."""
+
+    demos: list[KeypointItem] = field(default_factory=list)
+    centroids: dict[str, np.ndarray] = field(default_factory=dict)
+    k: dict[str, int] = field(default_factory=dict)
+    messages: list[str] = field(default_factory=list)
+
+
+class Playback:
+    """A recording streamed by a :class:`ReplayBackend` into a :class:`PoseSource` the scene can show."""
+
+    def __init__(self, kind: str, recording: Any, speed: float = 1.0) -> None:
+        from studio.robot_backend.replay import ReplayBackend
+
+        self.kind = kind
+        self.recording = recording
+        self.backend = ReplayBackend(recording, speed=speed)
+        self.source = PoseSource()
+        st = self.backend.state()
+        self.source.set(st.t, st.q, st.gripper)
+        self._unsub = self.backend.subscribe(self._on_batch)
+
+    def _on_batch(self, batch: JointStateBatch) -> None:
+        if len(batch):
+            self.source.set(float(batch.t[-1]), batch.q[-1], batch.gripper[-1])
+
+    @property
+    def position(self) -> float:
+        return self.backend.position
+
+    @property
+    def playing(self) -> bool:
+        return self.backend.running
+
+    @property
+    def finished(self) -> bool:
+        return self.backend.finished
+
+    def play(self) -> None:
+        self.backend.start()
+
+    def pause(self) -> None:
+        self.backend.stop()
+
+    def set_speed(self, speed: float) -> None:
+        self.backend.speed = float(speed)
+
+    def seek(self, t: float) -> None:
+        self.backend.seek(t)
+        i = int(np.clip(np.searchsorted(self.recording.t, t), 0, len(self.recording) - 1))
+        self.source.set(float(self.recording.t[i]), self.recording.q[i], self.recording.gripper[i])
+
+    def close(self) -> None:
+        self._unsub()
+        self.backend.stop()
+
+
+class Studio:
+    """The running studio. Build with :func:`build_app`; stop with :meth:`stop`.
+
+    Attributes:
+        server: the viser server (``server.gui`` / ``server.scene`` are shared by every tab).
+        port: the port it listens on.
+        baxter: the kinematic model (FK/IK).
+        backend: the robot (simulated Baxter by default).
+        store: the sessions on disk; ``session`` is the open one.
+    """
+
+    pump_hz = 60.0
+
+    def __init__(
+        self,
+        *,
+        host: str = "127.0.0.1",
+        port: int = 8080,
+        session: str | None = DEFAULT_SESSION,
+        sessions_dir: Path | str = ROOT / "sessions",
+        meshes: str = "auto",
+        backend: RobotBackend | None = None,
+        verbose: bool = False,
+    ) -> None:
+        from studio.sessions import SessionStore
+
+        self.events = Events()
+        self.lock = threading.RLock()
+        self.baxter = Baxter.load()
+        self.store = SessionStore(Path(sessions_dir))
+        self.session = self._open_or_create(session or DEFAULT_SESSION)
+        if backend is None:
+            from studio.robot_backend.simulated import SimulatedBaxter
+
+            backend = SimulatedBaxter()
+        self.backend = backend
+        self.live = PoseSource()
+        self.display = self.live  # the pump draws whichever source is active
+        self.selected_arms: tuple[str, ...] = self._session_arms()
+        self.recorder: Any = None
+        self.hidden_demos: set[str] = set()
+        self._demo_cache: dict[tuple[int, str], Any] = {}
+        self._targets: dict[str, np.ndarray] = {}
+        self._kp_caches: dict[tuple[int, str], Any] = {}
+        self._params: KeypointParams = self.session.params
+        self._params_dirty = False
+        self.k_override: int | None = None
+        self.training = False
+        self._playback: Playback | None = None
+        self._preview: Any = None
+
+        self.server = viser.ViserServer(host=host, port=port, label="Teaching Studio", verbose=verbose)
+        self.port = int(self.server.get_port())
+        self.host = host
+        self._configure_server()
+
+        self._stop = threading.Event()
+        self._work = ThreadPoolExecutor(max_workers=1, thread_name_prefix="studio-work")
+        self._unsubscribe = self.backend.subscribe(self._on_batch)
+        self.backend.start()
+        st = self.backend.state()
+        self.live.set(st.t, st.q, st.gripper)
+
+        from studio.panels import build_panels
+
+        self.urdf_path = robot_urdf_path(meshes)
+        self.panels = build_panels(self)
+        self._pump = threading.Thread(target=self._pump_loop, name="studio-pose-pump", daemon=True)
+        self._pump.start()
+
+    # -- setup -------------------------------------------------------------------------------------------
+    def _open_or_create(self, name: str) -> Any:
+        try:
+            return self.store.open(name)
+        except StudioError:
+            if name in self.store.list_sessions():
+                raise
+            return self.store.create(name)
+
+    def _session_arms(self) -> tuple[str, ...]:
+        arms = tuple(getattr(self.session, "arms", ("left",)) or ("left",))
+        return tuple(a for a in ARMS if a in arms) or ("left",)
+
+    def _configure_server(self) -> None:
+        s = self.server
+        s.gui.configure_theme(control_width="large", dark_mode=False, show_logo=False, brand_color=(196, 30, 58))
+        s.initial_camera.position = (2.6, -1.6, 1.2)
+        s.initial_camera.look_at = (0.55, 0.0, 0.15)
+        s.scene.set_up_direction("+z")
+        s.scene.add_grid("/ground", width=3.0, height=3.0, position=(0.5, 0.0, -0.93), cell_size=0.25)
+
+    # -- robot state -------------------------------------------------------------------------------------
+    def _on_batch(self, batch: JointStateBatch) -> None:
+        # Runs on the backend's thread at up to 1 kHz: keep only the newest sample.
+        if len(batch):
+            self.live.set(float(batch.t[-1]), batch.q[-1], batch.gripper[-1])
+
+    def _pump_loop(self) -> None:
+        period = 1.0 / self.pump_hz
+        last_version = -1
+        next_t = time.perf_counter()
+        while not self._stop.is_set():
+            now = time.perf_counter()
+            try:
+                version, _t, q, grip = self.display.get()
+                if version != last_version:
+                    last_version = version
+                    self.panels.robot.show_pose(q, grip)
+                self.panels.tick(now)
+            except Exception:
+                log.exception("pose pump")
+            next_t += period
+            delay = next_t - time.perf_counter()
+            if delay < -period:  # fell behind (busy CPU): skip, never burst
+                next_t = time.perf_counter()
+                delay = 0.0
+            self._stop.wait(max(delay, 0.0))
+
+    def robot_q(self) -> np.ndarray:
+        """(14,) latest joint angles of the live robot, radians (order ALL_ARM_JOINTS)."""
+        return self.live.get()[2].copy()
+
+    def robot_gripper(self) -> np.ndarray:
+        return self.live.get()[3].copy()
+
+    def arm_q(self, arm: str) -> np.ndarray:
+        q = self.robot_q()
+        return q[:7] if arm == "left" else q[7:]
+
+    def show_live(self) -> None:
+        """Let the scene follow the live robot again (after a replay or preview)."""
+        self.display = self.live
+        self.live.version += 1
+
+    # -- failures and background work --------------------------------------------------------------------
+    def notify(
+        self, title: str, body: str, *, kind: str = "error", client: viser.ClientHandle | None = None
+    ) -> None:
+        """Show a notification in plain words (to one tab, or to every tab when ``client`` is None)."""
+        color = {"error": "red", "info": "blue", "success": "green", "warning": "yellow"}.get(kind, "blue")
+        clients = [client] if client is not None else list(self.server.get_clients().values())
+        for c in clients:
+            try:
+                c.add_notification(
+                    title, body, color=color, auto_close_seconds=None if kind == "error" else 6.0
+                )
+            except Exception:  # a tab that just closed
+                log.debug("notification to a closed tab", exc_info=True)
+        if kind == "error":
+            log.warning("%s: %s", title, body)
+
+    def report(self, exc: BaseException, *, title: str = "That did not work", client: Any = None) -> None:
+        if isinstance(exc, StudioError):
+            self.notify(title, str(exc), client=client)
+        else:
+            traceback.print_exception(exc, file=sys.stderr)
+            self.notify(
+                title,
+                f"Something unexpected went wrong ({type(exc).__name__}: {exc}). Your work is kept; "
+                "you can try again.",
+                client=client,
+            )
+
+    def guarded(self, title: str = "That did not work") -> Callable[[F], F]:
+        """Decorator for GUI callbacks: any failure becomes a notification; the studio keeps running."""
+
+        def deco(fn: F) -> F:
+            @functools.wraps(fn)
+            def wrapper(*args: Any, **kwargs: Any) -> Any:
+                try:
+                    return fn(*args, **kwargs)
+                except Exception as exc:
+                    client = getattr(args[0], "client", None) if args else None
+                    self.report(exc, title=title, client=client)
+                    return None
+
+            return wrapper  # type: ignore[return-value]
+
+        return deco
+
+    def submit(
+        self,
+        job: Callable[[], Any],
+        *,
+        done: Callable[[Any], None] | None = None,
+        title: str = "That did not work",
+    ) -> Future:
+        """Run ``job`` on the work thread; ``done(result)`` runs there too; failures are notifications."""
+
+        def run() -> Any:
+            try:
+                result = job()
+                if done is not None:
+                    done(result)
+                return result
+            except Exception as exc:
+                self.report(exc, title=title)
+                return None
+
+        return self._work.submit(run)
+
+    # -- session ---------------------------------------------------------------------------------------
+    def set_session(self, session: Any) -> None:
+        """Make ``session`` the open one and redraw every view."""
+        self._switch(session)
+
+    # -- teaching: moving the robot ----------------------------------------------------------------------
+    def set_arms(self, arms: tuple[str, ...]) -> None:
+        """Choose the taught arm(s): "left", "right" or both."""
+        arms = tuple(a for a in ARMS if a in arms)
+        if not arms:
+            raise StudioError("Choose at least one arm to teach.")
+        with self.lock:
+            self.selected_arms = arms
+        self.events.emit("arms")
+
+    def move_gripper(self, arm: str, position: np.ndarray, wxyz: np.ndarray) -> Any:
+        """IK to the handle's pose from the arm's current joints, then command the robot.
+
+        Returns the IK result; an unreachable target still moves the arm to the closest pose found.
+        """
+        self.show_live()
+        res = self.baxter.ik(arm, position, wxyz, self._target_arm(arm), max_iterations=60)
+        self.command_arm(arm, np.asarray(res.q))
+        return res
+
+    def _target_arm(self, arm: str) -> np.ndarray:
+        with self.lock:
+            t = self._targets.get(arm)
+        return np.array(t) if t is not None else self.arm_q(arm)
+
+    def command_arm(self, arm: str, q: np.ndarray) -> None:
+        with self.lock:
+            self._targets[arm] = np.array(q, dtype=np.float64)
+        self.backend.command_joints(arm, q)
+
+    def move_joint(self, index: int, value: float) -> None:
+        """Move one of the 14 joints (order ALL_ARM_JOINTS) to ``value`` radians, the others held."""
+        self.show_live()
+        arm = "left" if index < 7 else "right"
+        q = self._target_arm(arm)
+        q[index % 7] = value
+        self.command_arm(arm, q)
+
+    def set_gripper(self, arm: str, width: float) -> None:
+        """Gripper opening in percent (0 = closed, 100 = open)."""
+        self.show_live()
+        self.backend.command_gripper(arm, float(width))
+
+    # -- recording ---------------------------------------------------------------------------------------
+    def start_recording(self) -> None:
+        """Start recording the taught arm(s); only one recording runs at a time (across all tabs)."""
+        from studio.recorder import Recorder
+
+        with self.lock:
+            if self.recorder is not None:
+                raise StudioError("A recording is already running (maybe in another tab). Stop it first.")
+            self.show_live()
+            name = self._next_demo_name()
+            rec = Recorder(self.backend, self.session.recording_dir, self.selected_arms, name=name)
+            rec.start()
+            self.recorder = rec
+        self.events.emit("recording")
+
+    def _next_demo_name(self) -> str:
+        names = set(self.demo_names())
+        i = len(names) + 1
+        while f"demo {i}" in names:
+            i += 1
+        return f"demo {i}"
+
+    def stop_recording(self) -> None:
+        """Stop, save the demonstration into the session (on disk at once) and draw it."""
+        with self.lock:
+            rec = self.recorder
+            if rec is None:
+                raise StudioError("Nothing is being recorded.")
+            self.recorder = None
+            try:
+                recording = rec.stop()
+                self.session.add_recording(recording)
+                rec.discard()
+            finally:
+                self.events.emit("recording")
+        for msg in rec.messages:
+            self.notify("Recording", msg, kind="warning")
+        self.demos_changed()
+        self.notify("Demonstration saved", f"{recording.name}: {recording.duration:.1f} s, {len(recording):,} samples.",
+                    kind="success")
+
+    def discard_recording(self) -> None:
+        with self.lock:
+            rec = self.recorder
+            self.recorder = None
+        if rec is not None:
+            rec.discard()
+        self.events.emit("recording")
+
+    # -- demonstrations ----------------------------------------------------------------------------------
+    def recordings(self) -> list[Any]:
+        return list(self.session.recordings)
+
+    def demo_names(self) -> list[str]:
+        return [r.name for r in self.recordings()]
+
+    def demo_color(self, i: int) -> tuple[int, int, int]:
+        return PALETTE[i % len(PALETTE)]
+
+    def demo_visible(self, i: int) -> bool:
+        names = self.demo_names()
+        return 0 <= i < len(names) and names[i] not in self.hidden_demos
+
+    def demo_duration(self, i: int) -> float:
+        return float(self.recordings()[i].duration)
+
+    def demo_summaries(self) -> list[tuple[str, tuple[int, int, int], float, int, tuple[str, ...], bool]]:
+        return [
+            (r.name, self.demo_color(i), float(r.duration), len(r), tuple(r.arms), r.name not in self.hidden_demos)
+            for i, r in enumerate(self.recordings())
+        ]
+
+    def demo(self, i: int, arm: str) -> Any:
+        """The 8-D Demo of recording ``i`` for ``arm`` (FK once, cached)."""
+        from studio.core.pipeline import demo_from_recording
+
+        rec = self.recordings()[i]
+        key = (id(rec), arm)
+        d = self._demo_cache.get(key)
+        if d is None:
+            d = demo_from_recording(rec, arm, baxter=self.baxter)
+            self._demo_cache[key] = d
+        return d
+
+    def demos_for(self, arm: str) -> list[tuple[int, Any]]:
+        """(index, Demo) of every shown recording that taught ``arm``."""
+        return [(i, self.demo(i, arm)) for i, r in enumerate(self.recordings())
+                if arm in r.arms and r.name not in self.hidden_demos]
+
+    def set_demo_visible(self, i: int, visible: bool) -> None:
+        name = self.demo_names()[i]
+        if visible:
+            self.hidden_demos.discard(name)
+        else:
+            self.hidden_demos.add(name)
+        self.demos_changed()
+
+    def rename_demo(self, i: int, name: str) -> None:
+        name = name.strip()
+        if not name:
+            raise StudioError("Give the demonstration a name (it cannot be empty).")
+        if name in self.demo_names() and self.demo_names()[i] != name:
+            raise StudioError(f'There is already a demonstration called "{name}"; choose another name.')
+        with self.lock:
+            old = self.demo_names()[i]
+            self.session.rename_demo(i, name)
+            if old in self.hidden_demos:
+                self.hidden_demos.discard(old)
+                self.hidden_demos.add(name)
+        self.demos_changed()
+
+    def trim_demo(self, i: int, t0: float, t1: float) -> None:
+        with self.lock:
+            self.session.trim_demo(i, t0, t1)
+        self.demos_changed()
+
+    def delete_demo(self, i: int) -> None:
+        with self.lock:
+            self.session.delete_demo(i)
+        self.demos_changed()
+
+    def demos_changed(self) -> None:
+        """The set of demonstrations changed: drop stale caches and redraw traces and key-points."""
+        live = {id(r) for r in self.recordings()}
+        self._demo_cache = {k: v for k, v in self._demo_cache.items() if k[0] in live}
+        self.events.emit("demos")
+
+    # -- key-points --------------------------------------------------------------------------------------
+    def params(self) -> KeypointParams:
+        with self.lock:
+            return self._params
+
+    def set_param(self, name: str, value: float) -> None:
+        """Change one ε threshold (kept in the session; written to disk by the key-point thread)."""
+        with self.lock:
+            self._params = replace(self._params, **{name: float(value)})
+            self._params_dirty = True
+
+    def reset_params(self) -> None:
+        with self.lock:
+            self._params = KeypointParams()
+            self.k_override = None
+            self._params_dirty = True
+
+    def set_k(self, k: int | None) -> None:
+        if k is not None and k < 1:
+            raise StudioError("The number of clusters must be at least 1.")
+        with self.lock:
+            self.k_override = k
+
+    def persist_params(self) -> None:
+        with self.lock:
+            if not self._params_dirty:
+                return
+            self._params_dirty = False
+            params = self._params
+            session = self.session
+        session.set_params(params)
+
+    def keypoint_view(self) -> KeypointView:
+        """Key-points of every shown demo and the k-means centroids per taught arm, for the current ε."""
+        from studio.core import pipeline
+
+        params = self.params()
+        k = self.k_override
+        view = KeypointView()
+        for arm in self.selected_arms:
+            demos = self.demos_for(arm)
+            if not demos:
+                continue
+            idx = [np.asarray(self._kp_cache_for(i, arm, d).extract(params)) for i, d in demos]
+            for (i, d), ix in zip(demos, idx, strict=True):
+                view.demos.append(KeypointItem(
+                    index=i, arm=arm, name=d.name, color=self.demo_color(i), count=len(ix),
+                    points=np.asarray(d.position)[ix] if len(ix) else np.zeros((0, 3)),
+                ))
+            try:
+                centroids = pipeline.cluster_demos_keypoints([d for _, d in demos], idx, n_clusters=k, seed=0)
+            except StudioError as exc:
+                view.messages.append(f"{arm.capitalize()} arm: {exc}")
+                continue
+            view.centroids[arm] = np.asarray(centroids)
+            view.k[arm] = len(centroids)
+        self.persist_params()
+        return view
+
+    def _kp_cache_for(self, i: int, arm: str, demo: Any) -> Any:
+        from studio.core.keypoints import KeypointCache
+
+        key = (id(self.recordings()[i]), arm)
+        c = self._kp_caches.get(key)
+        if c is None:
+            c = self._kp_caches[key] = KeypointCache(demo)
+        return c
+
+    # -- training -----------------------------------------------------------------------------------------
+    def skills(self) -> dict[str, Any]:
+        return dict(self.session.skills)
+
+    def skill_demos(self, arm: str) -> list[tuple[int, Any]]:
+        """(index, Demo) of the demonstrations the current skill of ``arm`` was learned from, in order."""
+        names = self.demo_names()
+        used = self.session.skill_info.get(arm, {}).get("demos") or names
+        out = []
+        for nm in used:
+            if nm in names:
+                i = names.index(nm)
+                if arm in self.recordings()[i].arms:
+                    out.append((i, self.demo(i, arm)))
+        return out
+
+    def skill_demo_names(self, arm: str) -> list[str]:
+        return [self.demo_names()[i] for i, _ in self.skill_demos(arm)]
+
+    def train(self) -> Future:
+        """Learn the skill of every taught arm from the shown demos on the work thread."""
+        from studio.core.pipeline import learn_skill
+
+        with self.lock:
+            if self.training:
+                raise StudioError("Training is already running; wait for it to finish.")
+            arms = self.selected_arms
+            per_arm = {arm: self.demos_for(arm) for arm in arms}
+            for arm, demos in per_arm.items():
+                if len(demos) < 2:
+                    raise NotEnoughData(
+                        f"The {arm} arm needs at least two shown demonstrations to learn from "
+                        f"(it has {len(demos)}). Record more, or show hidden ones."
+                    )
+            params, k = self.params(), self.k_override
+            self.training = True
+        self.events.emit("training")
+
+        def job() -> dict[str, Any]:
+            skills = {}
+            for arm, demos in per_arm.items():
+                skills[arm] = learn_skill([d for _, d in demos], params, n_clusters=k, seed=0, arm=arm,
+                                          baxter=self.baxter)
+            return skills
+
+        def done(skills: dict[str, Any] | None) -> None:
+            self.training = False
+            self.events.emit("training")
+            if skills is None:
+                return
+            with self.lock:
+                # Remember which demos each skill came from (skill.keypoints follow this order).
+                self.session.set_skills(skills, params=params)
+                for arm, demos in per_arm.items():
+                    self.session.skill_info[arm]["demos"] = [d.name for _, d in demos]
+                self.session._write_manifest()
+            self._preview = None
+            self.events.emit("skill")
+            self.notify("Training finished", "The robot learned the skill: open Preview to watch it.", kind="success")
+
+        def job_done(result: Any) -> None:
+            done(result)
+
+        fut = self.submit(job, done=job_done, title="Training failed")
+        fut.add_done_callback(lambda f: self._training_finished())
+        return fut
+
+    def _training_finished(self) -> None:
+        if self.training:  # the job failed: done() never ran
+            self.training = False
+            self.events.emit("training")
+
+    def ik_failures(self, arm: str) -> np.ndarray:
+        """(n, 3) positions of the learned path the arm cannot reach exactly."""
+        sk = self.session.skills.get(arm)
+        jt = getattr(sk, "joint_trajectory", None)
+        if sk is None or jt is None:
+            return np.zeros((0, 3))
+        bad = ~np.asarray(jt.converged, dtype=bool)
+        if not bad.any():
+            return np.zeros((0, 3))
+        tr = sk.trajectory
+        pos = np.column_stack([np.interp(jt.t, tr.t, tr.position[:, c]) for c in range(3)])
+        return pos[bad]
+
+    # -- preview and replay (the scene follows a ReplayBackend) ------------------------------------------
+    def _preview_recording(self) -> Any:
+        """The learned joint trajectories of all arms as one Recording (arms without a skill hold still)."""
+        from studio.core.types import Recording
+
+        skills = {a: s for a, s in self.session.skills.items() if getattr(s, "joint_trajectory", None) is not None}
+        if not skills:
+            raise NotEnoughData("There is no learned skill to preview yet: press Train first.")
+        t_end = max(float(s.joint_trajectory.t[-1] - s.joint_trajectory.t[0]) for s in skills.values())
+        n = max(2, int(t_end * 100.0) + 1)
+        t = np.linspace(0.0, max(t_end, 0.01), n)
+        q = np.tile(self.robot_q(), (n, 1))
+        g = np.tile(self.robot_gripper(), (n, 1))
+        for arm, s in skills.items():
+            jt = s.joint_trajectory
+            ts = np.asarray(jt.t) - float(jt.t[0])
+            cols = slice(0, 7) if arm == "left" else slice(7, 14)
+            tq = np.minimum(t, ts[-1])
+            q[:, cols] = np.column_stack([np.interp(tq, ts, np.asarray(jt.q)[:, j]) for j in range(7)])
+            tr = s.trajectory
+            tg = np.asarray(tr.t) - float(tr.t[0])
+            g[:, 0 if arm == "left" else 1] = np.interp(np.minimum(t, tg[-1]), tg, np.asarray(tr.gripper))
+        return Recording(t=t, q=q, gripper=np.clip(g, 0, 100), arms=tuple(skills), name="learned skill")
+
+    def _start_playback(self, kind: str, recording: Any, speed: float = 1.0) -> Playback:
+        self._stop_playback()
+        pb = Playback(kind, recording, speed)
+        self._playback = pb
+        self.display = pb.source
+        pb.play()
+        return pb
+
+    def _stop_playback(self) -> None:
+        pb, self._playback = self._playback, None
+        if pb is not None:
+            pb.close()
+
+    def preview_play(self, speed: float = 1.0) -> None:
+        pb = self._playback
+        if pb is not None and pb.kind == "preview":
+            if pb.finished:
+                pb.seek(0.0)
+            pb.set_speed(speed)
+            self.display = pb.source
+            pb.play()
+            return
+        self._start_playback("preview", self._preview_recording(), speed)
+
+    def preview_pause(self) -> None:
+        pb = self._playback
+        if pb is not None and pb.kind == "preview":
+            pb.pause()
+
+    def preview_speed(self, speed: float) -> None:
+        pb = self._playback
+        if pb is not None and pb.kind == "preview":
+            pb.set_speed(speed)
+
+    def preview_seek(self, t: float) -> None:
+        pb = self._playback
+        if pb is None or pb.kind != "preview":
+            pb = self._start_playback("preview", self._preview_recording())
+            pb.pause()
+        pb.seek(t)
+        self.display = pb.source
+
+    def preview_position(self) -> float | None:
+        pb = self._playback
+        return pb.position if pb is not None and pb.kind == "preview" and pb.playing else None
+
+    def preview_duration(self) -> float:
+        skills = [s for s in self.session.skills.values() if getattr(s, "joint_trajectory", None) is not None]
+        return max((float(s.joint_trajectory.t[-1] - s.joint_trajectory.t[0]) for s in skills), default=0.0)
+
+    def replay_demo(self, i: int, speed: float = 1.0) -> float:
+        """Replay recorded demonstration ``i`` on the (drawn) robot; returns its duration."""
+        pb = self._playback
+        rec = self.recordings()[i]
+        if pb is not None and pb.kind == "replay" and pb.recording is rec:
+            if pb.finished:
+                pb.seek(0.0)
+            self.display = pb.source
+            pb.play()
+        else:
+            self._start_playback("replay", rec, speed)
+        return float(rec.duration)
+
+    def replay_pause(self) -> None:
+        pb = self._playback
+        if pb is not None and pb.kind == "replay":
+            pb.pause()
+
+    def replay_stop(self) -> None:
+        if self._playback is not None and self._playback.kind == "replay":
+            self._stop_playback()
+        self.show_live()
+
+    def replay_seek(self, t: float) -> None:
+        pb = self._playback
+        if pb is None or pb.kind != "replay":
+            raise StudioError("Press Play first to choose a demonstration to replay.")
+        pb.seek(t)
+        self.display = pb.source
+
+    def replay_position(self) -> float | None:
+        pb = self._playback
+        return pb.position if pb is not None and pb.kind == "replay" and pb.playing else None
+
+    # -- sessions -----------------------------------------------------------------------------------------
+    def session_names(self) -> list[str]:
+        return self.store.list_sessions()
+
+    def open_session(self, name: str) -> None:
+        if self.recorder is not None:
+            raise StudioError("Stop the recording before opening another session.")
+        session = self.store.open(name)
+        self._switch(session)
+        if getattr(session, "recovery_message", ""):
+            self.notify("Recovered recordings", session.recovery_message, kind="warning")
+        for p in getattr(session, "problems", []):
+            self.notify("Part of the session could not be read", p, kind="warning")
+
+    def new_session(self, name: str) -> None:
+        from studio.sessions import check_session_name
+
+        if self.recorder is not None:
+            raise StudioError("Stop the recording before starting a new session.")
+        name = check_session_name((name or "").strip())
+        session = self.store.create(name, arms=self.selected_arms)
+        self._switch(session)
+        self.events.emit("sessions")
+
+    def save_session(self) -> None:
+        self.persist_params()
+        self.store.save(self.session)
+        self.notify("Saved", f'Session "{self.session.name}" is saved.', kind="success")
+
+    def duplicate_session(self, new_name: str) -> None:
+        from studio.sessions import check_session_name
+
+        new_name = check_session_name((new_name or "").strip())
+        self.save_session()
+        copy = self.store.duplicate(self.session.name, new_name)
+        self._switch(copy)
+        self.events.emit("sessions")
+
+    def session_zip(self) -> tuple[str, bytes]:
+        self.persist_params()
+        self.store.save(self.session)
+        return f"{self.session.name}.zip", self.store.export_zip(self.session.name)
+
+    def import_session_zip(self, filename: str, data: bytes) -> str:
+        """Add an uploaded session archive (validated first: a bad file changes nothing) and open it."""
+        name = self.store.import_zip(data)
+        self.events.emit("sessions")
+        self.open_session(name)
+        self.notify("Session uploaded", f'"{filename}" was added as session "{name}" and opened.', kind="success")
+        return name
+
+    def joint_trajectory_csv(self) -> tuple[str, bytes]:
+        import tempfile
+
+        from studio.csv_io import export_joint_trajectory_csv
+
+        with tempfile.TemporaryDirectory() as d:
+            path = Path(d) / f"{self.session.name}-trajectory.csv"
+            export_joint_trajectory_csv(self.session.skills, path)
+            return path.name, path.read_bytes()
+
+    def _switch(self, session: Any) -> None:
+        self._stop_playback()
+        with self.lock:
+            self.session = session
+            self._params = session.params
+            self._params_dirty = False
+            self.k_override = None
+            self.hidden_demos = set()
+            self._demo_cache = {}
+            self._kp_caches = {}
+            self.selected_arms = self._session_arms()
+        self.show_live()
+        self.events.emit("session")
+
+    # -- lifecycle ---------------------------------------------------------------------------------------
+    def url(self) -> str:
+        host = "127.0.0.1" if self.host in ("0.0.0.0", "") else self.host
+        return f"http://{host}:{self.port}"
+
+    def stop(self) -> None:
+        """Stop the pump, the backend and the server (idempotent)."""
+        if self._stop.is_set():
+            return
+        self._stop.set()
+        try:
+            self.panels.close()
+        except Exception:
+            log.exception("closing panels")
+        try:
+            self._unsubscribe()
+        except Exception:
+            pass
+        self.backend.stop()
+        self._pump.join(timeout=2.0)
+        self._work.shutdown(wait=False, cancel_futures=True)
+        self.server.stop()
+
+
+def build_app(
+    host: str = "127.0.0.1",
+    port: int = 8080,
+    session: str | None = DEFAULT_SESSION,
+    sessions_dir: Path | str = ROOT / "sessions",
+    meshes: str = "auto",
+    *,
+    backend: RobotBackend | None = None,
+    verbose: bool = False,
+) -> Studio:
+    """Build and start the studio (server listening, robot streaming); returns the :class:`Studio`."""
+    return Studio(
+        host=host, port=port, session=session, sessions_dir=sessions_dir, meshes=meshes, backend=backend,
+        verbose=verbose,
+    )
+
+
+def serve(host: str, port: int, session: str | None, sessions_dir: Path | str, meshes: str = "auto") -> None:
+    """Start the studio and block until Ctrl+C (the ``studio serve`` command)."""
+    if host not in ("127.0.0.1", "localhost", "::1"):
+        print(
+            f"WARNING: listening on {host}: anyone who can reach this computer on port {port} can move the "
+            "robot and read or change your sessions. Use --host 127.0.0.1 to keep it to this computer.",
+            file=sys.stderr,
+            flush=True,
+        )
+    app = build_app(host, port, session, sessions_dir, meshes)
+    print(f"Teaching Studio is running: open {app.url()} in your browser (Ctrl+C stops it).", flush=True)
+    try:
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        app.stop()
+
+
+__all__ = ["ALL_ARM_JOINTS", "Studio", "build_app", "robot_urdf_path", "serve"]

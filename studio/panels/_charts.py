@@ -1,0 +1,122 @@
+"""Small SVG charts for the side panel (heat map, position over time): presentation only, no learning."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+AXIS_COLORS = ("#d62728", "#2ca02c", "#1f77b4")  # x red, y green, z blue (as the scene's axes)
+
+
+def _esc(s: str) -> str:
+    return s.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+
+
+def heatmap_svg(m: np.ndarray, *, title: str, size: int = 300, css_class: str = "heatmap") -> str:
+    """Transition matrix as a white→dark-blue heat map with state numbers on the axes."""
+    m = np.asarray(m, dtype=float)
+    n = m.shape[0]
+    pad = 22
+    cell = (size - pad) / max(n, 1)
+    parts = [
+        f'<svg class="{css_class}" data-states="{n}" width="100%" viewBox="0 0 {size} {size + 14}" '
+        f'xmlns="http://www.w3.org/2000/svg" style="font-family:sans-serif">',
+        f'<text x="{size / 2}" y="11" font-size="11" text-anchor="middle">{_esc(title)}</text>',
+    ]
+    top = 14
+    for i in range(n):
+        for j in range(n):
+            v = float(np.clip(m[i, j], 0.0, 1.0))
+            r, g, b = (int(255 - v * (255 - c)) for c in (8, 48, 107))
+            parts.append(
+                f'<rect x="{pad + j * cell:.2f}" y="{top + pad + i * cell:.2f}" width="{cell + 0.3:.2f}" '
+                f'height="{cell + 0.3:.2f}" fill="rgb({r},{g},{b})"><title>from {i} to {j}: {v:.2f}</title></rect>'
+            )
+    step = max(1, n // 10)
+    for i in range(0, n, step):
+        parts.append(f'<text x="{pad - 3}" y="{top + pad + (i + 0.7) * cell:.1f}" font-size="8" '
+                     f'text-anchor="end">{i}</text>')
+        parts.append(f'<text x="{pad + (i + 0.5) * cell:.1f}" y="{top + pad - 4}" font-size="8" '
+                     f'text-anchor="middle">{i}</text>')
+    parts.append("</svg>")
+    return "".join(parts)
+
+
+def position_plot_svg(
+    t: np.ndarray,
+    position: np.ndarray,
+    keypoints: Sequence[int],
+    *,
+    title: str,
+    color: tuple[int, int, int],
+    width: int = 320,
+    height: int = 150,
+    max_points: int = 400,
+) -> str:
+    """The paper's "position over time": x, y, z (m) against t (s), key-points marked with triangles."""
+    t = np.asarray(t, dtype=float)
+    p = np.asarray(position, dtype=float)
+    if len(t) < 2:
+        return f"<div>{_esc(title)}: too short to plot.</div>"
+    step = max(1, len(t) // max_points)
+    sel = np.arange(0, len(t), step)
+    left, right, top, bottom = 34, 8, 16, 18
+    w, h = width - left - right, height - top - bottom
+    t0, t1 = float(t[0]), float(t[-1])
+    lo, hi = float(p.min()), float(p.max())
+    if hi - lo < 1e-6:
+        hi = lo + 1e-3
+
+    def sx(v: np.ndarray | float) -> np.ndarray:
+        return left + (np.asarray(v) - t0) / max(t1 - t0, 1e-9) * w
+
+    def sy(v: np.ndarray | float) -> np.ndarray:
+        return top + (1.0 - (np.asarray(v) - lo) / (hi - lo)) * h
+
+    kp = np.asarray(list(keypoints), dtype=int)
+    parts = [
+        f'<svg class="position-plot" data-keypoints="{len(kp)}" width="100%" viewBox="0 0 {width} {height}" '
+        f'xmlns="http://www.w3.org/2000/svg" style="font-family:sans-serif">',
+        f'<text x="{left}" y="11" font-size="10" fill="rgb{color}">{_esc(title)}</text>',
+        f'<rect x="{left}" y="{top}" width="{w}" height="{h}" fill="none" stroke="#bbb" stroke-width="0.5"/>',
+        f'<text x="{left - 3}" y="{top + 7}" font-size="8" text-anchor="end">{hi:.2f}</text>',
+        f'<text x="{left - 3}" y="{top + h}" font-size="8" text-anchor="end">{lo:.2f}</text>',
+        f'<text x="{left}" y="{height - 4}" font-size="8">{t0:.0f} s</text>',
+        f'<text x="{left + w}" y="{height - 4}" font-size="8" text-anchor="end">{t1:.1f} s</text>',
+    ]
+    for c in range(3):
+        xs, ys = sx(t[sel]), sy(p[sel, c])
+        pts = " ".join(f"{x:.1f},{y:.1f}" for x, y in zip(xs, ys, strict=True))
+        parts.append(f'<polyline points="{pts}" fill="none" stroke="{AXIS_COLORS[c]}" stroke-width="1"/>')
+        for i in kp:
+            if 0 <= i < len(t):
+                x, y = float(sx(t[i])), float(sy(p[i, c]))
+                parts.append(
+                    f'<path d="M{x:.1f},{y - 3.2:.1f} L{x + 3:.1f},{y + 2:.1f} L{x - 3:.1f},{y + 2:.1f} Z" '
+                    f'fill="rgb{color}" stroke="#222" stroke-width="0.4"/>'
+                )
+    parts.append(
+        f'<text x="{left + w - 2}" y="{top + 9}" font-size="8" text-anchor="end">'
+        f'<tspan fill="{AXIS_COLORS[0]}">x</tspan> <tspan fill="{AXIS_COLORS[1]}">y</tspan> '
+        f'<tspan fill="{AXIS_COLORS[2]}">z</tspan> ▲ key-point</text>'
+    )
+    parts.append("</svg>")
+    return "".join(parts)
+
+
+def downsample_path(points: np.ndarray, max_points: int = 1500) -> np.ndarray:
+    """Every k-th point of a (N, 3) path (keeping the last) so a 30,000-sample demo draws quickly."""
+    n = len(points)
+    if n <= max_points:
+        return np.asarray(points)
+    idx = np.unique(np.concatenate([np.linspace(0, n - 1, max_points).astype(int), [n - 1]]))
+    return np.asarray(points)[idx]
+
+
+def segments(points: np.ndarray) -> np.ndarray:
+    """(N-1, 2, 3) line segments joining consecutive points (viser's add_line_segments)."""
+    p = np.asarray(points, dtype=np.float32)
+    if len(p) < 2:
+        return np.zeros((0, 2, 3), dtype=np.float32)
+    return np.stack([p[:-1], p[1:]], axis=1)

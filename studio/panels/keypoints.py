@@ -1,0 +1,240 @@
+"""Key-points panel: the paper's fourteen thresholds ε1–ε14 as sliders, live key-points and k-means centroids."""
+
+from __future__ import annotations
+
+import math
+import threading
+from dataclasses import fields
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import viser
+
+from studio.core.types import ARMS, KeypointParams
+
+if TYPE_CHECKING:
+    from studio.app import Studio
+
+#: (field, plain label, unit, min, max, step, hint) — labels say what the threshold does, then the symbol.
+POSITION_SLIDERS: tuple[tuple[str, str, str, float, float, float, str], ...] = (
+    ("eps1", "Corner sharpness", "rad", math.pi, 2 * math.pi, 0.01,
+     "Higher keeps only sharp corners of the hand's path as key-points (π: every bend counts)."),
+    ("eps2", "Pause speed", "m/s", 0.0, 0.1, 0.001,
+     "Below this speed the hand counts as pausing; a pause can become a key-point."),
+    ("eps3", "Pause wait", "s", 0.0, 5.0, 0.05,
+     "A pause only counts this long after the previous key-point."),
+    ("eps4", "Pause distance", "m", 0.0, 0.3, 0.005,
+     "A pause only counts this far from the previous key-point."),
+    ("eps5", "Travel distance", "m", 0.0, 0.6, 0.005,
+     "Moving this far from the previous key-point makes a new key-point."),
+    ("eps6", "Travel wait", "s", 0.0, 5.0, 0.05,
+     "…but not sooner than this after the previous key-point."),
+    ("eps7", "Travel radius", "m", 0.0, 0.6, 0.005,
+     "…and only if the hand stayed within this radius until then."),
+)
+ORIENTATION_SLIDERS: tuple[tuple[str, str, str, float, float, float, str], ...] = (
+    ("eps8", "Turn corner sharpness", "rad", math.pi, 2 * math.pi, 0.01,
+     "Higher keeps only sudden changes in how the hand turns as key-points."),
+    ("eps9", "Turn pause speed", "rad/s", 0.0, 0.5, 0.005,
+     "Below this turning speed the hand counts as holding its angle."),
+    ("eps10", "Turn pause wait", "s", 0.0, 5.0, 0.05,
+     "A turning pause only counts this long after the previous key-point."),
+    ("eps11", "Turn pause angle", "rad", 0.0, 1.5, 0.01,
+     "A turning pause only counts this far (in angle) from the previous key-point."),
+    ("eps12", "Turn amount", "rad", 0.0, 2.0, 0.01,
+     "Turning this much from the previous key-point makes a new key-point."),
+    ("eps13", "Turn wait", "s", 0.0, 5.0, 0.05,
+     "…but not sooner than this after the previous key-point."),
+    ("eps14", "Turn range", "rad", 0.0, 2.0, 0.01,
+     "…and only if the hand's angle stayed within this range until then."),
+)
+SYMBOL = {f"eps{i}": f"ε{i}" for i in range(1, 15)}
+CENTROID_COLOR = (220, 20, 20)
+
+
+def slider_label(name: str, words: str) -> str:
+    return f"{words} ({SYMBOL[name]})"
+
+
+class KeypointsPanel:
+    """ε sliders in two groups, k override, reset; redraws key-points and centroids on every change."""
+
+    def __init__(self, app: Studio, gui: viser.GuiApi) -> None:
+        self.app = app
+        self.scene = app.server.scene
+        self.sliders: dict[str, viser.GuiSliderHandle] = {}
+        params = app.params()
+        self.counts = gui.add_html(self._counts_html(None))
+        for title, group in (("Position (ε1–ε7)", POSITION_SLIDERS), ("Orientation (ε8–ε14)", ORIENTATION_SLIDERS)):
+            with gui.add_folder(title, expand_by_default=title.startswith("Position")):
+                for name, words, unit, lo, hi, step, hint in group:
+                    v = float(getattr(params, name))
+                    s = gui.add_slider(
+                        slider_label(name, words),
+                        min=round(lo, 4), max=round(hi, 4), step=step,
+                        initial_value=min(max(v, lo), hi),
+                        hint=f"{hint} Unit: {unit}.",
+                    )
+                    s.on_update(self._make_cb(name))
+                    self.sliders[name] = s
+        with gui.add_folder("Clusters"):
+            self.k_auto = gui.add_checkbox(
+                "Choose the number of clusters automatically", initial_value=app.k_override is None,
+                hint="Untick to set k, the number of k-means clusters (= HMM states), yourself.",
+            )
+            self.k = gui.add_slider("Clusters (k)", min=2, max=40, step=1,
+                                    initial_value=app.k_override or 12, disabled=app.k_override is None)
+            self.reset = gui.add_button("Reset to defaults", icon=viser.Icon.REFRESH,
+                                        hint="Put every threshold back to its default value.")
+
+        self.k_auto.on_update(app.guarded("Could not change the number of clusters")(self._on_k))
+        self.k.on_update(app.guarded("Could not change the number of clusters")(self._on_k))
+        self.reset.on_click(app.guarded("Could not reset the thresholds")(self._on_reset))
+
+        # Scene: one point cloud per (demo, arm) for key-points, one for the centroids, a pool of labels.
+        self._kp_nodes: dict[str, Any] = {}
+        self._labels: list[Any] = []
+        self._centroid_nodes: dict[str, Any] = {}
+        self.view: Any = None
+        self._pending = threading.Event()
+        self._stop = threading.Event()
+        self._worker = threading.Thread(target=self._loop, name="studio-keypoints", daemon=True)
+        self._worker.start()
+        app.events.on("demos", self.request)
+        app.events.on("session", self._on_session)
+        app.events.on("arms", self.request)
+        self.request()
+
+    # -- callbacks ---------------------------------------------------------------------------------------
+    def _make_cb(self, name: str):
+        @self.app.guarded("Could not change the threshold")
+        def cb(event: viser.GuiEvent) -> None:
+            if event.client is None:
+                return
+            self.app.set_param(name, float(self.sliders[name].value))
+            self.request()
+
+        return cb
+
+    def _on_k(self, event: viser.GuiEvent) -> None:
+        if event.client is None:
+            return
+        self.k.disabled = bool(self.k_auto.value)
+        self.app.set_k(None if self.k_auto.value else int(self.k.value))
+        self.request()
+
+    def _on_reset(self, event: viser.GuiEvent) -> None:
+        self.app.reset_params()
+        self._sync_sliders()
+        self.request()
+
+    def _on_session(self) -> None:
+        self._sync_sliders()
+        self.request()
+
+    def _sync_sliders(self) -> None:
+        params = self.app.params()
+        with self.app.server.atomic():
+            for f in fields(KeypointParams):
+                s = self.sliders[f.name]
+                s.value = min(max(float(getattr(params, f.name)), s.min), s.max)
+            self.k_auto.value = self.app.k_override is None
+            self.k.disabled = self.app.k_override is None
+            if self.app.k_override is not None:
+                self.k.value = int(self.app.k_override)
+
+    # -- recompute off the GUI threads; the newest request wins -----------------------------------------
+    def request(self) -> None:
+        self._pending.set()
+
+    def _loop(self) -> None:
+        while not self._stop.is_set():
+            if not self._pending.wait(timeout=0.5):
+                continue
+            self._pending.clear()
+            try:
+                self.refresh()
+            except Exception as exc:
+                self.app.report(exc, title="Could not find the key-points")
+
+    def refresh(self) -> Any:
+        """Recompute key-points and centroids for the current ε and draw them (returns the view)."""
+        view = self.app.keypoint_view()
+        self.draw(view)
+        return view
+
+    def draw(self, view: Any) -> None:
+        self.view = view
+        scene = self.scene
+        with self.app.server.atomic():
+            seen: set[str] = set()
+            for item in view.demos:
+                key = f"/keypoints/{item.arm}/demo{item.index}"
+                seen.add(key)
+                pts = item.points if len(item.points) else np.zeros((0, 3))
+                node = self._kp_nodes.get(key)
+                if node is not None and len(pts) and len(node.points) == len(pts):
+                    node.points = pts.astype(np.float32)
+                else:
+                    if node is not None:
+                        node.remove()
+                    self._kp_nodes[key] = scene.add_point_cloud(
+                        key, points=pts.astype(np.float32), colors=item.color, point_size=0.018,
+                        point_shape="circle",
+                    )
+            for key in list(self._kp_nodes):
+                if key not in seen:
+                    self._kp_nodes.pop(key).remove()
+            n_labels = 0
+            for arm in ARMS:
+                c = view.centroids.get(arm)
+                key = f"/keypoints/{arm}/centroids"
+                node = self._centroid_nodes.pop(key, None)
+                if node is not None:
+                    node.remove()
+                if c is None or not len(c):
+                    continue
+                self._centroid_nodes[key] = scene.add_point_cloud(
+                    key, points=c[:, :3].astype(np.float32), colors=CENTROID_COLOR, point_size=0.045,
+                    point_shape="circle",
+                )
+                for j, p in enumerate(c[:, :3]):
+                    if n_labels >= len(self._labels):
+                        self._labels.append(scene.add_label(f"/keypoints/labels/{n_labels}", str(j),
+                                                            font_size_mode="screen", font_screen_scale=0.8))
+                    lab = self._labels[n_labels]
+                    lab.text = str(j)
+                    lab.position = tuple(float(x) for x in p + np.array([0.0, 0.0, 0.035]))
+                    lab.visible = True
+                    n_labels += 1
+            for lab in self._labels[n_labels:]:
+                lab.visible = False
+            self.counts.content = self._counts_html(view)
+
+    def _counts_html(self, view: Any) -> str:
+        if view is None:
+            return '<div class="kp-counts" style="font-size:0.85em">Finding key-points…</div>'
+        rows = []
+        for item in view.demos:
+            rows.append(
+                f'<div class="kp-count" data-demo="{item.index}" data-arm="{item.arm}" data-count="{item.count}">'
+                f'<span style="display:inline-block;width:10px;height:10px;border-radius:5px;'
+                f'background:rgb{item.color}"></span> {_esc(item.name)} ({item.arm}): '
+                f"<b>{item.count}</b> key-points</div>"
+            )
+        if not rows:
+            rows.append("<div>No demonstrations to look at yet.</div>")
+        for arm, k in view.k.items():
+            rows.append(f'<div class="kp-k" data-arm="{arm}" data-k="{k}">Clusters ({arm} arm): <b>{k}</b> '
+                        "(large red markers, numbered)</div>")
+        for msg in view.messages:
+            rows.append(f'<div class="kp-msg" style="color:#b45309">{_esc(msg)}</div>')
+        return '<div class="kp-counts" style="font-size:0.85em">' + "".join(rows) + "</div>"
+
+    def close(self) -> None:
+        self._stop.set()
+        self._pending.set()
+
+
+def _esc(s: str) -> str:
+    return s.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")

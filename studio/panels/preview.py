@@ -1,0 +1,104 @@
+"""Preview panel: the generalized trajectory in cyan and the robot executing it (IK joint trajectory)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+import viser
+
+from studio.core.types import ARMS
+from studio.panels._charts import downsample_path, segments
+
+if TYPE_CHECKING:
+    from studio.app import Studio
+
+CYAN = (0, 200, 230)
+IK_FAIL = (230, 30, 30)
+SPEEDS = {"¼×": 0.25, "½×": 0.5, "1×": 1.0, "2×": 2.0, "4×": 4.0}
+
+
+class PreviewPanel:
+    """Play / Pause / speed / time scrubber over the learned joint trajectory, gripper included."""
+
+    def __init__(self, app: Studio, gui: viser.GuiApi) -> None:
+        self.app = app
+        self.scene = app.server.scene
+        self.info = gui.add_markdown("Train first: the learned path appears here in cyan.")
+        self.controls = gui.add_button_group("Playback", options=("Play", "Pause"))
+        self.speed = gui.add_dropdown("Speed", options=list(SPEEDS), initial_value="1×")
+        self.time = gui.add_slider("Time (s)", min=0.0, max=1.0, step=0.01, initial_value=0.0)
+        self.show_path = gui.add_checkbox("Show the learned path", initial_value=True)
+        self._nodes: dict[str, viser.SceneNodeHandle] = {}
+        self._last_time_sync = 0.0
+
+        self.controls.on_click(app.guarded("Could not play the preview")(self._on_controls))
+        self.speed.on_update(app.guarded("Could not change the speed")(self._on_speed))
+        self.time.on_update(app.guarded("Could not move to that time")(self._on_time))
+        self.show_path.on_update(app.guarded()(self._on_show))
+        app.events.on("skill", self.refresh)
+        app.events.on("session", self.refresh)
+        self.refresh()
+
+    def refresh(self) -> None:
+        skills = self.app.skills()
+        with self.app.server.atomic():
+            for n in self._nodes.values():
+                n.remove()
+            self._nodes.clear()
+            fails = 0
+            for arm in ARMS:
+                skill = skills.get(arm)
+                if skill is None:
+                    continue
+                pts = downsample_path(np.asarray(skill.trajectory.position))
+                self._nodes[f"path_{arm}"] = self.scene.add_line_segments(
+                    f"/preview/{arm}/path", segments(pts), colors=CYAN, thickness=5.0, thickness_units="screen",
+                    visible=bool(self.show_path.value),
+                )
+                bad = self.app.ik_failures(arm)
+                fails += len(bad)
+                if len(bad):
+                    self._nodes[f"fail_{arm}"] = self.scene.add_point_cloud(
+                        f"/preview/{arm}/ik_failed", points=bad.astype(np.float32), colors=IK_FAIL,
+                        point_size=0.03, point_shape="diamond", visible=bool(self.show_path.value),
+                    )
+            duration = self.app.preview_duration()
+            self.time.max = round(max(duration, 0.01), 2)
+            self.time.value = 0.0
+            for h in (self.speed, self.time):
+                h.disabled = not skills
+            if skills:
+                note = (
+                    f" **{fails} points** of the path cannot be reached exactly (red diamonds)." if fails else
+                    " Every point of the path is reachable."
+                )
+                self.info.content = f"Learned path ({duration:.1f} s) in cyan.{note} Press **Play**."
+            else:
+                self.info.content = "Train first: the learned path appears here in cyan."
+
+    def _on_controls(self, event: viser.GuiEvent) -> None:
+        if event.target.value == "Play":
+            self.app.preview_play(SPEEDS[self.speed.value])
+        else:
+            self.app.preview_pause()
+
+    def _on_speed(self, event: viser.GuiEvent) -> None:
+        if event.client is None:
+            return
+        self.app.preview_speed(SPEEDS[self.speed.value])
+
+    def _on_time(self, event: viser.GuiEvent) -> None:
+        if event.client is None:
+            return
+        self.app.preview_seek(float(self.time.value))
+
+    def _on_show(self, event: viser.GuiEvent) -> None:
+        for n in self._nodes.values():
+            n.visible = bool(self.show_path.value)
+
+    def tick(self, now: float) -> None:
+        pos = self.app.preview_position()
+        if pos is not None and now - self._last_time_sync > 0.1:
+            self._last_time_sync = now
+            self.time.value = round(min(pos, self.time.max), 2)
