@@ -284,7 +284,8 @@ def _parse_manifest(path: Path, session: str) -> dict[str, Any]:
     except UnicodeDecodeError as exc:
         raise _damaged(session, rel, "is not readable text") from exc
     except json.JSONDecodeError as exc:
-        problem = "ends early" if exc.pos >= len(raw.rstrip()) - 1 else f"is damaged near line {exc.lineno}"
+        cut = not raw.rstrip().endswith(b"}") or exc.pos >= len(raw.rstrip()) - 1
+        problem = "it ends early" if cut else f"unreadable near line {exc.lineno}"
         raise _damaged(session, rel, f"is damaged ({problem})") from exc
     if not isinstance(m, dict) or m.get("format") != FORMAT:
         raise _damaged(session, rel, "is not a Teaching Studio session description")

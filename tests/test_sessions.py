@@ -1,0 +1,399 @@
+"""Session store: round trips, atomic writes, edits that leave other files alone, every bad-file case."""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import os
+import pickle
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from studio.core.errors import InvalidInput, SessionFormatError
+from studio.core.types import KeypointParams, Recording
+from studio.sessions import (
+    FORMAT_VERSION,
+    SessionStore,
+    atomic_write_bytes,
+    check_session_name,
+    idle_bounds,
+    load_session,
+)
+
+
+def make_rec(n: int = 1500, seed: int = 0, name: str = "demo", idle: tuple[int, int] = (0, 0)) -> Recording:
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / 1000.0
+    s = np.clip((np.arange(n) - idle[0]) / max(n - idle[0] - idle[1], 1), 0, 1)
+    q = np.tile([0.08, -1.0, -1.19, 1.94, 0.67, 1.03, -0.5] * 2, (n, 1)).astype(float)
+    q[:, :7] += 0.4 * s[:, None] * rng.uniform(0.5, 1, 7)
+    q += rng.normal(0, 1e-4, q.shape)
+    g = np.full((n, 2), 100.0)
+    g[n // 2 :, 0] = 40.0
+    return Recording(t=t, q=q, gripper=g, arms=("left",), name=name)
+
+
+def snapshot(root: Path) -> dict[str, str]:
+    return {
+        str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest() + str(p.stat().st_mtime_ns)
+        for p in sorted(root.rglob("*"))
+        if p.is_file()
+    }
+
+
+@pytest.fixture
+def store(tmp_path: Path) -> SessionStore:
+    return SessionStore(tmp_path / "sessions")
+
+
+@pytest.fixture
+def three(store: SessionStore):  # type: ignore[no-untyped-def]
+    s = store.create("three demos", notes="for tests")
+    for i in range(3):
+        s.add_recording(make_rec(seed=i, name=f"demo {i + 1}"))
+    return s
+
+
+# -- round trips -------------------------------------------------------------------------------------------
+def test_save_load_round_trip_is_identical(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+    params = KeypointParams(eps2=0.02, eps5=0.1)
+    three.set_params(params)
+    loaded = store.open("three demos")
+    assert loaded.demo_names == ["demo 1", "demo 2", "demo 3"]
+    assert loaded.params == params and loaded.notes == "for tests" and loaded.arms == ("left",)
+    for a, b in zip(three.recordings, loaded.recordings, strict=True):
+        assert np.array_equal(a.t, b.t) and np.array_equal(a.q, b.q) and np.array_equal(a.gripper, b.gripper)
+        assert a.arms == b.arms
+    m = json.loads((three.path / "session.json").read_text())
+    assert m["version"] == FORMAT_VERSION and m["robot"] == "baxter"
+    assert [d["samples"] for d in m["demos"]] == [1500] * 3
+    assert m["params"]["eps2"] == 0.02
+
+
+def test_float32_precision_is_close_and_smaller(store: SessionStore) -> None:
+    s64 = store.create("f64")
+    s32 = store.create("f32", precision="float32")
+    rec = make_rec(20000)
+    s64.add_recording(rec)
+    s32.add_recording(rec)
+    loaded = store.open("f32").recordings[0]
+    assert np.array_equal(loaded.t, rec.t)
+    assert np.abs(loaded.q - rec.q).max() < 1e-6
+    assert np.array_equal(loaded.q, s32.recordings[0].q)  # what the session holds is what loads back
+    size = lambda s: sum(p.stat().st_size for p in (s.path / "demos").iterdir())  # noqa: E731
+    assert size(s32) < 0.7 * size(s64)
+
+
+def test_store_save_and_list(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+    assert store.list_sessions() == ["three demos"]
+    (three.path / three.demo_files[1]).unlink()
+    with pytest.raises(SessionFormatError, match="is missing"):
+        store.open("three demos")
+    store.save(three)  # rewrites the missing file
+    assert len(store.open("three demos")) == 3
+    [summary] = store.summaries()
+    assert summary.demos == 3 and summary.notes == "for tests"
+
+
+# -- editing ------------------------------------------------------------------------------------------------
+def test_rename_delete_trim_touch_only_their_demo(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+    others = {f: (three.path / f).read_bytes() for f in three.demo_files}
+    three.rename_demo(0, "first")
+    three.trim_demo(1, 0.2, 1.0)
+    three.delete_demo(2)
+    loaded = store.open("three demos")
+    assert loaded.demo_names == ["first", "demo 2"]
+    assert (three.path / three.demo_files[0]).read_bytes() == others[three.demo_files[0]]
+    r = loaded.recordings[1]
+    assert len(r) == 801 and r.t[0] == 0.0 and r.duration == pytest.approx(0.8)
+    files = sorted(p.name for p in (three.path / "demos").iterdir())
+    assert len(files) == 2  # the replaced and the deleted files are gone, nothing else left behind
+    with pytest.raises(InvalidInput, match="already called"):
+        three.rename_demo(1, "first")
+    with pytest.raises(InvalidInput, match="no demonstration number 5"):
+        three.delete_demo(5)
+    with pytest.raises(InvalidInput, match="fewer than two"):
+        three.trim_demo(0, 0.1, 0.1001)
+
+
+def test_trim_idle_cuts_still_start_and_end(store: SessionStore) -> None:
+    s = store.create("idle")
+    s.add_recording(make_rec(5000, idle=(1500, 1000)))
+    t0, t1 = idle_bounds(s.recordings[0], margin=0.1)
+    assert t0 == pytest.approx(1.45, abs=0.1) and t1 == pytest.approx(4.1, abs=0.1)
+    s.trim_idle(0, margin=0.1)
+    assert store.open("idle").recordings[0].duration == pytest.approx(t1 - t0, abs=2e-3)
+
+
+def test_duplicate_names_get_a_suffix(store: SessionStore) -> None:
+    s = store.create("dup")
+    assert s.add_recording(make_rec(name="take")) == 0
+    s.add_recording(make_rec(name="take"))
+    assert s.demo_names == ["take", "take (2)"]
+
+
+def test_duplicate_and_zip_round_trip(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+    copy = store.duplicate("three demos", "copy")
+    assert copy.demo_names == three.demo_names
+    data = store.export_zip("three demos")
+    name = store.import_zip(data)
+    assert name == "three demos (2)"
+    imported = store.open(name)
+    assert np.array_equal(imported.recordings[2].q, three.recordings[2].q)
+
+
+def test_atomic_write_keeps_old_file_when_interrupted(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    f = tmp_path / "x.json"
+    atomic_write_bytes(f, b"old")
+
+    def boom(*_a, **_k):  # type: ignore[no-untyped-def]
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(os, "replace", boom)
+    with pytest.raises(OSError):
+        atomic_write_bytes(f, b"new")
+    assert f.read_bytes() == b"old"
+    assert [p.name for p in tmp_path.iterdir()] == ["x.json"]  # no temporary file left
+
+
+def test_skills_round_trip_through_to_arrays(store: SessionStore, three, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    import studio.core.types as types
+
+    class FakeSkill:
+        def __init__(self, a: np.ndarray) -> None:
+            self.a = a
+
+        def to_arrays(self) -> dict[str, np.ndarray]:
+            return {"a": self.a, "arm": np.array("left")}
+
+        @classmethod
+        def from_arrays(cls, d):  # type: ignore[no-untyped-def]
+            if d["a"].ndim != 1:
+                raise ValueError("bad a")
+            return cls(d["a"])
+
+    monkeypatch.setattr(types, "Skill", FakeSkill, raising=False)
+    three.set_skills({"left": FakeSkill(np.arange(5.0))})
+    loaded = store.open("three demos")
+    assert np.array_equal(loaded.skills["left"].a, np.arange(5.0))
+    assert not loaded.skills_stale
+    loaded.delete_demo(0)
+    assert store.open("three demos").skills_stale  # learned from other demos than the session now holds
+    np.savez(three.path / "skills" / "left.npz", a=np.zeros((2, 2)))
+    with pytest.raises(SessionFormatError, match=r'"skills/left.npz".*not a valid learned skill'):
+        store.open("three demos")
+
+
+# -- bad files: every case names the file and the problem, and touches nothing -----------------------------
+def _expect_error(store: SessionStore, name: str, pattern: str) -> SessionFormatError:
+    before = snapshot(store.root)
+    with pytest.raises(SessionFormatError, match=pattern) as ei:
+        store.open(name)
+    assert snapshot(store.root) == before
+    msg = str(ei.value)
+    assert "It was not loaded; your other files are untouched." in msg or "no session" in msg
+    return ei.value
+
+
+def _demo(three) -> Path:  # type: ignore[no-untyped-def]
+    return three.path / three.demo_files[1]
+
+
+def test_missing_demo(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+    _demo(three).unlink()
+    e = _expect_error(store, "three demos", r'"demos/d0002.npz".*is missing')
+    assert e.file == "demos/d0002.npz"  # type: ignore[attr-defined]
+
+
+def test_truncated_demo(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+    p = _demo(three)
+    p.write_bytes(p.read_bytes()[: p.stat().st_size // 2])
+    _expect_error(store, "three demos", r'"demos/d0002.npz".*ends early')
+
+
+def test_truncated_array_inside_an_intact_zip(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+    p = _demo(three)
+    with np.load(p) as z:
+        d = dict(z)
+    buf = io.BytesIO()
+    np.save(buf, d["q"])
+    raw = buf.getvalue()
+    with zipfile.ZipFile(p, "w") as zf:
+        zf.writestr("t.npy", _npy(d["t"]))
+        zf.writestr("q.npy", raw[: len(raw) // 2])
+        zf.writestr("gripper.npy", _npy(d["gripper"]))
+    _expect_error(store, "three demos", r'"demos/d0002.npz".*ends early')
+
+
+def _npy(a: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    np.save(buf, a)
+    return buf.getvalue()
+
+
+def test_wrong_version(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+    m = json.loads((three.path / "session.json").read_text())
+    m["version"] = FORMAT_VERSION + 1
+    (three.path / "session.json").write_text(json.dumps(m))
+    _expect_error(store, "three demos", r'"session.json".*newer Teaching Studio')
+
+
+def test_truncated_manifest(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+    p = three.path / "session.json"
+    p.write_bytes(p.read_bytes()[:100])
+    _expect_error(store, "three demos", r'"session.json".*ends early')
+
+
+def test_missing_manifest(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+    (three.path / "session.json").unlink()
+    _expect_error(store, "three demos", r'"session.json".*is missing')
+
+
+def test_wrong_shape(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+    p = _demo(three)
+    with np.load(p) as z:
+        d = dict(z)
+    np.savez(p, t=d["t"], q=d["q"][:, :7], gripper=d["gripper"])
+    _expect_error(store, "three demos", r'"demos/d0002.npz".*q of the wrong shape \(1500, 7\), expected \(1500, 14\)')
+
+
+def test_wrong_length_against_manifest(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+    p = _demo(three)
+    with np.load(p) as z:
+        d = dict(z)
+    np.savez(p, **{k: v[:1000] for k, v in d.items()})
+    _expect_error(store, "three demos", r'"demos/d0002.npz".*wrong shape')
+
+
+def test_nan_filled(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+    p = _demo(three)
+    with np.load(p) as z:
+        d = dict(z)
+    d["q"][100:200, 3] = np.nan
+    np.savez(p, **d)
+    _expect_error(store, "three demos", r'"demos/d0002.npz".*100 invalid values \(NaN')
+
+
+def test_pickled_object_array(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+    p = _demo(three)
+    with np.load(p) as z:
+        d = dict(z)
+    obj = np.empty(1500, dtype=object)
+    np.savez(p, t=d["t"], q=obj, gripper=d["gripper"])
+    _expect_error(store, "three demos", r'"demos/d0002.npz".*pickle')
+
+
+def test_raw_pickle_file(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+    _demo(three).write_bytes(pickle.dumps({"t": [1, 2, 3]}))
+    _expect_error(store, "three demos", r'"demos/d0002.npz".*pickle')
+
+
+def test_absurd_size_declared_in_header(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+    p = _demo(three)
+    header = {"descr": "<f8", "fortran_order": False, "shape": (10**12, 14)}
+    buf = io.BytesIO()
+    np.lib.format.write_array_header_1_0(buf, header)
+    with zipfile.ZipFile(p, "w") as zf:
+        zf.writestr("t.npy", _npy(np.arange(1500) / 1000.0))
+        zf.writestr("q.npy", buf.getvalue() + b"\0" * 64)
+        zf.writestr("gripper.npy", _npy(np.zeros((1500, 2))))
+    _expect_error(store, "three demos", r'"demos/d0002.npz".*(absurd size|wrong shape)')
+
+
+def test_zip_bomb_declared_size(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+    p = _demo(three)
+    with zipfile.ZipFile(p, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        zf.writestr("t.npy", _npy(np.arange(1500) / 1000.0) + b"\0" * 50_000_000)
+        zf.writestr("q.npy", _npy(np.zeros((1500, 14))))
+        zf.writestr("gripper.npy", _npy(np.zeros((1500, 2))))
+    _expect_error(store, "three demos", r'"demos/d0002.npz".*absurd size')
+
+
+def test_manifest_names_a_file_outside_the_session(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+    for bad in ("../other/demos/d0001.npz", "/etc/passwd", "demos/../../x.npz", "demos/sub/d0001.npz"):
+        m = json.loads((three.path / "session.json").read_text())
+        m["demos"][0]["file"] = bad
+        (three.path / "session.json").write_text(json.dumps(m))
+        _expect_error(store, "three demos", r'"session.json".*unsafe or invalid file')
+
+
+def test_session_names_with_dots_or_slashes_are_refused(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+    for bad in ("../three demos", "a/b", "..", ".hidden", "x\0y", ""):
+        with pytest.raises(InvalidInput, match="cannot be a session name"):
+            store.open(bad)
+    with pytest.raises(InvalidInput):
+        check_session_name("a" * 65)
+    with pytest.raises(SessionFormatError, match="no session"):
+        store.open("not there")
+
+
+def test_hostile_zip_import_is_refused_and_adds_nothing(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+    before = snapshot(store.root)
+    for member in ("evil/../../escape.txt", "/abs/session.json", "evil/demos/x.sh"):
+        buf = io.BytesIO()
+        with zipfile.ZipFile(buf, "w") as zf:
+            zf.writestr("evil/session.json", "{}")
+            zf.writestr(member, "x")
+        with pytest.raises(SessionFormatError, match="Nothing was imported"):
+            store.import_zip(buf.getvalue())
+    with pytest.raises(SessionFormatError, match="not a session archive"):
+        store.import_zip(b"not a zip")
+    # A zip with a damaged session inside is unpacked to a temporary folder, refused, and cleaned up.
+    data = store.export_zip("three demos")
+    broken = io.BytesIO()
+    with zipfile.ZipFile(io.BytesIO(data)) as src, zipfile.ZipFile(broken, "w") as dst:
+        for i in src.infolist():
+            payload = src.read(i)
+            dst.writestr(i, payload[:50] if i.filename.endswith("d0002.npz") else payload)
+    with pytest.raises(SessionFormatError, match="d0002.npz"):
+        store.import_zip(broken.getvalue())
+    assert snapshot(store.root) == before
+
+
+def test_skip_damaged_loads_the_rest(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+    _demo(three).write_bytes(b"garbage")
+    s = store.open("three demos", skip_damaged=True)
+    assert s.demo_names == ["demo 1", "demo 3"]
+    assert len(s.problems) == 1 and "d0002.npz" in s.problems[0] and "skipped" in s.problems[0]
+
+
+def test_load_never_writes(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+    before = snapshot(store.root)
+    load_session(three.path)
+    store.open("three demos")
+    assert snapshot(store.root) == before
+
+
+def test_bad_manifest_fields(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+    cases = {
+        "arms": (["middle"], "arms"),
+        "params": ({"eps99": 1}, "key-point thresholds"),
+        "robot": ("pr2", "robot"),
+        "format": ("something else", "not a Teaching Studio"),
+    }
+    good = (three.path / "session.json").read_text()
+    for key, (value, pattern) in cases.items():
+        m = json.loads(good)
+        m[key] = value
+        (three.path / "session.json").write_text(json.dumps(m))
+        _expect_error(store, "three demos", pattern)
+    m = json.loads(good)
+    m["demos"][0]["samples"] = 10**12
+    (three.path / "session.json").write_text(json.dumps(m))
+    _expect_error(store, "three demos", "invalid sample count")
+
+
+def test_add_recording_refuses_bad_input(store: SessionStore) -> None:
+    s = store.create("bad")
+    with pytest.raises(InvalidInput):
+        s.add_recording("not a recording")  # type: ignore[arg-type]
+    with pytest.raises(InvalidInput, match="at least two"):
+        s.add_recording(make_rec(1))
+    with pytest.raises(InvalidInput, match="printable"):
+        s.add_recording(make_rec(), name="bad\nname")
+    with pytest.raises(InvalidInput, match="already exists"):
+        store.create("bad")
