@@ -349,7 +349,7 @@ def test_hostile_zip_import_is_refused_and_adds_nothing(store: SessionStore, thr
         for i in src.infolist():
             payload = src.read(i)
             dst.writestr(i, payload[:50] if i.filename.endswith("d0002.npz") else payload)
-    with pytest.raises(SessionFormatError, match="d0002.npz"):
+    with pytest.raises(SessionFormatError, match=r"d0002\.npz"):
         store.import_zip(broken.getvalue())
     assert snapshot(store.root) == before
 
