@@ -1,0 +1,152 @@
+"""Baxter SDK joint-recorder CSV: exact header, round trip within CSV precision, bad files, skill export."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from studio.core.errors import InvalidInput, NotEnoughData
+from studio.core.kinematics import Baxter
+from studio.core.types import Recording
+from studio.csv_io import (
+    CSV_COLUMNS,
+    JOINT_DECIMALS,
+    CsvFormatError,
+    export_joint_trajectory_csv,
+    export_recording_csv,
+    import_csv,
+)
+
+SDK_HEADER = (
+    "time,left_s0,left_s1,left_e0,left_e1,left_w0,left_w1,left_w2,left_gripper,"
+    "right_s0,right_s1,right_e0,right_e1,right_w0,right_w1,right_w2,right_gripper"
+)
+
+
+def rec(n: int = 2000, seed: int = 0) -> Recording:
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / 1000.0
+    q = np.cumsum(rng.normal(0, 1e-3, (n, 14)), axis=0)
+    g = np.clip(np.cumsum(rng.normal(0, 0.5, (n, 2)), axis=0) + 50, 0, 100)
+    return Recording(t=t, q=q, gripper=g, arms=("left",), name="r")
+
+
+def test_header_is_the_sdk_format(tmp_path: Path) -> None:
+    assert ",".join(CSV_COLUMNS) == SDK_HEADER
+    f = tmp_path / "a.csv"
+    export_recording_csv(rec(10), f)
+    lines = f.read_text().splitlines()
+    assert lines[0] == SDK_HEADER and len(lines) == 11
+    assert len(lines[1].split(",")) == 17
+
+
+def test_export_import_round_trip_within_csv_precision(tmp_path: Path) -> None:
+    r = rec()
+    f = tmp_path / "demo.csv"
+    export_recording_csv(r, f)
+    back = import_csv(f, arms="both")
+    assert back.name == "demo" and back.arms == ("left", "right") and len(back) == len(r)
+    assert np.abs(back.t - r.t).max() <= 0.5e-6
+    assert np.abs(back.q - r.q).max() <= 0.5 * 10.0**-JOINT_DECIMALS + 1e-15
+    assert np.abs(back.gripper - r.gripper).max() <= 0.5e-4 + 1e-12
+
+
+def test_real_sdk_style_file_imports(tmp_path: Path) -> None:
+    # As baxter_examples/joint_recorder.py writes it: "%f" time, str() angles, ~100 Hz, a repeated stamp,
+    # columns in the SDK order, time not starting at zero.
+    rows = [SDK_HEADER]
+    for i in range(50):
+        t = 12.5 + i * 0.01 if i != 7 else 12.5 + 6 * 0.01
+        vals = [0.1 * i / 50] * 7 + [100.0] + [-0.2] * 7 + [0.0]
+        rows.append(f"{t:f}," + ",".join(str(v) for v in vals))
+    f = tmp_path / "real.csv"
+    f.write_text("\n".join(rows) + "\n\n")
+    r = import_csv(f)
+    assert len(r) == 49  # the repeated time stamp is dropped
+    assert r.t[0] == 0.0 and r.t[-1] == pytest.approx(0.49)
+    assert r.gripper[0].tolist() == [100.0, 0.0]
+
+
+def test_columns_in_another_order(tmp_path: Path) -> None:
+    cols = list(CSV_COLUMNS)
+    order = [0, *range(16, 0, -1)]
+    f = tmp_path / "x.csv"
+    r = rec(5)
+    data = np.column_stack([r.t, r.q[:, :7], r.gripper[:, 0], r.q[:, 7:], r.gripper[:, 1]])
+    f.write_text(
+        ",".join(cols[i] for i in order)
+        + "\n"
+        + "\n".join(",".join(repr(float(v)) for v in row[order]) for row in data)
+    )
+    back = import_csv(f)
+    assert np.allclose(back.q, r.q) and np.allclose(back.gripper, r.gripper)
+
+
+@pytest.mark.parametrize(
+    ("content", "pattern"),
+    [
+        ("a,b,c\n1,2,3\n", 'first line must start with "time,"'),
+        ("time,left_s0\n0,1\n", "lacks the column"),
+        (SDK_HEADER + "\n0," + ",".join(["1"] * 15) + "\n", "line 2 has 16 values, expected 17"),
+        (SDK_HEADER + "\n0," + ",".join(["x"] * 16) + "\n", "line 2 contains something that is not a number"),
+        (SDK_HEADER + "\n0," + ",".join(["1"] * 15) + ",nan\n0.1," + ",".join(["1"] * 16) + "\n", "NaN"),
+        (SDK_HEADER + "\n1," + ",".join(["1"] * 16) + "\n0.5," + ",".join(["1"] * 16) + "\n", "time goes backwards"),
+        (SDK_HEADER + "\n0," + ",".join(["1"] * 7 + ["150"] + ["1"] * 8) + "\n0.1," + ",".join(["1"] * 16), "0..100"),
+    ],
+)
+def test_bad_files_name_the_problem(tmp_path: Path, content: str, pattern: str) -> None:
+    f = tmp_path / "bad.csv"
+    f.write_text(content)
+    with pytest.raises(CsvFormatError, match=pattern) as ei:
+        import_csv(f)
+    assert "bad.csv" in str(ei.value)
+
+
+def test_too_short_missing_and_binary_files(tmp_path: Path) -> None:
+    f = tmp_path / "short.csv"
+    f.write_text(SDK_HEADER + "\n0," + ",".join(["1"] * 16) + "\n")
+    with pytest.raises(NotEnoughData, match="fewer than two samples"):
+        import_csv(f)
+    with pytest.raises(CsvFormatError, match="cannot be opened"):
+        import_csv(tmp_path / "nope.csv")
+    b = tmp_path / "bin.csv"
+    b.write_bytes(b"\xff\xfe\x00\x81" * 100)
+    with pytest.raises(CsvFormatError, match="not a text"):
+        import_csv(b)
+
+
+def _fake_skill(t: np.ndarray, q: np.ndarray, grip: np.ndarray) -> SimpleNamespace:
+    return SimpleNamespace(
+        joint_trajectory=SimpleNamespace(t=t, q=q),
+        trajectory=SimpleNamespace(t=t, gripper=grip),
+    )
+
+
+def test_skill_export_is_playable_sdk_csv(tmp_path: Path) -> None:
+    t = np.linspace(0, 2.0, 201)
+    q = np.tile(Baxter.load().neutral("left"), (201, 1)) + 0.1 * np.sin(t)[:, None]
+    grip = np.where(t < 1.0, 100.0, 30.0)
+    f = tmp_path / "skill.csv"
+    n = export_joint_trajectory_csv({"left": _fake_skill(t, q, grip)}, f, rate_hz=100.0)
+    assert n == 201
+    assert f.read_text().splitlines()[0] == SDK_HEADER
+    back = import_csv(f)
+    assert np.allclose(back.q[:, :7], q, atol=1e-7)
+    assert np.allclose(back.q[:, 7:], Baxter.load().neutral("right"))  # the other arm holds its rest pose
+    assert back.gripper[0, 0] == 100.0 and back.gripper[-1, 0] == 30.0 and np.all(back.gripper[:, 1] == 100.0)
+
+
+def test_skill_export_refuses_missing_or_bad_trajectories(tmp_path: Path) -> None:
+    with pytest.raises(NotEnoughData, match="learn the skill first"):
+        export_joint_trajectory_csv({}, tmp_path / "x.csv")
+    with pytest.raises(NotEnoughData, match="no joint trajectory"):
+        export_joint_trajectory_csv({"left": SimpleNamespace(joint_trajectory=None)}, tmp_path / "x.csv")
+    t = np.linspace(0, 1, 11)
+    q = np.zeros((11, 7))
+    q[3, 2] = np.nan
+    with pytest.raises(InvalidInput, match="nothing was written"):
+        export_joint_trajectory_csv({"left": _fake_skill(t, q, np.full(11, 50.0))}, tmp_path / "x.csv")
+    assert not (tmp_path / "x.csv").exists()
