@@ -7,7 +7,7 @@ Layout of ``<root>/<name>/``::
                           samples, duration) and the learned skills (file, when, with which parameters)
     demos/d0001.npz       one demonstration: t (N,) s float64, q (N, 14) rad, gripper (N, 2) percent
     skills/left.npz       a learned skill, Skill.to_arrays() (one file per arm)
-    recording/            the recorder's crash-safe files while recording (not part of the format)
+    .recording/           the recorder's crash-safe files while recording (not part of the format)
 
 Rules:
 
@@ -48,7 +48,7 @@ FORMAT_VERSION = 1
 MANIFEST = "session.json"
 DEMO_DIR = "demos"
 SKILL_DIR = "skills"
-RECORDING_DIR = "recording"
+RECORDING_DIR = ".recording"
 #: Default folder of the session store: the repository's ``sessions/``.
 DEFAULT_ROOT = Path(__file__).resolve().parent.parent / "sessions"
 
@@ -116,6 +116,7 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
     fd, tmp = tempfile.mkstemp(prefix=f".tmp-{path.name}-", dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as f:
+            os.fchmod(f.fileno(), 0o644)  # mkstemp makes 0600; session files are ordinary documents
             f.write(data)
             f.flush()
             os.fsync(f.fileno())
@@ -132,9 +133,28 @@ def atomic_write_npz(path: Path, arrays: Mapping[str, np.ndarray], *, compress: 
     for k, a in arrays.items():
         if np.asarray(a).dtype.hasobject:
             raise InvalidInput(f"Cannot save {k!r}: it is not a plain numeric array.")
+    atomic_write_bytes(path, npz_bytes(arrays, compress=compress))
+
+
+def npz_bytes(arrays: Mapping[str, np.ndarray], *, compress: bool = True) -> bytes:
+    """An ``.npz`` (zip of ``.npy``) readable by ``np.load``, byte-for-byte reproducible.
+
+    Unlike ``np.savez`` it stamps a fixed date into the zip entries, so regenerating the same arrays gives
+    the same file (the example sessions do not churn in version control).
+    """
     buf = io.BytesIO()
-    (np.savez_compressed if compress else np.savez)(buf, **{k: np.asarray(v) for k, v in arrays.items()})
-    atomic_write_bytes(path, buf.getvalue())
+    method = zipfile.ZIP_DEFLATED if compress else zipfile.ZIP_STORED
+    with zipfile.ZipFile(buf, "w", compression=method, allowZip64=True) as zf:
+        for k, v in arrays.items():
+            a = np.asarray(v)
+            if a.dtype.hasobject:
+                raise InvalidInput(f"Cannot save {k!r}: it is not a plain numeric array.")
+            info = zipfile.ZipInfo(f"{k}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            info.compress_type = method
+            info.external_attr = 0o644 << 16
+            with zf.open(info, "w", force_zip64=True) as f:
+                np.lib.format.write_array(f, np.ascontiguousarray(a), allow_pickle=False)
+    return buf.getvalue()
 
 
 # -- validated npz reading ----------------------------------------------------------------------------------
@@ -531,8 +551,15 @@ class Session:
         self.arms = a
         self._write_manifest()
 
-    def set_skills(self, skills: Mapping[str, Any], params: KeypointParams | None = None) -> None:
-        """Save learned skills (arm -> Skill, each with ``to_arrays()``), replacing the previous ones."""
+    def set_skills(
+        self, skills: Mapping[str, Any], params: KeypointParams | None = None, demos: Iterable[str] | None = None
+    ) -> None:
+        """Save learned skills (arm -> Skill, each with ``to_arrays()``), replacing the previous ones.
+
+        Args:
+            params: the thresholds they were learned with (also become the session's parameters).
+            demos: names of the demonstrations they were learned from (default: all of the session's).
+        """
         for arm in skills:
             if arm not in ARMS:
                 raise InvalidInput(f'Unknown arm "{arm}" for a skill.')
@@ -547,7 +574,7 @@ class Session:
                 "file": f"{SKILL_DIR}/{arm}.npz",
                 "learned": _now(),
                 "params": self.params.as_dict(),
-                "demos": self.demo_names,
+                "demos": list(demos) if demos is not None else self.demo_names,
             }
             for arm in skills
         }
@@ -927,4 +954,5 @@ __all__ = [
     "check_session_name",
     "idle_bounds",
     "load_session",
+    "npz_bytes",
 ]

@@ -1,0 +1,297 @@
+"""Headless commands behind ``studio learn | import-csv | export-csv | make-examples``.
+
+Each takes the parsed ``argparse`` namespace (see :mod:`studio.cli`), prints plain-words output and returns
+an exit code; :class:`StudioError` propagates to the CLI, which prints its message.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import sys
+import time
+import uuid
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, TextIO
+
+import numpy as np
+
+from studio.core.errors import InvalidInput, NotEnoughData, StudioError
+from studio.core.types import Recording
+from studio.sessions import Session, SessionStore
+
+#: The example sessions: task -> (seeds of the three demonstrations, taught arm, notes).
+EXAMPLES: dict[str, tuple[tuple[int, ...], str, str]] = {
+    "stack-cup": (
+        (0, 1, 2),
+        "left",
+        "Stacking cup task (paper, Table II): take a cup handed over in the air and put it on a stack of cups. "
+        "Three demonstrations by the scripted teacher (studio/teacher.py) driving the simulated Baxter "
+        "through the recorder at 1 kHz; re-create with `studio make-examples`.",
+    ),
+    "pick-place": (
+        (0, 1, 2),
+        "left",
+        "Pick and place task (paper, Table III): pick a block at A, place it at B, pick it again and bring it "
+        "back to A. Three demonstrations by the scripted teacher (studio/teacher.py) driving the simulated "
+        "Baxter through the recorder at 1 kHz; re-create with `studio make-examples`.",
+    ),
+}
+
+
+def _sessions_dir(args: argparse.Namespace) -> Path:
+    d = getattr(args, "sessions_dir", None)
+    if d is None:
+        from studio.sessions import DEFAULT_ROOT
+
+        return DEFAULT_ROOT
+    return Path(d)
+
+
+def _arms(value: str | None, default: Sequence[str]) -> tuple[str, ...]:
+    if value is None:
+        return tuple(default)
+    return ("left", "right") if value == "both" else (value,)
+
+
+# -- learn ----------------------------------------------------------------------------------------------------
+def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
+    """Learn a session's skill headless, save it into the session and print a short report."""
+    out = out or sys.stdout
+    store = SessionStore(_sessions_dir(args))
+    session = store.open(args.session)
+    if session.recovery_message:
+        print(session.recovery_message, file=out)
+    for p in session.problems:
+        print(p, file=out)
+    if len(session.recordings) < 2:
+        raise NotEnoughData(
+            f'Session "{session.name}" has {len(session.recordings)} demonstration(s); record or import at least '
+            "two (the paper uses three) before learning."
+        )
+    arms = _arms(getattr(args, "arm", None), session.arms)
+    from studio.core.pipeline import learn_arms
+
+    t0 = time.perf_counter()
+    skills = learn_arms(session.recordings, params=session.params, arms=arms, seed=0)
+    elapsed = time.perf_counter() - t0
+    session.set_skills(skills, params=session.params)
+    print(report(session, skills, elapsed), file=out)
+    return 0
+
+
+def _fmt(x: Any, spec: str = ".3g") -> str:
+    try:
+        return format(float(x), spec)
+    except (TypeError, ValueError):
+        return "—"
+
+
+def report(session: Session, skills: dict[str, Any], elapsed: float | None = None) -> str:
+    """The plain-text learning report: per demo samples and key-points, k, log-likelihood, reference, quality."""
+    lines = [f'Session "{session.name}": {len(session.recordings)} demonstrations, learned ' + ", ".join(skills)]
+    if elapsed is not None:
+        lines[0] += f" in {elapsed:.1f} s"
+    for arm, sk in skills.items():
+        names = session.skill_info.get(arm, {}).get("demos") or session.demo_names
+        kps = list(getattr(sk, "keypoints", []) or [])
+        ll = (
+            np.atleast_1d(np.asarray(getattr(sk, "loglik", []), dtype=float))
+            if getattr(sk, "loglik", None) is not None
+            else None
+        )
+        ref = int(getattr(sk, "reference", -1))
+        lines.append("")
+        lines.append(f"{arm} arm")
+        lines.append(f"  {'demonstration':<28}{'samples':>10}{'key-points':>12}{'log-likelihood':>16}")
+        recs = {r.name: r for r in session.recordings}
+        for i, nm in enumerate(names):
+            n = len(recs[nm]) if nm in recs else 0
+            k = len(kps[i]) if i < len(kps) else 0
+            llv = _fmt(ll[i], ".1f") if ll is not None and i < ll.shape[0] else "—"
+            mark = "  ← reference" if i == ref else ""
+            lines.append(f"  {nm[:27]:<28}{n:>10}{k:>12}{llv:>16}{mark}")
+        cent = getattr(sk, "centroids", None)
+        k_clusters = int(np.asarray(cent).shape[0]) if cent is not None else 0
+        lines.append(f"  clusters (HMM states) k = {k_clusters}")
+        tr = getattr(sk, "trajectory", None)
+        if tr is not None:
+            lines.append(f"  generalized trajectory: {len(tr)} samples, {tr.duration:.1f} s")
+        jt = getattr(sk, "joint_trajectory", None)
+        if jt is not None:
+            pe = np.asarray(jt.position_error, dtype=float)
+            oe = np.asarray(jt.orientation_error, dtype=float)
+            conv = np.asarray(jt.converged, dtype=bool)
+            lines.append(
+                f"  joint trajectory (IK): {conv.mean() * 100:.1f} % of poses reached; position error "
+                f"median {np.median(pe) * 1000:.2f} mm, max {pe.max() * 1000:.2f} mm; orientation error max "
+                f"{np.degrees(oe.max()):.2f}°"
+            )
+        if tr is not None and names:
+            # How far the generalized path stays from the demonstrations (mean nearest distance).
+            from studio.core.kinematics import Baxter
+
+            b = Baxter.load()
+            dists = []
+            for nm in names:
+                r = recs.get(nm)
+                if r is None:
+                    continue
+                pos, _ = b.fk_batch(arm, r.arm_q(arm)[:: max(1, len(r) // 2000)])
+                p = np.asarray(tr.position)[:: max(1, len(tr) // 2000)]
+                d = np.sqrt(((p[:, None, :] - pos[None, :, :]) ** 2).sum(-1)).min(axis=1)
+                dists.append(float(d.mean()))
+            if dists:
+                lines.append(
+                    f"  distance of the generalized path to the demonstrations: mean {np.mean(dists) * 1000:.1f} mm "
+                    f"(per demo {', '.join(f'{x * 1000:.1f}' for x in dists)} mm)"
+                )
+    lines.append("")
+    lines.append(f"Saved into the session ({session.path}).")
+    return "\n".join(lines)
+
+
+# -- CSV ------------------------------------------------------------------------------------------------------
+def import_csv(args: argparse.Namespace, out: TextIO | None = None) -> int:
+    """Import Baxter SDK joint-recorder CSV files into a session (created if missing).
+
+    Good files are imported even when others fail; the exit code is 1 if any file failed.
+    """
+    from studio.csv_io import import_csv as read_csv
+
+    out = out or sys.stdout
+    store = SessionStore(_sessions_dir(args))
+    arms = _arms(getattr(args, "arm", None), ("left",))
+    recs: list[tuple[Path, Recording]] = []
+    failed: list[str] = []
+    for f in args.files:
+        try:
+            recs.append((Path(f), read_csv(f, arms=arms)))
+        except StudioError as exc:
+            failed.append(f"  {f}: {exc}")
+    if recs:
+        if store.exists(args.session):
+            session = store.open(args.session)
+        else:
+            session = store.create(args.session, arms=arms)
+            print(f'Created session "{session.name}".', file=out)
+        for f, r in recs:
+            i = session.add_recording(r)
+            rr = session.recordings[i]
+            print(f'Imported {f.name} as "{rr.name}": {len(rr)} samples, {rr.duration:.1f} s.', file=out)
+    if failed:
+        print("These files were not imported:\n" + "\n".join(failed), file=out)
+        return 1
+    return 0
+
+
+def export_csv(args: argparse.Namespace, out: TextIO | None = None) -> int:
+    """Write a session's learned joint trajectory as a CSV for the Baxter SDK's playback example."""
+    from studio.csv_io import export_joint_trajectory_csv
+
+    out = out or sys.stdout
+    store = SessionStore(_sessions_dir(args))
+    session = store.open(args.session, recover=False)
+    skills = {a: s for a, s in session.skills.items() if getattr(s, "joint_trajectory", None) is not None}
+    if not skills:
+        raise NotEnoughData(
+            f'Session "{session.name}" has no learned joint trajectory yet. '
+            f'Learn it first: studio learn "{session.name}"'
+        )
+    if session.skills_stale:
+        print(
+            "Note: the demonstrations changed since the skill was learned; exporting the last learned skill.", file=out
+        )
+    n = export_joint_trajectory_csv(skills, args.out)
+    print(
+        f"Wrote {args.out}: {n} rows ({', '.join(skills)} arm). Run it on Baxter with "
+        f"`rosrun baxter_examples joint_trajectory_file_playback.py -f {Path(args.out).name}`.",
+        file=out,
+    )
+    return 0
+
+
+# -- example sessions -----------------------------------------------------------------------------------------
+def record_plan(session: Session, plan: Any, name: str, *, noise_seed: int) -> int:
+    """Drive a :class:`SimulatedBaxter` through ``plan`` in manual-step mode, record it, add it to ``session``.
+
+    The real path of the studio (backend → recorder → session), faster than real time and deterministic.
+    """
+    from studio import teacher
+    from studio.recorder import Recorder
+    from studio.robot_backend.simulated import SimulatedBaxter
+
+    sim = SimulatedBaxter(
+        rate_hz=plan.rate_hz,
+        q0=plan.q[0],
+        gripper0=plan.gripper[0],
+        sensor_noise=teacher.JOINT_NOISE_RAD,
+        quantum=teacher.JOINT_QUANTUM_RAD,
+        gripper_noise=teacher.GRIPPER_NOISE_PERCENT,
+        seed=noise_seed,
+    )
+    rec = Recorder(sim, session.recording_dir, plan.arms, name=name)
+    rec.start()
+    sim.run_targets(plan.q, plan.gripper, batch=16)
+    index = rec.save_to(session)
+    shutil.rmtree(session.recording_dir, ignore_errors=True)
+    return index
+
+
+def build_example(store: SessionStore, task: str, *, learn_skill: bool = True, out: TextIO | None = None) -> Session:
+    """(Re)create the example session ``task`` in ``store``; replaces an existing one only when complete."""
+    from studio import teacher
+
+    out = out or sys.stdout
+    seeds, arm, notes = EXAMPLES[task]
+    store.root.mkdir(parents=True, exist_ok=True)
+    tmp = store.root / f".tmp-example-{uuid.uuid4().hex[:8]}"
+    tmp_store = SessionStore(tmp)
+    try:
+        session = tmp_store.create(task, arms=(arm,), notes=notes, precision="float32")
+        session.created = "2026-11-22T00:00:00+00:00"  # fixed: regenerating does not churn the manifest
+        for i, seed in enumerate(seeds):
+            plan = teacher.teach(task, seed, arm=arm)
+            record_plan(session, plan, f"demo {i + 1}", noise_seed=1000 * (i + 1) + seed)
+            r = session.recordings[-1]
+            print(f"  {task} demo {i + 1}: {len(r)} samples, {r.duration:.1f} s", file=out)
+        if learn_skill:
+            try:
+                from studio.core.pipeline import learn_arms
+            except ImportError:
+                print("  (the learning pipeline is not available; the skill was not learned)", file=out)
+            else:
+                skills = learn_arms(session.recordings, params=session.params, arms=(arm,), seed=0)
+                session.set_skills(skills)
+                print(report(session, skills), file=out)
+        final = store.root / task
+        old = store.root / f".tmp-old-{uuid.uuid4().hex[:8]}"
+        if final.exists():
+            os.rename(final, old)
+        os.rename(tmp / task, final)
+        shutil.rmtree(old, ignore_errors=True)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return store.open(task, recover=False)
+
+
+def make_examples(args: argparse.Namespace, out: TextIO | None = None) -> int:
+    """(Re)create the example sessions "stack-cup" and "pick-place" with the scripted teacher."""
+    out = out or sys.stdout
+    store = SessionStore(_sessions_dir(args))
+    only = getattr(args, "only", None)
+    tasks = [only] if only else list(EXAMPLES)
+    for task in tasks:
+        if task not in EXAMPLES:
+            raise InvalidInput(f'Unknown example "{task}": choose one of {", ".join(EXAMPLES)}.')
+        t0 = time.perf_counter()
+        print(f'Making example session "{task}"...', file=out)
+        s = build_example(store, task, learn_skill=not getattr(args, "no_learn", False), out=out)
+        size = sum(p.stat().st_size for p in s.path.rglob("*") if p.is_file())
+        print(f"  done in {time.perf_counter() - t0:.1f} s: {s.path} ({size / 1e6:.1f} MB)", file=out)
+    return 0
+
+
+__all__ = ["EXAMPLES", "build_example", "export_csv", "import_csv", "learn", "make_examples", "record_plan", "report"]
