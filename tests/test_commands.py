@@ -1,0 +1,106 @@
+"""Headless commands: import-csv, export-csv, learn, make-examples, and the committed example sessions."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from studio.cli import main
+from studio.commands import EXAMPLES, build_example
+from studio.core.types import Recording
+from studio.csv_io import export_recording_csv
+from studio.sessions import DEFAULT_ROOT, SessionStore
+
+
+def _csv(path: Path, n: int = 800, seed: int = 0) -> Path:
+    rng = np.random.default_rng(seed)
+    q = np.tile([0.08, -1.0, -1.19, 1.94, 0.67, 1.03, -0.5] * 2, (n, 1)) + np.cumsum(
+        rng.normal(0, 1e-3, (n, 14)), axis=0
+    )
+    export_recording_csv(Recording(np.arange(n) / 100.0, q, np.full((n, 2), 100.0)), path)
+    return path
+
+
+def test_import_csv_creates_the_session_and_keeps_good_files(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    a = _csv(tmp_path / "take_a.csv")
+    b = _csv(tmp_path / "take_b.csv", seed=1)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("not,a,recording\n")
+    sessions = tmp_path / "sessions"
+    code = main(["import-csv", str(a), str(bad), str(b), "--session", "real baxter", "--sessions-dir", str(sessions)])
+    out = capsys.readouterr().out
+    assert code == 1  # one file failed ...
+    assert "bad.csv" in out and "not imported" in out
+    s = SessionStore(sessions).open("real baxter")
+    assert s.demo_names == ["take_a", "take_b"]  # ... the good ones are in
+    assert len(s.recordings[0]) == 800
+    assert main(["import-csv", str(a), "--session", "real baxter", "--sessions-dir", str(sessions)]) == 0
+    assert SessionStore(sessions).open("real baxter").demo_names == ["take_a", "take_b", "take_a (2)"]
+
+
+def test_export_csv_without_a_skill_says_what_to_do(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    sessions = tmp_path / "sessions"
+    main(["import-csv", str(_csv(tmp_path / "x.csv")), "--session", "s", "--sessions-dir", str(sessions)])
+    code = main(["export-csv", "s", "--out", str(tmp_path / "out.csv"), "--sessions-dir", str(sessions)])
+    assert code == 2
+    assert "Learn it first: studio learn" in capsys.readouterr().err
+    assert not (tmp_path / "out.csv").exists()
+
+
+def test_unknown_session_is_a_plain_error(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    assert main(["learn", "nothing here", "--sessions-dir", str(tmp_path)]) == 2
+    assert 'no session called "nothing here"' in capsys.readouterr().err
+
+
+def test_committed_example_sessions_load_and_look_like_the_paper() -> None:
+    store = SessionStore(DEFAULT_ROOT)
+    for task in EXAMPLES:
+        s = store.open(task, recover=False)
+        assert len(s.recordings) == 3
+        for r in s.recordings:
+            assert 20.0 <= r.duration <= 30.0
+            assert np.allclose(np.diff(r.t), 1e-3)  # 1 kHz, no gaps
+            assert r.arms == ("left",)
+            assert np.ptp(r.arm_q("left"), axis=0).max() > 0.3  # the taught arm moves
+            assert np.ptp(r.arm_gripper("left")) > 40  # and grasps
+
+
+def test_make_examples_is_reproducible(tmp_path: Path) -> None:
+    # Rebuilding "stack-cup" from the scripted teacher through simulator + recorder gives the committed files.
+    store = SessionStore(tmp_path)
+    with open(tmp_path / "log.txt", "w") as log:
+        s = build_example(store, "stack-cup", learn_skill=False, out=log)
+    committed = SessionStore(DEFAULT_ROOT).open("stack-cup", recover=False)
+    assert s.demo_files == committed.demo_files
+    for f in s.demo_files:
+        assert (s.path / f).read_bytes() == (committed.path / f).read_bytes(), (
+            "the committed example differs from what the teacher makes now: run `studio make-examples`"
+        )
+    assert not list(tmp_path.glob(".tmp-*"))  # no temporary folders left
+
+
+def test_learn_saves_the_skill_and_prints_a_report(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    pytest.importorskip("studio.core.pipeline")
+    store = SessionStore(tmp_path)
+    src = SessionStore(DEFAULT_ROOT).open("stack-cup", recover=False)
+    s = store.create("learn me", precision="float32")
+    for r in src.recordings:
+        s.add_recording(r)
+    assert main(["learn", "learn me", "--sessions-dir", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "k = " in out and "reference" in out and "key-points" in out and "log-likelihood" in out
+    loaded = store.open("learn me")
+    assert set(loaded.skills) == {"left"} and not loaded.skills_stale
+    csv = tmp_path / "skill.csv"
+    assert main(["export-csv", "learn me", "--out", str(csv), "--sessions-dir", str(tmp_path)]) == 0
+    assert csv.read_text().startswith("time,left_s0,")
+
+
+def test_learn_needs_two_demos(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    sessions = tmp_path / "sessions"
+    main(["import-csv", str(_csv(tmp_path / "x.csv")), "--session", "one", "--sessions-dir", str(sessions)])
+    capsys.readouterr()
+    assert main(["learn", "one", "--sessions-dir", str(sessions)]) == 2
+    assert "at least two" in capsys.readouterr().err
