@@ -219,16 +219,16 @@ class Recorder:
 
     def stop(self) -> Recording:
         """Stop recording and return the demonstration (the file stays until :meth:`discard`)."""
-        return self.stop_demo().recording
+        return self.stop_demo(poses=False).recording
 
-    def stop_demo(self) -> RecordedDemo:
+    def stop_demo(self, *, poses: bool = True) -> RecordedDemo:
         """Like :meth:`stop`, also returning the FK poses recorded for the taught arms."""
         if self.state not in ("recording", "stopped"):
             raise RecordingError("Nothing is being recorded.")
         if self.state == "recording":
             self._finish()
         assert self.path is not None
-        demo = read_recording_file(self.path, name=self.name)
+        demo = read_recording_file(self.path, name=self.name, poses=poses)
         if demo is None or len(demo.recording) == 0:
             raise RecordingError(
                 "The recording is empty: the robot sent no joint states while recording. "
@@ -401,8 +401,16 @@ def _read_header(f: Any, path: Path) -> dict[str, Any]:
     return header
 
 
-def read_recording_file(path: str | os.PathLike[str], *, name: str | None = None) -> RecordedDemo | None:
+def read_recording_file(
+    path: str | os.PathLike[str], *, name: str | None = None, poses: bool = True
+) -> RecordedDemo | None:
     """Read an append-only recording file; a half-written last row is dropped. None if it holds no sample.
+
+    The file is memory-mapped and checked in chunks, so reading a 2-hour recording needs little more memory
+    than the returned arrays themselves.
+
+    Args:
+        poses: also return the recorded FK poses (skip them to save memory when only the Recording is needed).
 
     Raises:
         RecordingError: the file is not a recording or its header is damaged.
@@ -411,23 +419,30 @@ def read_recording_file(path: str | os.PathLike[str], *, name: str | None = None
     try:
         with open(path, "rb") as f:
             header = _read_header(f, path)
-            arms = tuple(header["arms"])
-            ncols = len(header["columns"])
             size = os.fstat(f.fileno()).st_size
-            nrows = (size - header["_data_offset"]) // (8 * ncols)
-            data = np.fromfile(f, dtype="<f8", count=nrows * ncols).reshape(nrows, ncols)
     except OSError as exc:
         raise RecordingError(f'The recording "{path.name}" cannot be read ({exc.strerror}).') from exc
-    # A crash can leave a torn last row (e.g. zero-filled); keep only the clean, increasing prefix.
-    good = np.all(np.isfinite(data), axis=1)
-    if data.shape[0]:
-        inc = np.concatenate([[True], np.diff(data[:, 0]) > 0])
-        good &= inc
-    if not np.all(good):
-        data = data[: int(np.argmin(good))]
-    if data.shape[0] == 0:
+    arms = tuple(header["arms"])
+    ncols = len(header["columns"])
+    nrows = (size - header["_data_offset"]) // (8 * ncols)
+    if nrows <= 0:
         return None
-    t = data[:, 0] - data[0, 0]
+    data = np.memmap(path, dtype="<f8", mode="r", offset=header["_data_offset"], shape=(nrows, ncols))
+    # A crash can leave a torn last row (e.g. zero-filled); keep only the clean, increasing prefix.
+    n_ok = nrows
+    prev = -np.inf
+    chunk = 1 << 18
+    for s in range(0, nrows, chunk):
+        block = np.asarray(data[s : s + chunk])
+        good = np.all(np.isfinite(block), axis=1) & (block[:, 0] > np.concatenate([[prev], block[:-1, 0]]))
+        if not np.all(good):
+            n_ok = s + int(np.argmin(good))
+            break
+        prev = float(block[-1, 0])
+    if n_ok == 0:
+        return None
+    data = data[:n_ok]
+    t = np.asarray(data[:, 0]) - float(data[0, 0])
     rec = Recording(
         t=t,
         q=data[:, 1:15],
@@ -435,8 +450,9 @@ def read_recording_file(path: str | os.PathLike[str], *, name: str | None = None
         arms=arms,
         name=name or str(header.get("name") or "demo"),
     )
-    poses = {a: data[:, 17 + 7 * i : 24 + 7 * i].copy() for i, a in enumerate(arms)}
-    return RecordedDemo(recording=rec, poses=poses, path=path)
+    out_poses = {a: np.array(data[:, 17 + 7 * i : 24 + 7 * i]) for i, a in enumerate(arms)} if poses else {}
+    del data
+    return RecordedDemo(recording=rec, poses=out_poses, path=path)
 
 
 def _is_locked(path: Path) -> bool:
@@ -479,7 +495,7 @@ def recover_recordings(directory: str | os.PathLike[str], session: Any = None) -
     damaged: list[str] = []
     for p in pending_recordings(directory):
         try:
-            demo = read_recording_file(p)
+            demo = read_recording_file(p, poses=False)
         except RecordingError as exc:
             damaged.append(str(exc))
             continue

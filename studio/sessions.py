@@ -133,18 +133,37 @@ def atomic_write_npz(path: Path, arrays: Mapping[str, np.ndarray], *, compress: 
     for k, a in arrays.items():
         if np.asarray(a).dtype.hasobject:
             raise InvalidInput(f"Cannot save {k!r}: it is not a plain numeric array.")
-    atomic_write_bytes(path, npz_bytes(arrays, compress=compress))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".tmp-{path.name}-", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            os.fchmod(f.fileno(), 0o644)
+            _write_npz(f, arrays, compress=compress)  # streamed: no second copy of the data in memory
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    _fsync_dir(path.parent)
 
 
 def npz_bytes(arrays: Mapping[str, np.ndarray], *, compress: bool = True) -> bytes:
-    """An ``.npz`` (zip of ``.npy``) readable by ``np.load``, byte-for-byte reproducible.
+    """An ``.npz`` (zip of ``.npy``) readable by ``np.load``, byte-for-byte reproducible (see :func:`_write_npz`)."""
+    buf = io.BytesIO()
+    _write_npz(buf, arrays, compress=compress)
+    return buf.getvalue()
+
+
+def _write_npz(fileobj: Any, arrays: Mapping[str, np.ndarray], *, compress: bool = True) -> None:
+    """Write an ``.npz`` readable by ``np.load(allow_pickle=False)`` to ``fileobj``.
 
     Unlike ``np.savez`` it stamps a fixed date into the zip entries, so regenerating the same arrays gives
     the same file (the example sessions do not churn in version control).
     """
-    buf = io.BytesIO()
     method = zipfile.ZIP_DEFLATED if compress else zipfile.ZIP_STORED
-    with zipfile.ZipFile(buf, "w", compression=method, allowZip64=True) as zf:
+    with zipfile.ZipFile(fileobj, "w", compression=method, allowZip64=True) as zf:
         for k, v in arrays.items():
             a = np.asarray(v)
             if a.dtype.hasobject:
@@ -154,7 +173,6 @@ def npz_bytes(arrays: Mapping[str, np.ndarray], *, compress: bool = True) -> byt
             info.external_attr = 0o644 << 16
             with zf.open(info, "w", force_zip64=True) as f:
                 np.lib.format.write_array(f, np.ascontiguousarray(a), allow_pickle=False)
-    return buf.getvalue()
 
 
 # -- validated npz reading ----------------------------------------------------------------------------------
@@ -277,9 +295,9 @@ def _load_demo(path: Path, session: str, rel: str, entry: Mapping[str, Any]) -> 
         raise _damaged(session, rel, "has gripper openings outside 0–100 %")
     try:
         return Recording(
-            t=arrays["t"].astype(np.float64),
-            q=arrays["q"].astype(np.float64),
-            gripper=g.astype(np.float64),
+            t=arrays["t"].astype(np.float64, copy=False),
+            q=arrays["q"].astype(np.float64, copy=False),
+            gripper=g.astype(np.float64, copy=False),
             arms=tuple(entry["arms"]),
             name=entry["name"],
         )
@@ -444,7 +462,8 @@ class Session:
         self._next_id += 1
         dt = _PRECISIONS[self.precision]
         atomic_write_npz(
-            self.path / rel, {"t": rec.t.astype(np.float64), "q": rec.q.astype(dt), "gripper": rec.gripper.astype(dt)}
+            self.path / rel,
+            {"t": rec.t, "q": rec.q.astype(dt, copy=False), "gripper": rec.gripper.astype(dt, copy=False)},
         )
         return rel
 
