@@ -753,6 +753,12 @@ class SessionStore:
             )
         return out
 
+    def pending_recoveries(self) -> list[str]:
+        """Sessions that hold recordings interrupted by a crash (recovered when the session is opened)."""
+        from studio.recorder import pending_recordings
+
+        return [n for n in self.list_sessions() if pending_recordings(self.root / n / RECORDING_DIR)]
+
     def create(
         self,
         name: str,

@@ -198,6 +198,7 @@ def test_kill_dash_nine_mid_recording_then_recover_on_next_open(tmp_path: Path) 
         if proc.stdout is not None:
             proc.stdout.close()
     assert proc.returncode == -signal.SIGKILL
+    assert store.pending_recoveries() == ["crash test"]
     reopened = store.open("crash test")
     assert "stopped while recording" in reopened.recovery_message
     assert reopened.demo_names == ["interrupted take (recovered)"]
@@ -207,3 +208,4 @@ def test_kill_dash_nine_mid_recording_then_recover_on_next_open(tmp_path: Path) 
     assert np.allclose(np.diff(r.t), 1e-3)
     assert list(session.recording_dir.glob("*.rec")) == []  # saved into the session, file removed
     assert store.open("crash test").recovery_message == ""  # recovered once, not again
+    assert store.pending_recoveries() == []
