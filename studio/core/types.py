@@ -15,9 +15,7 @@ from studio.core.errors import InvalidInput
 
 ARMS: tuple[str, str] = ("left", "right")
 JOINT_SUFFIXES: tuple[str, ...] = ("s0", "s1", "e0", "e1", "w0", "w1", "w2")
-ARM_JOINTS: dict[str, tuple[str, ...]] = {
-    arm: tuple(f"{arm}_{s}" for s in JOINT_SUFFIXES) for arm in ARMS
-}
+ARM_JOINTS: dict[str, tuple[str, ...]] = {arm: tuple(f"{arm}_{s}" for s in JOINT_SUFFIXES) for arm in ARMS}
 #: The 14 arm joints in the order the backend streams them (and the Baxter SDK CSV lists them).
 ALL_ARM_JOINTS: tuple[str, ...] = ARM_JOINTS["left"] + ARM_JOINTS["right"]
 
@@ -210,9 +208,7 @@ class KeypointParams:
                 raise InvalidInput(f"Threshold {f.name} must be a number, got {v!r}.")
             if f.name in ("eps1", "eps8"):
                 if not (math.pi <= v <= _TWO_PI):
-                    raise InvalidInput(
-                        f"Corner sharpness ({f.name}) must lie between π and 2π (got {v:.3f})."
-                    )
+                    raise InvalidInput(f"Corner sharpness ({f.name}) must lie between π and 2π (got {v:.3f}).")
             elif v < 0:
                 raise InvalidInput(f"Threshold {f.name} cannot be negative (got {v}).")
 
@@ -228,13 +224,219 @@ class KeypointParams:
         return cls(**{k: float(v) for k, v in d.items()})
 
 
+
+@dataclass(frozen=True, eq=False)
+class JointTrajectory:
+    """The learned skill in joint space, ready to execute or export.
+
+    Attributes:
+        t: (M,) seconds.
+        q: (M, 7) joint angles of ``arm``, radians, within the URDF position and velocity limits.
+        position_error: (M,) distance between the forward kinematics of ``q`` and the Cartesian skill, m.
+        orientation_error: (M,) rotation angle between them, rad.
+        converged: (M,) True where the errors are below 1 mm and 0.01 rad.
+        arm: "left" or "right".
+        gripper: (M,) opening percent to command alongside.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    position_error: np.ndarray
+    orientation_error: np.ndarray
+    converged: np.ndarray
+    arm: str
+    gripper: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        t = readonly(self.t)
+        m = t.shape[0]
+        object.__setattr__(self, "t", t)
+        for name, shape in (("q", (m, 7)), ("position_error", (m,)), ("orientation_error", (m,))):
+            a = readonly(getattr(self, name))
+            if a.shape != shape:
+                raise InvalidInput(f"Joint trajectory {name} must have shape {shape}, got {a.shape}.")
+            object.__setattr__(self, name, a)
+        c = readonly(self.converged, dtype=bool)
+        if c.shape != (m,):
+            raise InvalidInput(f"Joint trajectory converged flags must have shape ({m},), got {c.shape}.")
+        object.__setattr__(self, "converged", c)
+        if self.gripper is not None:
+            object.__setattr__(self, "gripper", readonly(self.gripper))
+        check_arm(self.arm)
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+
+def _pack_list(d: dict[str, np.ndarray], name: str, arrays: list[np.ndarray], dtype: type) -> None:
+    d[f"{name}_data"] = np.concatenate([np.asarray(a, dtype=dtype).reshape(-1) for a in arrays]) if arrays else (
+        np.zeros(0, dtype=dtype)
+    )
+    d[f"{name}_offsets"] = np.cumsum([0] + [len(a) for a in arrays]).astype(np.int64)
+
+
+def _unpack_list(d: dict[str, np.ndarray], name: str, dtype: type) -> list[np.ndarray]:
+    data, off = np.asarray(d[f"{name}_data"], dtype=dtype), np.asarray(d[f"{name}_offsets"], dtype=np.int64)
+    return [readonly(data[off[i] : off[i + 1]], dtype=dtype) for i in range(len(off) - 1)]
+
+
+@dataclass(frozen=True, eq=False)
+class Skill:
+    """A learned skill: the generalized trajectory plus everything the panels draw.
+
+    Attributes:
+        trajectory: the generalized trajectory (a :class:`Demo` at the demos' rate, no joint angles).
+        keypoints: one sorted index array per input demo.
+        labels: the cluster (codebook symbol) of each key-point, one array per demo.
+        centroids: (k, 8) x, y, z, qw, qx, qy, qz, gripper, ordered by mean normalised time.
+        centroid_times: (k,) each cluster's time on the reference time line (mean DTW-aligned time of its
+            members), seconds.
+        states: the reference demo's Viterbi state sequence (one state per key-point).
+        paths: every demo's Viterbi state sequence.
+        reference: index of the demo with the highest forward-algorithm likelihood.
+        zero_points: states absent from ``states`` (dropped from the trajectory).
+        startprob, transmat, emissionprob: the trained HMM λ = {π, A, B}.
+        loglik: (D,) log-likelihood of each demo under the trained model.
+        path_times, path_points, path_states: the timed 8-D points the spline went through, and their states.
+        joint_trajectory: IK of the trajectory for ``arm`` (None when no arm was given).
+        arm: the arm the skill was learned for, or None.
+        params: the key-point thresholds used.
+        spline_through: "state-means" or "centroids".
+        demo_names: names of the input demos.
+    """
+
+    trajectory: Demo
+    keypoints: list[np.ndarray]
+    labels: list[np.ndarray]
+    centroids: np.ndarray
+    centroid_times: np.ndarray
+    states: np.ndarray
+    paths: list[np.ndarray]
+    reference: int
+    zero_points: np.ndarray
+    startprob: np.ndarray
+    transmat: np.ndarray
+    emissionprob: np.ndarray
+    loglik: np.ndarray
+    path_times: np.ndarray
+    path_points: np.ndarray
+    path_states: np.ndarray
+    joint_trajectory: JointTrajectory | None = None
+    arm: str | None = None
+    params: KeypointParams = KeypointParams()
+    spline_through: str = "state-means"
+    demo_names: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        for name in ("centroids", "centroid_times", "startprob", "transmat", "emissionprob", "loglik",
+                     "path_times", "path_points"):
+            object.__setattr__(self, name, readonly(getattr(self, name)))
+        for name in ("states", "zero_points", "path_states"):
+            object.__setattr__(self, name, readonly(getattr(self, name), dtype=np.int64))
+        for name in ("keypoints", "labels", "paths"):
+            object.__setattr__(self, name, [readonly(a, dtype=np.int64) for a in getattr(self, name)])
+        object.__setattr__(self, "demo_names", tuple(self.demo_names))
+
+    @property
+    def n_clusters(self) -> int:
+        return int(self.centroids.shape[0])
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        """Everything as plain numeric/string arrays (``np.savez`` without pickle); see :meth:`from_arrays`."""
+        tr = self.trajectory
+        d: dict[str, np.ndarray] = {
+            "format": np.array("teaching-studio-skill/1"),
+            "trajectory_t": tr.t,
+            "trajectory_position": tr.position,
+            "trajectory_orientation": tr.orientation,
+            "trajectory_gripper": tr.gripper,
+            "trajectory_name": np.array(tr.name),
+            "centroids": self.centroids,
+            "centroid_times": self.centroid_times,
+            "states": self.states,
+            "reference": np.array(self.reference, dtype=np.int64),
+            "zero_points": self.zero_points,
+            "startprob": self.startprob,
+            "transmat": self.transmat,
+            "emissionprob": self.emissionprob,
+            "loglik": self.loglik,
+            "path_times": self.path_times,
+            "path_points": self.path_points,
+            "path_states": self.path_states,
+            "arm": np.array(self.arm or ""),
+            "params": np.array([getattr(self.params, f.name) for f in fields(KeypointParams)]),
+            "spline_through": np.array(self.spline_through),
+            "demo_names": np.array(list(self.demo_names), dtype=str),
+        }
+        _pack_list(d, "keypoints", self.keypoints, np.int64)
+        _pack_list(d, "labels", self.labels, np.int64)
+        _pack_list(d, "paths", self.paths, np.int64)
+        jt = self.joint_trajectory
+        if jt is not None:
+            d["joint_t"] = jt.t
+            d["joint_q"] = jt.q
+            d["joint_position_error"] = jt.position_error
+            d["joint_orientation_error"] = jt.orientation_error
+            d["joint_converged"] = jt.converged
+            d["joint_arm"] = np.array(jt.arm)
+            if jt.gripper is not None:
+                d["joint_gripper"] = jt.gripper
+        return d
+
+    @classmethod
+    def from_arrays(cls, d: dict[str, np.ndarray]) -> Skill:
+        """Rebuild a skill saved with :meth:`to_arrays` (raises :class:`InvalidInput` if keys are missing)."""
+        try:
+            if str(d["format"]) != "teaching-studio-skill/1":
+                raise InvalidInput(f"Unknown skill format {str(d['format'])!r}.")
+            traj = Demo(
+                d["trajectory_t"], d["trajectory_position"], d["trajectory_orientation"], d["trajectory_gripper"],
+                name=str(d["trajectory_name"]),
+            )
+            jt = None
+            if "joint_t" in d:
+                jt = JointTrajectory(
+                    d["joint_t"], d["joint_q"], d["joint_position_error"], d["joint_orientation_error"],
+                    d["joint_converged"], str(d["joint_arm"]), d["joint_gripper"] if "joint_gripper" in d else None,
+                )
+            names = [f.name for f in fields(KeypointParams)]
+            params = KeypointParams(**{n: float(v) for n, v in zip(names, np.asarray(d["params"]), strict=True)})
+            arm = str(d["arm"]) or None
+            return cls(
+                trajectory=traj,
+                keypoints=_unpack_list(d, "keypoints", np.int64),
+                labels=_unpack_list(d, "labels", np.int64),
+                centroids=d["centroids"],
+                centroid_times=d["centroid_times"],
+                states=d["states"],
+                paths=_unpack_list(d, "paths", np.int64),
+                reference=int(d["reference"]),
+                zero_points=d["zero_points"],
+                startprob=d["startprob"],
+                transmat=d["transmat"],
+                emissionprob=d["emissionprob"],
+                loglik=d["loglik"],
+                path_times=d["path_times"],
+                path_points=d["path_points"],
+                path_states=d["path_states"],
+                joint_trajectory=jt,
+                arm=arm,
+                params=params,
+                spline_through=str(d["spline_through"]),
+                demo_names=tuple(str(x) for x in np.asarray(d["demo_names"]).reshape(-1)),
+            )
+        except KeyError as exc:
+            raise InvalidInput(f"The saved skill is incomplete: {exc.args[0]} is missing.") from exc
+
 __all__ = [
     "ALL_ARM_JOINTS",
     "ARMS",
     "ARM_JOINTS",
     "Demo",
+    "JointTrajectory",
     "KeypointParams",
     "Recording",
+    "Skill",
     "check_arm",
     "readonly",
 ]

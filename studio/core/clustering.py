@@ -1,0 +1,206 @@
+"""k-means codebook over all demonstrations' key-points (paper § Clustering); the only sklearn import.
+
+Key-points are the paper's 8-D vectors x, y, z, qw, qx, qy, qz, gripper. Raw units would let the gripper
+(0–100 %) swamp metres and quaternion units, so each group is divided by a physical scale first
+(:class:`FeatureScale`): by default 5 cm of position, 0.1 quaternion units (≈ 0.2 rad of rotation) and
+25 % of gripper opening weigh the same. Quaternions are put in one hemisphere (q and −q are the same
+orientation) before averaging. k defaults to the mean number of key-points per demonstration (the paper's
+choice). Clusters are numbered by the mean normalised time (0 at a demo's start, 1 at its end) of their
+members, so cluster i comes before cluster i + 1 in a typical demonstration: the left–right HMM's states
+inherit that order.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from sklearn.cluster import KMeans, kmeans_plusplus
+
+from studio.core.errors import InvalidInput, NotEnoughData
+from studio.core.types import Demo, readonly
+
+
+@dataclass(frozen=True)
+class FeatureScale:
+    """How much of each quantity counts as one unit of distance in clustering and DTW.
+
+    Attributes:
+        position: metres per unit.
+        orientation: quaternion units per unit (0.1 ≈ 0.2 rad of rotation).
+        gripper: percent of opening per unit.
+    """
+
+    position: float = 0.05
+    orientation: float = 0.1
+    gripper: float = 25.0
+
+    def __post_init__(self) -> None:
+        for name in ("position", "orientation", "gripper"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and v > 0 and np.isfinite(v)):
+                raise InvalidInput(f"Feature scale {name} must be a positive number (got {v!r}).")
+
+    @property
+    def divisors(self) -> np.ndarray:
+        """(8,) divisors for x, y, z, qw, qx, qy, qz, gripper."""
+        return np.array([self.position] * 3 + [self.orientation] * 4 + [self.gripper])
+
+
+def align_hemisphere(quats: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """Flip quaternions (M, 4) so each has a non-negative dot product with ``reference`` (4,)."""
+    s = np.where(quats @ reference < 0, -1.0, 1.0)
+    return quats * s[:, None]
+
+
+def keypoint_features(demos: Sequence[Demo], keypoints: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Stack the key-points of all demos.
+
+    Returns:
+        X (M, 8) unscaled 8-D vectors (quaternions in one hemisphere), demo index (M,), normalised time (M,).
+    """
+    if len(demos) != len(keypoints):
+        raise InvalidInput("There must be one list of key-points per demonstration.")
+    rows, owner, u = [], [], []
+    for d, (demo, kp) in enumerate(zip(demos, keypoints, strict=True)):
+        kp = np.asarray(kp, dtype=np.int64)
+        rows.append(demo.features[kp])
+        owner.append(np.full(kp.shape[0], d))
+        dur = demo.duration if demo.duration > 0 else 1.0
+        u.append((demo.t[kp] - demo.t[0]) / dur)
+    X = np.concatenate(rows) if rows else np.zeros((0, 8))
+    if X.shape[0]:
+        ref = X[0, 3:7]
+        X[:, 3:7] = align_hemisphere(X[:, 3:7], ref)
+        mean = X[:, 3:7].mean(axis=0)
+        if np.linalg.norm(mean) > 1e-6:
+            X[:, 3:7] = align_hemisphere(X[:, 3:7], mean / np.linalg.norm(mean))
+    return X, np.concatenate(owner) if owner else np.zeros(0, int), np.concatenate(u) if u else np.zeros(0)
+
+
+@dataclass(frozen=True, eq=False)
+class Clustering:
+    """The codebook.
+
+    Attributes:
+        centroids: (k, 8) unscaled centroids (unit quaternions), ordered by mean normalised time.
+        labels: one (K_d,) int array per demo: the cluster (= codebook symbol) of each key-point.
+        mean_time: (k,) mean normalised time of each cluster's members.
+        features: (M, 8) all key-points' 8-D vectors in the order of ``labels`` concatenated.
+        scale: the feature scale used.
+        inertia: k-means distortion in scaled units.
+    """
+
+    centroids: np.ndarray
+    labels: list[np.ndarray]
+    mean_time: np.ndarray
+    features: np.ndarray
+    scale: FeatureScale
+    inertia: float
+
+    @property
+    def n_clusters(self) -> int:
+        return int(self.centroids.shape[0])
+
+
+def default_n_clusters(keypoints: Sequence[np.ndarray]) -> int:
+    """The paper's k: the mean number of key-points per demonstration, rounded."""
+    return max(1, int(round(float(np.mean([len(k) for k in keypoints])))))
+
+
+def cluster(
+    demos: Sequence[Demo],
+    keypoints: Sequence[np.ndarray],
+    n_clusters: int | None = None,
+    *,
+    seed: int = 0,
+    scale: FeatureScale | None = None,
+    n_init: int = 4,
+) -> Clustering:
+    """k-means over all key-points; clusters numbered by mean normalised time.
+
+    The first start is "time quantiles" (all key-points sorted by normalised time and cut into k groups),
+    which already respects the task's order; ``n_init − 1`` k-means++ starts follow; the lowest distortion
+    wins. Deterministic for a given ``seed``.
+
+    Raises:
+        NotEnoughData: no key-points, or more clusters than distinct key-points.
+        InvalidInput: k below 1.
+    """
+    scale = scale or FeatureScale()
+    X, owner, u = keypoint_features(demos, keypoints)
+    m = X.shape[0]
+    if m == 0:
+        raise NotEnoughData("There are no key-points to group: record at least one demonstration.")
+    k = default_n_clusters(keypoints) if n_clusters is None else int(n_clusters)
+    if k < 1:
+        raise InvalidInput(f"The number of clusters must be at least 1 (got {k}).")
+    Xs = X / scale.divisors
+    n_distinct = np.unique(np.round(Xs, 9), axis=0).shape[0]
+    if k > n_distinct:
+        raise NotEnoughData(
+            f"Cannot make {k} clusters from {n_distinct} different key-points. Choose at most {n_distinct} "
+            "clusters, record more demonstrations, or lower the key-point thresholds to find more key-points."
+        )
+    order = np.argsort(u, kind="stable")
+    groups = np.array_split(order, k)
+    inits = [np.stack([Xs[g].mean(axis=0) for g in groups])]
+    rng = np.random.default_rng(seed)
+    for _ in range(max(0, n_init - 1)):
+        c, _ = kmeans_plusplus(Xs, k, random_state=int(rng.integers(2**31 - 1)))
+        inits.append(c)
+    best = None
+    for init in inits:
+        if np.unique(np.round(init, 9), axis=0).shape[0] < k:
+            continue  # duplicate start centres (repeated key-points): k-means would warn and drop one
+        km = KMeans(n_clusters=k, init=init, n_init=1, random_state=seed, max_iter=100).fit(Xs)
+        if best is None or km.inertia_ < best.inertia_:
+            best = km
+    if best is None:  # pragma: no cover - k-means++ never returns duplicates when k <= n_distinct
+        raise NotEnoughData("The key-points are too similar to form that many clusters; choose fewer clusters.")
+    labels = best.labels_.astype(np.int64)
+    counts = np.bincount(labels, minlength=k)
+    mean_u = np.bincount(labels, weights=u, minlength=k) / np.maximum(counts, 1)
+    mean_u[counts == 0] = np.inf
+    rank = np.argsort(mean_u, kind="stable")
+    relabel = np.empty(k, dtype=np.int64)
+    relabel[rank] = np.arange(k)
+    labels = relabel[labels]
+    cent = np.zeros((k, 8))
+    for c in range(k):
+        members = X[labels == c]
+        cent[c] = members.mean(axis=0) if members.shape[0] else best.cluster_centers_[rank[c]] * scale.divisors
+    cent[:, 3:7] /= np.linalg.norm(cent[:, 3:7], axis=1, keepdims=True)
+    split = np.cumsum([len(kp) for kp in keypoints])[:-1]
+    return Clustering(
+        centroids=readonly(cent),
+        labels=[readonly(lab, dtype=np.int64) for lab in np.split(labels, split)],
+        mean_time=readonly(mean_u[rank]),
+        features=readonly(X),
+        scale=scale,
+        inertia=float(best.inertia_),
+    )
+
+
+def cluster_keypoints(
+    demos: Sequence[Demo],
+    keypoints: Sequence[np.ndarray],
+    n_clusters: int | None = None,
+    *,
+    seed: int = 0,
+    scale: FeatureScale | None = None,
+) -> np.ndarray:
+    """(k, 8) centroids ordered by mean normalised time (see :func:`cluster` for labels and details)."""
+    return cluster(demos, keypoints, n_clusters, seed=seed, scale=scale).centroids
+
+
+__all__ = [
+    "Clustering",
+    "FeatureScale",
+    "align_hemisphere",
+    "cluster",
+    "cluster_keypoints",
+    "default_n_clusters",
+    "keypoint_features",
+]

@@ -1,0 +1,484 @@
+"""Key-point extraction (paper § Key-point Extraction, the criteria with ε1–ε7 for P and ε8–ε14 for O).
+
+A sample becomes a key-point if, for position or for orientation, one of three tests holds:
+
+1. **corner**: the angle at the sample between the directions to its predecessor and its successor is
+   below 2π − ε1 (ε8 for orientation); a straight line has angle π.
+2. **pause**: the speed is below ε2 (ε9), more than ε3 (ε10) seconds after the last key-point, and the
+   pose is more than ε4 (ε11) away from the last key-point.
+3. **distance**: the pose is at least ε5 (ε12) away from the last key-point, more than ε6 (ε13) seconds
+   after it, and every sample since the last key-point stayed within ε7 (ε14) of it: the first exit
+   from the ball around the last key-point.
+
+The first and last samples and both ends of every gripper motion (the last sample before the gripper
+moves and the first after it settles) are always key-points. Speeds are per second and durations in
+seconds so the thresholds mean the same at any sampling rate; orientation distances are rotation angles
+(radians), so q and −q are the same orientation.
+
+Robustness to 1 kHz sensor noise (the paper's per-sample differences are dominated by noise at 1 kHz):
+
+* poses are smoothed by a 50 ms moving average (quaternions made sign-continuous first, renormalised);
+* speeds are central differences over ±20 ms of the smoothed signal;
+* the corner angle uses neighbours at an **arc-length stride** (3 cm of path, 0.08 rad of rotation) on
+  the smoothed path instead of the adjacent samples, so the angle measures the path's shape rather than
+  the noise and does not depend on how fast the arm moved; a run of consecutive samples below the
+  threshold is one corner, at its sharpest sample;
+* a corner must also be more than ε4 (ε11) from the last key-point, like a pause: an arm that stops at a
+  corner then yields one key-point, not a pause key-point and a corner key-point a few ms apart.
+
+Speed: :func:`precompute` derives everything that does not depend on ε once per demonstration
+(:class:`KeypointSeries`); :func:`extract_keypoints` then only thresholds and runs a sequential scan that
+jumps from candidate to candidate (the pause and distance tests depend on the last key-point, so the
+scan is sequential, but each step looks at short chunks of samples and stops at the earliest candidate
+found so far). :func:`extract_keypoints_reference` is a literal per-sample loop over the same series,
+kept as the oracle the fast path is tested against.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import weakref
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.ndimage import uniform_filter1d
+
+from studio.core.errors import NotEnoughData
+from studio.core.types import Demo, KeypointParams, readonly
+
+#: Moving-average window applied to poses before any test, seconds.
+SMOOTHING_S = 0.05
+#: Half-width of the central difference used for speeds, seconds.
+SPEED_HALF_WINDOW_S = 0.02
+#: Arc-length stride of the corner test's neighbours: metres of path, radians of rotation.
+CORNER_STRIDE_M = 0.03
+CORNER_STRIDE_RAD = 0.08
+#: Gripper motion detection: speed above this (percent per second) is motion ...
+GRIPPER_SPEED = 20.0
+#: ... and a motion counts as an open/close event if the opening changes by more than this (percent).
+GRIPPER_MIN_CHANGE = 5.0
+
+
+@dataclass(frozen=True, eq=False)
+class KeypointSeries:
+    """Everything the criteria need that does not depend on ε, derived once per demonstration.
+
+    Attributes:
+        t: (N,) seconds.
+        position: (N, 3) smoothed positions, m.
+        orientation: (N, 4) smoothed, sign-continuous unit quaternions w, x, y, z.
+        speed: (N,) linear speed of the smoothed position, m/s.
+        angular_speed: (N,) rotation speed of the smoothed orientation, rad/s.
+        corner_angle: (N,) position corner angle at an arc-length stride, rad in [0, π]; π where undefined.
+        corner_angle_o: (N,) the same for orientation (rotation vectors in the tangent space), rad.
+        gripper_events: (E,) sorted sample indices at both ends of each gripper motion.
+    """
+
+    t: np.ndarray
+    position: np.ndarray
+    orientation: np.ndarray
+    speed: np.ndarray
+    angular_speed: np.ndarray
+    corner_angle: np.ndarray
+    corner_angle_o: np.ndarray
+    gripper_events: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+    def corner_mask(self, channel: str, threshold: float) -> np.ndarray:
+        """(N,) bool, True at corner candidates (:func:`corner_candidates`); the last few are cached, so a
+        slider that moves another ε does not recompute them."""
+        cache: dict[tuple[str, float], np.ndarray] = self.__dict__.setdefault("_corner_cache", {})
+        key = (channel, float(threshold))
+        m = cache.get(key)
+        if m is None:
+            angle = self.corner_angle if channel == "position" else self.corner_angle_o
+            m = np.zeros(len(self), dtype=bool)
+            m[corner_candidates(angle, threshold)] = True
+            m.setflags(write=False)
+            if len(cache) >= 8:
+                cache.pop(next(iter(cache)))
+            cache[key] = m
+        return m
+
+    @functools.cached_property
+    def position_t(self) -> np.ndarray:
+        """(3, N) contiguous copy of :attr:`position` (the fast scan reads it in chunks of columns)."""
+        return readonly(self.position.T)
+
+    @functools.cached_property
+    def orientation_t(self) -> np.ndarray:
+        """(4, N) contiguous copy of :attr:`orientation`."""
+        return readonly(self.orientation.T)
+
+
+# -- quaternion helpers ------------------------------------------------------------------------------------------
+
+
+def _sign_continuous(q: np.ndarray) -> np.ndarray:
+    flips = np.einsum("ij,ij->i", q[1:], q[:-1]) < 0
+    sign = np.concatenate([[1.0], np.where(np.cumsum(flips) % 2 == 1, -1.0, 1.0)])
+    return q * sign[:, None]
+
+
+def rotation_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Rotation angle (rad) between unit quaternions a and b (…, 4); q and −q are the same orientation."""
+    d = np.abs(np.einsum("...i,...i->...", a, b))
+    return 2.0 * np.arccos(np.minimum(d, 1.0))
+
+
+def relative_rotvec(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Rotation vectors (…, 3) of conj(a) ⊗ b for unit quaternions w, x, y, z (shortest rotation)."""
+    aw, av = a[..., :1], a[..., 1:]
+    bw, bv = b[..., :1], b[..., 1:]
+    w = aw * bw + np.sum(av * bv, axis=-1, keepdims=True)
+    v = aw * bv - bw * av - np.cross(av, bv)
+    s = np.where(w < 0, -1.0, 1.0)
+    w, v = w * s, v * s
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    ang = 2.0 * np.arctan2(n, w)
+    return np.where(n > 1e-15, v * (ang / np.maximum(n, 1e-300)), 0.0)
+
+
+def _angle_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    nu, nv = np.linalg.norm(u, axis=-1), np.linalg.norm(v, axis=-1)
+    ok = (nu > 0) & (nv > 0)
+    c = np.einsum("...i,...i->...", u, v) / np.where(ok, nu * nv, 1.0)
+    return np.where(ok, np.arccos(np.clip(c, -1.0, 1.0)), math.pi)
+
+
+# -- precomputation ------------------------------------------------------------------------------------------------
+
+
+def _samples(t: np.ndarray, seconds: float) -> int:
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
+    return max(1, int(round(seconds / dt)))
+
+
+def _stride_neighbours(arc: np.ndarray, stride: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Indices of the last sample ≥ ``stride`` of arc behind and the first ≥ ``stride`` ahead; validity."""
+    n = arc.shape[0]
+    prev = np.searchsorted(arc, arc - stride, side="right") - 1
+    nxt = np.searchsorted(arc, arc + stride, side="left")
+    valid = (arc - stride >= arc[0]) & (prev >= 0) & (nxt < n)
+    return np.clip(prev, 0, n - 1), np.clip(nxt, 0, n - 1), valid
+
+
+def gripper_events(t: np.ndarray, gripper: np.ndarray) -> np.ndarray:
+    """Both ends of every gripper motion: the last sample before it moves and the first after it settles.
+
+    Args:
+        t: (N,) seconds.
+        gripper: (N,) opening percent.
+
+    Returns:
+        Sorted unique sample indices (an even number of them, two per open/close event).
+    """
+    n = t.shape[0]
+    if n < 3:
+        return np.zeros(0, dtype=np.int64)
+    g = uniform_filter1d(gripper.astype(np.float64), _samples(t, 0.02), mode="nearest")
+    h = _samples(t, 0.01)
+    lo, hi = np.maximum(np.arange(n) - h, 0), np.minimum(np.arange(n) + h, n - 1)
+    rate = np.abs(g[hi] - g[lo]) / np.maximum(t[hi] - t[lo], 1e-12)
+    moving = rate > GRIPPER_SPEED
+    if not moving.any():
+        return np.zeros(0, dtype=np.int64)
+    edges = np.diff(np.concatenate([[0], moving.view(np.int8), [0]]))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)  # run [s, e)
+    # merge motions separated by less than 50 ms (a noisy pause inside one gripper stroke)
+    gap = _samples(t, 0.05)
+    keep = np.concatenate([[True], starts[1:] - ends[:-1] > gap])
+    starts = starts[keep]
+    ends = np.concatenate([ends[np.flatnonzero(keep)[1:] - 1], ends[-1:]])
+    out = []
+    for s, e in zip(starts, ends, strict=True):
+        a, b = max(s - 1, 0), min(e, n - 1)
+        if abs(g[b] - g[a]) > GRIPPER_MIN_CHANGE:
+            out.extend((a, b))
+    return np.unique(np.asarray(out, dtype=np.int64))
+
+
+def precompute(demo: Demo) -> KeypointSeries:
+    """Derive the ε-independent series of one demonstration (smoothing, speeds, corner angles, gripper).
+
+    Args:
+        demo: the demonstration (any sampling rate).
+
+    Returns:
+        A :class:`KeypointSeries`; about 20 ms for 30,000 samples.
+    """
+    n = len(demo)
+    if n < 2:
+        raise NotEnoughData(f"{demo.name} has {n} sample(s); a demonstration needs at least two.")
+    t = np.asarray(demo.t)
+    w = _samples(t, SMOOTHING_S)
+    pos = uniform_filter1d(demo.position, w, axis=0, mode="nearest")
+    ori = uniform_filter1d(_sign_continuous(np.asarray(demo.orientation)), w, axis=0, mode="nearest")
+    ori /= np.linalg.norm(ori, axis=1, keepdims=True)
+    h = _samples(t, SPEED_HALF_WINDOW_S)
+    idx = np.arange(n)
+    lo, hi = np.maximum(idx - h, 0), np.minimum(idx + h, n - 1)
+    span = np.maximum(t[hi] - t[lo], 1e-12)
+    speed = np.linalg.norm(pos[hi] - pos[lo], axis=1) / span
+    ang_speed = rotation_angle(ori[hi], ori[lo]) / span
+
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pos, axis=0), axis=1))])
+    p, q, ok = _stride_neighbours(arc, CORNER_STRIDE_M)
+    corner = np.where(ok, _angle_between(pos[p] - pos, pos[q] - pos), math.pi)
+
+    arc_o = np.concatenate([[0.0], np.cumsum(rotation_angle(ori[1:], ori[:-1]))])
+    p, q, ok = _stride_neighbours(arc_o, CORNER_STRIDE_RAD)
+    corner_o = np.where(ok, _angle_between(relative_rotvec(ori, ori[p]), relative_rotvec(ori, ori[q])), math.pi)
+
+    return KeypointSeries(
+        t=readonly(t),
+        position=readonly(pos),
+        orientation=readonly(ori),
+        speed=readonly(speed),
+        angular_speed=readonly(ang_speed),
+        corner_angle=readonly(corner),
+        corner_angle_o=readonly(corner_o),
+        gripper_events=readonly(gripper_events(t, np.asarray(demo.gripper)), dtype=np.int64),
+    )
+
+
+# -- the fast path -----------------------------------------------------------------------------------------------
+
+
+def corner_candidates(angle: np.ndarray, threshold: float) -> np.ndarray:
+    """One index per run of consecutive samples with ``angle < threshold``: the run's sharpest sample."""
+    members = np.flatnonzero(angle < threshold)
+    if members.shape[0] == 0:
+        return members.astype(np.int64)
+    starts = np.flatnonzero(np.diff(members) > 1) + 1
+    starts = np.concatenate([[0], starts])
+    vals = angle[members]
+    mins = np.minimum.reduceat(vals, starts)
+    lengths = np.diff(np.concatenate([starts, [members.shape[0]]]))
+    hit = np.flatnonzero(vals == np.repeat(mins, lengths))
+    run = np.searchsorted(starts, hit, side="right") - 1
+    first = np.concatenate([[True], np.diff(run) > 0])
+    return members[hit[first]].astype(np.int64)
+
+
+_CHUNK = 1024
+
+
+def extract_from_series(s: KeypointSeries, params: KeypointParams) -> np.ndarray:
+    """The fast path: key-point indices from precomputed series (see module docstring).
+
+    Per call, the ε-dependent masks (corners, stillness) are thresholded once over the whole demonstration;
+    the sequential part then evaluates all six tests together on chunks of samples after the last key-point
+    τ (distances from τ, the time conditions as index bounds, "stayed within ε7" as the index of the first
+    sample that left the ball) and jumps to the first sample where any test holds.
+    """
+    p = params
+    n = len(s)
+    t = s.t
+    PT, OT = s.position_t, s.orientation_t  # (3, N), (4, N): contiguous rows make chunk arithmetic fast
+    two_pi = 2.0 * math.pi
+    cp = s.corner_mask("position", two_pi - p.eps1)
+    co = s.corner_mask("orientation", two_pi - p.eps8)
+    still_p = s.speed < p.eps2
+    still_o = s.angular_speed < p.eps9
+    grip = np.zeros(n, dtype=bool)
+    grip[s.gripper_events] = True
+
+    # Thresholds on squared distances and on |cos| of half rotation angles (no sqrt/arccos per sample):
+    # d > x  <=>  |<q_i, q_τ>| < cos(x / 2) for rotation angles x in [0, 2π].
+    def cos_half(x: float) -> float:
+        return math.cos(min(x, two_pi) / 2.0)
+
+    near_p2, exit_p2, stay_p2 = p.eps4**2, p.eps5**2, p.eps7**2
+    near_o, exit_o, stay_o = cos_half(p.eps11), cos_half(p.eps12), cos_half(p.eps14)
+
+    out = [0]
+    tau = 0
+    chunk = _CHUNK
+    while tau < n - 1:
+        Pt, Ot, tt = PT[:, tau, None], OT[:, tau], t[tau]
+        i3 = int(np.searchsorted(t, tt + p.eps3, side="right"))
+        i6 = int(np.searchsorted(t, tt + p.eps6, side="right"))
+        i10 = int(np.searchsorted(t, tt + p.eps10, side="right"))
+        i13 = int(np.searchsorted(t, tt + p.eps13, side="right"))
+        brk_p = tau if p.eps7 <= 0 else n  # first sample at or after τ that left the ε7 ball
+        brk_o = tau if p.eps14 <= 0 else n
+        a = tau + 1
+        found = n - 1
+        while a < n - 1:
+            b = min(a + chunk, n - 1)
+            diff = PT[:, a:b] - Pt
+            diff *= diff
+            dp2 = diff.sum(axis=0)
+            c = np.abs(Ot @ OT[:, a:b])
+            if brk_p == n:
+                br = dp2 >= stay_p2
+                if br.any():
+                    brk_p = a + int(np.argmax(br))
+            if brk_o == n:
+                br = c <= stay_o
+                if br.any():
+                    brk_o = a + int(np.argmax(br))
+            # corner or pause, position: needs "moved more than ε4 since τ"
+            m = cp[a:b].copy()
+            lo = max(i3, a)
+            if lo < b:
+                m[lo - a :] |= still_p[lo:b]
+            key = m & (dp2 > near_p2)
+            m = co[a:b].copy()
+            lo = max(i10, a)
+            if lo < b:
+                m[lo - a :] |= still_o[lo:b]
+            key |= m & (c < near_o)
+            key |= grip[a:b]
+            # distance: first exit after ε6 while the ε7 condition still holds (index range [i6, brk])
+            lo, hi = max(i6, a), min(brk_p + 1, b)
+            if lo < hi:
+                key[lo - a : hi - a] |= dp2[lo - a : hi - a] >= exit_p2
+            lo, hi = max(i13, a), min(brk_o + 1, b)
+            if lo < hi:
+                key[lo - a : hi - a] |= c[lo - a : hi - a] <= exit_o
+            k = int(np.argmax(key))
+            if key[k]:
+                found = a + k
+                break
+            a = b
+            chunk *= 2
+        if found >= n - 1:
+            break
+        chunk = max(_CHUNK // 4, min(_CHUNK, 2 * (found - tau)))
+        out.append(found)
+        tau = found
+    if n > 1:
+        out.append(n - 1)
+    return np.asarray(out, dtype=np.int64)
+
+
+def extract_keypoints(
+    demo: Demo, params: KeypointParams | None = None, *, series: KeypointSeries | None = None
+) -> np.ndarray:
+    """Key-points of one demonstration (paper § Key-point Extraction).
+
+    Args:
+        demo: the demonstration.
+        params: the fourteen thresholds; defaults to ``KeypointParams()``.
+        series: :func:`precompute` (demo) if already available (the slider fast path).
+
+    Returns:
+        (K,) sorted unique int sample indices into ``demo``; always includes 0, N − 1 and both ends of
+        every gripper motion.
+    """
+    params = params or KeypointParams()
+    s = series if series is not None else precompute(demo)
+    if len(s) != len(demo):
+        raise ValueError("series does not belong to this demonstration")
+    return extract_from_series(s, params)
+
+
+def extract_keypoints_reference(demo: Demo, params: KeypointParams | None = None, *, series=None) -> np.ndarray:
+    """Literal per-sample implementation of the criteria over the same derived series (the test oracle).
+
+    Walks every sample in order, evaluates the six tests exactly as written in the module docstring and
+    the paper's equations, with the last key-point τ updated as it goes. About 100× slower than
+    :func:`extract_keypoints`.
+    """
+    p = params or KeypointParams()
+    s = series if series is not None else precompute(demo)
+    n = len(s)
+    t, P, O = s.t.tolist(), s.position.tolist(), s.orientation.tolist()
+    speed, aspeed = s.speed.tolist(), s.angular_speed.tolist()
+    grip = set(s.gripper_events.tolist())
+
+    def corner_flags(angle: np.ndarray, thr: float) -> list[bool]:
+        a = angle.tolist()
+        flags = [False] * n
+        i = 0
+        while i < n:
+            if a[i] < thr:
+                j = i
+                while j < n and a[j] < thr:
+                    j += 1
+                run = a[i:j]
+                flags[i + run.index(min(run))] = True
+                i = j
+            else:
+                i += 1
+        return flags
+
+    cp = corner_flags(s.corner_angle, 2 * math.pi - p.eps1)
+    co = corner_flags(s.corner_angle_o, 2 * math.pi - p.eps8)
+
+    def dpos(i: int, j: int) -> float:
+        return math.dist(P[i], P[j])
+
+    def dori(i: int, j: int) -> float:
+        d = abs(sum(a * b for a, b in zip(O[i], O[j], strict=True)))
+        return 2.0 * math.acos(min(d, 1.0))
+
+    out = [0]
+    tau = 0
+    max_p = max_o = 0.0  # max distance over [τ, i)
+    for i in range(1, n - 1):
+        dp, do = dpos(i, tau), dori(i, tau)
+        el = t[i] - t[tau]
+        key = (
+            i in grip
+            or (cp[i] and dp > p.eps4)
+            or (speed[i] < p.eps2 and el > p.eps3 and dp > p.eps4)
+            or (dp >= p.eps5 and el > p.eps6 and max_p < p.eps7)
+            or (co[i] and do > p.eps11)
+            or (aspeed[i] < p.eps9 and el > p.eps10 and do > p.eps11)
+            or (do >= p.eps12 and el > p.eps13 and max_o < p.eps14)
+        )
+        if key:
+            out.append(i)
+            tau = i
+            max_p = max_o = 0.0
+        else:
+            max_p, max_o = max(max_p, dp), max(max_o, do)
+    if n > 1:
+        out.append(n - 1)
+    return np.asarray(out, dtype=np.int64)
+
+
+class KeypointCache:
+    """Per-demonstration :class:`KeypointSeries`, computed once and reused for every ε change.
+
+    Demonstrations are held weakly (a deleted demo's series goes with it). Thread-safe enough for one
+    writer: a race only computes a series twice.
+    """
+
+    def __init__(self) -> None:
+        self._series: weakref.WeakKeyDictionary[Demo, KeypointSeries] = weakref.WeakKeyDictionary()
+
+    def series(self, demo: Demo) -> KeypointSeries:
+        s = self._series.get(demo)
+        if s is None:
+            s = self._series[demo] = precompute(demo)
+        return s
+
+    def extract(self, demo: Demo, params: KeypointParams | None = None) -> np.ndarray:
+        return extract_from_series(self.series(demo), params or KeypointParams())
+
+    def extract_all(self, demos: Sequence[Demo], params: KeypointParams | None = None) -> list[np.ndarray]:
+        return [self.extract(d, params) for d in demos]
+
+
+__all__ = [
+    "CORNER_STRIDE_M",
+    "CORNER_STRIDE_RAD",
+    "KeypointCache",
+    "KeypointSeries",
+    "corner_candidates",
+    "extract_from_series",
+    "extract_keypoints",
+    "extract_keypoints_reference",
+    "gripper_events",
+    "precompute",
+    "relative_rotvec",
+    "rotation_angle",
+]
