@@ -95,7 +95,8 @@ def report(session: Session, skills: dict[str, Any], elapsed: float | None = Non
     if elapsed is not None:
         lines[0] += f" in {elapsed:.1f} s"
     for arm, sk in skills.items():
-        names = session.skill_info.get(arm, {}).get("demos") or session.demo_names
+        names = list(getattr(sk, "demo_names", ()) or session.skill_info.get(arm, {}).get("demos") or [])
+        names = names or [r.name for r in session.recordings if arm in r.arms]
         kps = list(getattr(sk, "keypoints", []) or [])
         ll = (
             np.atleast_1d(np.asarray(getattr(sk, "loglik", []), dtype=float))
@@ -240,7 +241,7 @@ def record_plan(session: Session, plan: Any, name: str, *, noise_seed: int) -> i
     return index
 
 
-def build_example(store: SessionStore, task: str, *, learn_skill: bool = True, out: TextIO | None = None) -> Session:
+def build_example(store: SessionStore, task: str, *, learn_skill: bool = False, out: TextIO | None = None) -> Session:
     """(Re)create the example session ``task`` in ``store``; replaces an existing one only when complete."""
     from studio import teacher
 
@@ -288,7 +289,9 @@ def make_examples(args: argparse.Namespace, out: TextIO | None = None) -> int:
             raise InvalidInput(f'Unknown example "{task}": choose one of {", ".join(EXAMPLES)}.')
         t0 = time.perf_counter()
         print(f'Making example session "{task}"...', file=out)
-        s = build_example(store, task, learn_skill=not getattr(args, "no_learn", False), out=out)
+        # The committed examples hold demonstrations only: the skill is learned in seconds (``studio learn``
+        # or the Train panel), and a stored skill would tie the examples to today's skill file format.
+        s = build_example(store, task, learn_skill=bool(getattr(args, "learn", False)), out=out)
         size = sum(p.stat().st_size for p in s.path.rglob("*") if p.is_file())
         print(f"  done in {time.perf_counter() - t0:.1f} s: {s.path} ({size / 1e6:.1f} MB)", file=out)
     return 0

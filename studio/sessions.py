@@ -172,7 +172,7 @@ def _write_npz(fileobj: Any, arrays: Mapping[str, np.ndarray], *, compress: bool
             info.compress_type = method
             info.external_attr = 0o644 << 16
             with zf.open(info, "w", force_zip64=True) as f:
-                np.lib.format.write_array(f, np.ascontiguousarray(a), allow_pickle=False)
+                np.lib.format.write_array(f, a if a.flags.c_contiguous else a.copy(order="C"), allow_pickle=False)
 
 
 # -- validated npz reading ----------------------------------------------------------------------------------

@@ -172,6 +172,7 @@ def test_skills_round_trip_through_to_arrays(store: SessionStore, three, monkeyp
 
         @classmethod
         def from_arrays(cls, d):  # type: ignore[no-untyped-def]
+            assert d["arm"].shape == () and str(d["arm"]) == "left"  # 0-d arrays stay 0-d
             if d["a"].ndim != 1:
                 raise ValueError("bad a")
             return cls(d["a"])
