@@ -44,6 +44,10 @@ FORMAT_VERSION = 1
 SUFFIX = ".rec"
 #: Longest recording accepted (simulated seconds); past it the recorder stops by itself and says so.
 MAX_SECONDS = 4 * 3600.0
+#: Samples the writer turns into rows at once (FK temporaries stay a few MB).
+DRAIN_CHUNK = 32_768
+#: Samples allowed to wait for the writer before the producer is made to wait (~100 s at 1 kHz).
+MAX_PENDING = 100_000
 
 
 def _columns(arms: tuple[str, ...]) -> list[str]:
@@ -118,6 +122,8 @@ class Recorder:
         self._lock = threading.Lock()
         self._write_lock = threading.Lock()
         self._pending: list[JointStateBatch] = []
+        self._pending_n = 0
+        self._in_flight = 0
         self._wake = threading.Event()
         self._stop_writer = threading.Event()
         self._writer: threading.Thread | None = None
@@ -140,7 +146,7 @@ class Recorder:
     def n_samples(self) -> int:
         """Samples recorded so far (written or waiting to be written)."""
         with self._lock:
-            return self._n + sum(len(b) for b in self._pending)
+            return self._n + self._pending_n + self._in_flight
 
     @property
     def elapsed(self) -> float:
@@ -280,6 +286,12 @@ class Recorder:
             if self._first_seen is None and len(batch) and np.isfinite(batch.t[0]):
                 self._first_seen = float(batch.t[0])
             self._pending.append(batch)
+            self._pending_n += len(batch)
+            behind = self._pending_n > MAX_PENDING
+        if behind:
+            # Back-pressure: the producer (e.g. manual stepping far faster than real time) waits while the
+            # writer catches up, so memory stays bounded. At 1 kHz real time this never triggers.
+            self._drain(sync=False)
 
     def _write_loop(self) -> None:
         while not self._stop_writer.is_set():
@@ -294,33 +306,56 @@ class Recorder:
     def _drain_locked(self, *, sync: bool) -> None:
         with self._lock:
             batches, self._pending = self._pending, []
-        if not batches or self._file is None:
-            if sync and self._file is not None:
-                self._sync()
-            return
-        t = np.concatenate([b.t for b in batches]).astype(np.float64)
-        q = np.concatenate([b.q for b in batches]).astype(np.float64)
-        g = np.concatenate([b.gripper for b in batches]).astype(np.float64)
-        rows = self._rows(t, q, g)
-        if rows is None:
-            return
+            self._pending_n = 0
+            self._in_flight = sum(len(b) for b in batches)
         try:
-            self._file.write(rows.tobytes())
-            self._file.flush()
-            if sync or time.monotonic() - self._last_sync >= 0.9:
-                self._sync()
-        except OSError as exc:
-            self.error = (
-                f"Recording stopped: the disk could not take more data ({exc.strerror}). "
-                "Everything recorded until then is kept."
-            )
-            log.error("recorder write failed: %s", exc)
-            self._halt()
-            return
+            if self._file is not None:
+                # Bounded chunks: FK temporaries stay small however far the writer fell behind.
+                group: list[JointStateBatch] = []
+                size = 0
+                for b in batches:
+                    group.append(b)
+                    size += len(b)
+                    if size >= DRAIN_CHUNK:
+                        if not self._write_group(group):
+                            return
+                        group, size = [], 0
+                if group and not self._write_group(group):
+                    return
+                if sync:
+                    self._sync()
+        finally:
+            with self._lock:
+                self._in_flight = 0
+
+    def _write_group(self, batches: list[JointStateBatch]) -> bool:
+        """FK + append + flush one group of batches; False when recording had to halt."""
+        n_in = sum(len(b) for b in batches)
+        t = np.concatenate([b.t for b in batches]).astype(np.float64, copy=False)
+        q = np.concatenate([b.q for b in batches]).astype(np.float64, copy=False)
+        g = np.concatenate([b.gripper for b in batches]).astype(np.float64, copy=False)
+        rows = self._rows(t, q, g)
+        if rows is not None:
+            try:
+                self._file.write(rows.tobytes())
+                self._file.flush()
+                if time.monotonic() - self._last_sync >= 0.9:
+                    self._sync()
+            except OSError as exc:
+                self.error = (
+                    f"Recording stopped: the disk could not take more data ({exc.strerror}). "
+                    "Everything recorded until then is kept."
+                )
+                log.error("recorder write failed: %s", exc)
+                self._halt()
+                return False
         with self._lock:
-            self._n += rows.shape[0]
+            self._n += 0 if rows is None else rows.shape[0]
+            self._in_flight -= n_in
         if self.limit_reached:
             self._halt()
+            return False
+        return True
 
     def _sync(self) -> None:
         with contextlib.suppress(OSError):
@@ -427,7 +462,7 @@ def read_recording_file(
     nrows = (size - header["_data_offset"]) // (8 * ncols)
     if nrows <= 0:
         return None
-    data = np.memmap(path, dtype="<f8", mode="r", offset=header["_data_offset"], shape=(nrows, ncols))
+    data: np.ndarray = np.memmap(path, dtype="<f8", mode="r", offset=header["_data_offset"], shape=(nrows, ncols))
     # A crash can leave a torn last row (e.g. zero-filled); keep only the clean, increasing prefix.
     n_ok = nrows
     prev = -np.inf
