@@ -210,3 +210,21 @@ def test_kill_dash_nine_mid_recording_then_recover_on_next_open(tmp_path: Path) 
     assert list(session.recording_dir.glob("*.rec")) == []  # saved into the session, file removed
     assert store.open("crash test").recovery_message == ""  # recovered once, not again
     assert store.pending_recoveries() == []
+
+
+def test_memory_stays_bounded_when_the_producer_outruns_the_writer(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import studio.recorder as recorder_mod
+
+    monkeypatch.setattr(recorder_mod, "MAX_PENDING", 500)
+    sim = SimulatedBaxter()
+    rec = Recorder(sim, tmp_path, arms="left", flush_interval=1.0)
+    rec.start()
+    worst = 0
+    for _ in range(60):
+        sim.step(100)  # far faster than real time
+        worst = max(worst, rec._pending_n)
+    assert worst <= 600  # the producer waited for the writer instead of piling up samples
+    assert rec.n_samples == 6000
+    assert len(rec.stop()) == 6000
