@@ -15,6 +15,7 @@ Threads:
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass, field, replace
 import logging
 import sys
@@ -199,6 +200,7 @@ class Studio:
         from studio.sessions import SessionStore
 
         self.events = Events()
+        self._recent_notes: dict[tuple[str, str], float] = {}
         self.lock = threading.RLock()
         self.baxter = Baxter.load()
         self.store = SessionStore(Path(sessions_dir))
@@ -215,7 +217,9 @@ class Studio:
         self.hidden_demos: set[str] = set()
         self._demo_cache: dict[tuple[int, str], Any] = {}
         self._targets: dict[str, np.ndarray] = {}
-        self._kp_caches: dict[tuple[int, str], Any] = {}
+        from studio.core.keypoints import KeypointCache
+
+        self._kp_cache = KeypointCache()  # per-demo derived series, reused across ε changes (weak keys)
         self._params: KeypointParams = self.session.params
         self._params_dirty = False
         self.k_override: int | None = None
@@ -259,7 +263,8 @@ class Studio:
         s = self.server
         s.gui.configure_theme(control_width="large", dark_mode=False, show_logo=False, brand_color=(196, 30, 58))
         s.initial_camera.position = (2.6, -1.6, 1.2)
-        s.initial_camera.look_at = (0.55, 0.0, 0.15)
+        s.initial_camera.look_at = (0.45, 0.25, 0.05)
+        s.initial_camera.fov = math.radians(55.0)
         s.scene.set_up_direction("+z")
         s.scene.add_grid("/ground", width=3.0, height=3.0, position=(0.5, 0.0, -0.93), cell_size=0.25)
 
@@ -301,6 +306,15 @@ class Studio:
         q = self.robot_q()
         return q[:7] if arm == "left" else q[7:]
 
+    def display_label(self) -> str:
+        """What the drawn robot shows, in plain words."""
+        pb = self._playback
+        if self.display is self.live or pb is None:
+            return "Showing the robot live."
+        what = "the learned skill (preview)" if pb.kind == "preview" else f'demonstration "{pb.recording.name}"'
+        state = "playing" if pb.playing else "paused"
+        return f"Showing {what}, {state}."
+
     def show_live(self) -> None:
         """Let the scene follow the live robot again (after a replay or preview)."""
         self.display = self.live
@@ -311,6 +325,11 @@ class Studio:
         self, title: str, body: str, *, kind: str = "error", client: viser.ClientHandle | None = None
     ) -> None:
         """Show a notification in plain words (to one tab, or to every tab when ``client`` is None)."""
+        key = (title, body)
+        now = time.monotonic()
+        if client is None and now - self._recent_notes.get(key, -1e9) < 5.0:
+            return  # the same message again within seconds (e.g. from a slider being dragged): once is enough
+        self._recent_notes[key] = now
         color = {"error": "red", "info": "blue", "success": "green", "warning": "yellow"}.get(kind, "blue")
         clients = [client] if client is not None else list(self.server.get_clients().values())
         for c in clients:
@@ -582,7 +601,7 @@ class Studio:
 
     def keypoint_view(self) -> KeypointView:
         """Key-points of every shown demo and the k-means centroids per taught arm, for the current ε."""
-        from studio.core import pipeline
+        from studio.core.clustering import cluster_keypoints
 
         params = self.params()
         k = self.k_override
@@ -591,14 +610,14 @@ class Studio:
             demos = self.demos_for(arm)
             if not demos:
                 continue
-            idx = [np.asarray(self._kp_cache_for(i, arm, d).extract(params)) for i, d in demos]
+            idx = [np.asarray(self._kp_cache.extract(d, params)) for _, d in demos]
             for (i, d), ix in zip(demos, idx, strict=True):
                 view.demos.append(KeypointItem(
                     index=i, arm=arm, name=d.name, color=self.demo_color(i), count=len(ix),
                     points=np.asarray(d.position)[ix] if len(ix) else np.zeros((0, 3)),
                 ))
             try:
-                centroids = pipeline.cluster_demos_keypoints([d for _, d in demos], idx, n_clusters=k, seed=0)
+                centroids = cluster_keypoints([d for _, d in demos], idx, n_clusters=k, seed=0)
             except StudioError as exc:
                 view.messages.append(f"{arm.capitalize()} arm: {exc}")
                 continue
@@ -607,15 +626,6 @@ class Studio:
         self.persist_params()
         return view
 
-    def _kp_cache_for(self, i: int, arm: str, demo: Any) -> Any:
-        from studio.core.keypoints import KeypointCache
-
-        key = (id(self.recordings()[i]), arm)
-        c = self._kp_caches.get(key)
-        if c is None:
-            c = self._kp_caches[key] = KeypointCache(demo)
-        return c
-
     # -- training -----------------------------------------------------------------------------------------
     def skills(self) -> dict[str, Any]:
         return dict(self.session.skills)
@@ -623,7 +633,8 @@ class Studio:
     def skill_demos(self, arm: str) -> list[tuple[int, Any]]:
         """(index, Demo) of the demonstrations the current skill of ``arm`` was learned from, in order."""
         names = self.demo_names()
-        used = self.session.skill_info.get(arm, {}).get("demos") or names
+        sk = self.session.skills.get(arm)
+        used = list(getattr(sk, "demo_names", None) or []) or names
         out = []
         for nm in used:
             if nm in names:
@@ -658,7 +669,7 @@ class Studio:
             skills = {}
             for arm, demos in per_arm.items():
                 skills[arm] = learn_skill([d for _, d in demos], params, n_clusters=k, seed=0, arm=arm,
-                                          baxter=self.baxter)
+                                          baxter=self.baxter, cache=self._kp_cache)
             return skills
 
         def done(skills: dict[str, Any] | None) -> None:
@@ -667,11 +678,7 @@ class Studio:
             if skills is None:
                 return
             with self.lock:
-                # Remember which demos each skill came from (skill.keypoints follow this order).
                 self.session.set_skills(skills, params=params)
-                for arm, demos in per_arm.items():
-                    self.session.skill_info[arm]["demos"] = [d.name for _, d in demos]
-                self.session._write_manifest()
             self._preview = None
             self.events.emit("skill")
             self.notify("Training finished", "The robot learned the skill: open Preview to watch it.", kind="success")
@@ -879,7 +886,6 @@ class Studio:
             self.k_override = None
             self.hidden_demos = set()
             self._demo_cache = {}
-            self._kp_caches = {}
             self.selected_arms = self._session_arms()
         self.show_live()
         self.events.emit("session")

@@ -168,7 +168,7 @@ class TeachPanel:
                 f"The {arm} gripper cannot reach the handle's position: the arm stops at the closest pose."
             )
         else:
-            self.app.panels.robot.set_status("Robot: ready")
+            self.app.panels.robot.set_status("")
 
     # -- sliders and grippers --------------------------------------------------------------------------
     def _make_slider_cb(self, i: int):

@@ -61,7 +61,7 @@ class TrainPanel:
             names = self.app.skill_demo_names(arm)
             ll = np.asarray(getattr(skill, "loglik", []), dtype=float)
             ref = int(skill.reference)
-            zero = [float(z) for z in np.atleast_1d(getattr(skill, "zero_points", []))]
+            zero = [int(z) for z in np.atleast_1d(getattr(skill, "zero_points", []))]
             rows = "".join(
                 f'<tr class="loglik-row"><td>{_esc(names[i] if i < len(names) else f"demo {i + 1}")}</td>'
                 f'<td style="text-align:right">{v:,.1f}</td><td>{"reference" if i == ref else ""}</td></tr>'
@@ -82,8 +82,8 @@ class TrainPanel:
                 f"<b>{arm.capitalize()} arm</b>: {len(skill.centroids)} states (clusters); "
                 f"reference demonstration: <b>{_esc(names[ref] if ref < len(names) else str(ref))}</b> "
                 "(the one the model explains best).<br>"
-                f"Zero-points (s): {', '.join(f'{z:.2f}' for z in zero[:30]) or '–'}"
-                f"{' …' if len(zero) > 30 else ''}<br>"
+                f"Zero-points (states no path visits, left out of the learned path): "
+                f"{', '.join(str(z) for z in zero[:30]) or 'none'}{' …' if len(zero) > 30 else ''}<br>"
                 '<table class="loglik" style="width:100%;font-size:0.95em"><tr><th style="text-align:left">'
                 "Demonstration</th><th style=\"text-align:right\">log-likelihood</th><th></th></tr>"
                 f"{rows}</table>{ik_note}</div>"

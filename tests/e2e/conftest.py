@@ -1,0 +1,164 @@
+"""Browser-test helpers: a real `studio serve` subprocess, headless Debian Chromium via Playwright, screenshots.
+
+Servers listen on 127.0.0.1 on a free port and are stopped by the test that started them; screenshots go
+to ``test-artifacts/<test name>/`` (gitignored) so a person can look at each step.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+ARTIFACTS = ROOT / "test-artifacts"
+CHROMIUM = os.environ.get("STUDIO_CHROMIUM", "/usr/bin/chromium")
+CHROMIUM_ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+class StudioProcess:
+    """`python -m studio serve` in a subprocess (so "restart the server" is a real restart)."""
+
+    def __init__(self, sessions_dir: Path, session: str, port: int | None = None, log: Path | None = None) -> None:
+        self.sessions_dir = sessions_dir
+        self.session = session
+        self.port = port or free_port()
+        self.log = log
+        self.proc: subprocess.Popen[str] | None = None
+        self.output: list[str] = []
+        self._reader: threading.Thread | None = None
+
+    @property
+    def url(self) -> str:
+        return f"http://127.0.0.1:{self.port}"
+
+    def start(self, timeout: float = 60.0) -> StudioProcess:
+        env = dict(os.environ, PYTHONUNBUFFERED="1")
+        self.output = []
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "studio", "serve", "--port", str(self.port), "--session", self.session,
+             "--sessions-dir", str(self.sessions_dir), "--meshes", "light"],
+            cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        )
+        proc = self.proc
+
+        def pump() -> None:
+            assert proc.stdout is not None
+            for line in proc.stdout:
+                self.output.append(line)
+
+        self._reader = threading.Thread(target=pump, daemon=True)
+        self._reader.start()
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            text = "".join(self.output)
+            m = re.search(r"open (http://\S+) in your browser", text)
+            if m:
+                assert m.group(1) == self.url, text
+                return self
+            if proc.poll() is not None:
+                time.sleep(0.2)
+                raise RuntimeError("studio exited early:\n" + "".join(self.output))
+            time.sleep(0.1)
+        self.stop()
+        raise RuntimeError(f"studio did not start within {timeout} s:\n" + "".join(self.output))
+
+    def read_output(self) -> str:
+        return "".join(self.output)
+
+    def stop(self) -> None:
+        if self.proc is None:
+            return
+        if self.proc.poll() is None:
+            self.proc.terminate()  # SIGTERM to our own child only
+            try:
+                self.proc.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(timeout=5)
+        if self._reader is not None:
+            self._reader.join(timeout=5)
+        if self.proc.stdout is not None:
+            self.proc.stdout.close()
+        text = self.read_output()
+        if self.log is not None:
+            self.log.parent.mkdir(parents=True, exist_ok=True)
+            self.log.write_text(text)
+        self.proc = None
+
+
+class Shots:
+    """Numbered screenshots of a test's steps under test-artifacts/<test>/."""
+
+    def __init__(self, name: str) -> None:
+        self.dir = ARTIFACTS / re.sub(r"[^A-Za-z0-9_.-]+", "_", name)
+        shutil.rmtree(self.dir, ignore_errors=True)
+        self.dir.mkdir(parents=True, exist_ok=True)
+        self.n = 0
+
+    def __call__(self, page, step: str) -> Path:  # noqa: ANN001
+        from tests.e2e.ui import dismiss_notifications
+
+        dismiss_notifications(page)
+        self.n += 1
+        path = self.dir / f"{self.n:02d}-{re.sub(r'[^A-Za-z0-9_-]+', '-', step)}.png"
+        page.screenshot(path=str(path))
+        return path
+
+
+@pytest.fixture(scope="session")
+def browser():
+    if not Path(CHROMIUM).exists():
+        pytest.skip(f"Debian chromium not found at {CHROMIUM} (apt-get install chromium)")
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
+        yield b
+        b.close()
+
+
+@pytest.fixture
+def shots(request) -> Shots:  # noqa: ANN001
+    return Shots(request.node.name)
+
+
+@pytest.fixture
+def studio_factory(tmp_path: Path, request) -> Iterator:  # noqa: ANN001
+    """Start studios on fresh ports; every one started is stopped at the end of the test."""
+    started: list[StudioProcess] = []
+
+    def make(session: str = "fresh", sessions_dir: Path | None = None, port: int | None = None) -> StudioProcess:
+        d = sessions_dir or (tmp_path / "sessions")
+        d.mkdir(parents=True, exist_ok=True)
+        log = ARTIFACTS / re.sub(r"[^A-Za-z0-9_.-]+", "_", request.node.name) / f"server-{len(started)}.log"
+        s = StudioProcess(d, session, port=port, log=log)
+        started.append(s)
+        return s.start()
+
+    yield make
+    for s in started:
+        s.stop()

@@ -1,0 +1,90 @@
+"""Browser tests: a corrupt upload is refused in plain words and changes nothing; two tabs stay in sync."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+from playwright.sync_api import expect
+
+from tests.e2e import ui
+
+pytestmark = pytest.mark.e2e
+
+
+def tree(root: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def test_corrupt_upload_shows_error_and_changes_nothing(browser, studio_factory, shots, tmp_path) -> None:  # noqa: ANN001
+    sessions = tmp_path / "sessions"
+    server = studio_factory("lesson", sessions_dir=sessions)
+    page = ui.open_studio(browser, server.url)
+    ui.tab(page, "Sessions")
+    before = tree(sessions)
+    names_before = page.locator("text=Open session:").first.inner_text()
+
+    bad = tmp_path / "broken-session.zip"
+    bad.write_bytes(b"PK\x03\x04 this is not really a zip archive" + bytes(range(256)) * 4)
+    page.locator("input[type=file]").first.set_input_files(str(bad))
+    note = page.locator(".mantine-Notification-root").filter(has_text="The upload did not work")
+    expect(note.first).to_be_visible(timeout=20_000)
+    text = note.first.inner_text()
+    assert "not a session archive" in text or "Nothing was imported" in text, text
+    assert "Traceback" not in text
+    shots(page, "corrupt upload refused")
+
+    # Nothing changed: same files on disk, same open session, and the studio still works.
+    time.sleep(0.5)
+    assert tree(sessions) == before
+    assert page.locator("text=Open session:").first.inner_text() == names_before
+    ui.tab(page, "Teach")
+    ui.click_in_row(page, "Left gripper", "Close")
+    expect(page.locator('.gripper-status[data-arm="left"][data-open="0"]')).to_have_count(1, timeout=15_000)
+    page.close()
+
+
+def test_two_tabs_see_the_same_robot_and_session(browser, studio_factory, shots, tmp_path) -> None:  # noqa: ANN001
+    server = studio_factory("shared", sessions_dir=tmp_path / "sessions")
+    a = ui.open_studio(browser, server.url)
+    b = ui.open_studio(browser, server.url)
+
+    # A moves the gripper: B sees it.
+    ui.click_in_row(a, "Left gripper", "Close")
+    expect(b.locator('.gripper-status[data-arm="left"][data-open="0"]')).to_have_count(1, timeout=15_000)
+
+    # A records: B sees the recording and cannot start a second one.
+    a.get_by_role("button", name="Record").click()
+    ui.wait_text(b, "Recording")
+    expect(b.get_by_role("button", name="Record")).to_be_disabled()
+    shots(b, "tab B while tab A records")
+    ui.open_folder(a, "Joints")
+    ui.set_number(a, "Left elbow bend (e1) °", 60)
+    time.sleep(1.5)
+    ui.click_in_row(a, "Left gripper", "Open")
+    time.sleep(1.0)
+    b.get_by_role("button", name="Stop").click()  # either tab can stop it
+    expect(a.locator(".demo-row")).to_have_count(1, timeout=15_000)
+    expect(b.locator(".demo-row")).to_have_count(1)
+    expect(a.get_by_role("button", name="Record")).to_be_enabled()
+
+    # A changes a threshold: B's slider shows it.
+    ui.tab(a, "Key-points")
+    ui.tab(b, "Key-points")
+    ui.set_number(a, "Pause speed (ε2)", 0.02)
+    expect(b.locator("label", has_text="Pause speed (ε2)")).to_be_visible()
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and ui.number_value(b, "Pause speed (ε2)") != pytest.approx(0.02):
+        time.sleep(0.2)
+    assert ui.number_value(b, "Pause speed (ε2)") == pytest.approx(0.02)
+
+    # Reloading B restores the view of the current state.
+    b.reload()
+    ui.wait_ready(b)
+    expect(b.locator(".demo-row")).to_have_count(1)
+    ui.tab(b, "Key-points")
+    assert ui.number_value(b, "Pause speed (ε2)") == pytest.approx(0.02)
+    shots(b, "tab B after reload")
+    a.close()
+    b.close()

@@ -1,0 +1,194 @@
+"""End to end, the way a user teaches a skill: move, grip, record three demos, tune ε, train, preview, save,
+restart the server, open the session and find everything back. Screenshots of each step in test-artifacts/."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pytest
+from playwright.sync_api import Page, expect
+
+from studio.core.kinematics import Baxter
+from tests.e2e import ui
+
+pytestmark = pytest.mark.e2e
+
+SESSION = "my-first-skill"
+VIEW_POS = np.array([2.6, -1.6, 1.2])
+VIEW_AT = np.array([0.45, 0.25, 0.05])
+VIEW_FOV = math.radians(55.0)
+
+
+def gripper_status(page: Page, arm: str = "left") -> dict[str, float]:
+    el = page.locator(f'.gripper-status[data-arm="{arm}"]').first
+    return {k: float(el.get_attribute(f"data-{k}")) for k in ("x", "y", "z", "open")}
+
+
+def wait_status(page: Page, pred, timeout: float = 15.0, arm: str = "left") -> dict[str, float]:  # noqa: ANN001
+    deadline = time.monotonic() + timeout
+    st = gripper_status(page, arm)
+    while time.monotonic() < deadline:
+        st = gripper_status(page, arm)
+        if pred(st):
+            return st
+        time.sleep(0.2)
+    raise AssertionError(f"robot status never matched; last {st}")
+
+
+def project(p: np.ndarray, width: int = 1280, height: int = 800) -> tuple[float, float]:
+    """Screen pixel of world point ``p`` for the studio's initial camera (+z up, vertical fov)."""
+    f = VIEW_AT - VIEW_POS
+    f /= np.linalg.norm(f)
+    r = np.cross(f, [0.0, 0.0, 1.0])
+    r /= np.linalg.norm(r)
+    u = np.cross(r, f)
+    d = p - VIEW_POS
+    x, y, z = d @ r, d @ u, d @ f
+    s = (height / 2) / math.tan(VIEW_FOV / 2)
+    return width / 2 + s * x / z, height / 2 - s * y / z
+
+
+def drag_gizmo(page: Page, q_left: np.ndarray, axis: int = 2, pixels: float = -70.0) -> None:
+    """Drag the left gripper handle's arrow along one of its axes with the mouse."""
+    b = Baxter.load()
+    pos, wxyz = b.fk("left", q_left)
+    from studio.core.kinematics import matrix_from_quat_wxyz
+
+    R = matrix_from_quat_wxyz(wxyz)
+    tip = pos + R[:, axis] * 0.22 * 0.9  # on the arrow's cone (gizmo scale 0.22)
+    x0, y0 = project(pos)
+    x1, y1 = project(tip)
+    direction = np.array([x1 - x0, y1 - y0])
+    direction /= np.linalg.norm(direction)
+    page.mouse.move(x1, y1)
+    page.mouse.down()
+    for k in range(1, 11):
+        page.mouse.move(x1 + direction[0] * pixels * k / 10, y1 + direction[1] * pixels * k / 10)
+        time.sleep(0.05)
+    page.mouse.up()
+
+
+def teach_one_demo(page: Page, variant: int) -> None:
+    """Record one demonstration: reach, close the gripper, carry, open — with the joint sliders."""
+    ui.tab(page, "Teach")
+    page.get_by_role("button", name="Record").click()
+    ui.wait_text(page, "Recording")
+    dv = 4.0 * variant
+    for label, value in (
+        ("Left shoulder lift (s1) °", -40 + dv),
+        ("Left elbow bend (e1) °", 100 - dv),
+    ):
+        ui.set_number(page, label, value)
+    time.sleep(1.5)
+    ui.click_in_row(page, "Left gripper", "Close")
+    time.sleep(1.2)
+    ui.set_number(page, "Left shoulder turn (s0) °", 30 + dv)
+    time.sleep(1.5)
+    ui.click_in_row(page, "Left gripper", "Open")
+    time.sleep(1.0)
+    ui.set_number(page, "Left shoulder turn (s0) °", 0 - dv)
+    ui.set_number(page, "Left shoulder lift (s1) °", -55)
+    time.sleep(1.5)
+    page.get_by_role("button", name="Stop").click()
+    ui.wait_text(page, "Not recording")
+
+
+def test_teach_a_skill_like_a_user(browser, studio_factory, shots, tmp_path) -> None:  # noqa: ANN001
+    sessions = tmp_path / "sessions"
+    server = studio_factory(SESSION, sessions_dir=sessions)
+    page = ui.open_studio(browser, server.url)
+    shots(page, "fresh session")
+    expect(page.get_by_text("No demonstrations yet")).to_be_visible()
+
+    # Move the arm with the joint sliders.
+    ui.open_folder(page, "Joints")
+    before = gripper_status(page)
+    ui.set_number(page, "Left elbow bend (e1) °", 70)
+    after = wait_status(page, lambda s: abs(s["x"] - before["x"]) + abs(s["z"] - before["z"]) > 0.05)
+    shots(page, "moved with a joint slider")
+
+    # Move it with the gripper handle (gizmo): mouse drag on the handle's arrow.
+    q = np.array([0.08, -1.0, -1.19, math.radians(70), 0.67, 1.03, -0.50])
+    time.sleep(2.0)  # let the arm arrive so the handle is where we aim
+    drag_gizmo(page, q, axis=2, pixels=-80)
+    wait_status(page, lambda s: np.hypot(s["x"] - after["x"], s["z"] - after["z"]) > 0.02 or
+                abs(s["y"] - after["y"]) > 0.02)
+    shots(page, "moved with the gripper handle")
+
+    # Close and open the gripper.
+    ui.click_in_row(page, "Left gripper", "Close")
+    wait_status(page, lambda s: s["open"] < 1)
+    shots(page, "gripper closed")
+    ui.click_in_row(page, "Left gripper", "Open")
+    wait_status(page, lambda s: s["open"] > 99)
+
+    # Record three demonstrations.
+    for v in range(3):
+        teach_one_demo(page, v)
+    expect(page.locator(".demo-row")).to_have_count(3)
+    shots(page, "three demonstrations")
+
+    # Key-points: counts per demo change when an ε slider moves.
+    ui.tab(page, "Key-points")
+    expect(page.locator(".kp-count")).to_have_count(3, timeout=20_000)
+    counts0 = ui.keypoint_counts(page)
+    shots(page, "key-points default")
+    ui.set_number(page, "Travel distance (ε5)", 0.03)
+    deadline = time.monotonic() + 15
+    counts1 = counts0
+    while time.monotonic() < deadline and counts1 == counts0:
+        time.sleep(0.3)
+        counts1 = ui.keypoint_counts(page)
+    assert counts1 != counts0, f"key-point counts did not change: {counts0}"
+    assert sum(counts1.values()) > sum(counts0.values())
+    shots(page, "key-points after moving eps5")
+
+    # Train.
+    ui.tab(page, "Train")
+    page.get_by_role("button", name="Train").click()
+    ui.wait_text(page, r"^Trained\.", timeout=120)
+    expect(page.locator("svg.heatmap")).to_have_count(1)
+    expect(page.locator("svg.position-plot")).to_have_count(4)  # 3 demos + learned path
+    expect(page.locator("tr.loglik-row")).to_have_count(3)
+    shots(page, "trained")
+
+    # Preview: play and see the robot move along the learned path.
+    ui.tab(page, "Preview")
+    start = gripper_status(page)
+    ui.click_in_row(page, "Playback", "Play")
+    ui.wait_text(page, "learned skill \\(preview\\), playing")
+    time.sleep(2.0)
+    shots(page, "preview playing")
+    moved = wait_status(page, lambda s: abs(s["x"] - start["x"]) + abs(s["y"] - start["y"]) > 0.01)
+    assert moved
+    assert ui.number_value(page, "Time (s)") > 0
+
+    # Save, restart the server, open the session and find everything back.
+    ui.tab(page, "Sessions")
+    ui.click_in_row(page, "Session action", "Save")
+    ui.wait_text(page, "is saved")
+    shots(page, "saved")
+    page.close()
+    server.stop()
+
+    server2 = studio_factory("stack-cup", sessions_dir=sessions)
+    page = ui.open_studio(browser, server2.url)
+    ui.tab(page, "Sessions")
+    ui.choose(page, "Open session", SESSION)
+    ui.click_in_row(page, "Session action", "Open")
+    ui.wait_text(page, f"Open session: {SESSION}")
+    ui.tab(page, "Teach")
+    expect(page.locator(".demo-row")).to_have_count(3)
+    ui.tab(page, "Key-points")
+    assert ui.number_value(page, "Travel distance (ε5)") == pytest.approx(0.03)
+    expect(page.locator(".kp-count")).to_have_count(3, timeout=20_000)
+    assert ui.keypoint_counts(page) == counts1
+    ui.tab(page, "Train")
+    expect(page.locator("svg.heatmap")).to_have_count(1)
+    expect(page.locator("tr.loglik-row")).to_have_count(3)
+    shots(page, "after restart: trained skill back")
+    ui.tab(page, "Preview")
+    shots(page, "after restart: learned path")
+    page.close()
