@@ -57,8 +57,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    # `studio --sessions-dir D learn X` works like `studio learn X --sessions-dir D`.
+    lead: list[str] = []
+    while len(argv) >= 2 and (argv[0] == "--sessions-dir"):
+        lead, argv = [*lead, *argv[:2]], argv[2:]
     if not (argv and (argv[0] in COMMANDS or argv[0] in ("-h", "--help"))):
         argv = ["serve", *argv]  # `studio` alone, or `studio --port 9000`, starts the studio
+    argv = [argv[0], *lead, *argv[1:]]
     return _dispatch(build_parser().parse_args(argv))
 
 

@@ -38,3 +38,12 @@ def test_unknown_option_is_rejected() -> None:
     with pytest.raises(SystemExit) as info:
         cli.main(["serve", "--no-such-option"])
     assert info.value.code == 2
+
+
+def test_sessions_dir_before_the_command(monkeypatch: pytest.MonkeyPatch, tmp_path) -> None:
+    seen = {}
+    monkeypatch.setattr(cli, "_dispatch", lambda args: seen.update(vars(args)) or 0)
+    assert cli.main(["--sessions-dir", str(tmp_path), "learn", "stack-cup"]) == 0
+    assert seen["command"] == "learn" and seen["session"] == "stack-cup" and seen["sessions_dir"] == tmp_path
+    assert cli.main(["--sessions-dir", str(tmp_path)]) == 0
+    assert seen["command"] == "serve" and seen["sessions_dir"] == tmp_path
