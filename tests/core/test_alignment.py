@@ -1,0 +1,88 @@
+"""Multidimensional DTW: hand-computed values, properties, and the anti-diagonal evaluation vs a double loop."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from studio.core.alignment import accumulated_cost, dtw, dtw_distance, time_map, warping_path
+from studio.core.errors import InvalidInput
+
+
+def test_hand_computed_example():
+    # r = [0, 2], t = [1, 1, 3]: H = [[1, 1, 9], [1, 1, 1]];
+    # g = [[1, 2, 11], [2, 2, 3]]  ->  distance 3 along (0,0) (0,1) (1,2)
+    g, path = dtw([[0.0], [2.0]], [[1.0], [1.0], [3.0]])
+    assert g == 3.0
+    assert path.tolist() == [[0, 0], [0, 1], [1, 2]]
+    G = accumulated_cost([[0.0], [2.0]], [[1.0], [1.0], [3.0]])
+    assert G[1:, 1:].tolist() == [[1.0, 2.0, 11.0], [2.0, 2.0, 3.0]]
+
+
+def test_time_warped_copy_has_zero_distance():
+    g, path = dtw([[0.0], [1.0], [2.0]], [[0.0], [1.0], [1.0], [2.0]])
+    assert g == 0.0
+    assert path.tolist() == [[0, 0], [1, 1], [1, 2], [2, 3]]
+
+
+def test_multidimensional_cost_sums_squared_differences_over_dimensions():
+    r = np.array([[0.0, 0, 0, 0, 0, 0, 0, 0]])
+    t = np.array([[1.0, 2, 0, 0, 0, 0, 0, 3]])
+    assert dtw_distance(r, t) == 1 + 4 + 9
+
+
+_series = st.integers(1, 12).flatmap(
+    lambda n: arrays(np.float64, (n, 3), elements=st.floats(-10, 10, allow_nan=False, allow_subnormal=False))
+)
+
+
+@settings(max_examples=60, deadline=None)
+@given(_series, _series)
+def test_properties_symmetric_zero_on_identity_and_equal_to_double_loop(a, b):
+    g, path = dtw(a, b)
+    G = accumulated_cost(a, b)
+    assert g == pytest.approx(G[-1, -1], rel=1e-9, abs=1e-9)
+    assert np.array_equal(path, warping_path(G))
+    assert g == pytest.approx(dtw_distance(b, a), rel=1e-9, abs=1e-9)
+    assert dtw_distance(a, a) == 0.0
+    # the path is monotone, continuous and spans both series
+    assert path[0].tolist() == [0, 0] and path[-1].tolist() == [len(a) - 1, len(b) - 1]
+    steps = np.diff(path, axis=0)
+    assert np.all((steps >= 0) & (steps <= 1)) and np.all(steps.sum(axis=1) >= 1)
+    # the cost along the path is the distance
+    assert g == pytest.approx(float(np.sum((a[path[:, 0]] - b[path[:, 1]]) ** 2)), rel=1e-9, abs=1e-9)
+
+
+def test_time_map_is_monotone():
+    rng = np.random.default_rng(0)
+    a = np.cumsum(rng.random((80, 2)), axis=0)
+    b = np.cumsum(rng.random((60, 2)), axis=0)
+    _, path = dtw(a, b)
+    m = time_map(path, np.arange(80) * 0.1, np.arange(60) * 0.1)
+    assert np.all(np.diff(m) >= 0) and 0.0 <= m[0] < m[-1] <= 7.9
+    assert m[0] == pytest.approx(np.mean(path[path[:, 1] == 0, 0]) * 0.1)
+
+
+def test_long_series_memory_is_small():
+    # 1000 x 1000 would be 8 MB per float matrix; the implementation keeps two diagonals and one byte a cell
+    import tracemalloc
+
+    rng = np.random.default_rng(1)
+    a, b = rng.normal(size=(1000, 8)), rng.normal(size=(1000, 8))
+    tracemalloc.start()
+    dtw(a, b)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak < 4_000_000
+
+
+def test_bad_input():
+    with pytest.raises(InvalidInput):
+        dtw(np.zeros((0, 3)), np.zeros((3, 3)))
+    with pytest.raises(InvalidInput):
+        dtw(np.zeros((2, 3)), np.zeros((3, 2)))
+    with pytest.raises(InvalidInput):
+        dtw([[np.nan]], [[1.0]])

@@ -1,0 +1,84 @@
+"""k-means codebook: feature scaling, time order, the paper's k, hemisphere, errors, and scikit-learn parity."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from sklearn.cluster import KMeans
+
+from studio.core.clustering import FeatureScale, cluster, cluster_keypoints, default_n_clusters, lloyd
+from studio.core.errors import InvalidInput, NotEnoughData
+from studio.core.keypoints import extract_keypoints
+from studio.core.types import Demo
+from tests.core.teacher_demos import demos
+
+
+def _kps(task):
+    ds = demos(task)
+    return ds, [extract_keypoints(d) for d in ds]
+
+
+def test_default_k_is_mean_keypoints_and_clusters_are_time_ordered():
+    ds, kps = _kps("pick-place")
+    cl = cluster(ds, kps, seed=0)
+    assert cl.n_clusters == default_n_clusters(kps) == round(np.mean([len(k) for k in kps]))
+    assert np.all(np.diff(cl.mean_time) >= 0)
+    assert cl.mean_time[0] < 0.1 and cl.mean_time[-1] > 0.9  # start and end clusters
+    assert np.allclose(np.linalg.norm(cl.centroids[:, 3:7], axis=1), 1.0)
+    # labels index the centroids and cover every key-point
+    assert [len(lab) for lab in cl.labels] == [len(k) for k in kps]
+    assert np.array_equal(cluster_keypoints(ds, kps, seed=0), cl.centroids)
+
+
+def test_gripper_opening_separates_clusters_at_the_same_pose():
+    ds, kps = _kps("stack-cup")
+    cl = cluster(ds, kps, seed=0)
+    X = np.concatenate([d.features[k] for d, k in zip(ds, kps, strict=True)])
+    lab = np.concatenate(cl.labels)
+    for c in range(cl.n_clusters):  # no cluster mixes an open and a closed gripper
+        g = X[lab == c, 7]
+        assert g.max() - g.min() < 20
+
+
+def test_quaternion_sign_does_not_matter():
+    ds, kps = _kps("stack-cup")
+    flipped = [Demo(d.t, d.position, -d.orientation, d.gripper, name=d.name) if i == 1 else d for i, d in enumerate(ds)]
+    a, b = cluster(ds, kps, seed=3), cluster(flipped, kps, seed=3)
+    assert all(np.array_equal(x, y) for x, y in zip(a.labels, b.labels, strict=True))
+
+
+def test_lloyd_matches_scikit_learn_from_the_same_start():
+    X = np.random.default_rng(0).normal(size=(90, 8))
+    init = X[:12].copy()
+    C, labels, inertia = lloyd(X, init)
+    km = KMeans(n_clusters=12, init=init, n_init=1, max_iter=100, tol=0.0).fit(X)
+    assert inertia == pytest.approx(km.inertia_, rel=1e-9)
+    assert np.array_equal(labels, km.labels_)
+
+
+def test_scaled_inertia_not_worse_than_scikit_learn():
+    ds, kps = _kps("pick-place")
+    cl = cluster(ds, kps, seed=0)
+    Xs = cl.features / FeatureScale().divisors
+    km = KMeans(n_clusters=cl.n_clusters, n_init=10, random_state=0).fit(Xs)
+    assert cl.inertia <= km.inertia_ * 1.10
+
+
+def test_errors_are_plain_words():
+    ds, kps = _kps("stack-cup")
+    total = sum(len(k) for k in kps)
+    with pytest.raises(NotEnoughData, match="clusters"):
+        cluster(ds, kps, total + 1)
+    with pytest.raises(InvalidInput):
+        cluster(ds, kps, 0)
+    with pytest.raises(NotEnoughData):
+        cluster([], [])
+    with pytest.raises(InvalidInput):
+        FeatureScale(position=0.0)
+
+
+def test_one_demo_k_equals_its_keypoints():
+    ds, kps = _kps("stack-cup")
+    cl = cluster(ds[:1], kps[:1])
+    assert cl.n_clusters == len(kps[0])
+    assert cl.labels[0].tolist() == list(range(len(kps[0])))  # each key-point its own cluster, in order
