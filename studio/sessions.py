@@ -25,15 +25,17 @@ from __future__ import annotations
 
 import contextlib
 import datetime as _dt
+import functools
 import io
 import json
 import os
 import re
 import shutil
 import tempfile
+import threading
 import uuid
 import zipfile
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -398,6 +400,17 @@ def _parse_manifest(path: Path, session: str) -> dict[str, Any]:
     return m
 
 
+def _locked(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """Serialise a Session mutator (GUI callbacks and the recorder may call from different threads)."""
+
+    @functools.wraps(fn)
+    def wrapper(self: Session, *args: Any, **kwargs: Any) -> Any:
+        with self._lock:
+            return fn(self, *args, **kwargs)
+
+    return wrapper
+
+
 # -- the session --------------------------------------------------------------------------------------------
 @dataclass
 class Session:
@@ -423,6 +436,7 @@ class Session:
     recovery_message: str = ""
     _files: list[str] = field(default_factory=list, repr=False)
     _next_id: int = field(default=1, repr=False)
+    _lock: threading.RLock = field(default_factory=threading.RLock, repr=False, compare=False)
 
     # -- reading ------------------------------------------------------------------------------------------
     @property
@@ -480,6 +494,7 @@ class Session:
             name=rec.name,
         )
 
+    @_locked
     def add_recording(self, rec: Recording, name: str | None = None) -> int:
         """Add a demonstration (saved at once); returns its index. Names are made unique ("demo (2)")."""
         if not isinstance(rec, Recording):
@@ -502,6 +517,7 @@ class Session:
         self._write_manifest()
         return len(self.recordings) - 1
 
+    @_locked
     def rename_demo(self, i: int, name: str) -> None:
         """Rename demonstration ``i`` (only the manifest changes)."""
         i = self._check_index(i)
@@ -512,6 +528,7 @@ class Session:
         self.recordings[i] = Recording(t=r.t, q=r.q, gripper=r.gripper, arms=r.arms, name=nm)
         self._write_manifest()
 
+    @_locked
     def delete_demo(self, i: int) -> None:
         """Delete demonstration ``i``: the manifest stops listing it first, then its file is removed."""
         i = self._check_index(i)
@@ -522,6 +539,7 @@ class Session:
         with contextlib.suppress(FileNotFoundError):
             (self.path / rel).unlink()
 
+    @_locked
     def trim_demo(self, i: int, t0: float, t1: float) -> None:
         """Keep only the samples of demonstration ``i`` with t0 ≤ t ≤ t1 (seconds); times restart at 0."""
         i = self._check_index(i)
@@ -541,6 +559,7 @@ class Session:
         with contextlib.suppress(FileNotFoundError):
             (self.path / old).unlink()
 
+    @_locked
     def trim_idle(self, i: int, **kwargs: Any) -> tuple[float, float]:
         """Cut the idle start and end of demonstration ``i`` (see :func:`idle_bounds`); returns (t0, t1) used."""
         i = self._check_index(i)
@@ -551,18 +570,21 @@ class Session:
         return t0, t1
 
     # -- parameters, notes, skills ------------------------------------------------------------------------
+    @_locked
     def set_params(self, params: KeypointParams) -> None:
         if not isinstance(params, KeypointParams):
             raise InvalidInput("Key-point thresholds must be a KeypointParams.")
         self.params = params
         self._write_manifest()
 
+    @_locked
     def set_notes(self, notes: str) -> None:
         if not isinstance(notes, str) or len(notes) > 100_000:
             raise InvalidInput("Notes must be text of at most 100,000 characters.")
         self.notes = notes
         self._write_manifest()
 
+    @_locked
     def set_arms(self, arms: Iterable[str]) -> None:
         a = tuple(x for x in ARMS if x in set(arms))
         if not a:
@@ -570,6 +592,7 @@ class Session:
         self.arms = a
         self._write_manifest()
 
+    @_locked
     def set_skills(
         self, skills: Mapping[str, Any], params: KeypointParams | None = None, demos: Iterable[str] | None = None
     ) -> None:
@@ -800,6 +823,10 @@ class SessionStore:
 
     def save(self, session: Session) -> None:
         """Write the whole session (manifest and any missing demo files) to its folder atomically."""
+        with session._lock:
+            self._save(session)
+
+    def _save(self, session: Session) -> None:
         session.path.mkdir(parents=True, exist_ok=True)
         dt = _PRECISIONS[session.precision]
         for i, r in enumerate(session.recordings):
