@@ -177,7 +177,9 @@ def export_joint_trajectory_csv(
     """Write learned skills' joint trajectories as a CSV the Baxter SDK playback example can run.
 
     Each skill (arm -> Skill) must have ``joint_trajectory`` (t (M,), q (M, 7)); its gripper comes from
-    ``skill.trajectory`` (resampled onto the same times). An arm without a skill holds ``rest`` (the
+    ``joint_trajectory.gripper`` if present, else from ``skill.trajectory`` (resampled onto the same times).
+    The SDK's playback first moves slowly from wherever the arms are to the first row, then follows the rows'
+    times, so the file starts at t = 0. An arm without a skill holds ``rest`` (the
     Baxter untuck pose by default) with its gripper at ``rest_gripper``.
 
     Args:
@@ -213,9 +215,13 @@ def export_joint_trajectory_csv(
         ts = tt - tt[0]
         cols = slice(0, 7) if arm == "left" else slice(7, 14)
         q[:, cols] = _resample(ts, qq, np.minimum(t, ts[-1]))
-        tr = sk.trajectory
-        gt = np.asarray(tr.t, dtype=np.float64) - float(tr.t[0])
-        g[:, 0 if arm == "left" else 1] = np.clip(_resample(gt, tr.gripper, np.minimum(t, gt[-1])), 0, 100)
+        jg = getattr(sk.joint_trajectory, "gripper", None)
+        if jg is not None:  # the gripper command that goes with the joint trajectory, same times
+            gt, gv = ts, np.asarray(jg, dtype=np.float64)
+        else:
+            tr = sk.trajectory
+            gt, gv = np.asarray(tr.t, dtype=np.float64) - float(tr.t[0]), np.asarray(tr.gripper, dtype=np.float64)
+        g[:, 0 if arm == "left" else 1] = np.clip(_resample(gt, gv, np.minimum(t, gt[-1])), 0, 100)
     write_csv(path, t, q, g)
     return n
 

@@ -150,3 +150,15 @@ def test_skill_export_refuses_missing_or_bad_trajectories(tmp_path: Path) -> Non
     with pytest.raises(InvalidInput, match="nothing was written"):
         export_joint_trajectory_csv({"left": _fake_skill(t, q, np.full(11, 50.0))}, tmp_path / "x.csv")
     assert not (tmp_path / "x.csv").exists()
+
+
+def test_skill_export_prefers_the_joint_trajectory_gripper(tmp_path: Path) -> None:
+    t = np.linspace(0, 1.0, 101)
+    q = np.tile(Baxter.load().neutral("right"), (101, 1))
+    sk = _fake_skill(t, q, np.full(101, 100.0))
+    sk.joint_trajectory.gripper = np.where(t < 0.5, 80.0, 20.0)
+    f = tmp_path / "r.csv"
+    export_joint_trajectory_csv({"right": sk}, f)
+    back = import_csv(f, arms="right")
+    assert back.gripper[0, 1] == 80.0 and back.gripper[-1, 1] == 20.0
+    assert np.allclose(back.q[:, :7], Baxter.load().neutral("left"))
