@@ -104,39 +104,35 @@ def _as_array(name: str, value: object, shape: tuple[int, ...]) -> np.ndarray:
 
 
 def quat_wxyz_from_matrix(R: np.ndarray) -> np.ndarray:
-    """Unit quaternions (…, 4) w, x, y, z from rotation matrices (…, 3, 3); w >= 0 (Shepperd's method)."""
+    """Unit quaternions (…, 4) w, x, y, z from rotation matrices (…, 3, 3); w >= 0 (Shepperd's method).
+
+    All four of Shepperd's candidates are computed element-wise and the best-conditioned one (largest
+    pivot) is selected per row: no gathers, so it is fast on long series.
+    """
     R = np.asarray(R, dtype=np.float64)
     shape = R.shape[:-2]
     R = R.reshape(-1, 3, 3)
-    m00, m11, m22 = R[:, 0, 0], R[:, 1, 1], R[:, 2, 2]
+    m00, m01, m02 = R[:, 0, 0], R[:, 0, 1], R[:, 0, 2]
+    m10, m11, m12 = R[:, 1, 0], R[:, 1, 1], R[:, 1, 2]
+    m20, m21, m22 = R[:, 2, 0], R[:, 2, 1], R[:, 2, 2]
     tr = m00 + m11 + m22
-    cand = np.stack([tr, m00, m11, m22], axis=1)
-    k = np.argmax(cand, axis=1)
-    q = np.empty((R.shape[0], 4))
-    r = np.sqrt(np.maximum(1.0 + 2.0 * cand[np.arange(R.shape[0]), k] - tr, 1e-300))
+    cand = np.stack([tr, m00, m11, m22])
+    k = np.argmax(cand, axis=0)
+    r = np.sqrt(np.maximum(1.0 + 2.0 * np.take_along_axis(cand, k[None], 0)[0] - tr, 1e-300))
     s = 0.5 / r
-    # case w largest
-    i = k == 0
-    q[i, 0] = 0.5 * r[i]
-    q[i, 1] = (R[i, 2, 1] - R[i, 1, 2]) * s[i]
-    q[i, 2] = (R[i, 0, 2] - R[i, 2, 0]) * s[i]
-    q[i, 3] = (R[i, 1, 0] - R[i, 0, 1]) * s[i]
-    i = k == 1
-    q[i, 0] = (R[i, 2, 1] - R[i, 1, 2]) * s[i]
-    q[i, 1] = 0.5 * r[i]
-    q[i, 2] = (R[i, 0, 1] + R[i, 1, 0]) * s[i]
-    q[i, 3] = (R[i, 0, 2] + R[i, 2, 0]) * s[i]
-    i = k == 2
-    q[i, 0] = (R[i, 0, 2] - R[i, 2, 0]) * s[i]
-    q[i, 1] = (R[i, 0, 1] + R[i, 1, 0]) * s[i]
-    q[i, 2] = 0.5 * r[i]
-    q[i, 3] = (R[i, 1, 2] + R[i, 2, 1]) * s[i]
-    i = k == 3
-    q[i, 0] = (R[i, 1, 0] - R[i, 0, 1]) * s[i]
-    q[i, 1] = (R[i, 0, 2] + R[i, 2, 0]) * s[i]
-    q[i, 2] = (R[i, 1, 2] + R[i, 2, 1]) * s[i]
-    q[i, 3] = 0.5 * r[i]
-    q *= np.where(q[:, :1] < 0, -1.0, 1.0)
+    a, b, c = (m21 - m12) * s, (m02 - m20) * s, (m10 - m01) * s  # 4w·(x, y, z) / (4·pivot)
+    d, e, f = (m01 + m10) * s, (m02 + m20) * s, (m12 + m21) * s  # 4xy, 4xz, 4yz / (4·pivot)
+    h = 0.5 * r
+    table = np.stack(
+        [
+            np.stack([h, a, b, c]),  # pivot w
+            np.stack([a, h, d, e]),  # pivot x
+            np.stack([b, d, h, f]),  # pivot y
+            np.stack([c, e, f, h]),  # pivot z
+        ]
+    )  # (4 cases, 4 components, N)
+    q = np.take_along_axis(table, k[None, None, :], 0)[0].T
+    q = q * np.where(q[:, :1] < 0, -1.0, 1.0)
     q /= np.linalg.norm(q, axis=1, keepdims=True)
     return q.reshape(*shape, 4)
 
@@ -218,28 +214,48 @@ class _ArmChain:
         self.upper = model.upperPositionLimit[self.idx_q].copy()
         self.velocity = model.velocityLimit[[model.joints[j].idx_v for j in self.joint_ids]].copy()
 
-    def transforms(self, Q: np.ndarray) -> np.ndarray:
-        """(N, 4, 4) world transforms of the gripper frame for joint angles Q (N, 7)."""
+    def pose_columns(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Gripper rotation (N, 3, 3) and position (N, 3) in the world for joint angles Q (N, 7).
+
+        Works on the nine rotation entries as separate (N,) arrays with plain element-wise arithmetic and
+        skips the placements' zero entries (they are axis permutations). Measured on the shared 2-core
+        machine this is 3-5x faster than stacked (N,3,3) matrix products, whose BLAS threads contend
+        with other work.
+        """
         n = Q.shape[0]
-        c, s = np.cos(Q), np.sin(Q)
-        R = np.ascontiguousarray(np.broadcast_to(self.base[:3, :3], (n, 3, 3)))
-        p = np.broadcast_to(self.base[:3, 3], (n, 3))
+        c, s = np.cos(Q).T.copy(), np.sin(Q).T.copy()
+        B = self.base
+        R = [[np.full(n, B[r, k]) for k in range(3)] for r in range(3)]
+        p = [np.full(n, B[r, 3]) for r in range(3)]
+
+        def mix(row: list[np.ndarray], col: np.ndarray) -> np.ndarray | float:
+            out: np.ndarray | float = 0.0
+            for k in range(3):
+                if col[k] != 0.0:
+                    out = out + row[k] * col[k]
+            return out
+
         for i in range(7):
             P = self.placements[i]
-            # (N,3,3) @ (3,3) as one (3N,3) GEMM: numpy's stacked matmul loops per matrix and is ~10x slower.
-            R2 = R.reshape(3 * n, 3)
-            p = p + (R2 @ P[:3, 3]).reshape(n, 3)
-            A = (R2 @ P[:3, :3]).reshape(n, 3, 3)
-            # A · Rz(q): only the first two columns mix, so avoid a full matrix product.
-            R = np.empty((n, 3, 3))
-            ci, si = c[:, i, None], s[:, i, None]
-            R[:, :, 0] = ci * A[:, :, 0] + si * A[:, :, 1]
-            R[:, :, 1] = ci * A[:, :, 1] - si * A[:, :, 0]
-            R[:, :, 2] = A[:, :, 2]
-        T = np.zeros((n, 4, 4))
-        R2 = R.reshape(3 * n, 3)
-        T[:, :3, :3] = (R2 @ self.ee[:3, :3]).reshape(n, 3, 3)
-        T[:, :3, 3] = p + (R2 @ self.ee[:3, 3]).reshape(n, 3)
+            p = [p[r] + mix(R[r], P[:3, 3]) for r in range(3)]
+            A = [[mix(R[r], P[:3, j]) for j in range(3)] for r in range(3)]
+            ci, si = c[i], s[i]
+            # A · Rz(q_i): only the first two columns mix.
+            R = [[ci * A[r][0] + si * A[r][1], ci * A[r][1] - si * A[r][0], A[r][2]] for r in range(3)]
+        E = self.ee
+        pos = np.column_stack([p[r] + mix(R[r], E[:3, 3]) for r in range(3)])
+        rot = np.empty((n, 3, 3))
+        for r in range(3):
+            for j in range(3):
+                rot[:, r, j] = mix(R[r], E[:3, j])
+        return rot, pos
+
+    def transforms(self, Q: np.ndarray) -> np.ndarray:
+        """(N, 4, 4) world transforms of the gripper frame for joint angles Q (N, 7)."""
+        rot, pos = self.pose_columns(Q)
+        T = np.zeros((Q.shape[0], 4, 4))
+        T[:, :3, :3] = rot
+        T[:, :3, 3] = pos
         T[:, 3, 3] = 1.0
         return T
 
@@ -328,8 +344,8 @@ class Baxter:
             raise InvalidInput("The joint angles contain missing or invalid values (NaN or infinity).")
         if Q.shape[0] == 0:
             return np.zeros((0, 3)), np.zeros((0, 4))
-        T = chain.transforms(Q)
-        return T[:, :3, 3].copy(), make_sign_continuous(quat_wxyz_from_matrix(T[:, :3, :3]))
+        rot, pos = chain.pose_columns(Q)
+        return pos, make_sign_continuous(quat_wxyz_from_matrix(rot))
 
     def frame_transform(self, q_full: np.ndarray, frame: str) -> np.ndarray:
         """(4, 4) world transform of any URDF frame for a full pinocchio configuration (nq = 19)."""
@@ -403,8 +419,16 @@ class Baxter:
                 break
             J = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL_WORLD_ALIGNED)
             e = np.concatenate([e_pos, e_rot])
-            JJt = J @ J.T
-            dq = J.T @ np.linalg.solve(JJt + lam * np.eye(6), e)
+            # Active set: a joint resting on a limit that the step would push further out is frozen and the
+            # step re-solved with the other joints, so a limit never stalls the solve (plain clamping does).
+            free = np.ones(7, dtype=bool)
+            for _ in range(3):
+                Jf = J * free
+                dq = Jf.T @ np.linalg.solve(Jf @ Jf.T + lam * np.eye(6), e)
+                pushing = ((q <= lo + 1e-9) & (dq < 0)) | ((q >= hi - 1e-9) & (dq > 0))
+                if not np.any(pushing & free):
+                    break
+                free &= ~pushing
             q_new = np.clip(q + dq, lo, hi)
             # Adaptive damping: relax when progress is good, damp harder near singularities/limits.
             lam = max(lam * 0.5, 1e-6) if np.linalg.norm(dq) < 0.5 else min(lam * 4.0, 1.0)
