@@ -105,7 +105,7 @@ def position_plot_svg(
     return "".join(parts)
 
 
-def downsample_path(points: np.ndarray, max_points: int = 1500) -> np.ndarray:
+def downsample_path(points: np.ndarray, max_points: int = 600) -> np.ndarray:
     """Every k-th point of a (N, 3) path (keeping the last) so a 30,000-sample demo draws quickly."""
     n = len(points)
     if n <= max_points:

@@ -179,7 +179,7 @@ class KeypointsPanel:
                     if node is not None:
                         node.remove()
                     self._kp_nodes[key] = scene.add_point_cloud(
-                        key, points=pts.astype(np.float32), colors=item.color, point_size=0.018,
+                        key, points=pts.astype(np.float32), colors=item.color, point_size=0.012,
                         point_shape="circle",
                     )
             for key in list(self._kp_nodes):
@@ -195,13 +195,13 @@ class KeypointsPanel:
                 if c is None or not len(c):
                     continue
                 self._centroid_nodes[key] = scene.add_point_cloud(
-                    key, points=c[:, :3].astype(np.float32), colors=CENTROID_COLOR, point_size=0.045,
+                    key, points=c[:, :3].astype(np.float32), colors=CENTROID_COLOR, point_size=0.028,
                     point_shape="circle",
                 )
                 for j, p in enumerate(c[:, :3]):
                     if n_labels >= len(self._labels):
                         self._labels.append(scene.add_label(f"/keypoints/labels/{n_labels}", str(j),
-                                                            font_size_mode="screen", font_screen_scale=0.8))
+                                                            font_size_mode="screen", font_screen_scale=0.7))
                     lab = self._labels[n_labels]
                     lab.text = str(j)
                     lab.position = tuple(float(x) for x in p + np.array([0.0, 0.0, 0.035]))

@@ -118,6 +118,7 @@ class Shots:
         shutil.rmtree(self.dir, ignore_errors=True)
         self.dir.mkdir(parents=True, exist_ok=True)
         self.n = 0
+        self.t0 = self.t_last = time.monotonic()
 
     def __call__(self, page, step: str) -> Path:  # noqa: ANN001
         from tests.e2e.ui import dismiss_notifications
@@ -126,6 +127,10 @@ class Shots:
         self.n += 1
         path = self.dir / f"{self.n:02d}-{re.sub(r'[^A-Za-z0-9_-]+', '-', step)}.png"
         page.screenshot(path=str(path))
+        now = time.monotonic()
+        with open(self.dir / "timings.txt", "a") as f:
+            f.write(f"{path.name}: {now - self.t_last:6.1f} s (total {now - self.t0:6.1f} s)\n")
+        self.t_last = now
         return path
 
 

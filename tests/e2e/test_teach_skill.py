@@ -10,15 +10,16 @@ import numpy as np
 import pytest
 from playwright.sync_api import Page, expect
 
+from studio.app import CAMERA_FOV_DEG, CAMERA_LOOK_AT, CAMERA_POSITION
 from studio.core.kinematics import Baxter
 from tests.e2e import ui
 
 pytestmark = pytest.mark.e2e
 
 SESSION = "my-first-skill"
-VIEW_POS = np.array([2.6, -1.6, 1.2])
-VIEW_AT = np.array([0.45, 0.25, 0.05])
-VIEW_FOV = math.radians(55.0)
+VIEW_POS = np.array(CAMERA_POSITION)
+VIEW_AT = np.array(CAMERA_LOOK_AT)
+VIEW_FOV = math.radians(CAMERA_FOV_DEG)
 
 
 def gripper_status(page: Page, arm: str = "left") -> dict[str, float]:

@@ -1,0 +1,230 @@
+"""Benchmarks of the browser studio (figures only; never asserts on time).
+
+1. ε slider → scene update: 3 demonstrations × 30,000 samples (30 s at 1 kHz each); time from a threshold
+   change to the key-point and centroid markers queued for the browsers (re-extraction, k-means, drawing).
+2. Robot pose updates reaching a connected browser while the arm moves: headless Chromium (Playwright)
+   connected to the studio; every websocket frame the page receives is decoded (viser's wire format:
+   zstd-compressed msgpack) and frames carrying a new robot joint pose are counted per second.
+3. Frames per second drawn by software WebGL in headless Chromium at 1280×800, light and full meshes.
+
+Run:  .venv/bin/python bench/bench_app.py            (add --skip-browser to run only part 1)
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import socket
+import statistics
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def make_session(root: Path, n_samples: int = 30_000) -> str:
+    """A session with three 30,000-sample left-arm demos from the scripted teacher (time-stretched)."""
+    from studio.core.types import Recording
+    from studio.sessions import SessionStore
+    from studio.teacher import recording_from_plan, teach
+
+    store = SessionStore(root)
+    s = store.create("bench", arms=("left",))
+    for seed in range(3):
+        rec = recording_from_plan(teach("stack-cup", seed=seed))
+        t = np.arange(n_samples) / 1000.0
+        src = np.linspace(0.0, rec.t[-1], n_samples)
+        q = np.column_stack([np.interp(src, rec.t, rec.q[:, j]) for j in range(14)])
+        g = np.column_stack([np.interp(src, rec.t, rec.gripper[:, j]) for j in range(2)])
+        s.add_recording(Recording(t=t, q=q, gripper=g, arms=("left",), name=f"demo {seed + 1}"))
+    return "bench"
+
+
+def bench_slider(root: Path, repeats: int = 40) -> dict[str, float]:
+    from studio.app import build_app
+
+    app = build_app(port=free_port(), session="bench", sessions_dir=root)
+    try:
+        panel = app.panels.keypoints
+        time.sleep(1.0)
+        panel.refresh()  # warm: forward kinematics and the per-demo derived series are cached once
+        total, compute, draw, counts = [], [], [], []
+        values = [0.03, 0.12, 0.05, 0.2, 0.08]
+        for i in range(repeats):
+            t0 = time.perf_counter()
+            app.set_param("eps5", values[i % len(values)])  # what the ε5 slider's callback does
+            view = app.keypoint_view()
+            t1 = time.perf_counter()
+            panel.draw(view)  # markers + labels + counts, one atomic batch for the browsers
+            t2 = time.perf_counter()
+            total.append(t2 - t0)
+            compute.append(t1 - t0)
+            draw.append(t2 - t1)
+            counts.append(sum(d.count for d in view.demos))
+        n = [len(app.demo(i, "left")) for i in range(3)]
+        return {
+            "samples_per_demo": float(min(n)),
+            "median_ms": 1e3 * statistics.median(total),
+            "p90_ms": 1e3 * float(np.percentile(total, 90)),
+            "compute_median_ms": 1e3 * statistics.median(compute),
+            "draw_median_ms": 1e3 * statistics.median(draw),
+            "keypoints_min": float(min(counts)),
+            "keypoints_max": float(max(counts)),
+        }
+    finally:
+        app.stop()
+
+
+def _decode(frame: bytes) -> list[dict]:
+    import msgspec
+    import zstandard
+
+    n_inner = int.from_bytes(frame[0:8], "little")
+    n_comp = int.from_bytes(frame[8:16], "little")
+    inner = zstandard.ZstdDecompressor().decompress(frame[16:16 + n_comp], max_output_size=n_inner)
+    return list(msgspec.msgpack.decode(inner).get("messages", ()))
+
+
+def bench_browser(root: Path, seconds: float = 5.0) -> dict[str, float]:
+    from playwright.sync_api import sync_playwright
+
+    from studio.app import build_app
+
+    out: dict[str, float] = {}
+    app = build_app(port=free_port(), session="bench", sessions_dir=root)
+    try:
+        frames: list[tuple[float, bytes]] = []
+        lock = threading.Lock()
+
+        def on_ws(ws) -> None:  # noqa: ANN001
+            def got(payload) -> None:  # noqa: ANN001
+                if isinstance(payload, bytes):
+                    with lock:
+                        frames.append((time.perf_counter(), payload))
+
+            ws.on("framereceived", got)
+
+        with sync_playwright() as p:
+            b = p.chromium.launch(executable_path="/usr/bin/chromium", headless=True, args=CHROMIUM_ARGS)
+            page = b.new_page(viewport={"width": 1280, "height": 800})
+            page.on("websocket", on_ws)
+            page.goto(app.url())
+            page.get_by_role("button", name="Record").wait_for(timeout=60_000)
+            time.sleep(4.0)
+
+            # Move the left arm back and forth continuously (targets beyond reach of one period).
+            stop = threading.Event()
+
+            def mover() -> None:
+                q0 = app.arm_q("left")
+                k = 0
+                while not stop.is_set():
+                    q = q0.copy()
+                    q[0] += 0.6 * np.sin(k * 0.05)
+                    q[3] += 0.4 * np.sin(k * 0.03)
+                    app.command_arm("left", q)
+                    k += 1
+                    time.sleep(0.01)
+
+            th = threading.Thread(target=mover, daemon=True)
+            with lock:
+                frames.clear()
+            t_start = time.perf_counter()
+            th.start()
+            time.sleep(seconds)
+            stop.set()
+            th.join()
+            t_end = time.perf_counter()
+            with lock:
+                got = [f for f in frames if t_start <= f[0] <= t_end]
+            pose_frames = 0
+            for _, data in got:
+                msgs = _decode(data)
+                if any(m.get("type") == "SetOrientationMessage" and str(m.get("name", "")).startswith("/robot/")
+                       for m in msgs):
+                    pose_frames += 1
+            out["pose_updates_per_s"] = pose_frames / (t_end - t_start)
+            out["frames_per_s"] = len(got) / (t_end - t_start)
+            out["server_pose_pushes_per_s"] = float("nan")
+
+            fps = page.evaluate(
+                """() => new Promise(r => { let n = 0; const t0 = performance.now();
+                   function f() { n++; if (performance.now() - t0 < 4000) requestAnimationFrame(f);
+                                  else r(n * 1000 / (performance.now() - t0)); }
+                   requestAnimationFrame(f); })"""
+            )
+            out["render_fps_light"] = float(fps)
+            b.close()
+    finally:
+        app.stop()
+    return out
+
+
+def bench_full_meshes(root: Path) -> float:
+    from playwright.sync_api import sync_playwright
+
+    from studio.app import build_app
+
+    app = build_app(port=free_port(), session="bench", sessions_dir=root, meshes="full")
+    try:
+        with sync_playwright() as p:
+            b = p.chromium.launch(executable_path="/usr/bin/chromium", headless=True, args=CHROMIUM_ARGS)
+            page = b.new_page(viewport={"width": 1280, "height": 800})
+            page.set_default_timeout(180_000)
+            page.goto(app.url())
+            page.get_by_role("button", name="Record").wait_for()
+            time.sleep(15.0)
+            fps = page.evaluate(
+                """() => new Promise(r => { let n = 0; const t0 = performance.now();
+                   function f() { n++; if (performance.now() - t0 < 6000) requestAnimationFrame(f);
+                                  else r(n * 1000 / (performance.now() - t0)); }
+                   requestAnimationFrame(f); })"""
+            )
+            b.close()
+            return float(fps)
+    finally:
+        app.stop()
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--skip-browser", action="store_true")
+    ap.add_argument("--full-meshes", action="store_true", help="also measure the full meshes (slow)")
+    args = ap.parse_args()
+    tmp = Path(tempfile.mkdtemp(prefix="bench-app-"))
+    try:
+        make_session(tmp)
+        r = bench_slider(tmp)
+        print(f"eps slider -> scene update, 3 demos x {r['samples_per_demo']:.0f} samples: "
+              f"median {r['median_ms']:.1f} ms, p90 {r['p90_ms']:.1f} ms "
+              f"(key-points + clustering {r['compute_median_ms']:.1f} ms, drawing {r['draw_median_ms']:.1f} ms; "
+              f"{r['keypoints_min']:.0f}-{r['keypoints_max']:.0f} key-points)")
+        if not args.skip_browser:
+            r2 = bench_browser(tmp)
+            print(f"robot pose updates reaching the browser while the arm moves: {r2['pose_updates_per_s']:.1f}/s "
+                  f"({r2['frames_per_s']:.1f} websocket frames/s)")
+            print(f"software WebGL, light meshes, 1280x800: {r2['render_fps_light']:.1f} frames/s")
+            if args.full_meshes:
+                print(f"software WebGL, full meshes, 1280x800: {bench_full_meshes(tmp):.1f} frames/s")
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
