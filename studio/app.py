@@ -15,15 +15,15 @@ Threads:
 from __future__ import annotations
 
 import functools
-import math
-from dataclasses import dataclass, field, replace
 import logging
+import math
 import sys
 import threading
 import time
 import traceback
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -49,8 +49,16 @@ F = TypeVar("F", bound=Callable[..., Any])
 
 #: Demo colours (RGB), distinct on the light background and never red (red marks the cluster centroids).
 PALETTE: tuple[tuple[int, int, int], ...] = (
-    (31, 119, 180), (44, 160, 44), (255, 127, 14), (148, 103, 189), (140, 86, 75), (227, 119, 194),
-    (127, 127, 127), (188, 189, 34), (23, 190, 207), (57, 59, 121),
+    (31, 119, 180),
+    (44, 160, 44),
+    (255, 127, 14),
+    (148, 103, 189),
+    (140, 86, 75),
+    (227, 119, 194),
+    (127, 127, 127),
+    (188, 189, 34),
+    (23, 190, 207),
+    (57, 59, 121),
 )
 
 
@@ -274,12 +282,13 @@ class Studio:
         # them the studio draws ~20x faster and, with plain lights, Baxter still looks like Baxter.
         s.scene.configure_environment_map(hdri=None)
         s.scene.configure_default_lights(enabled=True, cast_shadow=False)
-        s.scene.add_light_hemisphere("/lights/sky", sky_color=(255, 255, 255), ground_color=(90, 90, 100),
-                                     intensity=1.6)
-        s.scene.add_light_directional("/lights/key", color=(255, 255, 255), intensity=1.2,
-                                      position=(2.0, -1.5, 3.0))
-        s.scene.add_grid("/ground", width=3.0, height=3.0, position=(0.5, 0.0, -0.93), cell_size=0.25,
-                         shadow_opacity=0.0)
+        s.scene.add_light_hemisphere(
+            "/lights/sky", sky_color=(255, 255, 255), ground_color=(90, 90, 100), intensity=1.6
+        )
+        s.scene.add_light_directional("/lights/key", color=(255, 255, 255), intensity=1.2, position=(2.0, -1.5, 3.0))
+        s.scene.add_grid(
+            "/ground", width=3.0, height=3.0, position=(0.5, 0.0, -0.93), cell_size=0.25, shadow_opacity=0.0
+        )
 
     # -- robot state -------------------------------------------------------------------------------------
     def _on_batch(self, batch: JointStateBatch) -> None:
@@ -334,22 +343,18 @@ class Studio:
         self.live.version += 1
 
     # -- failures and background work --------------------------------------------------------------------
-    def notify(
-        self, title: str, body: str, *, kind: str = "error", client: viser.ClientHandle | None = None
-    ) -> None:
+    def notify(self, title: str, body: str, *, kind: str = "error", client: viser.ClientHandle | None = None) -> None:
         """Show a notification in plain words (to one tab, or to every tab when ``client`` is None)."""
         key = (title, body)
         now = time.monotonic()
         if client is None and now - self._recent_notes.get(key, -1e9) < 5.0:
             return  # the same message again within seconds (e.g. from a slider being dragged): once is enough
         self._recent_notes[key] = now
-        color = {"error": "red", "info": "blue", "success": "green", "warning": "yellow"}.get(kind, "blue")
+        color: Any = {"error": "red", "info": "blue", "success": "green", "warning": "yellow"}.get(kind, "blue")
         clients = [client] if client is not None else list(self.server.get_clients().values())
         for c in clients:
             try:
-                c.add_notification(
-                    title, body, color=color, auto_close_seconds=None if kind == "error" else 6.0
-                )
+                c.add_notification(title, body, color=color, auto_close_seconds=None if kind == "error" else 6.0)
             except Exception:  # a tab that just closed
                 log.debug("notification to a closed tab", exc_info=True)
         if kind == "error":
@@ -362,8 +367,7 @@ class Studio:
             traceback.print_exception(exc, file=sys.stderr)
             self.notify(
                 title,
-                f"Something unexpected went wrong ({type(exc).__name__}: {exc}). Your work is kept; "
-                "you can try again.",
+                f"Something unexpected went wrong ({type(exc).__name__}: {exc}). Your work is kept; you can try again.",
                 client=client,
             )
 
@@ -491,8 +495,11 @@ class Studio:
         for msg in rec.messages:
             self.notify("Recording", msg, kind="warning")
         self.demos_changed()
-        self.notify("Demonstration saved", f"{recording.name}: {recording.duration:.1f} s, {len(recording):,} samples.",
-                    kind="success")
+        self.notify(
+            "Demonstration saved",
+            f"{recording.name}: {recording.duration:.1f} s, {len(recording):,} samples.",
+            kind="success",
+        )
 
     def discard_recording(self) -> None:
         with self.lock:
@@ -539,8 +546,11 @@ class Studio:
 
     def demos_for(self, arm: str) -> list[tuple[int, Any]]:
         """(index, Demo) of every shown recording that taught ``arm``."""
-        return [(i, self.demo(i, arm)) for i, r in enumerate(self.recordings())
-                if arm in r.arms and r.name not in self.hidden_demos]
+        return [
+            (i, self.demo(i, arm))
+            for i, r in enumerate(self.recordings())
+            if arm in r.arms and r.name not in self.hidden_demos
+        ]
 
     def set_demo_visible(self, i: int, visible: bool) -> None:
         name = self.demo_names()[i]
@@ -625,10 +635,16 @@ class Studio:
                 continue
             idx = [np.asarray(self._kp_cache.extract(d, params)) for _, d in demos]
             for (i, d), ix in zip(demos, idx, strict=True):
-                view.demos.append(KeypointItem(
-                    index=i, arm=arm, name=d.name, color=self.demo_color(i), count=len(ix),
-                    points=np.asarray(d.position)[ix] if len(ix) else np.zeros((0, 3)),
-                ))
+                view.demos.append(
+                    KeypointItem(
+                        index=i,
+                        arm=arm,
+                        name=d.name,
+                        color=self.demo_color(i),
+                        count=len(ix),
+                        points=np.asarray(d.position)[ix] if len(ix) else np.zeros((0, 3)),
+                    )
+                )
             try:
                 centroids = cluster_keypoints([d for _, d in demos], idx, n_clusters=k, seed=0)
             except StudioError as exc:
@@ -681,8 +697,15 @@ class Studio:
         def job() -> dict[str, Any]:
             skills = {}
             for arm, demos in per_arm.items():
-                skills[arm] = learn_skill([d for _, d in demos], params, n_clusters=k, seed=0, arm=arm,
-                                          baxter=self.baxter, cache=self._kp_cache)
+                skills[arm] = learn_skill(
+                    [d for _, d in demos],
+                    params,
+                    n_clusters=k,
+                    seed=0,
+                    arm=arm,
+                    baxter=self.baxter,
+                    cache=self._kp_cache,
+                )
             return skills
 
         def done(skills: dict[str, Any] | None) -> None:
@@ -939,25 +962,41 @@ def build_app(
 ) -> Studio:
     """Build and start the studio (server listening, robot streaming); returns the :class:`Studio`."""
     return Studio(
-        host=host, port=port, session=session, sessions_dir=sessions_dir, meshes=meshes, backend=backend,
+        host=host,
+        port=port,
+        session=session,
+        sessions_dir=sessions_dir,
+        meshes=meshes,
+        backend=backend,
         verbose=verbose,
     )
 
 
+def exposure_warning(host: str, port: int) -> str | None:
+    """The warning printed when the studio listens beyond this computer (None for localhost)."""
+    if host in ("127.0.0.1", "localhost", "::1"):
+        return None
+    return (
+        f"WARNING: listening on {host}: anyone who can reach this computer on port {port} can move the "
+        "robot and read or change your sessions. Use --host 127.0.0.1 to keep it to this computer."
+    )
+
+
 def serve(host: str, port: int, session: str | None, sessions_dir: Path | str, meshes: str = "auto") -> None:
-    """Start the studio and block until Ctrl+C (the ``studio serve`` command)."""
-    if host not in ("127.0.0.1", "localhost", "::1"):
-        print(
-            f"WARNING: listening on {host}: anyone who can reach this computer on port {port} can move the "
-            "robot and read or change your sessions. Use --host 127.0.0.1 to keep it to this computer.",
-            file=sys.stderr,
-            flush=True,
-        )
+    """Start the studio and block until Ctrl+C or SIGTERM (the ``studio serve`` command)."""
+    import signal
+
+    warning = exposure_warning(host, port)
+    if warning:
+        print(warning, file=sys.stderr, flush=True)
     app = build_app(host, port, session, sessions_dir, meshes)
+    stop = threading.Event()
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, lambda *_: stop.set())
     print(f"Teaching Studio is running: open {app.url()} in your browser (Ctrl+C stops it).", flush=True)
     try:
-        while True:
-            time.sleep(3600)
+        while not stop.wait(1.0):
+            pass
     except KeyboardInterrupt:
         pass
     finally:

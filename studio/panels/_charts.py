@@ -35,10 +35,12 @@ def heatmap_svg(m: np.ndarray, *, title: str, size: int = 300, css_class: str = 
             )
     step = max(1, n // 10)
     for i in range(0, n, step):
-        parts.append(f'<text x="{pad - 3}" y="{top + pad + (i + 0.7) * cell:.1f}" font-size="8" '
-                     f'text-anchor="end">{i}</text>')
-        parts.append(f'<text x="{pad + (i + 0.5) * cell:.1f}" y="{top + pad - 4}" font-size="8" '
-                     f'text-anchor="middle">{i}</text>')
+        parts.append(
+            f'<text x="{pad - 3}" y="{top + pad + (i + 0.7) * cell:.1f}" font-size="8" text-anchor="end">{i}</text>'
+        )
+        parts.append(
+            f'<text x="{pad + (i + 0.5) * cell:.1f}" y="{top + pad - 4}" font-size="8" text-anchor="middle">{i}</text>'
+        )
     parts.append("</svg>")
     return "".join(parts)
 

@@ -17,36 +17,94 @@ if TYPE_CHECKING:
 
 #: (field, plain label, unit, min, max, step, hint) — labels say what the threshold does, then the symbol.
 POSITION_SLIDERS: tuple[tuple[str, str, str, float, float, float, str], ...] = (
-    ("eps1", "Corner sharpness", "rad", math.pi, 2 * math.pi, 0.01,
-     "Higher keeps only sharp corners of the hand's path as key-points (π: every bend counts)."),
-    ("eps2", "Pause speed", "m/s", 0.0, 0.1, 0.001,
-     "Below this speed the hand counts as pausing; a pause can become a key-point."),
-    ("eps3", "Pause wait", "s", 0.0, 5.0, 0.05,
-     "A pause only counts this long after the previous key-point."),
-    ("eps4", "Pause distance", "m", 0.0, 0.3, 0.005,
-     "A pause only counts this far from the previous key-point."),
-    ("eps5", "Travel distance", "m", 0.0, 0.6, 0.005,
-     "Moving this far from the previous key-point makes a new key-point."),
-    ("eps6", "Travel wait", "s", 0.0, 5.0, 0.05,
-     "…but not sooner than this after the previous key-point."),
-    ("eps7", "Travel radius", "m", 0.0, 0.6, 0.005,
-     "…and only if the hand stayed within this radius until then."),
+    (
+        "eps1",
+        "Corner sharpness",
+        "rad",
+        math.pi,
+        2 * math.pi,
+        0.01,
+        "Higher keeps only sharp corners of the hand's path as key-points (π: every bend counts).",
+    ),
+    (
+        "eps2",
+        "Pause speed",
+        "m/s",
+        0.0,
+        0.1,
+        0.001,
+        "Below this speed the hand counts as pausing; a pause can become a key-point.",
+    ),
+    ("eps3", "Pause wait", "s", 0.0, 5.0, 0.05, "A pause only counts this long after the previous key-point."),
+    ("eps4", "Pause distance", "m", 0.0, 0.3, 0.005, "A pause only counts this far from the previous key-point."),
+    (
+        "eps5",
+        "Travel distance",
+        "m",
+        0.0,
+        0.6,
+        0.005,
+        "Moving this far from the previous key-point makes a new key-point.",
+    ),
+    ("eps6", "Travel wait", "s", 0.0, 5.0, 0.05, "…but not sooner than this after the previous key-point."),
+    ("eps7", "Travel radius", "m", 0.0, 0.6, 0.005, "…and only if the hand stayed within this radius until then."),
 )
 ORIENTATION_SLIDERS: tuple[tuple[str, str, str, float, float, float, str], ...] = (
-    ("eps8", "Turn corner sharpness", "rad", math.pi, 2 * math.pi, 0.01,
-     "Higher keeps only sudden changes in how the hand turns as key-points."),
-    ("eps9", "Turn pause speed", "rad/s", 0.0, 0.5, 0.005,
-     "Below this turning speed the hand counts as holding its angle."),
-    ("eps10", "Turn pause wait", "s", 0.0, 5.0, 0.05,
-     "A turning pause only counts this long after the previous key-point."),
-    ("eps11", "Turn pause angle", "rad", 0.0, 1.5, 0.01,
-     "A turning pause only counts this far (in angle) from the previous key-point."),
-    ("eps12", "Turn amount", "rad", 0.0, 2.0, 0.01,
-     "Turning this much from the previous key-point makes a new key-point."),
-    ("eps13", "Turn wait", "s", 0.0, 5.0, 0.05,
-     "…but not sooner than this after the previous key-point."),
-    ("eps14", "Turn range", "rad", 0.0, 2.0, 0.01,
-     "…and only if the hand's angle stayed within this range until then."),
+    (
+        "eps8",
+        "Turn corner sharpness",
+        "rad",
+        math.pi,
+        2 * math.pi,
+        0.01,
+        "Higher keeps only sudden changes in how the hand turns as key-points.",
+    ),
+    (
+        "eps9",
+        "Turn pause speed",
+        "rad/s",
+        0.0,
+        0.5,
+        0.005,
+        "Below this turning speed the hand counts as holding its angle.",
+    ),
+    (
+        "eps10",
+        "Turn pause wait",
+        "s",
+        0.0,
+        5.0,
+        0.05,
+        "A turning pause only counts this long after the previous key-point.",
+    ),
+    (
+        "eps11",
+        "Turn pause angle",
+        "rad",
+        0.0,
+        1.5,
+        0.01,
+        "A turning pause only counts this far (in angle) from the previous key-point.",
+    ),
+    (
+        "eps12",
+        "Turn amount",
+        "rad",
+        0.0,
+        2.0,
+        0.01,
+        "Turning this much from the previous key-point makes a new key-point.",
+    ),
+    ("eps13", "Turn wait", "s", 0.0, 5.0, 0.05, "…but not sooner than this after the previous key-point."),
+    (
+        "eps14",
+        "Turn range",
+        "rad",
+        0.0,
+        2.0,
+        0.01,
+        "…and only if the hand's angle stayed within this range until then.",
+    ),
 )
 SYMBOL = {f"eps{i}": f"ε{i}" for i in range(1, 15)}
 CENTROID_COLOR = (220, 20, 20)
@@ -71,7 +129,9 @@ class KeypointsPanel:
                     v = float(getattr(params, name))
                     s = gui.add_slider(
                         slider_label(name, words),
-                        min=round(lo, 4), max=round(hi, 4), step=step,
+                        min=round(lo, 4),
+                        max=round(hi, 4),
+                        step=step,
                         initial_value=min(max(v, lo), hi),
                         hint=f"{hint} Unit: {unit}.",
                     )
@@ -79,13 +139,21 @@ class KeypointsPanel:
                     self.sliders[name] = s
         with gui.add_folder("Clusters"):
             self.k_auto = gui.add_checkbox(
-                "Choose the number of clusters automatically", initial_value=app.k_override is None,
+                "Choose the number of clusters automatically",
+                initial_value=app.k_override is None,
                 hint="Untick to set k, the number of k-means clusters (= HMM states), yourself.",
             )
-            self.k = gui.add_slider("Clusters (k)", min=2, max=40, step=1,
-                                    initial_value=app.k_override or 12, disabled=app.k_override is None)
-            self.reset = gui.add_button("Reset to defaults", icon=viser.Icon.REFRESH,
-                                        hint="Put every threshold back to its default value.")
+            self.k = gui.add_slider(
+                "Clusters (k)",
+                min=2,
+                max=40,
+                step=1,
+                initial_value=app.k_override or 12,
+                disabled=app.k_override is None,
+            )
+            self.reset = gui.add_button(
+                "Reset to defaults", icon=viser.Icon.REFRESH, hint="Put every threshold back to its default value."
+            )
 
         self.k_auto.on_update(app.guarded("Could not change the number of clusters")(self._on_k))
         self.k.on_update(app.guarded("Could not change the number of clusters")(self._on_k))
@@ -164,6 +232,8 @@ class KeypointsPanel:
         return view
 
     def draw(self, view: Any) -> None:
+        if self._stop.is_set():  # the studio is stopping: the server may already be gone
+            return
         self.view = view
         scene = self.scene
         with self.app.server.atomic():
@@ -179,7 +249,10 @@ class KeypointsPanel:
                     if node is not None:
                         node.remove()
                     self._kp_nodes[key] = scene.add_point_cloud(
-                        key, points=pts.astype(np.float32), colors=item.color, point_size=0.012,
+                        key,
+                        points=pts.astype(np.float32),
+                        colors=item.color,
+                        point_size=0.012,
                         point_shape="circle",
                     )
             for key in list(self._kp_nodes):
@@ -195,13 +268,19 @@ class KeypointsPanel:
                 if c is None or not len(c):
                     continue
                 self._centroid_nodes[key] = scene.add_point_cloud(
-                    key, points=c[:, :3].astype(np.float32), colors=CENTROID_COLOR, point_size=0.028,
+                    key,
+                    points=c[:, :3].astype(np.float32),
+                    colors=CENTROID_COLOR,
+                    point_size=0.028,
                     point_shape="circle",
                 )
                 for j, p in enumerate(c[:, :3]):
                     if n_labels >= len(self._labels):
-                        self._labels.append(scene.add_label(f"/keypoints/labels/{n_labels}", str(j),
-                                                            font_size_mode="screen", font_screen_scale=0.7))
+                        self._labels.append(
+                            scene.add_label(
+                                f"/keypoints/labels/{n_labels}", str(j), font_size_mode="screen", font_screen_scale=0.7
+                            )
+                        )
                     lab = self._labels[n_labels]
                     lab.text = str(j)
                     lab.position = tuple(float(x) for x in p + np.array([0.0, 0.0, 0.035]))
@@ -225,8 +304,10 @@ class KeypointsPanel:
         if not rows:
             rows.append("<div>No demonstrations to look at yet.</div>")
         for arm, k in view.k.items():
-            rows.append(f'<div class="kp-k" data-arm="{arm}" data-k="{k}">Clusters ({arm} arm): <b>{k}</b> '
-                        "(large red markers, numbered)</div>")
+            rows.append(
+                f'<div class="kp-k" data-arm="{arm}" data-k="{k}">Clusters ({arm} arm): <b>{k}</b> '
+                "(large red markers, numbered)</div>"
+            )
         for msg in view.messages:
             rows.append(f'<div class="kp-msg" style="color:#b45309">{_esc(msg)}</div>')
         return '<div class="kp-counts" style="font-size:0.85em">' + "".join(rows) + "</div>"
@@ -234,6 +315,7 @@ class KeypointsPanel:
     def close(self) -> None:
         self._stop.set()
         self._pending.set()
+        self._worker.join(timeout=5.0)
 
 
 def _esc(s: str) -> str:

@@ -53,15 +53,23 @@ class PreviewPanel:
                     continue
                 pts = downsample_path(np.asarray(skill.trajectory.position))
                 self._nodes[f"path_{arm}"] = self.scene.add_line_segments(
-                    f"/preview/{arm}/path", segments(pts), colors=CYAN, thickness=5.0, thickness_units="screen",
+                    f"/preview/{arm}/path",
+                    segments(pts),
+                    colors=CYAN,
+                    thickness=5.0,
+                    thickness_units="screen",
                     visible=bool(self.show_path.value),
                 )
                 bad = self.app.ik_failures(arm)
                 fails += len(bad)
                 if len(bad):
                     self._nodes[f"fail_{arm}"] = self.scene.add_point_cloud(
-                        f"/preview/{arm}/ik_failed", points=bad.astype(np.float32), colors=IK_FAIL,
-                        point_size=0.03, point_shape="diamond", visible=bool(self.show_path.value),
+                        f"/preview/{arm}/ik_failed",
+                        points=bad.astype(np.float32),
+                        colors=IK_FAIL,
+                        point_size=0.03,
+                        point_shape="diamond",
+                        visible=bool(self.show_path.value),
                     )
             duration = self.app.preview_duration()
             self.time.max = round(max(duration, 0.01), 2)
@@ -70,8 +78,9 @@ class PreviewPanel:
                 h.disabled = not skills
             if skills:
                 note = (
-                    f" **{fails} points** of the path cannot be reached exactly (red diamonds)." if fails else
-                    " Every point of the path is reachable."
+                    f" **{fails} points** of the path cannot be reached exactly (red diamonds)."
+                    if fails
+                    else " Every point of the path is reachable."
                 )
                 self.info.content = f"Learned path ({duration:.1f} s) in cyan.{note} Press **Play**."
             else:

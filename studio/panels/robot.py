@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import viser
@@ -77,7 +77,7 @@ class RobotPanel:
         cfg[g] = np.clip(gripper[self._grip_idx[g]], 0.0, 100.0) / 100.0 * FINGER_TRAVEL
         with self.app.server.atomic():
             if self._fast is not None:
-                self._fast.update(dict(zip(self._names, cfg)))
+                self._fast.update(dict(zip(self._names, cfg, strict=True)))
             else:
                 self.urdf.update_cfg(cfg)
         self.updates += 1
@@ -103,8 +103,10 @@ class RobotPanel:
                 f"x {pos[0]:+.2f} · y {pos[1]:+.2f} · z {pos[2]:+.2f} m, {g:.0f} % open</div>"
             )
         src = self.app.display_label()
-        html = (f'<div style="font-size:0.85em"><div class="robot-source">{src}</div>{"".join(lines)}'
-                f'<div class="robot-message">{self._message}</div></div>')
+        html = (
+            f'<div style="font-size:0.85em"><div class="robot-source">{src}</div>{"".join(lines)}'
+            f'<div class="robot-message">{self._message}</div></div>'
+        )
         if html != self._status_html:
             self._status_html = html
             self.status.content = html
@@ -117,8 +119,7 @@ class _FastPose:
     core at 60 Hz); here each moving joint is one quaternion product in plain floats (~20 µs).
     """
 
-    def __init__(self, items: list[tuple[object, tuple[float, ...], np.ndarray, bool, tuple[float, float, float],
-                                         tuple[str, float, float]]]) -> None:
+    def __init__(self, items: list[tuple[Any, ...]]) -> None:
         self.items = items
         self._last: list[float | None] = [None] * len(items)
 
@@ -140,8 +141,11 @@ class _FastPose:
             origin = np.eye(4) if joint.origin is None else np.asarray(joint.origin, dtype=np.float64)
             axis = np.asarray(joint.axis if joint.axis is not None else (1.0, 0.0, 0.0), dtype=np.float64)
             axis = axis / np.linalg.norm(axis)
-            mimic = (joint.mimic.joint, float(joint.mimic.multiplier or 1.0), float(joint.mimic.offset or 0.0)) \
-                if joint.mimic is not None else (joint.name, 1.0, 0.0)
+            mimic = (
+                (joint.mimic.joint, float(joint.mimic.multiplier or 1.0), float(joint.mimic.offset or 0.0))
+                if joint.mimic is not None
+                else (joint.name, 1.0, 0.0)
+            )
             q0 = tuple(float(x) for x in quat_wxyz_from_matrix(origin[:3, :3]))
             items.append((frame, q0, origin, joint.type == "prismatic", tuple(float(a) for a in axis), mimic))
         return cls(items)

@@ -16,10 +16,12 @@ class SessionsPanel:
         self.current = gui.add_markdown(self._current_text())
         with gui.add_folder("Session"):
             names = app.session_names()
-            self.pick = gui.add_dropdown("Open session", options=names or [app.session.name],
-                                         initial_value=app.session.name)
-            self.name = gui.add_text("New name", initial_value="",
-                                     hint="Name for a new session or for a copy of this one.")
+            self.pick = gui.add_dropdown(
+                "Open session", options=names or [app.session.name], initial_value=app.session.name
+            )
+            self.name = gui.add_text(
+                "New name", initial_value="", hint="Name for a new session or for a copy of this one."
+            )
             self.actions = gui.add_button_group("Session action", options=("Open", "New", "Save", "Duplicate"))
         with gui.add_folder("Replay a demonstration"):
             self.replay_pick = gui.add_dropdown("Demonstration", options=app.demo_names() or ["(none)"])
@@ -27,8 +29,9 @@ class SessionsPanel:
             self.replay_time = gui.add_slider("Replay time (s)", min=0.0, max=1.0, step=0.01, initial_value=0.0)
         with gui.add_folder("Files"):
             self.download = gui.add_button("Download session (.zip)", icon=viser.Icon.DOWNLOAD)
-            self.upload = gui.add_upload_button("Upload session (.zip)", icon=viser.Icon.UPLOAD,
-                                                mime_type=".zip,application/zip")
+            self.upload = gui.add_upload_button(
+                "Upload session (.zip)", icon=viser.Icon.UPLOAD, mime_type=".zip,application/zip"
+            )
             self.export = gui.add_button("Export joint trajectory (Baxter SDK CSV)", icon=viser.Icon.FILE_EXPORT)
         self._last_sync = 0.0
 

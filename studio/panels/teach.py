@@ -76,12 +76,15 @@ class TeachPanel:
 
         # -- GUI ------------------------------------------------------------------------------------------
         with gui.add_folder("Record a demonstration", order=0):
-            self.record_btn = gui.add_button("Record", icon=viser.Icon.PLAYER_RECORD, color="red",
-                                             hint="Start recording while you guide the arm.")
-            self.stop_btn = gui.add_button("Stop", icon=viser.Icon.PLAYER_STOP, disabled=True,
-                                           hint="Stop and keep this demonstration.")
-            self.discard_btn = gui.add_button("Discard", icon=viser.Icon.TRASH, disabled=True,
-                                              hint="Stop and throw this demonstration away.")
+            self.record_btn = gui.add_button(
+                "Record", icon=viser.Icon.PLAYER_RECORD, color="red", hint="Start recording while you guide the arm."
+            )
+            self.stop_btn = gui.add_button(
+                "Stop", icon=viser.Icon.PLAYER_STOP, disabled=True, hint="Stop and keep this demonstration."
+            )
+            self.discard_btn = gui.add_button(
+                "Discard", icon=viser.Icon.TRASH, disabled=True, hint="Stop and throw this demonstration away."
+            )
             self.rec_status = gui.add_markdown("Not recording.")
 
         with gui.add_folder("Grippers", order=1):
@@ -91,7 +94,10 @@ class TeachPanel:
             for arm in ARMS:
                 grp = gui.add_button_group(f"{arm.capitalize()} gripper", options=("Open", "Close"))
                 w = gui.add_slider(
-                    f"{arm.capitalize()} gripper width (%)", min=0.0, max=100.0, step=1.0,
+                    f"{arm.capitalize()} gripper width (%)",
+                    min=0.0,
+                    max=100.0,
+                    step=1.0,
                     initial_value=float(app.robot_gripper()[0 if arm == "left" else 1]),
                     hint="0 = closed, 100 = fully open.",
                 )
@@ -248,9 +254,7 @@ class TeachPanel:
         rec = app.recorder
         if rec is not None and now - self._last_timer > 0.25:
             self._last_timer = now
-            self.rec_status.content = (
-                f"**● Recording** {rec.elapsed:5.1f} s · {rec.n_samples:,} samples"
-            )
+            self.rec_status.content = f"**● Recording** {rec.elapsed:5.1f} s · {rec.n_samples:,} samples"
 
     # -- demo list -------------------------------------------------------------------------------------
     def _demo_list_html(self) -> str:
@@ -281,7 +285,9 @@ class TeachPanel:
             for key in list(self._traces):
                 self._traces.pop(key).remove()
             for key, (pts, color) in wanted.items():
-                self._traces[key] = self.scene.add_line_segments(key, segments(pts), colors=color, thickness=3.0, thickness_units="screen")
+                self._traces[key] = self.scene.add_line_segments(
+                    key, segments(pts), colors=color, thickness=3.0, thickness_units="screen"
+                )
 
     def refresh_demos(self) -> None:
         try:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import viser
@@ -19,7 +19,8 @@ class TrainPanel:
     def __init__(self, app: Studio, gui: viser.GuiApi) -> None:
         self.app = app
         self.train_btn = gui.add_button(
-            "Train", icon=viser.Icon.BRAIN,
+            "Train",
+            icon=viser.Icon.BRAIN,
             hint="Learn the skill from the shown demonstrations with the current key-point settings.",
         )
         self.progress = gui.add_progress_bar(0.0, animated=True, visible=False)
@@ -72,8 +73,9 @@ class TrainPanel:
             if jt is not None:
                 bad = int(np.count_nonzero(~np.asarray(jt.converged)))
                 ik_note = (
-                    "<div>The arm reaches every point of the learned path.</div>" if bad == 0 else
-                    f'<div style="color:#b91c1c">The arm cannot reach {bad} of {len(jt.converged)} points of the '
+                    "<div>The arm reaches every point of the learned path.</div>"
+                    if bad == 0
+                    else f'<div style="color:#b91c1c">The arm cannot reach {bad} of {len(jt.converged)} points of the '
                     "learned path exactly (marked red in Preview).</div>"
                 )
             summary.append(
@@ -85,19 +87,27 @@ class TrainPanel:
                 f"Zero-points (states no path visits, left out of the learned path): "
                 f"{', '.join(str(z) for z in zero[:30]) or 'none'}{' …' if len(zero) > 30 else ''}<br>"
                 '<table class="loglik" style="width:100%;font-size:0.95em"><tr><th style="text-align:left">'
-                "Demonstration</th><th style=\"text-align:right\">log-likelihood</th><th></th></tr>"
+                'Demonstration</th><th style="text-align:right">log-likelihood</th><th></th></tr>'
                 f"{rows}</table>{ik_note}</div>"
             )
             heat.append(heatmap_svg(np.asarray(skill.transmat), title=f"{arm.capitalize()} arm: state transitions"))
             for j, (i, demo) in enumerate(self.app.skill_demos(arm)):
                 kps = skill.keypoints[j] if j < len(skill.keypoints) else []
-                plots.append(position_plot_svg(
-                    demo.t - demo.t[0], demo.position, kps, title=f"{demo.name} ({arm})",
-                    color=self.app.demo_color(i),
-                ))
+                plots.append(
+                    position_plot_svg(
+                        demo.t - demo.t[0],
+                        demo.position,
+                        kps,
+                        title=f"{demo.name} ({arm})",
+                        color=self.app.demo_color(i),
+                    )
+                )
             traj = skill.trajectory
-            plots.append(position_plot_svg(traj.t - traj.t[0], traj.position, [], title=f"learned path ({arm})",
-                                           color=(0, 170, 200)))
+            plots.append(
+                position_plot_svg(
+                    traj.t - traj.t[0], traj.position, [], title=f"learned path ({arm})", color=(0, 170, 200)
+                )
+            )
         with self.app.server.atomic():
             self.summary.content = "".join(summary) or "<div style='font-size:0.85em'>No skill learned yet.</div>"
             self.heatmap.content = "".join(heat)

@@ -59,9 +59,25 @@ class StudioProcess:
         env = dict(os.environ, PYTHONUNBUFFERED="1")
         self.output = []
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "studio", "serve", "--port", str(self.port), "--session", self.session,
-             "--sessions-dir", str(self.sessions_dir), "--meshes", "light"],
-            cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+            [
+                sys.executable,
+                "-m",
+                "studio",
+                "serve",
+                "--port",
+                str(self.port),
+                "--session",
+                self.session,
+                "--sessions-dir",
+                str(self.sessions_dir),
+                "--meshes",
+                "light",
+            ],
+            cwd=ROOT,
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
         )
         proc = self.proc
 
@@ -120,7 +136,7 @@ class Shots:
         self.n = 0
         self.t0 = self.t_last = time.monotonic()
 
-    def __call__(self, page, step: str) -> Path:  # noqa: ANN001
+    def __call__(self, page, step: str) -> Path:
         from tests.e2e.ui import dismiss_notifications
 
         dismiss_notifications(page)
@@ -147,12 +163,12 @@ def browser():
 
 
 @pytest.fixture
-def shots(request) -> Shots:  # noqa: ANN001
+def shots(request) -> Shots:
     return Shots(request.node.name)
 
 
 @pytest.fixture
-def studio_factory(tmp_path: Path, request) -> Iterator:  # noqa: ANN001
+def studio_factory(tmp_path: Path, request) -> Iterator:
     """Start studios on fresh ports; every one started is stopped at the end of the test."""
     started: list[StudioProcess] = []
 

@@ -17,7 +17,7 @@ def tree(root: Path) -> dict[str, bytes]:
     return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
 
 
-def test_corrupt_upload_shows_error_and_changes_nothing(browser, studio_factory, shots, tmp_path) -> None:  # noqa: ANN001
+def test_corrupt_upload_shows_error_and_changes_nothing(browser, studio_factory, shots, tmp_path) -> None:
     sessions = tmp_path / "sessions"
     server = studio_factory("lesson", sessions_dir=sessions)
     page = ui.open_studio(browser, server.url)
@@ -45,7 +45,7 @@ def test_corrupt_upload_shows_error_and_changes_nothing(browser, studio_factory,
     page.close()
 
 
-def test_two_tabs_see_the_same_robot_and_session(browser, studio_factory, shots, tmp_path) -> None:  # noqa: ANN001
+def test_two_tabs_see_the_same_robot_and_session(browser, studio_factory, shots, tmp_path) -> None:
     server = studio_factory("shared", sessions_dir=tmp_path / "sessions")
     a = ui.open_studio(browser, server.url)
     b = ui.open_studio(browser, server.url)

@@ -27,7 +27,7 @@ def gripper_status(page: Page, arm: str = "left") -> dict[str, float]:
     return {k: float(el.get_attribute(f"data-{k}")) for k in ("x", "y", "z", "open")}
 
 
-def wait_status(page: Page, pred, timeout: float = 15.0, arm: str = "left") -> dict[str, float]:  # noqa: ANN001
+def wait_status(page: Page, pred, timeout: float = 15.0, arm: str = "left") -> dict[str, float]:
     deadline = time.monotonic() + timeout
     st = gripper_status(page, arm)
     while time.monotonic() < deadline:
@@ -96,7 +96,7 @@ def teach_one_demo(page: Page, variant: int) -> None:
     ui.wait_text(page, "Not recording")
 
 
-def test_teach_a_skill_like_a_user(browser, studio_factory, shots, tmp_path) -> None:  # noqa: ANN001
+def test_teach_a_skill_like_a_user(browser, studio_factory, shots, tmp_path) -> None:
     sessions = tmp_path / "sessions"
     server = studio_factory(SESSION, sessions_dir=sessions)
     page = ui.open_studio(browser, server.url)
@@ -114,8 +114,9 @@ def test_teach_a_skill_like_a_user(browser, studio_factory, shots, tmp_path) -> 
     q = np.array([0.08, -1.0, -1.19, math.radians(70), 0.67, 1.03, -0.50])
     time.sleep(2.0)  # let the arm arrive so the handle is where we aim
     drag_gizmo(page, q, axis=2, pixels=-80)
-    wait_status(page, lambda s: np.hypot(s["x"] - after["x"], s["z"] - after["z"]) > 0.02 or
-                abs(s["y"] - after["y"]) > 0.02)
+    wait_status(
+        page, lambda s: np.hypot(s["x"] - after["x"], s["z"] - after["z"]) > 0.02 or abs(s["y"] - after["y"]) > 0.02
+    )
     shots(page, "moved with the gripper handle")
 
     # Close and open the gripper.

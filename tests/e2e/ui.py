@@ -10,7 +10,7 @@ from playwright.sync_api import Locator, Page, expect
 VIEWPORT = {"width": 1280, "height": 800}
 
 
-def open_studio(browser, url: str) -> Page:  # noqa: ANN001
+def open_studio(browser, url: str) -> Page:
     page = browser.new_page(viewport=VIEWPORT)
     page.set_default_timeout(20_000)
     page.goto(url)
@@ -35,7 +35,7 @@ def dismiss_notifications(page: Page, only_webgl: bool = True) -> None:
     for note in notes.all():
         try:
             note.locator("button").last.click(timeout=1000)
-        except Exception:  # noqa: BLE001 - already gone
+        except Exception:
             pass
 
 

@@ -1,0 +1,213 @@
+"""The studio app without a browser: teaching, recording, key-points, training, preview, replay, sessions.
+
+Each test starts a real studio (viser server on a free port, simulated Baxter, real pipeline and session
+store) on a copy of the example session and stops it at the end.
+"""
+
+from __future__ import annotations
+
+import shutil
+import socket
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from studio.app import Studio, build_app, exposure_warning, robot_urdf_path
+from studio.core.errors import NotEnoughData, SessionFormatError, StudioError
+from studio.sessions import SessionStore
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def wait_for(pred, timeout: float = 10.0) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if pred():
+            return True
+        time.sleep(0.05)
+    return bool(pred())
+
+
+@pytest.fixture
+def sessions(tmp_path: Path) -> Path:
+    d = tmp_path / "sessions"
+    d.mkdir()
+    shutil.copytree(ROOT / "sessions" / "stack-cup", d / "stack-cup")
+    return d
+
+
+@pytest.fixture
+def app(sessions: Path):
+    a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
+    notes: list[tuple[str, str, str]] = []
+    original = a.notify
+
+    def record(title: str, body: str, *, kind: str = "error", client=None) -> None:
+        notes.append((kind, title, body))
+        original(title, body, kind=kind, client=client)
+
+    a.notify = record  # type: ignore[method-assign]
+    a.notes = notes  # type: ignore[attr-defined]
+    yield a
+    a.stop()
+
+
+def test_light_robot_is_the_default_and_warning_beyond_localhost() -> None:
+    assert robot_urdf_path("auto").name == "baxter_light.urdf"
+    assert robot_urdf_path("full").name == "baxter.urdf"
+    assert exposure_warning("127.0.0.1", 8080) is None
+    w = exposure_warning("0.0.0.0", 8080)
+    assert w is not None and "anyone" in w
+    light = (ROOT / "urdf" / "baxter_light.urdf").read_text()
+    assert "package://" not in light and 'filename="meshes/' in light  # self-contained: meshes in urdf/
+
+
+def test_starts_on_the_session_and_follows_the_robot(app: Studio) -> None:
+    assert app.session.name == "stack-cup"
+    assert app.url() == f"http://127.0.0.1:{app.port}"
+    assert len(app.demo_names()) == 3
+    n0 = app.panels.robot.updates
+    q = app.arm_q("left")
+    q[3] += 0.2
+    app.command_arm("left", q)
+    assert wait_for(lambda: app.panels.robot.updates > n0 + 5)
+    assert wait_for(lambda: abs(app.arm_q("left")[3] - q[3]) < 1e-3)
+
+
+def test_gizmo_ik_reachable_and_unreachable(app: Studio) -> None:
+    arm = "left"
+    pos, wxyz = app.baxter.fk(arm, app.arm_q(arm))
+    res = app.move_gripper(arm, pos + np.array([0.0, 0.0, 0.05]), wxyz)
+    assert res.converged
+    far = app.move_gripper(arm, pos + np.array([3.0, 0.0, 0.0]), wxyz)
+    assert not far.converged
+    teach = app.panels.teach
+    teach._show_reach(arm, far.converged, pos + np.array([3.0, 0.0, 0.0]))
+    assert teach.miss_markers[arm].visible and teach.unreachable[arm]
+
+
+def test_record_stop_saves_to_disk_one_recording_at_a_time(app: Studio, sessions: Path) -> None:
+    app.start_recording()
+    with pytest.raises(StudioError, match="already running"):
+        app.start_recording()
+    app.move_joint(0, float(app.robot_q()[0] + 0.2))
+    app.set_gripper("left", 0.0)
+    assert wait_for(lambda: app.recorder is not None and app.recorder.n_samples > 600)
+    app.stop_recording()
+    assert app.recorder is None
+    assert len(app.demo_names()) == 4
+    again = SessionStore(sessions).open("stack-cup")
+    assert len(again.recordings) == 4 and len(again.recordings[-1]) > 600
+    app.start_recording()
+    app.discard_recording()
+    assert len(app.demo_names()) == 4
+
+
+def test_demo_list_hide_rename_trim_delete(app: Studio) -> None:
+    app.set_demo_visible(0, False)
+    assert [i for i, _ in app.demos_for("left")] == [1, 2]
+    app.set_demo_visible(0, True)
+    app.rename_demo(1, "slow one")
+    assert app.demo_names()[1] == "slow one"
+    with pytest.raises(StudioError):
+        app.rename_demo(0, "slow one")
+    d0 = app.demo_duration(2)
+    app.trim_demo(2, 1.0, d0 - 1.0)
+    assert app.demo_duration(2) == pytest.approx(d0 - 2.0, abs=0.01)
+    app.delete_demo(0)
+    assert app.demo_names() == ["slow one", "demo 3"]
+    assert len(app.panels.teach._traces) == 2
+
+
+def test_keypoints_follow_the_sliders_and_k_override(app: Studio) -> None:
+    v0 = app.keypoint_view()
+    c0 = [d.count for d in v0.demos]
+    assert len(c0) == 3 and min(c0) > 2 and v0.k["left"] >= 2
+    app.set_param("eps5", 0.03)
+    v1 = app.keypoint_view()
+    assert sum(d.count for d in v1.demos) > sum(c0)
+    app.set_k(5)
+    assert app.keypoint_view().k["left"] == 5
+    app.reset_params()
+    assert [d.count for d in app.keypoint_view().demos] == c0
+    app.panels.keypoints.draw(v1)
+    assert len(app.panels.keypoints._kp_nodes) == 3
+    assert sum(lab.visible for lab in app.panels.keypoints._labels) == v1.k["left"]
+    assert 'data-count="' in app.panels.keypoints.counts.content
+
+
+def test_train_preview_replay_export(app: Studio) -> None:
+    app.train().result(timeout=120)
+    assert not app.training
+    skill = app.skills()["left"]
+    assert skill.joint_trajectory is not None
+    assert "heatmap" in app.panels.train.heatmap.content
+    assert app.panels.train.plots.content.count("position-plot") == 4
+    assert app.preview_duration() > 1.0
+
+    app.preview_play(speed=4.0)
+    assert wait_for(lambda: (app.preview_position() or 0.0) > 0.5)
+    assert "preview" in app.display_label()
+    app.preview_pause()
+    app.preview_seek(1.0)
+    assert app.display is not app.live
+
+    app.replay_demo(1)
+    assert wait_for(lambda: (app.replay_position() or 0.0) > 0.2)
+    app.replay_seek(3.0)
+    app.replay_stop()
+    assert app.display is app.live
+
+    name, data = app.joint_trajectory_csv()
+    assert name.endswith(".csv") and data.startswith(b"time,left_s0")
+    zname, zdata = app.session_zip()
+    assert zname == "stack-cup.zip" and zdata[:2] == b"PK"
+
+
+def test_training_needs_two_demos_in_plain_words(app: Studio) -> None:
+    app.new_session("only-one")
+    with pytest.raises(NotEnoughData, match="at least two"):
+        app.train()
+    assert not app.training
+
+
+def test_corrupt_upload_changes_nothing(app: Studio, sessions: Path) -> None:
+    before = sorted(p.name for p in sessions.iterdir())
+    with pytest.raises(SessionFormatError):
+        app.import_session_zip("bad.zip", b"PK\x03\x04 not a zip at all")
+    assert sorted(p.name for p in sessions.iterdir()) == before
+    assert app.session.name == "stack-cup"
+
+
+def test_upload_of_a_downloaded_session_opens_it(app: Studio) -> None:
+    _, data = app.session_zip()
+    name = app.import_session_zip("stack-cup.zip", data)
+    assert name != "stack-cup" and app.session.name == name
+    assert len(app.demo_names()) == 3
+
+
+def test_new_open_duplicate(app: Studio) -> None:
+    app.new_session("lesson two")
+    assert app.session.name == "lesson two" and app.demo_names() == []
+    app.open_session("stack-cup")
+    app.duplicate_session("stack-cup copy")
+    assert app.session.name == "stack-cup copy" and len(app.demo_names()) == 3
+    assert set(app.session_names()) >= {"stack-cup", "lesson two", "stack-cup copy"}
+
+
+def test_both_arms(app: Studio) -> None:
+    app.set_arms(("left", "right"))
+    assert all(h.visible for h in app.panels.teach.handles.values())
+    app.start_recording()
+    assert app.recorder.arms == ("left", "right")
+    app.discard_recording()
+    app.set_arms(("right",))
+    assert not app.panels.teach.handles["left"].visible
