@@ -422,6 +422,8 @@ class Studio:
             raise StudioError("Choose at least one arm to teach.")
         with self.lock:
             self.selected_arms = arms
+            if tuple(self.session.arms) != arms:
+                self.session.set_arms(arms)  # remembered with the session
         self.events.emit("arms")
 
     def move_gripper(self, arm: str, position: np.ndarray, wxyz: np.ndarray) -> Any:

@@ -49,6 +49,8 @@ class TeachPanel:
         self._last_timer = 0.0
         self.unreachable = {arm: False for arm in ARMS}
         self._traces: dict[str, viser.SceneNodeHandle] = {}
+        self._last_q: np.ndarray | None = None
+        self._drag_end_any = 0.0
 
         # -- gripper handles (transform gizmos) -----------------------------------------------------------
         self.handles: dict[str, viser.TransformControlsHandle] = {}
@@ -159,7 +161,7 @@ class TeachPanel:
                 self.app.report(exc, title="Could not move the arm", client=event.client)
             if phase == "end":
                 self._dragging[arm] = False
-                self._drag_end[arm] = time.monotonic()
+                self._drag_end[arm] = self._drag_end_any = time.monotonic()
 
         return cb
 
@@ -206,6 +208,7 @@ class TeachPanel:
         return cb
 
     def _on_arms(self) -> None:
+        self._last_q = None  # snap the newly shown handles to the grippers
         with self.app.server.atomic():
             for arm in ARMS:
                 on = arm in self.app.selected_arms
@@ -238,8 +241,10 @@ class TeachPanel:
         if app.display is app.live:
             q = app.robot_q()
             mono = time.monotonic()
+            moved = self._last_q is None or not np.array_equal(q, self._last_q) or mono - self._drag_end_any < 2.0
+            self._last_q = q
             with app.server.atomic():
-                for arm in app.selected_arms:
+                for arm in app.selected_arms if moved else ():
                     if self._dragging[arm] or mono - self._drag_end[arm] < USER_HOLD_S:
                         continue
                     pos, wxyz = app.baxter.fk(arm, q[:7] if arm == "left" else q[7:])
