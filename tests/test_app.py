@@ -211,3 +211,12 @@ def test_both_arms(app: Studio) -> None:
     app.discard_recording()
     app.set_arms(("right",))
     assert not app.panels.teach.handles["left"].visible
+
+
+def test_too_many_clusters_is_a_plain_notification(app: Studio) -> None:
+    app.set_k(500)
+    view = app.panels.keypoints.refresh()
+    assert view.messages and "left" not in view.k
+    assert any(kind == "warning" and title == "Key-points" for kind, title, _ in app.notes)  # type: ignore[attr-defined]
+    app.set_k(None)
+    assert app.panels.keypoints.refresh().k["left"] >= 2

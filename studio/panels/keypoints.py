@@ -229,6 +229,8 @@ class KeypointsPanel:
         """Recompute key-points and centroids for the current ε and draw them (returns the view)."""
         view = self.app.keypoint_view()
         self.draw(view)
+        for msg in view.messages:  # e.g. too few key-points to form the clusters
+            self.app.notify("Key-points", msg, kind="warning")
         return view
 
     def draw(self, view: Any) -> None:

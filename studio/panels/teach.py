@@ -162,6 +162,14 @@ class TeachPanel:
             if phase == "end":
                 self._dragging[arm] = False
                 self._drag_end[arm] = self._drag_end_any = time.monotonic()
+                if self.unreachable[arm]:
+                    self.app.notify(
+                        "Out of reach",
+                        f"The {arm} arm cannot put its gripper where you left the handle; it stopped at the "
+                        "closest pose it can reach. Drag the handle closer to the robot.",
+                        kind="warning",
+                        client=event.client,
+                    )
 
         return cb
 
