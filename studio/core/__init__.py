@@ -9,7 +9,37 @@ from studio.core.errors import (
     SessionFormatError,
     StudioError,
 )
-from studio.core.types import ALL_ARM_JOINTS, ARM_JOINTS, ARMS, Demo, KeypointParams, Recording
+from studio.core.types import (
+    ALL_ARM_JOINTS,
+    ARM_JOINTS,
+    ARMS,
+    Demo,
+    JointTrajectory,
+    KeypointParams,
+    Recording,
+    Skill,
+)
+
+# The learning pipeline pulls in pinocchio, scipy and hmmlearn; load it on first use so that importing
+# the types (sessions, backends) stays light.
+_LAZY = {
+    "KeypointCache": "studio.core.keypoints",
+    "extract_keypoints": "studio.core.keypoints",
+    "demo_from_recording": "studio.core.pipeline",
+    "learn_arms": "studio.core.pipeline",
+    "learn_skill": "studio.core.pipeline",
+}
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        import importlib
+
+        value = getattr(importlib.import_module(_LAZY[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'studio.core' has no attribute {name!r}")
+
 
 __all__ = [
     "ALL_ARM_JOINTS",
@@ -18,11 +48,18 @@ __all__ = [
     "Demo",
     "IkFailed",
     "InvalidInput",
+    "JointTrajectory",
+    "KeypointCache",
     "KeypointParams",
     "LearningFailed",
     "NotEnoughData",
     "Recording",
     "RecordingError",
     "SessionFormatError",
+    "Skill",
     "StudioError",
+    "demo_from_recording",
+    "extract_keypoints",
+    "learn_arms",
+    "learn_skill",
 ]

@@ -315,37 +315,31 @@ def extract_from_series(s: KeypointSeries, params: KeypointParams) -> np.ndarray
     grip = np.zeros(n, dtype=bool)
     grip[s.gripper_events] = True
 
-    # Thresholds on squared distances and on |cos| of half rotation angles (no sqrt/arccos per sample):
-    # d > x  <=>  |<q_i, q_τ>| < cos(x / 2) for rotation angles x in [0, 2π].
-    def cos_half(x: float) -> float:
-        return math.cos(min(x, two_pi) / 2.0)
-
-    near_p2, exit_p2, stay_p2 = p.eps4**2, p.eps5**2, p.eps7**2
-    near_o, exit_o, stay_o = cos_half(p.eps11), cos_half(p.eps12), cos_half(p.eps14)
-
+    # Distances are computed with exactly the reference's arithmetic (same operation order, sqrt and acos),
+    # so a sample lying exactly on a threshold is decided the same way by both implementations.
     out = [0]
     tau = 0
     chunk = _CHUNK
     while tau < n - 1:
-        Pt, Ot, tt = PT[:, tau, None], OT[:, tau], t[tau]
+        Pt, Ot = PT[:, tau], OT[:, tau]
         i3, i6 = _after(t, tau, p.eps3), _after(t, tau, p.eps6)
         i10, i13 = _after(t, tau, p.eps10), _after(t, tau, p.eps13)
-        brk_p = tau if p.eps7 <= 0 else n  # first sample at or after τ that left the ε7 ball
+        brk_p = tau if p.eps7 <= 0 else n  # first sample at or after τ that left the ε7 ball (d(τ, τ) = 0)
         brk_o = tau if p.eps14 <= 0 else n
         a = tau + 1
         found = n - 1
         while a < n - 1:
             b = min(a + chunk, n - 1)
-            diff = PT[:, a:b] - Pt
-            diff *= diff
-            dp2 = diff.sum(axis=0)
-            c = np.minimum(np.abs(Ot @ OT[:, a:b]), 1.0)
+            d0, d1, d2 = PT[0, a:b] - Pt[0], PT[1, a:b] - Pt[1], PT[2, a:b] - Pt[2]
+            dp = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            dot = OT[0, a:b] * Ot[0] + OT[1, a:b] * Ot[1] + OT[2, a:b] * Ot[2] + OT[3, a:b] * Ot[3]
+            do = 2.0 * np.arccos(np.minimum(np.abs(dot), 1.0))
             if brk_p == n:
-                br = dp2 >= stay_p2
+                br = dp >= p.eps7
                 if br.any():
                     brk_p = a + int(np.argmax(br))
             if brk_o == n:
-                br = c <= stay_o
+                br = do >= p.eps14
                 if br.any():
                     brk_o = a + int(np.argmax(br))
             # corner or pause, position: needs "moved more than ε4 since τ"
@@ -353,20 +347,20 @@ def extract_from_series(s: KeypointSeries, params: KeypointParams) -> np.ndarray
             lo = max(i3, a)
             if lo < b:
                 m[lo - a :] |= still_p[lo:b]
-            key = m & (dp2 > near_p2)
+            key = m & (dp > p.eps4)
             m = co[a:b].copy()
             lo = max(i10, a)
             if lo < b:
                 m[lo - a :] |= still_o[lo:b]
-            key |= m & (c < near_o)
+            key |= m & (do > p.eps11)
             key |= grip[a:b]
             # distance: first exit after ε6 while the ε7 condition still holds (index range [i6, brk])
             lo, hi = max(i6, a), min(brk_p + 1, b)
             if lo < hi:
-                key[lo - a : hi - a] |= dp2[lo - a : hi - a] >= exit_p2
+                key[lo - a : hi - a] |= dp[lo - a : hi - a] >= p.eps5
             lo, hi = max(i13, a), min(brk_o + 1, b)
             if lo < hi:
-                key[lo - a : hi - a] |= c[lo - a : hi - a] <= exit_o
+                key[lo - a : hi - a] |= do[lo - a : hi - a] >= p.eps12
             k = int(np.argmax(key))
             if key[k]:
                 found = a + k
@@ -438,10 +432,13 @@ def extract_keypoints_reference(demo: Demo, params: KeypointParams | None = None
     co = corner_flags(s.corner_angle_o, 2 * math.pi - p.eps8)
 
     def dpos(i: int, j: int) -> float:
-        return math.dist(P[i], P[j])
+        a, b = P[i], P[j]
+        d0, d1, d2 = a[0] - b[0], a[1] - b[1], a[2] - b[2]
+        return math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
 
     def dori(i: int, j: int) -> float:
-        d = abs(sum(a * b for a, b in zip(O[i], O[j], strict=True)))
+        a, b = O[i], O[j]
+        d = abs(a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3])
         return 2.0 * math.acos(min(d, 1.0))
 
     out = [0]

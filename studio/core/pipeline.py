@@ -6,11 +6,14 @@ selection of the reference (hmm.py) ▸ multidimensional DTW of every demo again
 
 Path points ("spline_through"):
 
-* ``"state-means"`` (default): for each state on the reference's Viterbi path, the mean of the key-points
-  (of all demos) that Viterbi assigned to that state and that k-means put in the state's main cluster
-  (the symbol most of them carry: this drops the odd key-point Viterbi had to park in a neighbouring
-  state), timed by the mean of their DTW-aligned times;
-* ``"centroids"`` (the paper): the k-means centroid of that main cluster, timed the same way (not by all
+* ``"state-means"`` (default): the reference's key-points are taken in order as (Viterbi state, k-means
+  cluster) pairs; each pair gives one point, the mean of all demos' key-points with that same state and
+  cluster, timed by the mean of their DTW-aligned times. Usually a pair is just a state; keeping the
+  cluster too matters when Viterbi lets one state absorb two different key-points of the reference (a
+  self-transition) — e.g. the start and the end of a gripper motion at the same pose: one point per state
+  would drop one of them, and the gripper would switch half-way to the neighbouring point, centimetres
+  away from the grasp;
+* ``"centroids"`` (the paper): the k-means centroid of the pair's cluster, timed the same way (not by all
   the cluster's members: a cluster visited twice, as in pick-and-place there and back, has members at two
   different times).
 
@@ -168,20 +171,23 @@ def learn_skill(
         m = labels_all == c
         if m.any():
             centroid_times[c] = times_all[m].mean()
-    path_states = np.unique(model.states)  # left–right: the visited states in order, zero-points dropped
+    # The reference's key-points in order, as (state, cluster) pairs; consecutive repeats are one point.
+    ref_pairs = np.column_stack([model.states, cl.labels[ref]])
+    keep = np.concatenate([[True], np.any(ref_pairs[1:] != ref_pairs[:-1], axis=1)])
+    pairs = ref_pairs[keep]
     pts, tms, wts = [], [], []
-    for s in path_states:
-        m = states_all == s  # the key-points (of all demos) Viterbi assigned to this state ...
-        main = int(np.argmax(np.bincount(labels_all[m], minlength=k)))
-        m &= labels_all == main  # ... that k-means also put in the state's main cluster (drops strays)
+    for s_, c_ in pairs:
+        # all demos' key-points that Viterbi put in this state and k-means in this cluster
+        m = (states_all == s_) & (labels_all == c_)
         if spline_through == "centroids":
-            p = cl.centroids[main].copy()
+            p = cl.centroids[c_].copy()
         else:
             p = X[m].mean(axis=0)
             p[3:7] /= np.linalg.norm(p[3:7])
         pts.append(p)
         tms.append(times_all[m].mean())
         wts.append(float(m.sum()))
+    path_states = pairs[:, 0]
     dt = float(np.median(np.diff(ref_demo.t)))
     traj = generalize(
         np.array(tms), np.array(pts), weights=np.array(wts), t_start=0.0, t_end=ref_demo.duration,
