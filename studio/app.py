@@ -227,7 +227,7 @@ class Studio:
         self.selected_arms: tuple[str, ...] = self._session_arms()
         self.recorder: Any = None
         self.hidden_demos: set[str] = set()
-        self._demo_cache: dict[tuple[int, str], Any] = {}
+        self._demo_cache: dict[tuple[int, str], tuple[Any, Any]] = {}
         self._targets: dict[str, np.ndarray] = {}
         from studio.core.keypoints import KeypointCache
 
@@ -257,6 +257,21 @@ class Studio:
         self.panels = build_panels(self)
         self._pump = threading.Thread(target=self._pump_loop, name="studio-pose-pump", daemon=True)
         self._pump.start()
+        self._startup_notes = self._session_notes(self.session)
+        self.server.on_client_connect(self._greet)
+
+    def _session_notes(self, session: Any) -> list[tuple[str, str]]:
+        notes = []
+        if getattr(session, "recovery_message", ""):
+            notes.append(("Recovered recordings", session.recovery_message))
+        for p in getattr(session, "problems", []) or []:
+            notes.append(("Part of the session could not be read", p))
+        return notes
+
+    def _greet(self, client: viser.ClientHandle) -> None:
+        """Show what happened while opening the session (crash recovery, damaged files) to each new tab."""
+        for title, body in self._startup_notes:
+            self.notify(title, body, kind="warning", client=client)
 
     # -- setup -------------------------------------------------------------------------------------------
     def _open_or_create(self, name: str) -> Any:
@@ -540,10 +555,11 @@ class Studio:
 
         rec = self.recordings()[i]
         key = (id(rec), arm)
-        d = self._demo_cache.get(key)
-        if d is None:
-            d = demo_from_recording(rec, arm, baxter=self.baxter)
-            self._demo_cache[key] = d
+        hit = self._demo_cache.get(key)
+        if hit is not None and hit[0] is rec:  # the same object, not a new one that reused a freed id
+            return hit[1]
+        d = demo_from_recording(rec, arm, baxter=self.baxter)
+        self._demo_cache[key] = (rec, d)
         return d
 
     def demos_for(self, arm: str) -> list[tuple[int, Any]]:
@@ -589,7 +605,7 @@ class Studio:
     def demos_changed(self) -> None:
         """The set of demonstrations changed: drop stale caches and redraw traces and key-points."""
         live = {id(r) for r in self.recordings()}
-        self._demo_cache = {k: v for k, v in self._demo_cache.items() if k[0] in live}
+        self._demo_cache = {k: v for k, v in self._demo_cache.items() if k[0] in live and v[0] is not None}
         self.events.emit("demos")
 
     # -- key-points --------------------------------------------------------------------------------------
@@ -863,10 +879,9 @@ class Studio:
             raise StudioError("Stop the recording before opening another session.")
         session = self.store.open(name)
         self._switch(session)
-        if getattr(session, "recovery_message", ""):
-            self.notify("Recovered recordings", session.recovery_message, kind="warning")
-        for p in getattr(session, "problems", []):
-            self.notify("Part of the session could not be read", p, kind="warning")
+        self._startup_notes = self._session_notes(session)
+        for title, body in self._startup_notes:
+            self.notify(title, body, kind="warning")
 
     def new_session(self, name: str) -> None:
         from studio.sessions import check_session_name
