@@ -952,6 +952,11 @@ class Studio:
         """Stop the pump, the backend and the server (idempotent)."""
         if self._stop.is_set():
             return
+        if self.recorder is not None:  # keep a take that was running when the studio was stopped
+            try:
+                self.stop_recording()
+            except Exception:
+                log.exception("saving the running recording at shutdown")
         self._stop.set()
         try:
             self.panels.close()

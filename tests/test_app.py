@@ -220,3 +220,13 @@ def test_too_many_clusters_is_a_plain_notification(app: Studio) -> None:
     assert any(kind == "warning" and title == "Key-points" for kind, title, _ in app.notes)  # type: ignore[attr-defined]
     app.set_k(None)
     assert app.panels.keypoints.refresh().k["left"] >= 2
+
+
+def test_stopping_the_studio_keeps_a_running_recording(sessions: Path) -> None:
+    a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
+    try:
+        a.start_recording()
+        assert wait_for(lambda: a.recorder.n_samples > 200)
+    finally:
+        a.stop()
+    assert len(SessionStore(sessions).open("stack-cup").recordings) == 4
