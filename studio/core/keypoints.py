@@ -170,7 +170,7 @@ def _angle_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def _samples(t: np.ndarray, seconds: float) -> int:
-    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
+    dt = float(t[-1] - t[0]) / (len(t) - 1) if len(t) > 1 else 1.0  # mean sampling interval
     return max(1, int(round(seconds / dt)))
 
 
@@ -312,56 +312,64 @@ def extract_from_series(s: KeypointSeries, params: KeypointParams) -> np.ndarray
     co = s.corner_mask("orientation", two_pi - p.eps8)
     still_p = s.speed < p.eps2
     still_o = s.angular_speed < p.eps9
-    grip = np.zeros(n, dtype=bool)
-    grip[s.gripper_events] = True
 
     # Distances are computed with exactly the reference's arithmetic (same operation order, sqrt and acos),
     # so a sample lying exactly on a threshold is decided the same way by both implementations.
     out = [0]
     tau = 0
     chunk = _CHUNK
+    gev = s.gripper_events
     while tau < n - 1:
         Pt, Ot = PT[:, tau], OT[:, tau]
         i3, i6 = _after(t, tau, p.eps3), _after(t, tau, p.eps6)
         i10, i13 = _after(t, tau, p.eps10), _after(t, tau, p.eps13)
         brk_p = tau if p.eps7 <= 0 else n  # first sample at or after τ that left the ε7 ball (d(τ, τ) = 0)
         brk_o = tau if p.eps14 <= 0 else n
+        # the next gripper event is a key-point for sure: nothing after it needs looking at
+        g = int(np.searchsorted(gev, tau, side="right"))
+        ub = min(int(gev[g]), n - 1) if g < gev.shape[0] else n - 1
         a = tau + 1
-        found = n - 1
-        while a < n - 1:
-            b = min(a + chunk, n - 1)
+        found = ub
+        while a < ub:
+            b = min(a + chunk, ub)
+            # position: corner or pause (both need "moved more than ε4 since τ") and distance
             d0, d1, d2 = PT[0, a:b] - Pt[0], PT[1, a:b] - Pt[1], PT[2, a:b] - Pt[2]
             dp = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-            dot = OT[0, a:b] * Ot[0] + OT[1, a:b] * Ot[1] + OT[2, a:b] * Ot[2] + OT[3, a:b] * Ot[3]
-            do = 2.0 * np.arccos(np.minimum(np.abs(dot), 1.0))
             if brk_p == n:
                 br = dp >= p.eps7
                 if br.any():
                     brk_p = a + int(np.argmax(br))
-            if brk_o == n:
-                br = do >= p.eps14
-                if br.any():
-                    brk_o = a + int(np.argmax(br))
-            # corner or pause, position: needs "moved more than ε4 since τ"
             m = cp[a:b].copy()
             lo = max(i3, a)
             if lo < b:
                 m[lo - a :] |= still_p[lo:b]
             key = m & (dp > p.eps4)
-            m = co[a:b].copy()
-            lo = max(i10, a)
-            if lo < b:
-                m[lo - a :] |= still_o[lo:b]
-            key |= m & (do > p.eps11)
-            key |= grip[a:b]
-            # distance: first exit after ε6 while the ε7 condition still holds (index range [i6, brk])
             lo, hi = max(i6, a), min(brk_p + 1, b)
             if lo < hi:
                 key[lo - a : hi - a] |= dp[lo - a : hi - a] >= p.eps5
-            lo, hi = max(i13, a), min(brk_o + 1, b)
-            if lo < hi:
-                key[lo - a : hi - a] |= do[lo - a : hi - a] >= p.eps12
             k = int(np.argmax(key))
+            if key[k]:
+                b = a + k  # orientation only needs checking before the position candidate
+            # orientation, on [a, b)
+            if b > a:
+                dot = OT[0, a:b] * Ot[0] + OT[1, a:b] * Ot[1] + OT[2, a:b] * Ot[2] + OT[3, a:b] * Ot[3]
+                do = 2.0 * np.arccos(np.minimum(np.abs(dot), 1.0))
+                if brk_o == n:
+                    br = do >= p.eps14
+                    if br.any():
+                        brk_o = a + int(np.argmax(br))
+                m = co[a:b].copy()
+                lo = max(i10, a)
+                if lo < b:
+                    m[lo - a :] |= still_o[lo:b]
+                key_o = m & (do > p.eps11)
+                lo, hi = max(i13, a), min(brk_o + 1, b)
+                if lo < hi:
+                    key_o[lo - a : hi - a] |= do[lo - a : hi - a] >= p.eps12
+                ko = int(np.argmax(key_o))
+                if key_o[ko]:
+                    found = a + ko
+                    break
             if key[k]:
                 found = a + k
                 break
