@@ -51,17 +51,42 @@ def project(p: np.ndarray, width: int = 1280, height: int = 800) -> tuple[float,
     return width / 2 + s * x / z, height / 2 - s * y / z
 
 
+AXIS_RGB = ((255, 32, 96), (32, 223, 128), (32, 128, 255))  # the handle's x, y, z arrows (drei's colours)
+
+
+def find_arrow(page: Page, center: tuple[float, float], tip: tuple[float, float], axis: int) -> tuple[float, float]:
+    """Pixel on the drawn arrow of ``axis``: the projected tip, refined by the arrow's colour on screen."""
+    import io
+
+    from PIL import Image
+
+    img = np.asarray(Image.open(io.BytesIO(page.screenshot())).convert("RGB")).astype(int)
+    c = np.array(center)
+    d = np.array(tip) - c
+    length = max(float(np.linalg.norm(d)), 1.0)
+    u = d / length
+    ys, xs = np.mgrid[0 : img.shape[0], 0 : img.shape[1]]
+    near = np.hypot(xs - c[0], ys - c[1]) < 1.6 * length + 20
+    colour = np.abs(img - np.array(AXIS_RGB[axis])).sum(axis=2) < 90
+    m = near & colour
+    if m.sum() < 5:
+        return float(tip[0]), float(tip[1])
+    px = np.stack([xs[m], ys[m]], axis=1).astype(float)
+    along = (px - c) @ u
+    pick = px[np.argsort(along)[int(0.8 * (len(along) - 1))]]
+    return float(pick[0]), float(pick[1])
+
+
 def drag_gizmo(page: Page, q_left: np.ndarray, axis: int = 2, pixels: float = -70.0) -> None:
     """Drag the left gripper handle's arrow along one of its axes with the mouse."""
-    b = Baxter.load()
-    pos, wxyz = b.fk("left", q_left)
     from studio.core.kinematics import matrix_from_quat_wxyz
 
+    b = Baxter.load()
+    pos, wxyz = b.fk("left", q_left)
     R = matrix_from_quat_wxyz(wxyz)
-    tip = pos + R[:, axis] * 0.22 * 0.9  # on the arrow's cone (gizmo scale 0.22)
-    x0, y0 = project(pos)
-    x1, y1 = project(tip)
-    direction = np.array([x1 - x0, y1 - y0])
+    center = project(pos)
+    x1, y1 = find_arrow(page, center, project(pos + R[:, axis] * 0.22 * 0.9), axis)
+    direction = np.array([x1 - center[0], y1 - center[1]])
     direction /= np.linalg.norm(direction)
     page.mouse.move(x1, y1)
     page.mouse.down()
