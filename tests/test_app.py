@@ -230,3 +230,29 @@ def test_stopping_the_studio_keeps_a_running_recording(sessions: Path) -> None:
     finally:
         a.stop()
     assert len(SessionStore(sessions).open("stack-cup").recordings) == 4
+
+
+def test_light_robot_is_light_and_coloured() -> None:
+    import trimesh
+
+    faces, colours = 0, set()
+    for glb in (ROOT / "urdf" / "meshes").rglob("*.glb"):
+        scene = trimesh.load(str(glb), force="scene")
+        for g in scene.geometry.values():
+            faces += len(g.faces)
+            colours.update(map(tuple, np.unique(g.visual.face_colors[:, :3], axis=0)))
+    assert 10_000 < faces < 40_000  # the original meshes have ~410,000 triangles
+    assert any(r > 100 and g < 60 for r, g, _ in colours)  # Baxter's red links kept their colour
+    assert any(max(c) < 80 for c in colours)  # and the dark joints theirs
+
+
+def test_charts_are_plain_svg() -> None:
+    from studio.panels._charts import downsample_path, heatmap_svg, position_plot_svg, segments
+
+    svg = heatmap_svg(np.eye(4), title="A <b>")
+    assert svg.startswith("<svg") and 'data-states="4"' in svg and "&lt;b&gt;" in svg
+    t = np.linspace(0, 10, 5000)
+    p = np.column_stack([np.sin(t), np.cos(t), t / 10])
+    plot = position_plot_svg(t, p, [0, 100, 4999], title="demo", color=(1, 2, 3))
+    assert 'data-keypoints="3"' in plot and plot.count("<polyline") == 3
+    assert len(downsample_path(p, 600)) <= 601 and segments(p[:3]).shape == (2, 2, 3)
