@@ -24,13 +24,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from studio.core.alignment import MAX_POINTS, dtw  # noqa: E402
-from studio.core.clustering import cluster  # noqa: E402
-from studio.core.keypoints import KeypointCache, extract_keypoints_reference  # noqa: E402
-from studio.core.kinematics import Baxter  # noqa: E402
-from studio.core.pipeline import demo_from_recording, learn_skill  # noqa: E402
-from studio.core.types import Demo, KeypointParams  # noqa: E402
-from studio.teacher import recording_from_plan, teach  # noqa: E402
+from studio.core.alignment import MAX_POINTS, dtw
+from studio.core.clustering import cluster
+from studio.core.keypoints import KeypointCache, extract_keypoints_reference
+from studio.core.kinematics import Baxter
+from studio.core.pipeline import demo_from_recording, learn_skill
+from studio.core.types import Demo, KeypointParams
+from studio.teacher import recording_from_plan, teach
 
 
 def _demo_of_length(seeds: list[int], n: int, name: str) -> Demo:
@@ -48,13 +48,20 @@ def _demo_of_length(seeds: list[int], n: int, name: str) -> Demo:
     return Demo(t, pos[:n], ori[:n], grip[:n], q[:n], name=name)
 
 
-def _median_ms(fn, repeat: int) -> float:
+def _median_ms(fn, repeat: int, clock=time.perf_counter) -> float:
     ts = []
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        t0 = clock()
         fn()
-        ts.append(time.perf_counter() - t0)
+        ts.append(clock() - t0)
     return statistics.median(ts) * 1e3
+
+
+def _load() -> str:
+    try:
+        return "load average " + " ".join(Path("/proc/loadavg").read_text().split()[:3])
+    except OSError:  # pragma: no cover - not Linux
+        return "load average unknown"
 
 
 def main() -> None:
@@ -62,6 +69,7 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="fewer repetitions, skip 10 × 100,000")
     args = ap.parse_args()
     rep = 5 if args.quick else 15
+    print(f"machine: {_load()} at start (2 cores shared; wall-clock figures inflate under load)")
 
     demos3 = [_demo_of_length([s, s + 10], 30_000, f"demo {s}") for s in range(3)]
     print(f"3 demos × {len(demos3[0])} samples; key-points per demo with defaults:", end=" ")
@@ -96,6 +104,7 @@ def main() -> None:
         cache.extract_all(demos3, p)
 
     slider_ms = _median_ms(slider_move, rep * 4)
+    slider_cpu = _median_ms(slider_move, rep * 4, time.process_time)
     extract_ms = _median_ms(extract_only, rep * 4)
     p_ref = KeypointParams(eps5=0.12, eps7=0.16)
     ref_ms = _median_ms(lambda: [extract_keypoints_reference(d, p_ref, series=cache.series(d)) for d in demos3], 3)
@@ -104,19 +113,28 @@ def main() -> None:
         for d in demos3
     )
     print(f"derived series (once per demo, 3 demos):           {precompute_ms:8.1f} ms")
-    print(f"slider move: re-extract + re-cluster, 3 × 30,000:  {slider_ms:8.2f} ms (median of {rep * 4})")
+    print(
+        f"slider move: re-extract + re-cluster, 3 × 30,000:  {slider_ms:8.2f} ms (median of {rep * 4}; "
+        f"CPU time {slider_cpu:.2f} ms)"
+    )
     print(f"  of which key-point re-extraction:                {extract_ms:8.2f} ms")
-    print(f"literal per-sample reference, 3 × 30,000:           {ref_ms:8.1f} ms  -> speed-up {ref_ms / extract_ms:.0f}x"
-          f" (same key-points: {same})")
+    print(
+        f"literal per-sample reference, 3 × 30,000:           {ref_ms:8.1f} ms  -> speed-up {ref_ms / extract_ms:.0f}x"
+        f" (same key-points: {same})"
+    )
 
     # 2. learn_skill 3 × 30,000 -------------------------------------------------------------------------
     cold = _median_ms(lambda: learn_skill(demos3), rep)
+    cold_cpu = _median_ms(lambda: learn_skill(demos3), rep, time.process_time)
     warm_cache = KeypointCache()
     learn_skill(demos3, cache=warm_cache)
     warm = _median_ms(lambda: learn_skill(demos3, cache=warm_cache), rep)
     b = Baxter.load()
     with_ik = _median_ms(lambda: learn_skill(demos3, arm="left", baxter=b), max(3, rep // 3))
-    print(f"learn_skill 3 × 30,000 (series computed inside):   {cold:8.1f} ms (median of {rep})")
+    print(
+        f"learn_skill 3 × 30,000 (series computed inside):   {cold:8.1f} ms (median of {rep}; CPU time "
+        f"{cold_cpu:.1f} ms)"
+    )
     print(f"learn_skill 3 × 30,000 (warm key-point cache):     {warm:8.1f} ms")
     print(f"learn_skill 3 × 30,000 + joint trajectory (IK):    {with_ik:8.1f} ms")
 
@@ -132,8 +150,10 @@ def main() -> None:
     learn_skill(demos3)
     learn_peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
-    print(f"DTW {MAX_POINTS} × {MAX_POINTS} (largest ever used): {dtw_ms:8.1f} ms, peak {dtw_peak / 1e6:.1f} MB "
-          f"(a full float matrix would be {MAX_POINTS**2 * 8 / 1e6:.0f} MB; 30,000² would be 7.2 GB)")
+    print(
+        f"DTW {MAX_POINTS} × {MAX_POINTS} (largest ever used): {dtw_ms:8.1f} ms, peak {dtw_peak / 1e6:.1f} MB "
+        f"(a full float matrix would be {MAX_POINTS**2 * 8 / 1e6:.0f} MB; 30,000² would be 7.2 GB)"
+    )
     print(f"learn_skill 3 × 30,000 peak traced memory:          {learn_peak / 1e6:8.1f} MB")
 
     # 3. 10 × 100,000 -----------------------------------------------------------------------------------------
@@ -142,8 +162,11 @@ def main() -> None:
         t0 = time.perf_counter()
         sk = learn_skill(demos10)
         long_ms = (time.perf_counter() - t0) * 1e3
-        print(f"learn_skill 10 × 100,000:                          {long_ms:8.0f} ms "
-              f"(k = {sk.n_clusters}, key-points {min(map(len, sk.keypoints))}–{max(map(len, sk.keypoints))})")
+        print(
+            f"learn_skill 10 × 100,000:                          {long_ms:8.0f} ms "
+            f"(k = {sk.n_clusters}, key-points {min(map(len, sk.keypoints))}–{max(map(len, sk.keypoints))})"
+        )
+    print(f"machine: {_load()} at end")
 
 
 if __name__ == "__main__":

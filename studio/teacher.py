@@ -156,12 +156,12 @@ def _task_keys(task: str, rng: np.random.Generator, home: np.ndarray) -> list[_K
         hand_over, stack = P([0.66, 0.47, 0.20]), P([0.78, 0.14, 0.06])
         keys = [
             _Key(home, 0.0, rng.uniform(0.8, 1.6), 0.1, kind="home"),
-            _Key(hand_over + [0, 0, 0.10], 0.0, rng.uniform(0.0, 0.4), 0.11),
+            _Key(hand_over + P([0, 0, 0.10]), 0.0, rng.uniform(0.0, 0.4), 0.11),
             _Key(hand_over, 0.0, rng.uniform(1.4, 2.2), 0.05, "close", "contact"),
-            _Key(hand_over + [0, 0, 0.12], 0.0, rng.uniform(0.0, 0.3), 0.08),
-            _Key(stack + [0, 0, 0.16], 0.0, rng.uniform(0.2, 0.6), 0.10),
+            _Key(hand_over + P([0, 0, 0.12]), 0.0, rng.uniform(0.0, 0.3), 0.08),
+            _Key(stack + P([0, 0, 0.16]), 0.0, rng.uniform(0.2, 0.6), 0.10),
             _Key(stack, 0.0, rng.uniform(1.4, 2.2), 0.04, "open", "contact"),
-            _Key(stack + [0, 0, 0.14], 0.0, rng.uniform(0.1, 0.4), 0.08),
+            _Key(stack + P([0, 0, 0.14]), 0.0, rng.uniform(0.1, 0.4), 0.08),
             _Key(home, 0.0, rng.uniform(0.8, 1.5), 0.11, kind="home"),
         ]
     elif task == "pick-place":
@@ -262,14 +262,13 @@ def _plan_arm(
 
 def _ik_segment(baxter: Baxter, arm: str, seg: _Segment, q_start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """IK knots (times (K,), joints (K, 7)) along a segment, each solve seeded by the previous one."""
-    n = max(3, int(math.ceil(seg.duration * _IK_RATE_HZ)) + 1)
+    n = max(3, math.ceil(seg.duration * _IK_RATE_HZ) + 1)
     tk = seg.t0 + np.linspace(0.0, seg.duration, n)
     pos, ori = seg.cartesian(tk)
     qs = np.empty((n, 7))
     q = q_start
     for j in range(n):
-        res = baxter.ik(arm, pos[j], ori[j], q, max_iterations=200, position_tolerance=2e-5,
-                        orientation_tolerance=2e-4)
+        res = baxter.ik(arm, pos[j], ori[j], q, max_iterations=200, position_tolerance=2e-5, orientation_tolerance=2e-4)
         if not res.converged:  # pragma: no cover - the scripted key-frames are chosen reachable
             raise RuntimeError(
                 f"Teacher plan unreachable for the {arm} arm at t={tk[j]:.2f} s "
@@ -345,7 +344,7 @@ def teach(task: str, seed: int, arm: str = "left", rate_hz: float = 1000.0, nois
     timelines = {a: _plan_arm(task, a, rng, baxter) for a in arms}
     # Generous horizon; slowed segments only lengthen a plan by a little.
     horizon = max(sum(_item_len(it) for it in items) for items, _ in timelines.values())
-    t = np.arange(int(math.ceil(horizon * 1.5 * rate_hz)) + 1) / rate_hz
+    t = np.arange(math.ceil(horizon * 1.5 * rate_hz) + 1) / rate_hz
     q = np.empty((t.shape[0], 14))
     grip = np.empty((t.shape[0], 2))
     ends = []
@@ -373,7 +372,7 @@ def teach(task: str, seed: int, arm: str = "left", rate_hz: float = 1000.0, nois
         Q = q[:, :7] if a == "left" else q[:, 7:]
         for t0, hold, action in grips:
             ts = t0 + 0.3 * hold
-            i = min(int(round(ts * rate_hz)), n - 1)
+            i = min(round(ts * rate_hz), n - 1)
             p, o = baxter.fk(a, Q[i])
             events.append(GripperEvent(float(t[i]), a, action, readonly(p), readonly(o)))
     events.sort(key=lambda e: e.time)
@@ -382,7 +381,7 @@ def teach(task: str, seed: int, arm: str = "left", rate_hz: float = 1000.0, nois
 
 def _item_len(item: tuple[str, float, object]) -> float:
     kind, _, obj = item
-    return obj.duration if kind == "move" else obj.hold  # type: ignore[union-attr]
+    return obj.duration if kind == "move" else obj.hold  # type: ignore[attr-defined]
 
 
 def _gripper_signal(

@@ -29,7 +29,7 @@ def test_plans_are_paper_like_and_within_limits(task):
         acts = [e.action for e in p.events]
         assert acts == (["close", "open"] if task == "stack-cup" else ["close", "open"] * 2)
         for e in p.events:
-            i = int(round(e.time * 1000))
+            i = round(e.time * 1000)
             pos, ori = b.fk("left", p.q[i, :7])
             assert np.allclose(pos, e.position) and quat_angle(ori, e.wxyz) < 1e-9
             assert abs(np.linalg.norm(p.q[i + 300, :7] - p.q[i, :7])) < 1e-9  # the arm waits while it grips

@@ -147,7 +147,7 @@ def resample(t: np.ndarray, X: np.ndarray, grid: np.ndarray) -> np.ndarray:
     if grid.shape[0] > 1 and t.shape[0] > 1:
         step = float(grid[1] - grid[0])
         dt = float(np.median(np.diff(t)))
-        w = max(1, int(round(step / dt)))
+        w = max(1, round(step / dt))
         if w > 1:
             X = uniform_filter1d(X, w, axis=0, mode="nearest")
     return np.column_stack([np.interp(grid, t, X[:, j]) for j in range(X.shape[1])])
@@ -160,7 +160,7 @@ def common_rate(durations: Sequence[float]) -> float:
 
 
 def time_grid(t0: float, t1: float, rate: float) -> np.ndarray:
-    n = max(2, int(math.floor((t1 - t0) * rate)) + 1)
+    n = max(2, math.floor((t1 - t0) * rate) + 1)
     return np.linspace(t0, t1, n)
 
 

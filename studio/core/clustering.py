@@ -58,7 +58,9 @@ def align_hemisphere(quats: np.ndarray, reference: np.ndarray) -> np.ndarray:
     return quats * s[:, None]
 
 
-def keypoint_features(demos: Sequence[Demo], keypoints: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def keypoint_features(
+    demos: Sequence[Demo], keypoints: Sequence[np.ndarray]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Stack the key-points of all demos.
 
     Returns:
@@ -166,7 +168,7 @@ def lloyd(X: np.ndarray, centers: np.ndarray, max_iter: int = 100) -> tuple[np.n
 
 def default_n_clusters(keypoints: Sequence[np.ndarray]) -> int:
     """The paper's k: the mean number of key-points per demonstration, rounded."""
-    return max(1, int(round(float(np.mean([len(k) for k in keypoints])))))
+    return max(1, round(float(np.mean([len(k) for k in keypoints]))))
 
 
 def cluster(
@@ -189,7 +191,7 @@ def cluster(
         InvalidInput: k below 1.
     """
     scale = scale or FeatureScale()
-    X, owner, u = keypoint_features(demos, keypoints)
+    X, _, u = keypoint_features(demos, keypoints)
     m = X.shape[0]
     if m == 0:
         raise NotEnoughData("There are no key-points to group: record at least one demonstration.")

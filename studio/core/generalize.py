@@ -16,9 +16,10 @@ penalised least squares Σ w (y − f)² + λ ∫ f''²) and sampled at the demo
   first of the next — both are gripper-event key-points at the grasp pose, so the step happens there.
 
 Execution: :func:`joint_trajectory` runs IK along the trajectory at :data:`IK_RATE_HZ`, each solve seeded
-by the previous one, interpolates the joints with a cubic spline to the trajectory's samples (doubling the IK rate while the
-interpolated joints stray more than 0.5 mm from the path), clips them to the joint limits, reports the per-sample Cartesian error by forward kinematics and, where a joint would
-exceed its velocity limit, slows the trajectory down locally.
+by the previous one, interpolates the joints with a cubic spline to the trajectory's samples (doubling the
+IK rate while the interpolated joints stray more than 0.5 mm from the path), clips them to the joint
+limits, reports the per-sample Cartesian error by forward kinematics and, where a joint would exceed its
+velocity limit, slows the trajectory down locally.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ from scipy.ndimage import maximum_filter1d, uniform_filter1d
 
 from studio.core.errors import IkFailed, InvalidInput
 from studio.core.kinematics import Baxter, make_sign_continuous
-from studio.core.types import Demo, JointTrajectory, readonly
+from studio.core.types import Demo, JointTrajectory
 
 #: Dimensionless smoothing: λ = SMOOTHING · h³ (0 interpolates the points exactly).
 SMOOTHING = 0.005
@@ -123,7 +124,7 @@ def generalize(
     times, points, w = _merge_close(times, points, w)
     t0 = float(times[0] if t_start is None else t_start)
     t1 = float(times[-1] if t_end is None else t_end)
-    n = max(2, int(math.floor((t1 - t0) * rate_hz + 1e-9)) + 1)
+    n = max(2, math.floor((t1 - t0) * rate_hz + 1e-9) + 1)
     t = t0 + np.arange(n) / rate_hz
     tc = np.clip(t, times[0], times[-1])
     y = points[:, :7]
@@ -172,11 +173,18 @@ def joint_trajectory(
     b = baxter or Baxter.load()
     n = len(trajectory)
     t = trajectory.t
-    step = max(1, int(round((1.0 / ik_rate_hz) / max(float(np.median(np.diff(t))) if n > 1 else 1.0, 1e-9))))
+    step = max(1, round((1.0 / ik_rate_hz) / max(float(np.median(np.diff(t))) if n > 1 else 1.0, 1e-9)))
     knots = np.unique(np.concatenate([np.arange(0, n, step), [n - 1]]))
     P, O = trajectory.position, trajectory.orientation
-    res = b.ik(arm, P[0], O[0], np.asarray(q_seed, dtype=float), max_iterations=500,
-               position_tolerance=2e-5, orientation_tolerance=2e-4)
+    res = b.ik(
+        arm,
+        P[0],
+        O[0],
+        np.asarray(q_seed, dtype=float),
+        max_iterations=500,
+        position_tolerance=2e-5,
+        orientation_tolerance=2e-4,
+    )
     if res.position_error > 0.01 or res.orientation_error > 0.1:
         raise IkFailed(
             f"The {arm} arm cannot reach the learned skill's start pose "
@@ -202,12 +210,12 @@ def joint_trajectory(
         v = np.abs(np.gradient(Q, t, axis=0)) / vmax
         ratio = v.max(axis=1)
         if ratio.max() > 1.0:
-            w = max(1, int(round(0.2 * n / max(t[-1] - t[0], 1e-9))))
+            w = max(1, round(0.2 * n / max(t[-1] - t[0], 1e-9)))
             stretch = np.maximum(1.0, uniform_filter1d(maximum_filter1d(ratio, 2 * w + 1), w) * 1.05)
             dt = np.diff(t) * stretch[1:]
             tn = np.concatenate([[t[0]], t[0] + np.cumsum(dt)])
             rate = 1.0 / float(np.median(np.diff(t)))
-            grid = t[0] + np.arange(int(math.floor((tn[-1] - t[0]) * rate)) + 1) / rate
+            grid = t[0] + np.arange(math.floor((tn[-1] - t[0]) * rate) + 1) / rate
             Q = np.column_stack([np.interp(grid, tn, Q[:, j]) for j in range(7)])
             perr = np.interp(grid, tn, perr)
             oerr = np.interp(grid, tn, oerr)

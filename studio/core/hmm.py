@@ -11,10 +11,11 @@ standard initial segmentation of a left–right model: every demonstration's key
 Ns equal consecutive parts, part i in state i. (Not "cluster i → state i": a task that comes back to the
 same place — pick-and-place there and back — visits one cluster at two different times, which a
 left–right model must explain with two different states; the uniform segmentation lets state i emit
-whatever symbols the demonstrations show at that stage of the task.) τ_i is the mean number of observation steps a demonstration spends in state i **counting the step
-that leaves it** (so a state seen once lasts two steps): with the bare count a state seen once would get
-a_{i,i} = 0, and since Baum–Welch keeps zeros at zero, no demonstration could ever place two consecutive
-key-points in one state. b_i is then normalised and mixed with a 1 % uniform floor: a demonstration whose
+whatever symbols the demonstrations show at that stage of the task.) τ_i is the mean number of
+observation steps a demonstration spends in state i **counting the step that leaves it** (so a state seen
+once lasts two steps): with the bare count a state seen once would get a_{i,i} = 0, and since Baum–Welch
+keeps zeros at zero, no demonstration could ever place two consecutive key-points in one state. b_i is
+then normalised and mixed with a 1 % uniform floor: a demonstration whose
 key-points visit the clusters slightly out of order must remain possible under the left–right model.
 
 Baum–Welch (hmmlearn ``CategoricalHMM`` with ``init_params=""`` so it keeps these matrices, scaling

@@ -171,7 +171,7 @@ def _angle_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 def _samples(t: np.ndarray, seconds: float) -> int:
     dt = float(t[-1] - t[0]) / (len(t) - 1) if len(t) > 1 else 1.0  # mean sampling interval
-    return max(1, int(round(seconds / dt)))
+    return max(1, round(seconds / dt))
 
 
 def _stride_neighbours(arc: np.ndarray, stride: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -210,7 +210,7 @@ def gripper_events(t: np.ndarray, gripper: np.ndarray) -> np.ndarray:
     keep = np.concatenate([[True], starts[1:] - ends[:-1] > gap])
     starts = starts[keep]
     ends = np.concatenate([ends[np.flatnonzero(keep)[1:] - 1], ends[-1:]])
-    out = []
+    out: list[int] = []
     for s, e in zip(starts, ends, strict=True):
         a, b = max(s - 1, 0), min(e, n - 1)
         if abs(g[b] - g[a]) > GRIPPER_MIN_CHANGE:

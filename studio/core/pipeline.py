@@ -128,13 +128,13 @@ def learn_skill(
         if len(keypoints) != len(demos):
             raise InvalidInput("There must be one list of key-points per demonstration.")
         kps = [np.asarray(k, dtype=np.int64) for k in keypoints]
-    for d, k in zip(demos, kps, strict=True):
-        if len(k) < 2:
+    for d, kp in zip(demos, kps, strict=True):
+        if len(kp) < 2:
             raise NotEnoughData(
-                f"{d.name} has only {len(k)} key-point(s); a skill needs at least a start and an end. "
+                f"{d.name} has only {len(kp)} key-point(s); a skill needs at least a start and an end. "
                 "Record a longer demonstration or lower the key-point thresholds."
             )
-    total = sum(len(k) for k in kps)
+    total = sum(len(kp) for kp in kps)
     k = default_n_clusters(kps) if n_clusters is None else int(n_clusters)
     if k > total:
         raise NotEnoughData(
@@ -151,7 +151,9 @@ def learn_skill(
     ref_demo = demos[ref]
     ref_quat = cl.features[0, 3:7] if cl.features.shape[0] else np.array([1.0, 0, 0, 0])
     grids = [alignment.time_grid(d.t[0], d.t[-1], rate) for d in demos]
-    series = [_scaled(alignment.resample(d.t, d.features, g), scale, ref_quat) for d, g in zip(demos, grids, strict=True)]
+    series = [
+        _scaled(alignment.resample(d.t, d.features, g), scale, ref_quat) for d, g in zip(demos, grids, strict=True)
+    ]
     aligned: list[np.ndarray] = []
     for i, d in enumerate(demos):
         tk = d.t[kps[i]]
@@ -190,8 +192,14 @@ def learn_skill(
     path_states = pairs[:, 0]
     dt = float(np.median(np.diff(ref_demo.t)))
     traj = generalize(
-        np.array(tms), np.array(pts), weights=np.array(wts), t_start=0.0, t_end=ref_demo.duration,
-        rate_hz=1.0 / dt, smoothing=smoothing, name="learned skill",
+        np.array(tms),
+        np.array(pts),
+        weights=np.array(wts),
+        t_start=0.0,
+        t_end=ref_demo.duration,
+        rate_hz=1.0 / dt,
+        smoothing=smoothing,
+        name="learned skill",
     )
     jt = None
     if arm is not None:

@@ -224,7 +224,6 @@ class KeypointParams:
         return cls(**{k: float(v) for k, v in d.items()})
 
 
-
 @dataclass(frozen=True, eq=False)
 class JointTrajectory:
     """The learned skill in joint space, ready to execute or export.
@@ -269,14 +268,17 @@ class JointTrajectory:
 
 
 def _pack_list(d: dict[str, np.ndarray], name: str, arrays: list[np.ndarray], dtype: type) -> None:
-    d[f"{name}_data"] = np.concatenate([np.asarray(a, dtype=dtype).reshape(-1) for a in arrays]) if arrays else (
-        np.zeros(0, dtype=dtype)
+    d[f"{name}_data"] = (
+        np.concatenate([np.asarray(a, dtype=dtype).reshape(-1) for a in arrays])
+        if arrays
+        else (np.zeros(0, dtype=dtype))
     )
     d[f"{name}_offsets"] = np.cumsum([0] + [len(a) for a in arrays]).astype(np.int64)
 
 
 def _unpack_list(d: dict[str, np.ndarray], name: str, dtype: type) -> list[np.ndarray]:
-    data, off = np.asarray(d[f"{name}_data"], dtype=dtype), np.asarray(d[f"{name}_offsets"], dtype=np.int64)
+    data: np.ndarray = np.asarray(d[f"{name}_data"], dtype=dtype)
+    off: np.ndarray = np.asarray(d[f"{name}_offsets"], dtype=np.int64)
     return [readonly(data[off[i] : off[i + 1]], dtype=dtype) for i in range(len(off) - 1)]
 
 
@@ -328,8 +330,16 @@ class Skill:
     demo_names: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
-        for name in ("centroids", "centroid_times", "startprob", "transmat", "emissionprob", "loglik",
-                     "path_times", "path_points"):
+        for name in (
+            "centroids",
+            "centroid_times",
+            "startprob",
+            "transmat",
+            "emissionprob",
+            "loglik",
+            "path_times",
+            "path_points",
+        ):
             object.__setattr__(self, name, readonly(getattr(self, name)))
         for name in ("states", "zero_points", "path_states"):
             object.__setattr__(self, name, readonly(getattr(self, name), dtype=np.int64))
@@ -390,14 +400,22 @@ class Skill:
             if str(d["format"]) != "teaching-studio-skill/1":
                 raise InvalidInput(f"Unknown skill format {str(d['format'])!r}.")
             traj = Demo(
-                d["trajectory_t"], d["trajectory_position"], d["trajectory_orientation"], d["trajectory_gripper"],
+                d["trajectory_t"],
+                d["trajectory_position"],
+                d["trajectory_orientation"],
+                d["trajectory_gripper"],
                 name=str(d["trajectory_name"]),
             )
             jt = None
             if "joint_t" in d:
                 jt = JointTrajectory(
-                    d["joint_t"], d["joint_q"], d["joint_position_error"], d["joint_orientation_error"],
-                    d["joint_converged"], str(d["joint_arm"]), d["joint_gripper"] if "joint_gripper" in d else None,
+                    d["joint_t"],
+                    d["joint_q"],
+                    d["joint_position_error"],
+                    d["joint_orientation_error"],
+                    d["joint_converged"],
+                    str(d["joint_arm"]),
+                    d["joint_gripper"] if "joint_gripper" in d else None,
                 )
             names = [f.name for f in fields(KeypointParams)]
             params = KeypointParams(**{n: float(v) for n, v in zip(names, np.asarray(d["params"]), strict=True)})
@@ -427,6 +445,7 @@ class Skill:
             )
         except KeyError as exc:
             raise InvalidInput(f"The saved skill is incomplete: {exc.args[0]} is missing.") from exc
+
 
 __all__ = [
     "ALL_ARM_JOINTS",

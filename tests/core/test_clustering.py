@@ -50,7 +50,7 @@ def test_quaternion_sign_does_not_matter():
 def test_lloyd_matches_scikit_learn_from_the_same_start():
     X = np.random.default_rng(0).normal(size=(90, 8))
     init = X[:12].copy()
-    C, labels, inertia = lloyd(X, init)
+    _, labels, inertia = lloyd(X, init)
     km = KMeans(n_clusters=12, init=init, n_init=1, max_iter=100, tol=0.0).fit(X)
     assert inertia == pytest.approx(km.inertia_, rel=1e-9)
     assert np.array_equal(labels, km.labels_)

@@ -12,7 +12,9 @@ from studio.core.kinematics import Baxter
 
 def _points():
     t = np.array([0.0, 1.0, 2.0, 3.0, 4.0, 5.0])
-    pos = np.array([[0.6, 0.3, 0.1], [0.65, 0.3, 0.05], [0.7, 0.3, 0.0], [0.7, 0.3, 0.0], [0.7, 0.2, 0.1], [0.6, 0.2, 0.1]])
+    pos = np.array(
+        [[0.6, 0.3, 0.1], [0.65, 0.3, 0.05], [0.7, 0.3, 0.0], [0.7, 0.3, 0.0], [0.7, 0.2, 0.1], [0.6, 0.2, 0.1]]
+    )
     down = np.array([0.0, 0.0, 1.0, 0.0])
     q = np.tile(down, (6, 1))
     q[3] = -q[3]  # the same orientation written as −q must not make the spline pass through zero
