@@ -71,7 +71,7 @@ def keypoint_features(
     rows, owner, u = [], [], []
     for d, (demo, kp) in enumerate(zip(demos, keypoints, strict=True)):
         kp = np.asarray(kp, dtype=np.int64)
-        rows.append(demo.features[kp])
+        rows.append(np.column_stack([demo.position[kp], demo.orientation[kp], demo.gripper[kp]]))
         owner.append(np.full(kp.shape[0], d))
         dur = demo.duration if demo.duration > 0 else 1.0
         u.append((demo.t[kp] - demo.t[0]) / dur)
@@ -115,25 +115,30 @@ def _sq_dist(X: np.ndarray, C: np.ndarray) -> np.ndarray:
     return np.maximum(d, 0.0)
 
 
-def kmeans_plusplus(X: np.ndarray, k: int, rng: np.random.Generator, n_local_trials: int | None = None) -> np.ndarray:
-    """k-means++ seeding (Arthur & Vassilvitskii, greedy variant as in scikit-learn): (k, D) centres."""
+def kmeans_plusplus(
+    X: np.ndarray, k: int, rng: np.random.Generator, n_local_trials: int | None = None, D: np.ndarray | None = None
+) -> np.ndarray:
+    """k-means++ seeding (Arthur & Vassilvitskii, greedy variant as in scikit-learn): (k, D) centres.
+
+    ``D`` is the (M, M) matrix of squared distances between the points if already computed.
+    """
     m = X.shape[0]
     trials = n_local_trials or 2 + int(np.log(k))
-    centers = np.empty((k, X.shape[1]))
-    centers[0] = X[rng.integers(m)]
-    closest = _sq_dist(X, centers[:1])[:, 0]
-    for c in range(1, k):
+    D = _sq_dist(X, X) if D is None else D
+    chosen = [int(rng.integers(m))]
+    closest = D[chosen[0]].copy()
+    for _ in range(1, k):
         pot = closest.sum()
         if pot <= 0:
-            centers[c:] = X[rng.choice(m, k - c, replace=False)] if k - c <= m else X[rng.integers(m, size=k - c)]
+            rest = np.setdiff1d(np.arange(m), chosen)
+            chosen.extend(rng.choice(rest, k - len(chosen), replace=False).tolist())
             break
-        cand = np.searchsorted(np.cumsum(closest), rng.random(trials) * pot)
-        cand = np.minimum(cand, m - 1)
-        d = np.minimum(closest[None, :], _sq_dist(X, X[cand]).T)
+        cand = np.minimum(np.searchsorted(np.cumsum(closest), rng.random(trials) * pot), m - 1)
+        d = np.minimum(closest[None, :], D[cand])
         best = int(np.argmin(d.sum(axis=1)))
-        centers[c] = X[cand[best]]
+        chosen.append(int(cand[best]))
         closest = d[best]
-    return centers
+    return X[np.array(chosen[:k])].copy()
 
 
 def lloyd(X: np.ndarray, centers: np.ndarray, max_iter: int = 100) -> tuple[np.ndarray, np.ndarray, float]:
@@ -209,8 +214,9 @@ def cluster(
     groups = np.array_split(order, k)
     inits = [np.stack([Xs[g].mean(axis=0) for g in groups])]
     rng = np.random.default_rng(seed)
+    D = _sq_dist(Xs, Xs)
     for _ in range(max(0, n_init - 1)):
-        inits.append(kmeans_plusplus(Xs, k, rng))
+        inits.append(kmeans_plusplus(Xs, k, rng, D=D))
     best: tuple[float, np.ndarray, np.ndarray] | None = None
     for init in inits:
         centers, labels_, inertia = lloyd(Xs, init)
