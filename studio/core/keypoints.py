@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import uniform_filter1d
 
-from studio.core.errors import NotEnoughData
+from studio.core.errors import InvalidInput, NotEnoughData
 from studio.core.types import Demo, KeypointParams, readonly
 
 #: Moving-average window applied to poses before any test, seconds.
@@ -402,7 +402,7 @@ def extract_keypoints(
     params = params or KeypointParams()
     s = series if series is not None else precompute(demo)
     if len(s) != len(demo):
-        raise ValueError("series does not belong to this demonstration")
+        raise InvalidInput(f"The precomputed series does not belong to {demo.name} (different number of samples).")
     return extract_from_series(s, params)
 
 

@@ -192,6 +192,18 @@ def test_bad_input_is_explained_in_plain_words():
     assert issubclass(NotEnoughData, StudioError)
 
 
+def test_a_keypoint_cache_gives_the_same_skill():
+    from studio.core import KeypointCache
+
+    ds = list(demos("stack-cup"))
+    cache = KeypointCache()
+    a = learn_skill(ds, cache=cache)
+    b = learn_skill(ds, cache=cache)
+    c = learn_skill(ds)
+    assert np.array_equal(a.trajectory.position, c.trajectory.position)
+    assert np.array_equal(b.trajectory.position, c.trajectory.position)
+
+
 def test_different_thresholds_change_the_skill():
     ds = list(demos("stack-cup"))
     a = learn_skill(ds)
