@@ -1,7 +1,10 @@
-"""The browser studio: builds the viser server, the robot backend and the panels, and runs the pose pump.
+"""The browser studio: builds the viser server, the robot backend, the controller and the panels.
 
 Everything a user sees is shared by all browser tabs (viser's server-level GUI and scene are broadcast),
 so two tabs show the same robot and session and a reloaded page gets the current state replayed.
+
+The GUI state and every action live in :class:`studio.controller.Controller`; :class:`Studio` adds the
+viser parts on top of it: the server and its scene, the panels, notifications in the tabs, and the pose pump.
 
 Threads:
     * viser's thread pool runs GUI callbacks; each is wrapped by :meth:`Studio.guarded` so a failure is a
@@ -14,26 +17,29 @@ Threads:
 
 from __future__ import annotations
 
-import functools
 import logging
 import math
 import sys
 import threading
 import time
-import traceback
-from collections.abc import Callable
-from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any
 
-import numpy as np
 import viser
 
-from studio.core.errors import NotEnoughData, StudioError
-from studio.core.kinematics import Baxter, baxter_urdf_path
-from studio.core.types import ALL_ARM_JOINTS, ARMS, KeypointParams
-from studio.robot_backend.base import JointStateBatch, RobotBackend
+from studio.controller import (
+    PALETTE,
+    Controller,
+    Events,
+    KeypointItem,
+    KeypointView,
+    Playback,
+    PoseSource,
+)
+from studio.core.errors import StudioError
+from studio.core.kinematics import baxter_urdf_path
+from studio.core.types import ALL_ARM_JOINTS
+from studio.robot_backend.base import RobotBackend
 
 log = logging.getLogger("studio")
 
@@ -44,22 +50,6 @@ DEFAULT_SESSION = "stack-cup"
 CAMERA_POSITION = (2.5, -0.95, 1.05)
 CAMERA_LOOK_AT = (0.3, 0.12, 0.12)
 CAMERA_FOV_DEG = 55.0
-
-F = TypeVar("F", bound=Callable[..., Any])
-
-#: Demo colours (RGB), distinct on the light background and never red (red marks the cluster centroids).
-PALETTE: tuple[tuple[int, int, int], ...] = (
-    (31, 119, 180),
-    (44, 160, 44),
-    (255, 127, 14),
-    (148, 103, 189),
-    (140, 86, 75),
-    (227, 119, 194),
-    (127, 127, 127),
-    (188, 189, 34),
-    (23, 190, 207),
-    (57, 59, 121),
-)
 
 
 def robot_urdf_path(meshes: str = "auto") -> Path:
@@ -77,123 +67,33 @@ def robot_urdf_path(meshes: str = "auto") -> Path:
     return baxter_urdf_path()
 
 
-class Events:
-    """A tiny observer list per topic; callbacks run on the caller's thread."""
-
-    def __init__(self) -> None:
-        self._subs: dict[str, list[Callable[[], None]]] = {}
-
-    def on(self, topic: str, fn: Callable[[], None]) -> None:
-        self._subs.setdefault(topic, []).append(fn)
-
-    def emit(self, topic: str) -> None:
-        for fn in list(self._subs.get(topic, ())):
-            try:
-                fn()
-            except Exception:  # a broken view must not break the others
-                log.exception("view update for %s failed", topic)
-
-
-class PoseSource:
-    """Where the scene's robot pose comes from: the live backend, a demo replay or the skill preview."""
-
-    def __init__(self) -> None:
-        self.q = np.zeros(14)
-        self.gripper = np.full(2, 100.0)
-        self.t = 0.0
-        self.version = 0
-        self._lock = threading.Lock()
-
-    def set(self, t: float, q: np.ndarray, gripper: np.ndarray) -> None:
-        with self._lock:
-            self.t = float(t)
-            self.q = np.asarray(q, dtype=np.float64)
-            self.gripper = np.asarray(gripper, dtype=np.float64)
-            self.version += 1
-
-    def get(self) -> tuple[int, float, np.ndarray, np.ndarray]:
-        with self._lock:
-            return self.version, self.t, self.q, self.gripper
+def configure_scene(server: viser.ViserServer) -> None:
+    """Theme, initial camera, lights and ground of the shared scene."""
+    s = server
+    s.gui.configure_theme(control_width="large", dark_mode=False, show_logo=False, brand_color=(196, 30, 58))
+    s.initial_camera.position = CAMERA_POSITION
+    s.initial_camera.look_at = CAMERA_LOOK_AT
+    s.initial_camera.fov = math.radians(CAMERA_FOV_DEG)
+    s.scene.set_up_direction("+z")
+    # Software WebGL (no GPU) spends most of each frame on image-based lighting and shadow maps: without
+    # them the studio draws ~20x faster and, with plain lights, Baxter still looks like Baxter.
+    s.scene.configure_environment_map(hdri=None)
+    s.scene.configure_default_lights(enabled=True, cast_shadow=False)
+    s.scene.add_light_hemisphere("/lights/sky", sky_color=(255, 255, 255), ground_color=(90, 90, 100), intensity=1.6)
+    s.scene.add_light_directional("/lights/key", color=(255, 255, 255), intensity=1.2, position=(2.0, -1.5, 3.0))
+    s.scene.add_grid("/ground", width=3.0, height=3.0, position=(0.5, 0.0, -0.93), cell_size=0.25, shadow_opacity=0.0)
 
 
-@dataclass
-class KeypointItem:
-    index: int
-    arm: str
-    name: str
-    color: tuple[int, int, int]
-    count: int
-    points: np.ndarray
+class Studio(Controller):
+    """The running studio: the :class:`Controller` plus its viser server, panels and pose pump.
 
-
-@dataclass
-class KeypointView:
-    """What the key-points panel draws: per-demo key-points, per-arm centroids (k, 8), notes."""
-
-    demos: list[KeypointItem] = field(default_factory=list)
-    centroids: dict[str, np.ndarray] = field(default_factory=dict)
-    k: dict[str, int] = field(default_factory=dict)
-    messages: list[str] = field(default_factory=list)
-
-
-class Playback:
-    """A recording streamed by a :class:`ReplayBackend` into a :class:`PoseSource` the scene can show."""
-
-    def __init__(self, kind: str, recording: Any, speed: float = 1.0) -> None:
-        from studio.robot_backend.replay import ReplayBackend
-
-        self.kind = kind
-        self.recording = recording
-        self.backend = ReplayBackend(recording, speed=speed)
-        self.source = PoseSource()
-        st = self.backend.state()
-        self.source.set(st.t, st.q, st.gripper)
-        self._unsub = self.backend.subscribe(self._on_batch)
-
-    def _on_batch(self, batch: JointStateBatch) -> None:
-        if len(batch):
-            self.source.set(float(batch.t[-1]), batch.q[-1], batch.gripper[-1])
-
-    @property
-    def position(self) -> float:
-        return self.backend.position
-
-    @property
-    def playing(self) -> bool:
-        return self.backend.running
-
-    @property
-    def finished(self) -> bool:
-        return self.backend.finished
-
-    def play(self) -> None:
-        self.backend.start()
-
-    def pause(self) -> None:
-        self.backend.stop()
-
-    def set_speed(self, speed: float) -> None:
-        self.backend.speed = float(speed)
-
-    def seek(self, t: float) -> None:
-        self.backend.seek(t)
-        i = int(np.clip(np.searchsorted(self.recording.t, t), 0, len(self.recording) - 1))
-        self.source.set(float(self.recording.t[i]), self.recording.q[i], self.recording.gripper[i])
-
-    def close(self) -> None:
-        self._unsub()
-        self.backend.stop()
-
-
-class Studio:
-    """The running studio. Build with :func:`build_app`; stop with :meth:`stop`.
+    Build with :func:`build_app`; stop with :meth:`stop`.
 
     Attributes:
         server: the viser server (``server.gui`` / ``server.scene`` are shared by every tab).
         port: the port it listens on.
-        baxter: the kinematic model (FK/IK).
-        backend: the robot (simulated Baxter by default).
-        store: the sessions on disk; ``session`` is the open one.
+        panels: the side-bar panels (:class:`studio.panels.Panels`).
+        (and the controller's: ``baxter``, ``backend``, ``store``, ``session``, ...)
     """
 
     pump_hz = 60.0
@@ -211,106 +111,35 @@ class Studio:
     ) -> None:
         from studio.sessions import SessionStore
 
-        self.events = Events()
         self._recent_notes: dict[tuple[str, str], float] = {}
-        self.lock = threading.RLock()
-        self.baxter = Baxter.load()
-        self.store = SessionStore(Path(sessions_dir))
-        self.session = self._open_or_create(session or DEFAULT_SESSION)
         if backend is None:
             from studio.robot_backend.simulated import SimulatedBaxter
 
             backend = SimulatedBaxter()
-        self.backend = backend
-        self.live = PoseSource()
-        self.display = self.live  # the pump draws whichever source is active
-        self.selected_arms: tuple[str, ...] = self._session_arms()
-        self.recorder: Any = None
-        self.hidden_demos: set[str] = set()
-        self._demo_cache: dict[tuple[int, str], tuple[Any, Any]] = {}
-        self._targets: dict[str, np.ndarray] = {}
-        from studio.core.keypoints import KeypointCache
-
-        self._kp_cache = KeypointCache()  # per-demo derived series, reused across ε changes (weak keys)
-        self._params: KeypointParams = self.session.params
-        self._params_dirty = False
-        self.k_override: int | None = None
-        self.training = False
-        self._playback: Playback | None = None
-        self._preview: Any = None
+        super().__init__(store=SessionStore(Path(sessions_dir)), session=session or DEFAULT_SESSION, backend=backend)
+        self.urdf_path = robot_urdf_path(meshes)
 
         self.server = viser.ViserServer(host=host, port=port, label="Teaching Studio", verbose=verbose)
         self.port = int(self.server.get_port())
         self.host = host
-        self._configure_server()
+        configure_scene(self.server)
 
         self._stop = threading.Event()
-        self._work = ThreadPoolExecutor(max_workers=1, thread_name_prefix="studio-work")
-        self._unsubscribe = self.backend.subscribe(self._on_batch)
-        self.backend.start()
-        st = self.backend.state()
-        self.live.set(st.t, st.q, st.gripper)
+        self.start_robot()
 
         from studio.panels import build_panels
 
-        self.urdf_path = robot_urdf_path(meshes)
         self.panels = build_panels(self)
         self._pump = threading.Thread(target=self._pump_loop, name="studio-pose-pump", daemon=True)
         self._pump.start()
-        self._startup_notes = self._session_notes(self.session)
         self.server.on_client_connect(self._greet)
-
-    def _session_notes(self, session: Any) -> list[tuple[str, str]]:
-        notes = []
-        if getattr(session, "recovery_message", ""):
-            notes.append(("Recovered recordings", session.recovery_message))
-        for p in getattr(session, "problems", []) or []:
-            notes.append(("Part of the session could not be read", p))
-        return notes
 
     def _greet(self, client: viser.ClientHandle) -> None:
         """Show what happened while opening the session (crash recovery, damaged files) to each new tab."""
-        for title, body in self._startup_notes:
+        for title, body in self.startup_notes():
             self.notify(title, body, kind="warning", client=client)
 
-    # -- setup -------------------------------------------------------------------------------------------
-    def _open_or_create(self, name: str) -> Any:
-        try:
-            return self.store.open(name)
-        except StudioError:
-            if name in self.store.list_sessions():
-                raise
-            return self.store.create(name)
-
-    def _session_arms(self) -> tuple[str, ...]:
-        arms = tuple(getattr(self.session, "arms", ("left",)) or ("left",))
-        return tuple(a for a in ARMS if a in arms) or ("left",)
-
-    def _configure_server(self) -> None:
-        s = self.server
-        s.gui.configure_theme(control_width="large", dark_mode=False, show_logo=False, brand_color=(196, 30, 58))
-        s.initial_camera.position = CAMERA_POSITION
-        s.initial_camera.look_at = CAMERA_LOOK_AT
-        s.initial_camera.fov = math.radians(CAMERA_FOV_DEG)
-        s.scene.set_up_direction("+z")
-        # Software WebGL (no GPU) spends most of each frame on image-based lighting and shadow maps: without
-        # them the studio draws ~20x faster and, with plain lights, Baxter still looks like Baxter.
-        s.scene.configure_environment_map(hdri=None)
-        s.scene.configure_default_lights(enabled=True, cast_shadow=False)
-        s.scene.add_light_hemisphere(
-            "/lights/sky", sky_color=(255, 255, 255), ground_color=(90, 90, 100), intensity=1.6
-        )
-        s.scene.add_light_directional("/lights/key", color=(255, 255, 255), intensity=1.2, position=(2.0, -1.5, 3.0))
-        s.scene.add_grid(
-            "/ground", width=3.0, height=3.0, position=(0.5, 0.0, -0.93), cell_size=0.25, shadow_opacity=0.0
-        )
-
-    # -- robot state -------------------------------------------------------------------------------------
-    def _on_batch(self, batch: JointStateBatch) -> None:
-        # Runs on the backend's thread at up to 1 kHz: keep only the newest sample.
-        if len(batch):
-            self.live.set(float(batch.t[-1]), batch.q[-1], batch.gripper[-1])
-
+    # -- the scene follows the robot -------------------------------------------------------------------
     def _pump_loop(self) -> None:
         period = 1.0 / self.pump_hz
         last_version = -1
@@ -332,32 +161,7 @@ class Studio:
                 delay = 0.0
             self._stop.wait(max(delay, 0.0))
 
-    def robot_q(self) -> np.ndarray:
-        """(14,) latest joint angles of the live robot, radians (order ALL_ARM_JOINTS)."""
-        return self.live.get()[2].copy()
-
-    def robot_gripper(self) -> np.ndarray:
-        return self.live.get()[3].copy()
-
-    def arm_q(self, arm: str) -> np.ndarray:
-        q = self.robot_q()
-        return q[:7] if arm == "left" else q[7:]
-
-    def display_label(self) -> str:
-        """What the drawn robot shows, in plain words."""
-        pb = self._playback
-        if self.display is self.live or pb is None:
-            return "Showing the robot live."
-        what = "the learned skill (preview)" if pb.kind == "preview" else f'demonstration "{pb.recording.name}"'
-        state = "playing" if pb.playing else "paused"
-        return f"Showing {what}, {state}."
-
-    def show_live(self) -> None:
-        """Let the scene follow the live robot again (after a replay or preview)."""
-        self.display = self.live
-        self.live.version += 1
-
-    # -- failures and background work --------------------------------------------------------------------
+    # -- notifications in the browser tabs -------------------------------------------------------------
     def notify(self, title: str, body: str, *, kind: str = "error", client: viser.ClientHandle | None = None) -> None:
         """Show a notification in plain words (to one tab, or to every tab when ``client`` is None)."""
         key = (title, body)
@@ -375,574 +179,6 @@ class Studio:
         if kind == "error":
             log.warning("%s: %s", title, body)
 
-    def report(self, exc: BaseException, *, title: str = "That did not work", client: Any = None) -> None:
-        if isinstance(exc, StudioError):
-            self.notify(title, str(exc), client=client)
-        else:
-            traceback.print_exception(exc, file=sys.stderr)
-            self.notify(
-                title,
-                f"Something unexpected went wrong ({type(exc).__name__}: {exc}). Your work is kept; you can try again.",
-                client=client,
-            )
-
-    def guarded(self, title: str = "That did not work") -> Callable[[F], F]:
-        """Decorator for GUI callbacks: any failure becomes a notification; the studio keeps running."""
-
-        def deco(fn: F) -> F:
-            @functools.wraps(fn)
-            def wrapper(*args: Any, **kwargs: Any) -> Any:
-                try:
-                    return fn(*args, **kwargs)
-                except Exception as exc:
-                    client = getattr(args[0], "client", None) if args else None
-                    self.report(exc, title=title, client=client)
-                    return None
-
-            return wrapper  # type: ignore[return-value]
-
-        return deco
-
-    def submit(
-        self,
-        job: Callable[[], Any],
-        *,
-        done: Callable[[Any], None] | None = None,
-        title: str = "That did not work",
-    ) -> Future:
-        """Run ``job`` on the work thread; ``done(result)`` runs there too; failures are notifications."""
-
-        def run() -> Any:
-            try:
-                result = job()
-                if done is not None:
-                    done(result)
-                return result
-            except Exception as exc:
-                self.report(exc, title=title)
-                return None
-
-        return self._work.submit(run)
-
-    # -- session ---------------------------------------------------------------------------------------
-    def set_session(self, session: Any) -> None:
-        """Make ``session`` the open one and redraw every view."""
-        self._switch(session)
-
-    # -- teaching: moving the robot ----------------------------------------------------------------------
-    def set_arms(self, arms: tuple[str, ...]) -> None:
-        """Choose the taught arm(s): "left", "right" or both."""
-        arms = tuple(a for a in ARMS if a in arms)
-        if not arms:
-            raise StudioError("Choose at least one arm to teach.")
-        with self.lock:
-            self.selected_arms = arms
-            if tuple(self.session.arms) != arms:
-                self.session.set_arms(arms)  # remembered with the session
-        self.events.emit("arms")
-
-    def move_gripper(self, arm: str, position: np.ndarray, wxyz: np.ndarray) -> Any:
-        """IK to the handle's pose from the arm's current joints, then command the robot.
-
-        Returns the IK result; an unreachable target still moves the arm to the closest pose found.
-        """
-        self.show_live()
-        res = self.baxter.ik(arm, position, wxyz, self._target_arm(arm), max_iterations=60)
-        self.command_arm(arm, np.asarray(res.q))
-        return res
-
-    def _target_arm(self, arm: str) -> np.ndarray:
-        with self.lock:
-            t = self._targets.get(arm)
-        return np.array(t) if t is not None else self.arm_q(arm)
-
-    def command_arm(self, arm: str, q: np.ndarray) -> None:
-        with self.lock:
-            self._targets[arm] = np.array(q, dtype=np.float64)
-        self.backend.command_joints(arm, q)
-
-    def move_joint(self, index: int, value: float) -> None:
-        """Move one of the 14 joints (order ALL_ARM_JOINTS) to ``value`` radians, the others held."""
-        self.show_live()
-        arm = "left" if index < 7 else "right"
-        q = self._target_arm(arm)
-        q[index % 7] = value
-        self.command_arm(arm, q)
-
-    def set_gripper(self, arm: str, width: float) -> None:
-        """Gripper opening in percent (0 = closed, 100 = open)."""
-        self.show_live()
-        self.backend.command_gripper(arm, float(width))
-
-    # -- recording ---------------------------------------------------------------------------------------
-    def start_recording(self) -> None:
-        """Start recording the taught arm(s); only one recording runs at a time (across all tabs)."""
-        from studio.recorder import Recorder
-
-        with self.lock:
-            if self.recorder is not None:
-                raise StudioError("A recording is already running (maybe in another tab). Stop it first.")
-            self.show_live()
-            name = self._next_demo_name()
-            rec = Recorder(self.backend, self.session.recording_dir, self.selected_arms, name=name)
-            rec.start()
-            self.recorder = rec
-        self.events.emit("recording")
-
-    def _next_demo_name(self) -> str:
-        names = set(self.demo_names())
-        i = len(names) + 1
-        while f"demo {i}" in names:
-            i += 1
-        return f"demo {i}"
-
-    def stop_recording(self) -> None:
-        """Stop, save the demonstration into the session (on disk at once) and draw it."""
-        with self.lock:
-            rec = self.recorder
-            if rec is None:
-                raise StudioError("Nothing is being recorded.")
-            self.recorder = None
-            try:
-                recording = rec.stop()
-                self.session.add_recording(recording)
-                rec.discard()
-            finally:
-                self.events.emit("recording")
-        for msg in rec.messages:
-            self.notify("Recording", msg, kind="warning")
-        self.demos_changed()
-        self.notify(
-            "Demonstration saved",
-            f"{recording.name}: {recording.duration:.1f} s, {len(recording):,} samples.",
-            kind="success",
-        )
-
-    def discard_recording(self) -> None:
-        with self.lock:
-            rec = self.recorder
-            self.recorder = None
-        if rec is not None:
-            rec.discard()
-        self.events.emit("recording")
-
-    # -- demonstrations ----------------------------------------------------------------------------------
-    def recordings(self) -> list[Any]:
-        return list(self.session.recordings)
-
-    def demo_names(self) -> list[str]:
-        return [r.name for r in self.recordings()]
-
-    def demo_color(self, i: int) -> tuple[int, int, int]:
-        return PALETTE[i % len(PALETTE)]
-
-    def demo_visible(self, i: int) -> bool:
-        names = self.demo_names()
-        return 0 <= i < len(names) and names[i] not in self.hidden_demos
-
-    def demo_duration(self, i: int) -> float:
-        return float(self.recordings()[i].duration)
-
-    def demo_summaries(self) -> list[tuple[str, tuple[int, int, int], float, int, tuple[str, ...], bool]]:
-        return [
-            (r.name, self.demo_color(i), float(r.duration), len(r), tuple(r.arms), r.name not in self.hidden_demos)
-            for i, r in enumerate(self.recordings())
-        ]
-
-    def demo(self, i: int, arm: str) -> Any:
-        """The 8-D Demo of recording ``i`` for ``arm`` (FK once, cached)."""
-        from studio.core.pipeline import demo_from_recording
-
-        rec = self.recordings()[i]
-        key = (id(rec), arm)
-        hit = self._demo_cache.get(key)
-        if hit is not None and hit[0] is rec:  # the same object, not a new one that reused a freed id
-            return hit[1]
-        d = demo_from_recording(rec, arm, baxter=self.baxter)
-        self._demo_cache[key] = (rec, d)
-        return d
-
-    def demos_for(self, arm: str) -> list[tuple[int, Any]]:
-        """(index, Demo) of every shown recording that taught ``arm``."""
-        return [
-            (i, self.demo(i, arm))
-            for i, r in enumerate(self.recordings())
-            if arm in r.arms and r.name not in self.hidden_demos
-        ]
-
-    def set_demo_visible(self, i: int, visible: bool) -> None:
-        name = self.demo_names()[i]
-        if visible:
-            self.hidden_demos.discard(name)
-        else:
-            self.hidden_demos.add(name)
-        self.demos_changed()
-
-    def rename_demo(self, i: int, name: str) -> None:
-        name = name.strip()
-        if not name:
-            raise StudioError("Give the demonstration a name (it cannot be empty).")
-        if name in self.demo_names() and self.demo_names()[i] != name:
-            raise StudioError(f'There is already a demonstration called "{name}"; choose another name.')
-        with self.lock:
-            old = self.demo_names()[i]
-            self.session.rename_demo(i, name)
-            if old in self.hidden_demos:
-                self.hidden_demos.discard(old)
-                self.hidden_demos.add(name)
-        self.demos_changed()
-
-    def trim_demo(self, i: int, t0: float, t1: float) -> None:
-        with self.lock:
-            self.session.trim_demo(i, t0, t1)
-        self.demos_changed()
-
-    def delete_demo(self, i: int) -> None:
-        with self.lock:
-            self.session.delete_demo(i)
-        self.demos_changed()
-
-    def demos_changed(self) -> None:
-        """The set of demonstrations changed: drop stale caches and redraw traces and key-points."""
-        live = {id(r) for r in self.recordings()}
-        self._demo_cache = {k: v for k, v in self._demo_cache.items() if k[0] in live and v[0] is not None}
-        self.events.emit("demos")
-
-    # -- key-points --------------------------------------------------------------------------------------
-    def params(self) -> KeypointParams:
-        with self.lock:
-            return self._params
-
-    def set_param(self, name: str, value: float) -> None:
-        """Change one ε threshold (kept in the session; written to disk by the key-point thread)."""
-        with self.lock:
-            self._params = replace(self._params, **{name: float(value)})
-            self._params_dirty = True
-
-    def reset_params(self) -> None:
-        with self.lock:
-            self._params = KeypointParams()
-            self.k_override = None
-            self._params_dirty = True
-
-    def set_k(self, k: int | None) -> None:
-        if k is not None and k < 1:
-            raise StudioError("The number of clusters must be at least 1.")
-        with self.lock:
-            self.k_override = k
-
-    def persist_params(self) -> None:
-        with self.lock:
-            if not self._params_dirty:
-                return
-            self._params_dirty = False
-            params = self._params
-            session = self.session
-        session.set_params(params)
-
-    def keypoint_view(self) -> KeypointView:
-        """Key-points of every shown demo and the k-means centroids per taught arm, for the current ε."""
-        from studio.core.clustering import cluster_keypoints
-
-        params = self.params()
-        k = self.k_override
-        view = KeypointView()
-        for arm in self.selected_arms:
-            demos = self.demos_for(arm)
-            if not demos:
-                continue
-            idx = [np.asarray(self._kp_cache.extract(d, params)) for _, d in demos]
-            for (i, d), ix in zip(demos, idx, strict=True):
-                view.demos.append(
-                    KeypointItem(
-                        index=i,
-                        arm=arm,
-                        name=d.name,
-                        color=self.demo_color(i),
-                        count=len(ix),
-                        points=np.asarray(d.position)[ix] if len(ix) else np.zeros((0, 3)),
-                    )
-                )
-            try:
-                centroids = cluster_keypoints([d for _, d in demos], idx, n_clusters=k, seed=0)
-            except StudioError as exc:
-                view.messages.append(f"{arm.capitalize()} arm: {exc}")
-                continue
-            view.centroids[arm] = np.asarray(centroids)
-            view.k[arm] = len(centroids)
-        self.persist_params()
-        return view
-
-    # -- training -----------------------------------------------------------------------------------------
-    def skills(self) -> dict[str, Any]:
-        return dict(self.session.skills)
-
-    def skill_demos(self, arm: str) -> list[tuple[int, Any]]:
-        """(index, Demo) of the demonstrations the current skill of ``arm`` was learned from, in order."""
-        names = self.demo_names()
-        sk = self.session.skills.get(arm)
-        used = list(getattr(sk, "demo_names", None) or []) or names
-        out = []
-        for nm in used:
-            if nm in names:
-                i = names.index(nm)
-                if arm in self.recordings()[i].arms:
-                    out.append((i, self.demo(i, arm)))
-        return out
-
-    def skill_demo_names(self, arm: str) -> list[str]:
-        return [self.demo_names()[i] for i, _ in self.skill_demos(arm)]
-
-    def train(self) -> Future:
-        """Learn the skill of every taught arm from the shown demos on the work thread."""
-        from studio.core.pipeline import learn_skill
-
-        with self.lock:
-            if self.training:
-                raise StudioError("Training is already running; wait for it to finish.")
-            arms = self.selected_arms
-            per_arm = {arm: self.demos_for(arm) for arm in arms}
-            for arm, demos in per_arm.items():
-                if len(demos) < 2:
-                    raise NotEnoughData(
-                        f"The {arm} arm needs at least two shown demonstrations to learn from "
-                        f"(it has {len(demos)}). Record more, or show hidden ones."
-                    )
-            params, k = self.params(), self.k_override
-            self.training = True
-        self.events.emit("training")
-
-        def job() -> dict[str, Any]:
-            skills = {}
-            for arm, demos in per_arm.items():
-                skills[arm] = learn_skill(
-                    [d for _, d in demos],
-                    params,
-                    n_clusters=k,
-                    seed=0,
-                    arm=arm,
-                    baxter=self.baxter,
-                    cache=self._kp_cache,
-                )
-            return skills
-
-        def done(skills: dict[str, Any] | None) -> None:
-            self.training = False
-            self.events.emit("training")
-            if skills is None:
-                return
-            with self.lock:
-                self.session.set_skills(skills, params=params)
-            self._preview = None
-            self.events.emit("skill")
-            self.notify("Training finished", "The robot learned the skill: open Preview to watch it.", kind="success")
-
-        def job_done(result: Any) -> None:
-            done(result)
-
-        fut = self.submit(job, done=job_done, title="Training failed")
-        fut.add_done_callback(lambda f: self._training_finished())
-        return fut
-
-    def _training_finished(self) -> None:
-        if self.training:  # the job failed: done() never ran
-            self.training = False
-            self.events.emit("training")
-
-    def ik_failures(self, arm: str) -> np.ndarray:
-        """(n, 3) positions of the learned path the arm cannot reach exactly."""
-        sk = self.session.skills.get(arm)
-        jt = getattr(sk, "joint_trajectory", None)
-        if sk is None or jt is None:
-            return np.zeros((0, 3))
-        bad = ~np.asarray(jt.converged, dtype=bool)
-        if not bad.any():
-            return np.zeros((0, 3))
-        tr = sk.trajectory
-        pos = np.column_stack([np.interp(jt.t, tr.t, tr.position[:, c]) for c in range(3)])
-        return pos[bad]
-
-    # -- preview and replay (the scene follows a ReplayBackend) ------------------------------------------
-    def _preview_recording(self) -> Any:
-        """The learned joint trajectories of all arms as one Recording (arms without a skill hold still)."""
-        from studio.core.types import Recording
-
-        skills = {a: s for a, s in self.session.skills.items() if getattr(s, "joint_trajectory", None) is not None}
-        if not skills:
-            raise NotEnoughData("There is no learned skill to preview yet: press Train first.")
-        t_end = max(float(s.joint_trajectory.t[-1] - s.joint_trajectory.t[0]) for s in skills.values())
-        n = max(2, int(t_end * 100.0) + 1)
-        t = np.linspace(0.0, max(t_end, 0.01), n)
-        q = np.tile(self.robot_q(), (n, 1))
-        g = np.tile(self.robot_gripper(), (n, 1))
-        for arm, s in skills.items():
-            jt = s.joint_trajectory
-            ts = np.asarray(jt.t) - float(jt.t[0])
-            cols = slice(0, 7) if arm == "left" else slice(7, 14)
-            tq = np.minimum(t, ts[-1])
-            q[:, cols] = np.column_stack([np.interp(tq, ts, np.asarray(jt.q)[:, j]) for j in range(7)])
-            tr = s.trajectory
-            tg = np.asarray(tr.t) - float(tr.t[0])
-            g[:, 0 if arm == "left" else 1] = np.interp(np.minimum(t, tg[-1]), tg, np.asarray(tr.gripper))
-        return Recording(t=t, q=q, gripper=np.clip(g, 0, 100), arms=tuple(skills), name="learned skill")
-
-    def _start_playback(self, kind: str, recording: Any, speed: float = 1.0) -> Playback:
-        self._stop_playback()
-        pb = Playback(kind, recording, speed)
-        self._playback = pb
-        self.display = pb.source
-        pb.play()
-        return pb
-
-    def _stop_playback(self) -> None:
-        pb, self._playback = self._playback, None
-        if pb is not None:
-            pb.close()
-
-    def preview_play(self, speed: float = 1.0) -> None:
-        pb = self._playback
-        if pb is not None and pb.kind == "preview":
-            if pb.finished:
-                pb.seek(0.0)
-            pb.set_speed(speed)
-            self.display = pb.source
-            pb.play()
-            return
-        self._start_playback("preview", self._preview_recording(), speed)
-
-    def preview_pause(self) -> None:
-        pb = self._playback
-        if pb is not None and pb.kind == "preview":
-            pb.pause()
-
-    def preview_speed(self, speed: float) -> None:
-        pb = self._playback
-        if pb is not None and pb.kind == "preview":
-            pb.set_speed(speed)
-
-    def preview_seek(self, t: float) -> None:
-        pb = self._playback
-        if pb is None or pb.kind != "preview":
-            pb = self._start_playback("preview", self._preview_recording())
-            pb.pause()
-        pb.seek(t)
-        self.display = pb.source
-
-    def preview_position(self) -> float | None:
-        pb = self._playback
-        return pb.position if pb is not None and pb.kind == "preview" and pb.playing else None
-
-    def preview_duration(self) -> float:
-        skills = [s for s in self.session.skills.values() if getattr(s, "joint_trajectory", None) is not None]
-        return max((float(s.joint_trajectory.t[-1] - s.joint_trajectory.t[0]) for s in skills), default=0.0)
-
-    def replay_demo(self, i: int, speed: float = 1.0) -> float:
-        """Replay recorded demonstration ``i`` on the (drawn) robot; returns its duration."""
-        pb = self._playback
-        rec = self.recordings()[i]
-        if pb is not None and pb.kind == "replay" and pb.recording is rec:
-            if pb.finished:
-                pb.seek(0.0)
-            self.display = pb.source
-            pb.play()
-        else:
-            self._start_playback("replay", rec, speed)
-        return float(rec.duration)
-
-    def replay_pause(self) -> None:
-        pb = self._playback
-        if pb is not None and pb.kind == "replay":
-            pb.pause()
-
-    def replay_stop(self) -> None:
-        if self._playback is not None and self._playback.kind == "replay":
-            self._stop_playback()
-        self.show_live()
-
-    def replay_seek(self, t: float) -> None:
-        pb = self._playback
-        if pb is None or pb.kind != "replay":
-            raise StudioError("Press Play first to choose a demonstration to replay.")
-        pb.seek(t)
-        self.display = pb.source
-
-    def replay_position(self) -> float | None:
-        pb = self._playback
-        return pb.position if pb is not None and pb.kind == "replay" and pb.playing else None
-
-    # -- sessions -----------------------------------------------------------------------------------------
-    def session_names(self) -> list[str]:
-        return self.store.list_sessions()
-
-    def open_session(self, name: str) -> None:
-        if self.recorder is not None:
-            raise StudioError("Stop the recording before opening another session.")
-        session = self.store.open(name)
-        self._switch(session)
-        self._startup_notes = self._session_notes(session)
-        for title, body in self._startup_notes:
-            self.notify(title, body, kind="warning")
-
-    def new_session(self, name: str) -> None:
-        from studio.sessions import check_session_name
-
-        if self.recorder is not None:
-            raise StudioError("Stop the recording before starting a new session.")
-        name = check_session_name((name or "").strip())
-        session = self.store.create(name, arms=self.selected_arms)
-        self._switch(session)
-        self.events.emit("sessions")
-
-    def save_session(self) -> None:
-        self.persist_params()
-        self.store.save(self.session)
-        self.notify("Saved", f'Session "{self.session.name}" is saved.', kind="success")
-
-    def duplicate_session(self, new_name: str) -> None:
-        from studio.sessions import check_session_name
-
-        new_name = check_session_name((new_name or "").strip())
-        self.save_session()
-        copy = self.store.duplicate(self.session.name, new_name)
-        self._switch(copy)
-        self.events.emit("sessions")
-
-    def session_zip(self) -> tuple[str, bytes]:
-        self.persist_params()
-        self.store.save(self.session)
-        return f"{self.session.name}.zip", self.store.export_zip(self.session.name)
-
-    def import_session_zip(self, filename: str, data: bytes) -> str:
-        """Add an uploaded session archive (validated first: a bad file changes nothing) and open it."""
-        name = self.store.import_zip(data)
-        self.events.emit("sessions")
-        self.open_session(name)
-        self.notify("Session uploaded", f'"{filename}" was added as session "{name}" and opened.', kind="success")
-        return name
-
-    def joint_trajectory_csv(self) -> tuple[str, bytes]:
-        import tempfile
-
-        from studio.csv_io import export_joint_trajectory_csv
-
-        with tempfile.TemporaryDirectory() as d:
-            path = Path(d) / f"{self.session.name}-trajectory.csv"
-            export_joint_trajectory_csv(self.session.skills, path)
-            return path.name, path.read_bytes()
-
-    def _switch(self, session: Any) -> None:
-        self._stop_playback()
-        with self.lock:
-            self.session = session
-            self._params = session.params
-            self._params_dirty = False
-            self.k_override = None
-            self.hidden_demos = set()
-            self._demo_cache = {}
-            self.selected_arms = self._session_arms()
-        self.show_live()
-        self.events.emit("session")
-
     # -- lifecycle ---------------------------------------------------------------------------------------
     def url(self) -> str:
         host = "127.0.0.1" if self.host in ("0.0.0.0", "") else self.host
@@ -952,23 +188,14 @@ class Studio:
         """Stop the pump, the backend and the server (idempotent)."""
         if self._stop.is_set():
             return
-        if self.recorder is not None:  # keep a take that was running when the studio was stopped
-            try:
-                self.stop_recording()
-            except Exception:
-                log.exception("saving the running recording at shutdown")
+        self.save_running_recording()  # keep a take that was running when the studio was stopped
         self._stop.set()
         try:
             self.panels.close()
         except Exception:
             log.exception("closing panels")
-        try:
-            self._unsubscribe()
-        except Exception:
-            pass
-        self.backend.stop()
         self._pump.join(timeout=2.0)
-        self._work.shutdown(wait=False, cancel_futures=True)
+        self.shutdown()
         self.server.stop()
 
 
@@ -1025,4 +252,18 @@ def serve(host: str, port: int, session: str | None, sessions_dir: Path | str, m
         app.stop()
 
 
-__all__ = ["ALL_ARM_JOINTS", "Studio", "build_app", "robot_urdf_path", "serve"]
+__all__ = [
+    "ALL_ARM_JOINTS",
+    "PALETTE",
+    "Controller",
+    "Events",
+    "KeypointItem",
+    "KeypointView",
+    "Playback",
+    "PoseSource",
+    "Studio",
+    "build_app",
+    "exposure_warning",
+    "robot_urdf_path",
+    "serve",
+]

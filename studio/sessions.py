@@ -3,7 +3,8 @@
 Layout of ``<root>/<name>/``::
 
     session.json          manifest (format "teaching-studio-session", version 1): name, robot, arms,
-                          creation time, notes, the ε parameters last used, the demos (file, name, arms,
+                          creation time, notes, the ε parameters last used, the number of clusters
+                          chosen by hand ("n_clusters": null = automatic; optional), the demos (file, name, arms,
                           samples, duration) and the learned skills (file, when, with which parameters)
     demos/d0001.npz       one demonstration: t (N,) s float64, q (N, 14) rad, gripper (N, 2) percent
     skills/left.npz       a learned skill, Skill.to_arrays() (one file per arm)
@@ -58,6 +59,8 @@ DEFAULT_ROOT = Path(__file__).resolve().parent.parent / "sessions"
 MAX_SAMPLES = 6 * 3600 * 1000
 MAX_MANIFEST_BYTES = 4 * 1024 * 1024
 MAX_DEMOS = 1000
+#: Largest number of clusters (k) kept with a session.
+MAX_CLUSTERS = 10_000
 #: Largest uncompressed array accepted inside a skill file (elements).
 MAX_SKILL_ELEMENTS = 50_000_000
 MAX_ZIP_BYTES = 8 * 1024**3
@@ -357,6 +360,10 @@ def _parse_manifest(path: Path, session: str) -> dict[str, Any]:
         m["_params"] = KeypointParams.from_dict(need("params", dict))
     except (InvalidInput, TypeError, ValueError) as exc:
         raise _damaged(session, rel, f"has invalid key-point thresholds ({exc})") from exc
+    try:
+        m["_n_clusters"] = _check_n_clusters(m.get("n_clusters"))
+    except InvalidInput as exc:
+        raise _damaged(session, rel, f'has an invalid "n_clusters" ({exc})') from exc
     prec = m.get("precision", "float64")
     if prec not in _PRECISIONS:
         raise _damaged(session, rel, f'has an unknown "precision" {prec!r}')
@@ -411,6 +418,15 @@ def _locked(fn: Callable[..., Any]) -> Callable[..., Any]:
     return wrapper
 
 
+def _check_n_clusters(k: Any) -> int | None:
+    """``k`` if it is a valid hand-chosen number of clusters (or None: automatic), else :class:`InvalidInput`."""
+    if k is None:
+        return None
+    if not isinstance(k, (int, np.integer)) or isinstance(k, bool) or not 1 <= int(k) <= MAX_CLUSTERS:
+        raise InvalidInput(f"The number of clusters must be a whole number from 1 to {MAX_CLUSTERS}, or automatic.")
+    return int(k)
+
+
 # -- the session --------------------------------------------------------------------------------------------
 @dataclass
 class Session:
@@ -426,6 +442,8 @@ class Session:
     created: str = field(default_factory=_now)
     notes: str = ""
     params: KeypointParams = field(default_factory=KeypointParams)
+    #: k, the number of clusters chosen by hand (None: automatic, the pipeline's default).
+    n_clusters: int | None = None
     recordings: list[Recording] = field(default_factory=list)
     skills: dict[str, Any] = field(default_factory=dict)
     precision: str = "float64"
@@ -578,6 +596,12 @@ class Session:
         self._write_manifest()
 
     @_locked
+    def set_n_clusters(self, k: int | None) -> None:
+        """Remember k, the number of clusters chosen by hand (None: choose it automatically)."""
+        self.n_clusters = _check_n_clusters(k)
+        self._write_manifest()
+
+    @_locked
     def set_notes(self, notes: str) -> None:
         if not isinstance(notes, str) or len(notes) > 100_000:
             raise InvalidInput("Notes must be text of at most 100,000 characters.")
@@ -594,17 +618,26 @@ class Session:
 
     @_locked
     def set_skills(
-        self, skills: Mapping[str, Any], params: KeypointParams | None = None, demos: Iterable[str] | None = None
+        self,
+        skills: Mapping[str, Any],
+        params: KeypointParams | None = None,
+        demos: Iterable[str] | Mapping[str, Iterable[str]] | None = None,
     ) -> None:
         """Save learned skills (arm -> Skill, each with ``to_arrays()``), replacing the previous ones.
 
         Args:
             params: the thresholds they were learned with (also become the session's parameters).
-            demos: names of the demonstrations they were learned from (default: all of the session's).
+            demos: names of the demonstrations they were learned from: one list for every arm, or a mapping
+                arm -> names (default: all of the session's).
         """
         for arm in skills:
             if arm not in ARMS:
                 raise InvalidInput(f'Unknown arm "{arm}" for a skill.')
+        if isinstance(demos, Mapping):
+            per_arm = {arm: list(demos.get(arm, self.demo_names)) for arm in skills}
+        else:
+            names = list(demos) if demos is not None else self.demo_names
+            per_arm = {arm: list(names) for arm in skills}
         for arm, sk in skills.items():
             atomic_write_npz(self.path / SKILL_DIR / f"{arm}.npz", dict(sk.to_arrays()))
         old = set(self.skills) - set(skills)
@@ -616,7 +649,7 @@ class Session:
                 "file": f"{SKILL_DIR}/{arm}.npz",
                 "learned": _now(),
                 "params": self.params.as_dict(),
-                "demos": list(demos) if demos is not None else self.demo_names,
+                "demos": per_arm[arm],
             }
             for arm in skills
         }
@@ -638,6 +671,7 @@ class Session:
             "modified": _now(),
             "notes": self.notes,
             "params": self.params.as_dict(),
+            "n_clusters": self.n_clusters,
             "precision": self.precision,
             "next_id": self._next_id,
             "demos": [
@@ -686,6 +720,7 @@ def load_session(path: Path, *, skip_damaged: bool = False) -> Session:
         created=m["created"],
         notes=m["notes"],
         params=m["_params"],
+        n_clusters=m["_n_clusters"],
         precision=m.get("precision", "float64"),
         skills_stale=bool(m.get("skills_stale", False)),
     )
