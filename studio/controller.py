@@ -28,6 +28,7 @@ from studio.core.errors import NotEnoughData, StudioError
 from studio.core.kinematics import Baxter
 from studio.core.types import ARMS, KeypointParams
 from studio.robot_backend.base import JointStateBatch, RobotBackend
+from studio.sessions import MAX_CLUSTERS
 
 log = logging.getLogger("studio")
 
@@ -549,6 +550,8 @@ class Controller:
         """Choose k, the number of clusters (None: automatic); kept with the session like the ε values."""
         if k is not None and k < 1:
             raise StudioError("The number of clusters must be at least 1.")
+        if k is not None and k > MAX_CLUSTERS:
+            raise StudioError(f"The number of clusters can be at most {MAX_CLUSTERS:,}.")
         with self.lock:
             self.k_override = k
             self._params_dirty = True
@@ -846,6 +849,8 @@ class Controller:
 
     def import_session_zip(self, filename: str, data: bytes) -> str:
         """Add an uploaded session archive (validated first: a bad file changes nothing) and open it."""
+        if self.recorder is not None:  # checked first so that a refused upload adds nothing
+            raise StudioError("Stop the recording before uploading a session.")
         name = self.store.import_zip(data)
         self.events.emit("sessions")
         self.open_session(name)

@@ -256,3 +256,61 @@ def test_charts_are_plain_svg() -> None:
     plot = position_plot_svg(t, p, [0, 100, 4999], title="demo", color=(1, 2, 3))
     assert 'data-keypoints="3"' in plot and plot.count("<polyline") == 3
     assert len(downsample_path(p, 600)) <= 601 and segments(p[:3]).shape == (2, 2, 3)
+
+
+def test_k_override_is_kept_with_the_session(app: Studio, sessions: Path) -> None:
+    app.set_k(5)
+    app.persist_params()  # what the key-point thread does after each change
+    assert SessionStore(sessions).open("stack-cup").n_clusters == 5
+    app.new_session("automatic k")
+    assert app.k_override is None and app.panels.keypoints.k_auto.value
+    app.open_session("stack-cup")
+    kp = app.panels.keypoints
+    assert app.k_override == 5 and app.keypoint_view().k["left"] == 5
+    assert not kp.k_auto.value and kp.k.value == 5 and not kp.k.disabled
+    with pytest.raises(StudioError, match="at least 1"):
+        app.set_k(0)
+    app.reset_params()
+    app.persist_params()
+    assert SessionStore(sessions).open("stack-cup").n_clusters is None
+
+
+def test_k_override_comes_back_after_a_restart(sessions: Path) -> None:
+    a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
+    try:
+        a.set_k(6)
+        a.save_session()
+    finally:
+        a.stop()
+    b = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
+    try:
+        assert b.k_override == 6 and b.panels.keypoints.k.value == 6 and not b.panels.keypoints.k_auto.value
+    finally:
+        b.stop()
+
+
+def test_buttons_that_cannot_act_now_are_disabled(app: Studio, sessions: Path) -> None:
+    teach, files = app.panels.teach, app.panels.sessions
+    assert not teach.record_btn.disabled and teach.stop_btn.disabled and teach.discard_btn.disabled
+    assert files.export.disabled and not files.upload.disabled and files.replay_time.disabled
+    app.start_recording()
+    assert teach.record_btn.disabled and not teach.stop_btn.disabled and not teach.discard_btn.disabled
+    assert files.upload.disabled
+    _, data = app.session_zip()
+    before = sorted(p.name for p in sessions.iterdir())
+    with pytest.raises(StudioError, match="Stop the recording"):  # a raced click still gets plain words
+        app.import_session_zip("copy.zip", data)
+    assert sorted(p.name for p in sessions.iterdir()) == before
+    app.discard_recording()
+    assert not teach.record_btn.disabled and teach.stop_btn.disabled and not files.upload.disabled
+    with pytest.raises(StudioError, match="Nothing is being recorded"):
+        app.stop_recording()
+    app.replay_demo(0)
+    assert not files.replay_time.disabled
+    app.replay_stop()
+    assert files.replay_time.disabled
+    app.set_demo_visible(0, False)  # trained from demos 2 and 3 only: the session remembers which
+    app.train().result(timeout=120)
+    assert not files.export.disabled
+    assert app.session.skill_info["left"]["demos"] == app.demo_names()[1:]
+    assert SessionStore(sessions).open("stack-cup").skill_info["left"]["demos"] == app.demo_names()[1:]

@@ -189,6 +189,50 @@ def test_skills_round_trip_through_to_arrays(store: SessionStore, three, monkeyp
         store.open("three demos")
 
 
+def test_number_of_clusters_is_kept_with_the_session(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+    assert three.n_clusters is None and store.open("three demos").n_clusters is None  # automatic by default
+    three.set_n_clusters(7)
+    assert json.loads((three.path / "session.json").read_text())["n_clusters"] == 7
+    assert store.open("three demos").n_clusters == 7
+    dup = store.duplicate("three demos", "copy")
+    assert dup.n_clusters == 7
+    assert store.open(store.import_zip(store.export_zip("three demos"))).n_clusters == 7
+    three.set_n_clusters(None)
+    assert store.open("three demos").n_clusters is None
+    for bad in (0, -3, 2.5, "7", True, 10**9):
+        with pytest.raises(InvalidInput, match="number of clusters"):
+            three.set_n_clusters(bad)  # type: ignore[arg-type]
+    assert store.open("three demos").n_clusters is None  # a refused value changes nothing
+
+
+def test_manifests_without_n_clusters_still_load(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+    m = json.loads((three.path / "session.json").read_text())
+    del m["n_clusters"]
+    (three.path / "session.json").write_text(json.dumps(m))
+    loaded = store.open("three demos")
+    assert loaded.n_clusters is None and loaded.demo_names == ["demo 1", "demo 2", "demo 3"]
+
+
+def test_skills_remember_the_demos_of_each_arm(store: SessionStore, three, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    import studio.core.types as types
+
+    class FakeSkill:
+        def to_arrays(self) -> dict[str, np.ndarray]:
+            return {"a": np.arange(3.0)}
+
+        @classmethod
+        def from_arrays(cls, d):  # type: ignore[no-untyped-def]
+            return cls()
+
+    monkeypatch.setattr(types, "Skill", FakeSkill, raising=False)
+    three.set_skills({"left": FakeSkill(), "right": FakeSkill()}, demos={"left": ["demo 2", "demo 3"]})
+    info = store.open("three demos").skill_info
+    assert info["left"]["demos"] == ["demo 2", "demo 3"]
+    assert info["right"]["demos"] == ["demo 1", "demo 2", "demo 3"]  # not given: all of the session's
+    three.set_skills({"left": FakeSkill()}, demos=["demo 1"])
+    assert store.open("three demos").skill_info["left"]["demos"] == ["demo 1"]
+
+
 # -- bad files: every case names the file and the problem, and touches nothing -----------------------------
 def _expect_error(store: SessionStore, name: str, pattern: str) -> SessionFormatError:
     before = snapshot(store.root)
@@ -398,3 +442,11 @@ def test_add_recording_refuses_bad_input(store: SessionStore) -> None:
         s.add_recording(make_rec(), name="bad\nname")
     with pytest.raises(InvalidInput, match="already exists"):
         store.create("bad")
+
+
+@pytest.mark.parametrize("value", [0, -1, 2.5, "12", True, 10**9, [3]])
+def test_invalid_n_clusters_in_the_manifest_is_named(store: SessionStore, three, value) -> None:  # type: ignore[no-untyped-def]
+    m = json.loads((three.path / "session.json").read_text())
+    m["n_clusters"] = value
+    (three.path / "session.json").write_text(json.dumps(m))
+    _expect_error(store, "three demos", '"session.json".*invalid "n_clusters"')

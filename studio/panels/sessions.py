@@ -26,13 +26,30 @@ class SessionsPanel:
         with gui.add_folder("Replay a demonstration"):
             self.replay_pick = gui.add_dropdown("Demonstration", options=app.demo_names() or ["(none)"])
             self.replay_controls = gui.add_button_group("Replay", options=("Play", "Pause", "Stop"))
-            self.replay_time = gui.add_slider("Replay time (s)", min=0.0, max=1.0, step=0.01, initial_value=0.0)
+            self.replay_time = gui.add_slider(
+                "Replay time (s)",
+                min=0.0,
+                max=1.0,
+                step=0.01,
+                initial_value=0.0,
+                disabled=app.playback_kind() != "replay",
+                hint="Press Play first, then move to any moment of the demonstration.",
+            )
         with gui.add_folder("Files"):
             self.download = gui.add_button("Download session (.zip)", icon=viser.Icon.DOWNLOAD)
             self.upload = gui.add_upload_button(
-                "Upload session (.zip)", icon=viser.Icon.UPLOAD, mime_type=".zip,application/zip"
+                "Upload session (.zip)",
+                icon=viser.Icon.UPLOAD,
+                mime_type=".zip,application/zip",
+                disabled=app.recorder is not None,
+                hint="Add a downloaded session and open it (not while recording).",
             )
-            self.export = gui.add_button("Export joint trajectory (Baxter SDK CSV)", icon=viser.Icon.FILE_EXPORT)
+            self.export = gui.add_button(
+                "Export joint trajectory (Baxter SDK CSV)",
+                icon=viser.Icon.FILE_EXPORT,
+                disabled=not app.skills(),
+                hint="The learned skill as a file the Baxter SDK can play back (train first).",
+            )
         self._last_sync = 0.0
 
         self.actions.on_click(app.guarded("The session action did not work")(self._on_action))
@@ -44,6 +61,17 @@ class SessionsPanel:
         app.events.on("session", self.refresh)
         app.events.on("sessions", self.refresh)
         app.events.on("demos", self.refresh)
+        # Buttons that cannot act now are disabled (the actions still refuse in plain words if raced).
+        app.events.on("session", self._sync_enabled)
+        app.events.on("skill", self._sync_enabled)
+        app.events.on("recording", self._sync_enabled)
+        app.events.on("playback", self._sync_enabled)
+
+    def _sync_enabled(self) -> None:
+        with self.app.server.atomic():
+            self.export.disabled = not self.app.skills()
+            self.upload.disabled = self.app.recorder is not None
+            self.replay_time.disabled = self.app.playback_kind() != "replay"
 
     def _current_text(self) -> str:
         s = self.app.session
