@@ -175,7 +175,7 @@ def _task_keys(task: str, rng: np.random.Generator, home: np.ndarray) -> list[_K
             _Key(a + up, ya, rng.uniform(0.0, 0.3), 0.10),
             _Key(b + up, yb, rng.uniform(0.1, 0.4), 0.16),
             _Key(b, yb, rng.uniform(1.1, 1.6), 0.06, "open", "contact"),
-            _Key(b + up, yb, rng.uniform(0.5, 1.0), 0.10),
+            _Key(b + up, yb, rng.uniform(0.4, 0.8), 0.10),
             _Key(b, yb, rng.uniform(1.1, 1.6), 0.06, "close", "contact"),
             _Key(b + up, yb, rng.uniform(0.0, 0.3), 0.10),
             _Key(a + up, ya, rng.uniform(0.1, 0.4), 0.16),
@@ -231,7 +231,7 @@ def _plan_arm(
         keys = [_Key(_mirror(k.position), -k.yaw, k.hold, k.speed, k.grip, k.kind) for k in keys]
         keys[0].position = home + (keys[0].position - _mirror(home))
         keys[-1].position = home + (keys[-1].position - _mirror(home))
-    pace = rng.uniform(0.82, 1.3)  # this demonstration's overall speed
+    pace = rng.uniform(0.82, 1.3) * (1.25 if task == "pick-place" else 1.0)  # overall speed
     oris = [_down(k.yaw, rng.normal(0, 0.03, 3)) for k in keys]
     oris[0] = home_ori
     oris[-1] = quat_wxyz_from_matrix(_rotvec_matrix(rng.normal(0, 0.01, 3)) @ matrix_from_quat_wxyz(home_ori))

@@ -190,9 +190,9 @@ class KeypointParams:
     eps2: float = 0.01
     eps3: float = 0.5
     eps4: float = 0.02
-    eps5: float = 0.12
+    eps5: float = 0.14
     eps6: float = 0.5
-    eps7: float = 0.12
+    eps7: float = 0.14
     eps8: float = _TWO_PI - 2.2
     eps9: float = 0.02
     eps10: float = 0.5
