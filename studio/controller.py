@@ -28,12 +28,9 @@ from studio.core.errors import NotEnoughData, StudioError
 from studio.core.kinematics import Baxter
 from studio.core.types import ARMS, KeypointParams
 from studio.robot_backend.base import JointStateBatch, RobotBackend
-from studio.sessions import MAX_CLUSTERS
+from studio.sessions import MAX_CLUSTERS, SessionStore
 
 log = logging.getLogger("studio")
-
-F = TypeVar("F", bound=Callable[..., Any])
-
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -178,7 +175,9 @@ class Controller:
         live / display: the live robot pose, and the pose source the scene draws (live, replay or preview).
     """
 
-    def __init__(self, *, store: Any, session: str, backend: RobotBackend, baxter: Baxter | None = None) -> None:
+    def __init__(
+        self, *, store: SessionStore, session: str, backend: RobotBackend, baxter: Baxter | None = None
+    ) -> None:
         self.events = Events()
         self.lock = threading.RLock()
         self.baxter = baxter if baxter is not None else Baxter.load()
