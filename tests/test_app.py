@@ -314,3 +314,15 @@ def test_buttons_that_cannot_act_now_are_disabled(app: Studio, sessions: Path) -
     assert not files.export.disabled
     assert app.session.skill_info["left"]["demos"] == app.demo_names()[1:]
     assert SessionStore(sessions).open("stack-cup").skill_info["left"]["demos"] == app.demo_names()[1:]
+
+
+def test_a_k_outside_the_slider_range_still_opens(sessions: Path) -> None:
+    SessionStore(sessions).open("stack-cup").set_n_clusters(500)  # possible from code, not from the slider
+    a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
+    try:
+        assert a.k_override == 500 and a.panels.keypoints.k.value == 40
+        a.session.set_n_clusters(1)
+        a.open_session("stack-cup")
+        assert a.k_override == 1 and a.panels.keypoints.k.value == 2
+    finally:
+        a.stop()

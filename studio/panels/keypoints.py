@@ -108,6 +108,12 @@ ORIENTATION_SLIDERS: tuple[tuple[str, str, str, float, float, float, str], ...] 
 )
 SYMBOL = {f"eps{i}": f"ε{i}" for i in range(1, 15)}
 CENTROID_COLOR = (220, 20, 20)
+#: Range of the k slider; a session may hold a k outside it (set in code): the slider shows the nearest end.
+K_MIN, K_MAX, K_DEFAULT = 2, 40, 12
+
+
+def _k_shown(k: int | None) -> int:
+    return K_DEFAULT if k is None else min(max(int(k), K_MIN), K_MAX)
 
 
 def slider_label(name: str, words: str) -> str:
@@ -145,10 +151,10 @@ class KeypointsPanel:
             )
             self.k = gui.add_slider(
                 "Clusters (k)",
-                min=2,
-                max=40,
+                min=K_MIN,
+                max=K_MAX,
                 step=1,
-                initial_value=app.k_override or 12,
+                initial_value=_k_shown(app.k_override),
                 disabled=app.k_override is None,
             )
             self.reset = gui.add_button(
@@ -209,7 +215,7 @@ class KeypointsPanel:
             self.k_auto.value = self.app.k_override is None
             self.k.disabled = self.app.k_override is None
             if self.app.k_override is not None:
-                self.k.value = int(self.app.k_override)
+                self.k.value = _k_shown(self.app.k_override)
 
     # -- recompute off the GUI threads; the newest request wins -----------------------------------------
     def request(self) -> None:
