@@ -176,7 +176,7 @@ def train(
     *,
     seed: int = 0,
     n_iter: int = 100,
-    tol: float = 1e-4,
+    tol: float = 1e-3,
 ) -> HmmResult:
     """Bakis initialisation, Baum–Welch on all sequences, Viterbi, forward selection of the reference.
 
