@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Runs the whole test suite on a fresh machine: virtual environment, packages, Debian's chromium for the
-# browser tests (installed with apt-get when missing), lint, then pytest. Extra arguments go to pytest.
+# browser tests (installed with apt-get when missing), lint and type checks, then pytest. Extra arguments go to pytest.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
@@ -12,7 +12,8 @@ if [ ! -x /usr/bin/chromium ]; then
   $SUDO apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq chromium >/dev/null
 fi
-echo "==> lint (ruff)"
+echo "==> lint (ruff) and types (mypy)"
 .venv/bin/ruff check studio tests bench scripts
+.venv/bin/mypy
 echo "==> tests"
 exec .venv/bin/python -m pytest "$@"

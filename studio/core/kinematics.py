@@ -16,6 +16,7 @@ import sys
 import threading
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -225,11 +226,11 @@ class _ArmChain:
         n = Q.shape[0]
         c, s = np.cos(Q).T.copy(), np.sin(Q).T.copy()
         B = self.base
-        R = [[np.full(n, B[r, k]) for k in range(3)] for r in range(3)]
-        p = [np.full(n, B[r, 3]) for r in range(3)]
+        R: list[list[Any]] = [[np.full(n, B[r, k]) for k in range(3)] for r in range(3)]
+        p: list[Any] = [np.full(n, B[r, 3]) for r in range(3)]
 
-        def mix(row: list[np.ndarray], col: np.ndarray) -> np.ndarray | float:
-            out: np.ndarray | float = 0.0
+        def mix(row: list[Any], col: np.ndarray) -> Any:
+            out: Any = 0.0
             for k in range(3):
                 if col[k] != 0.0:
                     out = out + row[k] * col[k]

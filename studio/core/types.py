@@ -22,7 +22,7 @@ ALL_ARM_JOINTS: tuple[str, ...] = ARM_JOINTS["left"] + ARM_JOINTS["right"]
 
 def readonly(a: np.ndarray | list | tuple, dtype: type = np.float64) -> np.ndarray:
     """Return a C-contiguous read-only copy of ``a`` (a view is not enough: the caller keeps ``a``)."""
-    out = np.array(a, dtype=dtype, copy=True, order="C")
+    out: np.ndarray = np.array(a, dtype=dtype, copy=True, order="C")
     out.setflags(write=False)
     return out
 
