@@ -39,7 +39,7 @@ import zipfile
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
 
@@ -115,14 +115,14 @@ def _fsync_dir(d: Path) -> None:
             os.close(fd)
 
 
-def atomic_write_bytes(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically: temporary file in the same folder, fsync, rename."""
+def _atomic_write(path: Path, write: Callable[[BinaryIO], object]) -> None:
+    """Call ``write`` on a temporary file in ``path``'s folder, fsync it, then rename it onto ``path``."""
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".tmp-{path.name}-", dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as f:
             os.fchmod(f.fileno(), 0o644)  # mkstemp makes 0600; session files are ordinary documents
-            f.write(data)
+            write(f)
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
@@ -131,6 +131,11 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
             os.unlink(tmp)
         raise
     _fsync_dir(path.parent)
+
+
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` atomically: temporary file in the same folder, fsync, rename."""
+    _atomic_write(path, lambda f: f.write(data))
 
 
 def atomic_write_npz(path: Path, arrays: Mapping[str, np.ndarray], *, compress: bool = True) -> None:
@@ -138,20 +143,8 @@ def atomic_write_npz(path: Path, arrays: Mapping[str, np.ndarray], *, compress: 
     for k, a in arrays.items():
         if np.asarray(a).dtype.hasobject:
             raise InvalidInput(f"Cannot save {k!r}: it is not a plain numeric array.")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".tmp-{path.name}-", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            os.fchmod(f.fileno(), 0o644)
-            _write_npz(f, arrays, compress=compress)  # streamed: no second copy of the data in memory
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
-    _fsync_dir(path.parent)
+    # streamed into the file: no second copy of the data in memory
+    _atomic_write(path, lambda f: _write_npz(f, arrays, compress=compress))
 
 
 def npz_bytes(arrays: Mapping[str, np.ndarray], *, compress: bool = True) -> bytes:
