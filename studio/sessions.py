@@ -473,9 +473,13 @@ class Session:
         if name not in names:
             return name
         i = 2
-        while f"{name} ({i})" in names:
+        while True:
+            suffix = f" ({i})"
+            # Cut the base so that name and suffix stay within the 100-character limit reload enforces.
+            candidate = f"{name[: 100 - len(suffix)].rstrip()}{suffix}"
+            if candidate not in names:
+                return check_demo_name(candidate)
             i += 1
-        return f"{name} ({i})"
 
     def _check_index(self, i: int) -> int:
         if not isinstance(i, (int, np.integer)) or not 0 <= int(i) < len(self.recordings):

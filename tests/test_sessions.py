@@ -136,6 +136,15 @@ def test_duplicate_names_get_a_suffix(store: SessionStore) -> None:
     assert s.demo_names == ["take", "take (2)"]
 
 
+def test_duplicate_long_names_stay_within_the_limit_and_reload(store: SessionStore) -> None:
+    s = store.create("long")
+    for _ in range(3):
+        s.add_recording(make_rec(50, name="x" * 99))
+    assert [len(n) for n in s.demo_names] == [99, 100, 100]
+    assert s.demo_names[1] == "x" * 96 + " (2)" and s.demo_names[2] == "x" * 96 + " (3)"
+    assert store.open("long").demo_names == s.demo_names
+
+
 def test_duplicate_and_zip_round_trip(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
     copy = store.duplicate("three demos", "copy")
     assert copy.demo_names == three.demo_names
