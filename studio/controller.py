@@ -24,7 +24,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from studio.core.errors import NotEnoughData, StudioError
+from studio.core.errors import InvalidInput, NotEnoughData, StudioError
 from studio.core.kinematics import Baxter
 from studio.core.types import ARMS, KeypointParams
 from studio.robot_backend.base import JointStateBatch, RobotBackend
@@ -425,7 +425,11 @@ class Controller:
             self.recorder = None
             try:
                 recording = rec.stop()
-                self.session.add_recording(recording)
+                try:
+                    self.session.add_recording(recording)
+                except InvalidInput:
+                    rec.discard()  # a take the session refuses (e.g. one sample) must not be recovered at next open
+                    raise
                 rec.discard()
             finally:
                 self.events.emit("recording")

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from studio.core.errors import InvalidInput, RecordingError
+from studio.core.errors import InvalidInput, RecordingError, StudioError
 from studio.core.types import ARMS, Recording
 from studio.robot_backend.base import JointStateBatch, RobotBackend
 
@@ -539,9 +539,31 @@ def recover_recordings(directory: str | os.PathLike[str], session: Any = None) -
                 p.unlink()
             continue
         rec = demo.recording
-        rec = Recording(t=rec.t, q=rec.q, gripper=rec.gripper, arms=rec.arms, name=f"{rec.name} (recovered)")
+        if len(rec) < 2:
+            # One sample is not a demonstration (a session refuses it): say so and remove the file.
+            with contextlib.suppress(OSError):
+                p.unlink()
+            damaged.append(
+                f'The recording file "{p.name}" held a single sample, which is not a demonstration; it was removed.'
+            )
+            continue
+        suffix = " (recovered)"
+        rec = Recording(
+            t=rec.t, q=rec.q, gripper=rec.gripper, arms=rec.arms, name=f"{rec.name[: 100 - len(suffix)]}{suffix}"
+        )
         if session is not None:
-            session.add_recording(rec)
+            try:
+                session.add_recording(rec)
+            except StudioError as exc:
+                # Keep the file aside (no longer a pending "*.rec") so the session still opens next time.
+                aside = p.with_name(p.name + ".damaged")
+                with contextlib.suppress(OSError):
+                    p.rename(aside)
+                damaged.append(
+                    f'The recording file "{p.name}" could not be added to the session ({exc}); '
+                    f'it was kept as "{aside.name}" in the folder "{p.parent}".'
+                )
+                continue
             with contextlib.suppress(OSError):
                 p.unlink()
         recs.append(rec)

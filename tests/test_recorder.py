@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from studio.core.errors import RecordingError
+from studio.core.errors import InvalidInput, RecordingError
 from studio.core.kinematics import Baxter
 from studio.recorder import Recorder, pending_recordings, read_recording_file, recover_recordings
 from studio.robot_backend.base import JointStateBatch, RobotBackend, RobotState
@@ -228,3 +228,73 @@ def test_memory_stays_bounded_when_the_producer_outruns_the_writer(
     assert worst <= 600  # the producer waited for the writer instead of piling up samples
     assert rec.n_samples == 6000
     assert len(rec.stop()) == 6000
+
+
+def test_a_one_sample_take_left_by_a_crash_does_not_block_the_session(tmp_path: Path) -> None:
+    store = SessionStore(tmp_path / "sessions")
+    session = store.create("s1")
+    sim = SimulatedBaxter()
+    rec = Recorder(sim, session.recording_dir, ("left",), name="demo 1")
+    rec.start()
+    sim.step(1)
+    rec.flush()
+    rec._finish()  # the process died: the file stays, unlocked, with a single sample
+    assert rec.path is not None
+    first = store.open("s1")
+    assert first.recordings == [] and f'"{rec.path.name}"' in first.recovery_message
+    assert "not a demonstration" in first.recovery_message
+    assert not rec.path.exists() and pending_recordings(session.recording_dir) == []
+    assert store.open("s1").recovery_message == ""
+
+
+def test_one_sample_recovery_message_names_the_file(tmp_path: Path) -> None:
+    sim = SimulatedBaxter()
+    rec = Recorder(sim, tmp_path, ("left",), name="demo 1")
+    rec.start()
+    sim.step(1)
+    rec.flush()
+    rec._finish()
+    assert rec.path is not None
+    recs, msg = recover_recordings(tmp_path)
+    assert recs == [] and f'"{rec.path.name}"' in msg and "single sample" in msg
+    assert not rec.path.exists()
+
+
+def test_a_recording_the_session_refuses_is_kept_aside_and_reported(tmp_path: Path) -> None:
+    store = SessionStore(tmp_path / "sessions")
+    session = store.create("s1")
+    sim = SimulatedBaxter()
+    rec = Recorder(sim, session.recording_dir, ("left",), name="demo 1")
+    rec.start()
+    sim.step(50)
+    rec.flush()
+    rec._finish()
+    assert rec.path is not None
+
+    class Refusing:
+        def add_recording(self, r):  # type: ignore[no-untyped-def]
+            raise InvalidInput("A session holds at most 1000 demonstrations.")
+
+    recs, msg = recover_recordings(session.recording_dir, session=Refusing())
+    assert recs == []
+    assert f'"{rec.path.name}"' in msg and "at most 1000" in msg and f'"{rec.path.name}.damaged"' in msg
+    assert not rec.path.exists() and rec.path.with_name(rec.path.name + ".damaged").exists()
+    assert store.open("s1").recovery_message == ""  # set aside: the next open is clean
+
+
+def test_stopping_a_take_the_session_refuses_leaves_nothing_for_the_next_open(tmp_path: Path) -> None:
+    from studio.controller import Controller
+
+    store = SessionStore(tmp_path / "sessions")
+    store.create("s1")
+    sim = SimulatedBaxter()
+    ctl = Controller(store=store, session="s1", backend=sim)
+    try:
+        ctl.start_recording()
+        sim.step(1)
+        with pytest.raises(InvalidInput, match="at least two"):
+            ctl.stop_recording()
+        assert pending_recordings(ctl.session.recording_dir) == []
+        assert store.open("s1").recovery_message == ""
+    finally:
+        ctl.shutdown()
