@@ -188,7 +188,9 @@ def joint_trajectory(
     if res.position_error > 0.01 or res.orientation_error > 0.1:
         raise IkFailed(
             f"The {arm} arm cannot reach the learned skill's start pose "
-            f"({res.position_error * 1000:.0f} mm away). Teach the task closer to the robot."
+            f"({res.position_error * 1000:.0f} mm away, gripper turned "
+            f"{math.degrees(res.orientation_error):.0f}° from the taught direction). "
+            "Teach the task closer to the robot, with the gripper in a direction the arm can hold."
         )
     qk = np.empty((knots.shape[0], 7))
     q = res.q

@@ -38,6 +38,18 @@ from hmmlearn.hmm import CategoricalHMM
 from studio.core.errors import InvalidInput, LearningFailed
 from studio.core.types import readonly
 
+
+def _quiet_rounding_dips(record: logging.LogRecord) -> bool:
+    """hmmlearn only logs (never raises) when the likelihood dips by float rounding; keep that quiet.
+
+    A filter on hmmlearn's logger, installed once: thread-safe, unlike toggling the logger's level
+    around each fit.
+    """
+    return record.levelno >= logging.ERROR
+
+
+logging.getLogger("hmmlearn.base").addFilter(_quiet_rounding_dips)
+
 #: Uniform share of each emission row at initialisation (keeps out-of-order symbols possible).
 EMISSION_FLOOR = 0.01
 #: Dirichlet prior − 1 on every allowed parameter (keeps unreached states' rows valid).
@@ -200,14 +212,7 @@ def train(
     pi, A, B = bakis_init(sequences, n_states)
     model = make_model(pi, A, B, seed=seed, n_iter=n_iter, tol=tol)
     X, lengths = _stack(sequences)
-    # hmmlearn only logs (never raises) when the likelihood dips by float rounding; keep it quiet.
-    log = logging.getLogger("hmmlearn.base")
-    level = log.level
-    log.setLevel(logging.ERROR)
-    try:
-        model.fit(X, lengths)
-    finally:
-        log.setLevel(level)
+    model.fit(X, lengths)
     loglik = np.array([forward_loglik(model, s) for s in sequences])
     if not np.all(np.isfinite(loglik)):
         raise LearningFailed(

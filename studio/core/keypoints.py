@@ -99,8 +99,13 @@ class KeypointSeries:
             m = np.zeros(len(self), dtype=bool)
             m[corner_candidates(angle, threshold)] = True
             m.setflags(write=False)
+            # The cache is shared by the slider and training threads; keep every step race-tolerant
+            # (two threads may evict the same oldest entry) rather than bring a lock into the core.
             if len(cache) >= 8:
-                cache.pop(next(iter(cache)))
+                try:
+                    cache.pop(next(iter(cache)), None)
+                except (StopIteration, RuntimeError):
+                    pass
             cache[key] = m
         return m
 

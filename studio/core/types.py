@@ -7,6 +7,7 @@ demonstration by accident (the pattern pink uses for its configurations).
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -204,8 +205,10 @@ class KeypointParams:
     def __post_init__(self) -> None:
         for f in fields(self):
             v = getattr(self, f.name)
-            if not isinstance(v, (int, float)) or not math.isfinite(v):
+            if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(float(v)):
                 raise InvalidInput(f"Threshold {f.name} must be a number, got {v!r}.")
+            v = float(v)  # numpy scalars from a slider or a file become plain floats (JSON, hashing)
+            object.__setattr__(self, f.name, v)
             if f.name in ("eps1", "eps8"):
                 if not (math.pi <= v <= _TWO_PI):
                     raise InvalidInput(f"Corner sharpness ({f.name}) must lie between π and 2π (got {v:.3f}).")

@@ -224,3 +224,48 @@ def test_too_short_demo_is_refused_in_plain_words():
     with pytest.raises(NotEnoughData, match="Demo 4"):
         extract_keypoints(d)
     assert issubclass(NotEnoughData, StudioError)
+
+
+def test_corner_cache_is_safe_across_threads() -> None:
+    """The slider thread and the training thread share one series; evicting the cache must never raise."""
+    import sys
+    import threading
+
+    from studio.core.keypoints import precompute
+    from studio.core.types import Demo
+
+    n = 200  # short, so each call is quick and the threads interleave inside the cache update
+    t = np.arange(n) / 1000.0
+    pos = np.column_stack([np.sin(t * 30), np.cos(t * 30), t])
+    series = precompute(Demo(t, pos, np.tile([1.0, 0, 0, 0], (n, 1)), np.full(n, 50.0)))
+    errors: list[BaseException] = []
+
+    def hammer(seed: int) -> None:
+        rng = np.random.default_rng(seed)
+        try:
+            for _ in range(20_000):
+                series.corner_mask("position", float(rng.uniform(0.0, 3.0)))
+                if errors:
+                    return
+        except Exception as exc:  # the test reports any failure
+            errors.append(exc)
+
+    old = sys.getswitchinterval()
+    sys.setswitchinterval(1e-6)
+    try:
+        threads = [threading.Thread(target=hammer, args=(k,)) for k in range(3)]
+        for th in threads:
+            th.start()
+        for th in threads:
+            th.join()
+    finally:
+        sys.setswitchinterval(old)
+    assert not errors, errors
+
+
+def test_thresholds_accept_numpy_numbers() -> None:
+    from studio.core.types import KeypointParams
+
+    p = KeypointParams(eps5=np.float32(0.2), eps2=np.float64(0.01))
+    assert isinstance(p.eps5, float) and abs(p.eps5 - 0.2) < 1e-6
+    assert p.as_dict()["eps2"] == 0.01
