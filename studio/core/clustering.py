@@ -207,6 +207,11 @@ def cluster(
         raise InvalidInput(f"The number of clusters must be at least 1 (got {k}).")
     Xs = X / scale.divisors
     n_distinct = np.unique(np.round(Xs, 9), axis=0).shape[0]
+    if k > n_distinct and n_clusters is None:
+        raise NotEnoughData(
+            f"The demonstrations have only {n_distinct} different key-point(s): the arm barely moved. Record "
+            "demonstrations that move the arm through the task, or lower the key-point thresholds."
+        )
     if k > n_distinct:
         raise NotEnoughData(
             f"Cannot make {k} clusters from {n_distinct} different key-points. Choose at most {n_distinct} "
