@@ -263,7 +263,16 @@ class JointTrajectory:
             raise InvalidInput(f"Joint trajectory converged flags must have shape ({m},), got {c.shape}.")
         object.__setattr__(self, "converged", c)
         if self.gripper is not None:
-            object.__setattr__(self, "gripper", readonly(self.gripper))
+            g = readonly(self.gripper)
+            if g.shape != (m,):
+                raise InvalidInput(f"Joint trajectory gripper must have shape ({m},), got {g.shape}.")
+            _check_finite("joint trajectory gripper values", g)
+            object.__setattr__(self, "gripper", g)
+        # A joint trajectory goes to a robot: no NaN joint and no time running backwards, even from a file.
+        _check_finite("joint trajectory time stamps", t)
+        _check_finite("joint trajectory joint angles", self.q)
+        if m >= 2 and np.any(np.diff(t) <= 0):
+            raise InvalidInput("The joint trajectory's time stamps must increase from sample to sample.")
         check_arm(self.arm)
 
     def __len__(self) -> int:
@@ -282,6 +291,8 @@ def _pack_list(d: dict[str, np.ndarray], name: str, arrays: list[np.ndarray], dt
 def _unpack_list(d: dict[str, np.ndarray], name: str, dtype: type) -> list[np.ndarray]:
     data: np.ndarray = np.asarray(d[f"{name}_data"], dtype=dtype)
     off: np.ndarray = np.asarray(d[f"{name}_offsets"], dtype=np.int64)
+    if off.ndim != 1 or off.size == 0 or off[0] != 0 or off[-1] != data.size or np.any(np.diff(off) < 0):
+        raise InvalidInput(f"The saved skill's {name.replace('_', ' ')} list is damaged.")
     return [readonly(data[off[i] : off[i + 1]], dtype=dtype) for i in range(len(off) - 1)]
 
 

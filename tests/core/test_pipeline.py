@@ -129,6 +129,19 @@ def test_to_arrays_round_trip_without_pickle(tmp_path):
     assert np.array_equal(back.joint_trajectory.q, sk.joint_trajectory.q)
     with pytest.raises(InvalidInput):
         Skill.from_arrays({k: v for k, v in arrays.items() if k != "centroids"})
+    # A tampered file: a NaN joint angle, time running backwards, a damaged key-point list.
+    bad_q = np.array(arrays["joint_q"])
+    bad_q[5, 2] = np.nan
+    with pytest.raises(InvalidInput, match="invalid values"):
+        Skill.from_arrays({**arrays, "joint_q": bad_q})
+    bad_t = np.array(arrays["joint_t"])
+    bad_t[3] = bad_t[2]
+    with pytest.raises(InvalidInput, match="increase"):
+        Skill.from_arrays({**arrays, "joint_t": bad_t})
+    bad_off = np.array(arrays["keypoints_offsets"])
+    bad_off[-1] += 5
+    with pytest.raises(InvalidInput, match="damaged"):
+        Skill.from_arrays({**arrays, "keypoints_offsets": bad_off})
 
 
 def test_state_means_default_lands_closer_to_the_demonstrations_than_centroids():
