@@ -854,7 +854,7 @@ class Controller:
         """Add an uploaded session archive (validated first: a bad file changes nothing) and open it."""
         if self.recorder is not None:  # checked first so that a refused upload adds nothing
             raise StudioError("Stop the recording before uploading a session.")
-        name = self.store.import_zip(data)
+        name = self.store.import_zip(data, archive=filename)
         self.events.emit("sessions")
         self.open_session(name)
         self.notify("Session uploaded", f'"{filename}" was added as session "{name}" and opened.', kind="success")

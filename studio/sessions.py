@@ -36,6 +36,7 @@ import tempfile
 import threading
 import uuid
 import zipfile
+import zlib
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -260,6 +261,8 @@ def _read_npz(
         raise _damaged(session, rel, "is damaged (it ends early or was cut off)") from exc
     except (EOFError, zipfile.LargeZipFile) as exc:
         raise _damaged(session, rel, "is damaged (it ends early)") from exc
+    except zlib.error as exc:
+        raise _damaged(session, rel, "is damaged (its data cannot be decompressed)") from exc
     except ValueError as exc:
         if "pickle" in str(exc).lower():
             raise _damaged(session, rel, "holds Python objects (a pickle), which the studio never opens") from exc
@@ -921,11 +924,12 @@ class SessionStore:
                 zf.write(s.path / info["file"], f"{name}/{info['file']}")
         return buf.getvalue()
 
-    def import_zip(self, data: bytes, name: str | None = None) -> str:
+    def import_zip(self, data: bytes, name: str | None = None, *, archive: str | None = None) -> str:
         """Add a session from a zip made by :meth:`export_zip`; returns its (possibly renamed) name.
 
         The archive is checked (safe member names, sizes), unpacked into a temporary folder, loaded with full
-        validation, and only then moved into place; on any problem nothing is added.
+        validation, and only then moved into place; on any problem nothing is added. ``archive`` is the
+        uploaded file's name, used in messages.
         """
         try:
             zf = zipfile.ZipFile(io.BytesIO(data))
@@ -961,9 +965,11 @@ class SessionStore:
                 total += i.file_size
             if total > MAX_ZIP_BYTES:
                 raise SessionFormatError("The archive is absurdly large once unpacked. Nothing was imported.")
+            label = f'The archive "{archive}"' if archive else f'The archive of session "{top}"'
             self.root.mkdir(parents=True, exist_ok=True)
-            tmp = self.root / f".tmp-import-{uuid.uuid4().hex[:8]}"
-            tmp.mkdir()
+            tmp_root = self.root / f".tmp-import-{uuid.uuid4().hex[:8]}"
+            tmp = tmp_root / _sanitize(top)  # messages from loading name the session, not the temporary folder
+            tmp.mkdir(parents=True)
             try:
                 for i in infos:
                     if i.is_dir():
@@ -971,16 +977,26 @@ class SessionStore:
                     rel = i.filename[len(top) + 1 :]
                     dest = tmp / rel
                     dest.parent.mkdir(parents=True, exist_ok=True)
-                    with zf.open(i) as src, open(dest, "wb") as out:
-                        shutil.copyfileobj(src, out)
-                s = load_session(tmp)
+                    try:
+                        with zf.open(i) as src, open(dest, "wb") as out:
+                            shutil.copyfileobj(src, out)
+                    except (zipfile.BadZipFile, zlib.error, EOFError, NotImplementedError, RuntimeError) as exc:
+                        raise SessionFormatError(
+                            f'{label} is damaged (the file "{i.filename}" inside it cannot be read). '
+                            "Nothing was imported."
+                        ) from exc
+                try:
+                    s = load_session(tmp)
+                except SessionFormatError as exc:
+                    problem = str(exc).replace(" It was not loaded; your other files are untouched.", "")
+                    raise SessionFormatError(f"{label} cannot be imported. {problem} Nothing was imported.") from exc
                 final = self._free_name(check_session_name(name or _sanitize(top)))
                 s.name = final
                 s._write_manifest()
                 os.rename(tmp, self.path_of(final))
             finally:
-                if tmp.exists():
-                    shutil.rmtree(tmp, ignore_errors=True)
+                if tmp_root.exists():
+                    shutil.rmtree(tmp_root, ignore_errors=True)
         return final
 
 

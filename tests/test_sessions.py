@@ -8,6 +8,7 @@ import json
 import os
 import pickle
 import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -408,11 +409,75 @@ def test_hostile_zip_import_is_refused_and_adds_nothing(store: SessionStore, thr
     assert snapshot(store.root) == before
 
 
+def test_damaged_archive_is_refused_in_plain_words_naming_it(store: SessionStore, three, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    data = store.export_zip("three demos")
+    before = snapshot(store.root)
+    # A flipped byte inside a stored member: its CRC no longer matches.
+    with zipfile.ZipFile(io.BytesIO(data)) as zf:
+        info = next(i for i in zf.infolist() if i.filename.endswith("d0002.npz"))
+    off = info.header_offset + 30 + len(info.filename) + len(info.extra) + 200
+    bad = bytearray(data)
+    bad[off] ^= 0xFF
+    damaged = r'^The archive "copy\.zip" is damaged .*d0002\.npz.*Nothing was imported'
+    with pytest.raises(SessionFormatError, match=damaged):
+        store.import_zip(bytes(bad), archive="copy.zip")
+    # A corrupt deflate stream in a compressed archive.
+    deflated = tmp_path / "deflated.zip"
+    with zipfile.ZipFile(io.BytesIO(data)) as src, zipfile.ZipFile(deflated, "w", zipfile.ZIP_DEFLATED) as dst:
+        for i in src.infolist():
+            dst.writestr(i.filename, src.read(i), compress_type=zipfile.ZIP_DEFLATED)
+    _corrupt_deflate_stream(deflated, "three demos/demos/d0002.npz")
+    with pytest.raises(SessionFormatError, match=r'archive of session "three demos" is damaged.*Nothing was imported'):
+        store.import_zip(deflated.read_bytes())
+    # A session that fails validation is named, never the temporary folder.
+    out = io.BytesIO()
+    with zipfile.ZipFile(io.BytesIO(data)) as src, zipfile.ZipFile(out, "w") as dst:
+        for i in src.infolist():
+            payload = src.read(i)
+            if i.filename.endswith("session.json"):
+                payload = payload.replace(b'"robot": "baxter"', b'"robot": "pr2"')
+            dst.writestr(i, payload)
+    with pytest.raises(SessionFormatError) as ei:
+        store.import_zip(out.getvalue(), archive="copy.zip")
+    msg = str(ei.value)
+    assert msg.startswith('The archive "copy.zip" cannot be imported.') and 'session "three demos"' in msg
+    assert ".tmp-import" not in msg and msg.endswith("Nothing was imported.")
+    assert snapshot(store.root) == before
+
+
 def test_skip_damaged_loads_the_rest(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
     _demo(three).write_bytes(b"garbage")
     s = store.open("three demos", skip_damaged=True)
     assert s.demo_names == ["demo 1", "demo 3"]
     assert len(s.problems) == 1 and "d0002.npz" in s.problems[0] and "skipped" in s.problems[0]
+
+
+def _corrupt_deflate_stream(path: Path, member: str) -> None:
+    """Flip one byte of ``member``'s compressed data so that decompressing it raises zlib.error."""
+    data = path.read_bytes()
+    with zipfile.ZipFile(path) as zf:
+        info = zf.getinfo(member)
+    assert info.compress_type == zipfile.ZIP_DEFLATED
+    start = info.header_offset + 30 + len(info.filename) + len(info.extra)
+    for k in range(info.compress_size):
+        b = bytearray(data)
+        b[start + k] ^= 0x5A
+        try:
+            with zipfile.ZipFile(io.BytesIO(bytes(b))) as zf:
+                zf.read(member)
+        except zlib.error:
+            path.write_bytes(bytes(b))
+            return
+        except Exception:
+            continue
+    raise AssertionError("no corruption found that breaks decompression")
+
+
+def test_corrupt_compressed_data_is_a_damaged_file(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+    _corrupt_deflate_stream(_demo(three), "q.npy")
+    _expect_error(store, "three demos", r'"demos/d0002.npz".*is damaged')
+    s = store.open("three demos", skip_damaged=True)
+    assert s.demo_names == ["demo 1", "demo 3"] and "d0002.npz" in s.problems[0]
 
 
 def test_load_never_writes(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
