@@ -75,9 +75,10 @@ def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
     from studio.core.pipeline import learn_arms
 
     t0 = time.perf_counter()
-    skills = learn_arms(session.recordings, params=session.params, arms=arms, seed=0)
+    skills = learn_arms(session.recordings, params=session.params, arms=arms, n_clusters=session.n_clusters, seed=0)
     elapsed = time.perf_counter() - t0
-    session.set_skills(skills, params=session.params)
+    demos = {arm: list(skill.demo_names) for arm, skill in skills.items()}
+    session.set_skills(skills, params=session.params, demos=demos)
     print(report(session, skills, elapsed), file=out)
     return 0
 
@@ -265,7 +266,7 @@ def build_example(store: SessionStore, task: str, *, learn_skill: bool = False, 
                 print("  (the learning pipeline is not available; the skill was not learned)", file=out)
             else:
                 skills = learn_arms(session.recordings, params=session.params, arms=(arm,), seed=0)
-                session.set_skills(skills)
+                session.set_skills(skills, demos={a: list(sk.demo_names) for a, sk in skills.items()})
                 print(report(session, skills), file=out)
         final = store.root / task
         old = store.root / f".tmp-old-{uuid.uuid4().hex[:8]}"

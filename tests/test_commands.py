@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -104,3 +105,34 @@ def test_learn_needs_two_demos(tmp_path: Path, capsys: pytest.CaptureFixture) ->
     capsys.readouterr()
     assert main(["learn", "one", "--sessions-dir", str(sessions)]) == 2
     assert "at least two" in capsys.readouterr().err
+
+
+def test_learn_uses_the_sessions_k_and_remembers_each_arms_demos(
+    tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    pipeline = pytest.importorskip("studio.core.pipeline")
+    calls: list[dict] = []
+
+    class FakeSkill:
+        def __init__(self, names: tuple[str, ...]) -> None:
+            self.demo_names = names
+
+        def to_arrays(self) -> dict[str, np.ndarray]:
+            return {"x": np.zeros(1)}
+
+    def fake_learn_arms(recordings, params=None, *, arms=None, n_clusters=None, seed=0, baxter=None):  # type: ignore[no-untyped-def]
+        calls.append({"n_clusters": n_clusters})
+        return {a: FakeSkill(tuple(r.name for r in recordings if a in r.arms)) for a in arms}
+
+    monkeypatch.setattr(pipeline, "learn_arms", fake_learn_arms)
+    store = SessionStore(tmp_path)
+    s = store.create("both arms", arms=("left", "right"))
+    n = 300
+    q = np.tile([0.08, -1.0, -1.19, 1.94, 0.67, 1.03, -0.5] * 2, (n, 1))
+    for name, arms in (("l1", ("left",)), ("r1", ("right",)), ("l2", ("left",)), ("b", ("left", "right"))):
+        s.add_recording(Recording(np.arange(n) / 100.0, q, np.full((n, 2), 100.0), arms=arms, name=name))
+    s.set_n_clusters(4)
+    assert main(["learn", "both arms", "--sessions-dir", str(tmp_path)]) == 0
+    assert calls == [{"n_clusters": 4}]
+    info = json.loads((s.path / "session.json").read_text())["skills"]  # the fake skill files do not load back
+    assert info["left"]["demos"] == ["l1", "l2", "b"] and info["right"]["demos"] == ["r1", "b"]
