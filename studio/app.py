@@ -189,6 +189,10 @@ class Studio(Controller):
         if self._stop.is_set():
             return
         self.save_running_recording()  # keep a take that was running when the studio was stopped
+        try:
+            self.persist_params()  # and ε values not yet written by the key-point thread
+        except Exception:
+            log.exception("saving the key-point settings at shutdown")
         self._stop.set()
         try:
             self.panels.close()

@@ -356,6 +356,8 @@ class Controller:
         if not arms:
             raise StudioError("Choose at least one arm to teach.")
         with self.lock:
+            if self.recorder is not None and arms != self.selected_arms:
+                raise StudioError("Stop the recording before changing the arms to teach.")
             self.selected_arms = arms
             if tuple(self.session.arms) != arms:
                 self.session.set_arms(arms)  # remembered with the session
@@ -475,9 +477,12 @@ class Controller:
 
     def demo(self, i: int, arm: str) -> Any:
         """The 8-D Demo of recording ``i`` for ``arm`` (FK once, cached)."""
+        return self.demo_of(self.recordings()[i], arm)
+
+    def demo_of(self, rec: Any, arm: str) -> Any:
+        """The 8-D Demo of recording object ``rec`` for ``arm`` (FK once, cached)."""
         from studio.core.pipeline import demo_from_recording
 
-        rec = self.recordings()[i]
         key = (id(rec), arm)
         hit = self._demo_cache.get(key)
         if hit is not None and hit[0] is rec:  # the same object, not a new one that reused a freed id
@@ -489,8 +494,8 @@ class Controller:
     def demos_for(self, arm: str) -> list[tuple[int, Any]]:
         """(index, Demo) of every shown recording that taught ``arm``."""
         return [
-            (i, self.demo(i, arm))
-            for i, r in enumerate(self.recordings())
+            (i, self.demo_of(r, arm))
+            for i, r in enumerate(self.recordings())  # one list: a demo deleted meanwhile cannot shift rows
             if arm in r.arms and r.name not in self.hidden_demos
         ]
 
@@ -608,21 +613,27 @@ class Controller:
     def skills(self) -> dict[str, Any]:
         return dict(self.session.skills)
 
-    def skill_demos(self, arm: str) -> list[tuple[int, Any]]:
-        """(index, Demo) of the demonstrations the current skill of ``arm`` was learned from, in order."""
-        names = self.demo_names()
-        sk = self.session.skills.get(arm)
-        used = list(getattr(sk, "demo_names", None) or []) or names
-        out = []
-        for nm in used:
-            if nm in names:
-                i = names.index(nm)
-                if arm in self.recordings()[i].arms:
-                    out.append((i, self.demo(i, arm)))
-        return out
-
     def skill_demo_names(self, arm: str) -> list[str]:
-        return [self.demo_names()[i] for i, _ in self.skill_demos(arm)]
+        """Names of the demonstrations the current skill of ``arm`` was learned from, in the skill's order
+        (the order of its log-likelihoods and key-points), as they were called then."""
+        sk = self.session.skills.get(arm)
+        if sk is None:
+            return []
+        info = getattr(self.session, "skill_info", {}).get(arm, {})
+        return [str(n) for n in (getattr(sk, "demo_names", None) or info.get("demos") or [])]
+
+    def skill_demos(self, arm: str) -> list[tuple[str, int | None, Any]]:
+        """(name, index, Demo) per demonstration the current skill of ``arm`` was learned from, in the skill's
+        order; index and Demo are None for one renamed or deleted since."""
+        by_name = {r.name: (i, r) for i, r in enumerate(self.recordings())}
+        out: list[tuple[str, int | None, Any]] = []
+        for nm in self.skill_demo_names(arm):
+            hit = by_name.get(nm)
+            if hit is not None and arm in hit[1].arms:
+                out.append((nm, hit[0], self.demo_of(hit[1], arm)))
+            else:
+                out.append((nm, None, None))
+        return out
 
     def train(self) -> Future:
         """Learn the skill of every taught arm from the shown demos on the work thread."""
@@ -640,6 +651,7 @@ class Controller:
                         f"(it has {len(demos)}). Record more, or show hidden ones."
                     )
             params, k = self.params(), self.k_override
+            session = self.session  # the skill belongs to the session it was learned from
             self.training = True
         self.events.emit("training")
 
@@ -658,13 +670,21 @@ class Controller:
             return skills
 
         def done(skills: dict[str, Any] | None) -> None:
-            self.training = False
-            self.events.emit("training")
             if skills is None:
                 return
             demos = {arm: [d.name for _, d in per_arm[arm]] for arm in skills}
             with self.lock:
-                self.session.set_skills(skills, params=params, demos=demos)
+                session.set_skills(skills, params=params, demos=demos)
+                current = session is self.session
+                if current and self._params != params:  # ε changed while training: keep the new values
+                    self._params_dirty = True
+                self.training = False  # only now: sessions cannot be switched while training
+            self.events.emit("training")
+            if not current:
+                self.notify("Training finished", f'The skill was learned for session "{session.name}".', kind="info")
+                return
+            self.persist_params()
+            self._stop_preview()  # the loaded preview shows the previous skill
             self.events.emit("skill")
             self.notify("Training finished", "The robot learned the skill: open Preview to watch it.", kind="success")
 
@@ -725,6 +745,13 @@ class Controller:
         pb.play()
         self.events.emit("playback")
         return pb
+
+    def _stop_preview(self) -> None:
+        """Unload the skill preview (if loaded) and show the live robot again."""
+        pb = self._playback
+        if pb is not None and pb.kind == "preview":
+            self._stop_playback()
+            self.show_live()
 
     def _stop_playback(self) -> None:
         pb, self._playback = self._playback, None
@@ -812,9 +839,15 @@ class Controller:
     def session_names(self) -> list[str]:
         return self.store.list_sessions()
 
-    def open_session(self, name: str) -> None:
+    def _check_can_switch(self, doing: str) -> None:
+        """Refuse, in plain words, to change the open session while recording or training."""
         if self.recorder is not None:
-            raise StudioError("Stop the recording before opening another session.")
+            raise StudioError(f"Stop the recording before {doing}.")
+        if self.training:
+            raise StudioError(f"Wait for the training to finish before {doing}.")
+
+    def open_session(self, name: str) -> None:
+        self._check_can_switch("opening another session")
         session = self.store.open(name)
         self._switch(session)
         self._startup_notes = self._session_notes(session)
@@ -824,9 +857,8 @@ class Controller:
     def new_session(self, name: str) -> None:
         from studio.sessions import check_session_name
 
-        if self.recorder is not None:
-            raise StudioError("Stop the recording before starting a new session.")
-        name = check_session_name((name or "").strip())
+        self._check_can_switch("starting a new session")
+        name = check_session_name(_typed_name(name))
         session = self.store.create(name, arms=self.selected_arms)
         self._switch(session)
         self.events.emit("sessions")
@@ -839,7 +871,10 @@ class Controller:
     def duplicate_session(self, new_name: str) -> None:
         from studio.sessions import check_session_name
 
-        new_name = check_session_name((new_name or "").strip())
+        self._check_can_switch("copying the session")
+        new_name = check_session_name(_typed_name(new_name))
+        if self.store.path_of(new_name).exists():  # checked before "Saved" is shown
+            raise InvalidInput(f'A session called "{new_name}" already exists; choose another name.')
         self.save_session()
         copy = self.store.duplicate(self.session.name, new_name)
         self._switch(copy)
@@ -852,8 +887,7 @@ class Controller:
 
     def import_session_zip(self, filename: str, data: bytes) -> str:
         """Add an uploaded session archive (validated first: a bad file changes nothing) and open it."""
-        if self.recorder is not None:  # checked first so that a refused upload adds nothing
-            raise StudioError("Stop the recording before uploading a session.")
+        self._check_can_switch("uploading a session")  # checked first so that a refused upload adds nothing
         name = self.store.import_zip(data, archive=filename)
         self.events.emit("sessions")
         self.open_session(name)
@@ -871,6 +905,9 @@ class Controller:
             return path.name, path.read_bytes()
 
     def _switch(self, session: Any) -> None:
+        if self.training and session is not self.session:  # a raced click (the actions check first)
+            raise StudioError("Wait for the training to finish before changing the session.")
+        self.persist_params()  # unsaved ε values belong to the session being left
         self._stop_playback()
         with self.lock:
             self.session = session
@@ -882,3 +919,11 @@ class Controller:
             self.selected_arms = self._session_arms()
         self.show_live()
         self.events.emit("session")
+
+
+def _typed_name(name: str | None) -> str:
+    """A name typed in "New name", stripped; empty gets plain words instead of a format message."""
+    name = (name or "").strip()
+    if not name:
+        raise InvalidInput("Type a name in 'New name' first.")
+    return name

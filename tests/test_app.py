@@ -326,3 +326,115 @@ def test_a_k_outside_the_slider_range_still_opens(sessions: Path) -> None:
         assert a.k_override == 1 and a.panels.keypoints.k.value == 2
     finally:
         a.stop()
+
+
+# -- regressions (review of the app layer) -------------------------------------------------------------
+
+
+def test_sessions_cannot_change_while_training(app: Studio, sessions: Path) -> None:
+    _, data = app.session_zip()
+    before = sorted(p.name for p in sessions.iterdir())
+    fut = app.train()
+    for action in (
+        lambda: app.new_session("other"),
+        lambda: app.open_session("stack-cup"),
+        lambda: app.duplicate_session("copy"),
+        lambda: app.import_session_zip("copy.zip", data),
+    ):
+        with pytest.raises(StudioError, match="Wait for the training to finish"):
+            action()
+    fut.result(timeout=120)
+    assert not app.training and app.session.name == "stack-cup"
+    assert sorted(p.name for p in sessions.iterdir()) == before
+    assert "left" in SessionStore(sessions).open("stack-cup").skills
+    assert any(title == "Training finished" for _, title, _ in app.notes)  # type: ignore[attr-defined]
+
+
+def test_eps_changed_during_training_is_kept(app: Studio, sessions: Path) -> None:
+    trained_eps5 = app.params().eps5
+    fut = app.train()
+    app.set_param("eps5", 0.33)
+    app.persist_params()
+    fut.result(timeout=120)
+    assert app.params().eps5 == 0.33 and app.session.params.eps5 == 0.33
+    again = SessionStore(sessions).open("stack-cup")
+    assert again.params.eps5 == 0.33
+    assert again.skill_info["left"]["params"]["eps5"] == trained_eps5  # the skill remembers what it used
+
+
+def test_retraining_unloads_the_old_preview(app: Studio) -> None:
+    app.train().result(timeout=120)
+    app.preview_play(speed=4.0)
+    app.preview_pause()
+    app.set_demo_visible(0, False)
+    app.train().result(timeout=120)
+    assert app.playback_kind() is None and app.display is app.live
+    app.preview_play()
+    assert app._playback is not None
+    assert app._playback.recording.duration == pytest.approx(app.preview_duration(), abs=0.02)
+    app.preview_pause()
+
+
+def _loglik_rows(app: Studio) -> list[str]:
+    import re
+
+    return re.findall(r'<tr class="loglik-row"><td>(.*?)</td>', app.panels.train.summary.content)
+
+
+def test_train_panel_rows_stay_matched_to_the_skill(app: Studio) -> None:
+    app.train().result(timeout=120)
+    assert _loglik_rows(app) == ["demo 1", "demo 2", "demo 3"]
+    app.rename_demo(0, "first try")  # the panel follows demo changes, rows keep the skill's order
+    assert _loglik_rows(app) == ["demo 1 (renamed or deleted since)", "demo 2", "demo 3"]
+    assert app.panels.train.plots.content.count("position-plot") == 3  # demos 2, 3 and the learned path
+    app.delete_demo(1)
+    assert _loglik_rows(app) == ["demo 1 (renamed or deleted since)", "demo 2 (renamed or deleted since)", "demo 3"]
+    assert app.panels.train.plots.content.count("position-plot") == 2
+    assert "out of date" in app.panels.train.status.content
+
+
+def test_arms_cannot_change_while_recording(app: Studio) -> None:
+    app.start_recording()
+    assert app.panels.robot.arms.disabled
+    with pytest.raises(StudioError, match="Stop the recording before changing the arms to teach"):
+        app.set_arms(("right",))
+    assert app.selected_arms == ("left",) and app.recorder.arms == ("left",)
+    app.discard_recording()
+    assert not app.panels.robot.arms.disabled
+    app.set_arms(("right",))
+    assert app.selected_arms == ("right",)
+
+
+def test_duplicate_is_refused_while_recording_and_checks_the_name_first(app: Studio) -> None:
+    app.start_recording()
+    with pytest.raises(StudioError, match="Stop the recording"):
+        app.duplicate_session("copy")
+    app.discard_recording()
+    assert "copy" not in app.session_names() and app.session.name == "stack-cup"
+    app.new_session("taken")
+    app.open_session("stack-cup")
+    with pytest.raises(StudioError, match="already exists"):
+        app.duplicate_session("taken")
+    assert not any(title == "Saved" for _, title, _ in app.notes)  # type: ignore[attr-defined]
+    for action in (app.new_session, app.duplicate_session):
+        with pytest.raises(StudioError, match="Type a name in 'New name' first"):
+            action("  ")
+    assert app.session.name == "stack-cup"
+
+
+def test_unsaved_eps_values_survive_switching_and_stopping(app: Studio, sessions: Path) -> None:
+    app.set_param("eps5", 0.41)  # not yet written by the key-point thread
+    app.new_session("x")
+    assert SessionStore(sessions).open("x").params.eps5 != 0.41
+    app.open_session("stack-cup")
+    assert app.params().eps5 == 0.41
+    app.set_param("eps5", 0.37)
+    app.stop()
+    assert SessionStore(sessions).open("stack-cup").params.eps5 == 0.37
+
+
+def test_demos_are_read_from_one_list(app: Studio, monkeypatch: pytest.MonkeyPatch) -> None:
+    recs = list(app.session.recordings)
+    calls = iter([recs] + [recs[1:]] * 100)  # the first demo is deleted right after the list was read
+    monkeypatch.setattr(app, "recordings", lambda: list(next(calls)))
+    assert [d.name for _, d in app.demos_for("left")] == [r.name for r in recs]

@@ -61,12 +61,20 @@ class RobotPanel:
         def _(event: viser.GuiEvent) -> None:
             if event.client is None:
                 return
-            app.set_arms(ARM_CHOICES[self.arms.value])
+            try:
+                app.set_arms(ARM_CHOICES[self.arms.value])
+            except Exception:
+                self.arms.value = arms_label(app.selected_arms)  # a refused choice does not stay shown
+                raise
 
         app.events.on("session", self._on_session)
+        app.events.on("recording", self._on_recording)
 
     def _on_session(self) -> None:
         self.arms.value = arms_label(self.app.selected_arms)
+
+    def _on_recording(self) -> None:
+        self.arms.disabled = self.app.recorder is not None  # the arms of a take cannot change mid-way
 
     def show_pose(self, q: np.ndarray, gripper: np.ndarray) -> None:
         """Move the drawn robot to joints ``q`` (14,) rad and grippers (2,) percent."""

@@ -289,10 +289,10 @@ class TeachPanel:
         app = self.app
         wanted: dict[str, tuple[np.ndarray, tuple[int, int, int]]] = {}
         for i, rec in enumerate(app.recordings()):
-            if not app.demo_visible(i):
+            if rec.name in app.hidden_demos:
                 continue
             for arm in rec.arms:
-                pts = downsample_path(np.asarray(app.demo(i, arm).position))
+                pts = downsample_path(np.asarray(app.demo_of(rec, arm).position))
                 wanted[f"/demos/{i}_{arm}"] = (pts, app.demo_color(i))
         with app.server.atomic():
             for key in list(self._traces):

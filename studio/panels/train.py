@@ -33,12 +33,18 @@ class TrainPanel:
         self.train_btn.on_click(app.guarded("Could not start training")(self._on_train))
         app.events.on("skill", self.refresh)
         app.events.on("session", self.refresh)
+        app.events.on("demos", self.refresh)  # renamed / deleted / trimmed demos: labels, plots and status
         app.events.on("training", self._on_training)
         self.refresh()
 
     def _status_text(self) -> str:
         if self.app.training:
             return "Training… this takes a few seconds."
+        if self.app.skills() and getattr(self.app.session, "skills_stale", False):
+            return (
+                "The learned skill is **out of date**: demonstrations changed since it was learned. "
+                "Press **Train** to learn it again."
+            )
         if self.app.skills():
             return "Trained. Press **Train** again after changing demonstrations or key-point settings."
         return "Not trained yet. Record at least two demonstrations, then press **Train**."
@@ -59,7 +65,8 @@ class TrainPanel:
         skills = self.app.skills()
         summary, heat, plots = [], [], []
         for arm, skill in skills.items():
-            names = self.app.skill_demo_names(arm)
+            used = self.app.skill_demos(arm)  # row j: the j-th demo the skill learned from (None: gone since)
+            names = [nm if i is not None else f"{nm} (renamed or deleted since)" for nm, i, _ in used]
             ll = np.asarray(getattr(skill, "loglik", []), dtype=float)
             ref = int(skill.reference)
             zero = [int(z) for z in np.atleast_1d(getattr(skill, "zero_points", []))]
@@ -91,8 +98,10 @@ class TrainPanel:
                 f"{rows}</table>{ik_note}</div>"
             )
             heat.append(heatmap_svg(np.asarray(skill.transmat), title=f"{arm.capitalize()} arm: state transitions"))
-            for j, (i, demo) in enumerate(self.app.skill_demos(arm)):
+            for j, (_nm, i, demo) in enumerate(used):
                 kps = skill.keypoints[j] if j < len(skill.keypoints) else []
+                if i is None or (len(kps) and int(np.max(kps)) >= len(demo.t)):  # gone, or trimmed since
+                    continue
                 plots.append(
                     position_plot_svg(
                         demo.t - demo.t[0],
