@@ -180,7 +180,11 @@ def import_csv(args: argparse.Namespace, out: TextIO | None = None) -> int:
             session = store.create(args.session, arms=arms)
             print(f'Created session "{session.name}".', file=out)
         for f, r in recs:
-            i = session.add_recording(r)
+            try:
+                i = session.add_recording(r)
+            except StudioError as exc:  # this file is named; the others are still imported
+                failed.append(f"  {f}: {exc}")
+                continue
             rr = session.recordings[i]
             print(f'Imported {f.name} as "{rr.name}": {len(rr)} samples, {rr.duration:.1f} s.', file=out)
     if failed:

@@ -51,7 +51,7 @@ def import_csv(
     Args:
         path: the CSV file.
         arms: the arm(s) taught in it ("left", "right", "both" or a tuple).
-        name: the demonstration name (default: the file name without extension).
+        name: the demonstration name (default: the file name without extension, cut to 100 characters).
 
     Raises:
         CsvFormatError: missing columns, non-numbers, NaN, too few rows — with file and line number.
@@ -120,7 +120,7 @@ def import_csv(
     if np.any(g < -0.5) or np.any(g > 100.5):
         raise CsvFormatError(f'"{label}": gripper positions must be percent 0..100.')
     t = rows[:, col["time"]]
-    return Recording(t=t - t[0], q=q, gripper=np.clip(g, 0.0, 100.0), arms=tuple(arms), name=name or p.stem)
+    return Recording(t=t - t[0], q=q, gripper=np.clip(g, 0.0, 100.0), arms=tuple(arms), name=name or p.stem[:100])
 
 
 def _fmt_rows(t: np.ndarray, q: np.ndarray, g: np.ndarray) -> str:

@@ -41,6 +41,21 @@ def test_import_csv_creates_the_session_and_keeps_good_files(tmp_path: Path, cap
     assert SessionStore(sessions).open("real baxter").demo_names == ["take_a", "take_b", "take_a (2)"]
 
 
+def test_import_csv_names_a_file_the_session_refuses_and_keeps_going(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    a = _csv(tmp_path / "take_a.csv")
+    long = _csv(tmp_path / ("x" * 120 + ".csv"))
+    tab = _csv(tmp_path / "bad\tname.csv")  # reads fine, but a tab cannot be in a demo name
+    b = _csv(tmp_path / "take_b.csv", seed=1)
+    sessions = tmp_path / "sessions"
+    code = main(["import-csv", str(a), str(long), str(tab), str(b), "--session", "s", "--sessions-dir", str(sessions)])
+    out = capsys.readouterr().out
+    assert code == 1
+    assert f"{tab}: A demonstration name must be 1 to 100 printable characters." in out
+    assert SessionStore(sessions).open("s").demo_names == ["take_a", "x" * 100, "take_b"]
+
+
 def test_export_csv_without_a_skill_says_what_to_do(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     sessions = tmp_path / "sessions"
     main(["import-csv", str(_csv(tmp_path / "x.csv")), "--session", "s", "--sessions-dir", str(sessions)])

@@ -54,6 +54,12 @@ def test_export_import_round_trip_within_csv_precision(tmp_path: Path) -> None:
     assert np.abs(back.gripper - r.gripper).max() <= 0.5e-4 + 1e-12
 
 
+def test_a_long_file_name_gives_a_demo_name_within_the_limit(tmp_path: Path) -> None:
+    f = tmp_path / ("x" * 120 + ".csv")
+    export_recording_csv(rec(10), f)
+    assert import_csv(f).name == "x" * 100
+
+
 def test_real_sdk_style_file_imports(tmp_path: Path) -> None:
     # As baxter_examples/joint_recorder.py writes it: "%f" time, str() angles, ~100 Hz, a repeated stamp,
     # columns in the SDK order, time not starting at zero.
