@@ -135,9 +135,10 @@ class Studio(Controller):
         self.server.on_client_connect(self._greet)
 
     def _greet(self, client: viser.ClientHandle) -> None:
-        """Show what happened while opening the session (crash recovery, damaged files) to each new tab."""
+        """Show what happened while opening the session to a new tab (a crash recovery only to the first)."""
         for title, body in self.startup_notes():
             self.notify(title, body, kind="warning", client=client)
+        self.startup_notes_shown()
 
     # -- the scene follows the robot -------------------------------------------------------------------
     def _pump_loop(self) -> None:

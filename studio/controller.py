@@ -49,6 +49,9 @@ PALETTE: tuple[tuple[int, int, int], ...] = (
 )
 
 
+RECOVERED = "Recovered recordings"
+
+
 class Events:
     """A tiny observer list per topic; callbacks run on the caller's thread."""
 
@@ -232,13 +235,17 @@ class Controller:
         self._work.shutdown(wait=False, cancel_futures=True)
 
     def startup_notes(self) -> list[tuple[str, str]]:
-        """(title, body) warnings from opening the session (crash recovery, damaged files), for each new tab."""
+        """(title, body) warnings from opening the session (crash recovery, damaged files), for a new tab."""
         return list(self._startup_notes)
+
+    def startup_notes_shown(self) -> None:
+        """A tab got the notes: a recovery is told once, damaged files to every new tab."""
+        self._startup_notes = [n for n in self._startup_notes if n[0] != RECOVERED]
 
     def _session_notes(self, session: Any) -> list[tuple[str, str]]:
         notes = []
         if getattr(session, "recovery_message", ""):
-            notes.append(("Recovered recordings", session.recovery_message))
+            notes.append((RECOVERED, session.recovery_message))
         for p in getattr(session, "problems", []) or []:
             notes.append(("Part of the session could not be read", p))
         return notes
@@ -814,6 +821,11 @@ class Controller:
             self._start_playback("replay", rec, speed)
         return float(rec.duration)
 
+    def preview_stop(self) -> None:
+        """Unload the preview and show the live robot again."""
+        self._stop_preview()
+        self.show_live()
+
     def replay_pause(self) -> None:
         pb = self._playback
         if pb is not None and pb.kind == "replay":
@@ -853,6 +865,7 @@ class Controller:
         self._startup_notes = self._session_notes(session)
         for title, body in self._startup_notes:
             self.notify(title, body, kind="warning")
+        self.startup_notes_shown()  # told to every open tab
 
     def new_session(self, name: str) -> None:
         from studio.sessions import check_session_name

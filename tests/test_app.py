@@ -372,7 +372,9 @@ def test_retraining_unloads_the_old_preview(app: Studio) -> None:
     app.preview_play()
     assert app._playback is not None
     assert app._playback.recording.duration == pytest.approx(app.preview_duration(), abs=0.02)
-    app.preview_pause()
+    assert "Stop" in app.panels.preview.controls.options  # Stop in Preview: back to the live robot
+    app.preview_stop()
+    assert app.playback_kind() is None and app.display is app.live
 
 
 def _loglik_rows(app: Studio) -> list[str]:
@@ -438,3 +440,33 @@ def test_demos_are_read_from_one_list(app: Studio, monkeypatch: pytest.MonkeyPat
     calls = iter([recs] + [recs[1:]] * 100)  # the first demo is deleted right after the list was read
     monkeypatch.setattr(app, "recordings", lambda: list(next(calls)))
     assert [d.name for _, d in app.demos_for("left")] == [r.name for r in recs]
+
+
+class _FakeTab:
+    def __init__(self) -> None:
+        self.titles: list[str] = []
+
+    def add_notification(self, title: str, body: str, **kwargs: object) -> None:
+        self.titles.append(title)
+
+
+def test_a_recovery_is_told_once_not_to_every_new_tab(sessions: Path) -> None:
+    from studio.recorder import Recorder
+    from studio.robot_backend.simulated import SimulatedBaxter
+    from studio.sessions import RECORDING_DIR
+
+    sim = SimulatedBaxter()
+    rec = Recorder(sim, sessions / "stack-cup" / RECORDING_DIR, arms="left")
+    rec.start()
+    sim.step(500)
+    rec.flush()
+    rec._finish()  # as if the studio had died while recording
+    a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
+    try:
+        first, second = _FakeTab(), _FakeTab()
+        a._greet(first)  # type: ignore[arg-type]
+        a._greet(second)  # type: ignore[arg-type]
+        assert first.titles == ["Recovered recordings"] and second.titles == []
+        assert len(a.demo_names()) == 4
+    finally:
+        a.stop()

@@ -25,7 +25,7 @@ class PreviewPanel:
         self.app = app
         self.scene = app.server.scene
         self.info = gui.add_markdown("Train first: the learned path appears here in cyan.")
-        self.controls = gui.add_button_group("Playback", options=("Play", "Pause"))
+        self.controls = gui.add_button_group("Playback", options=("Play", "Pause", "Stop"))
         self.speed = gui.add_dropdown("Speed", options=list(SPEEDS), initial_value="1×")
         self.time = gui.add_slider("Time (s)", min=0.0, max=1.0, step=0.01, initial_value=0.0)
         self.show_path = gui.add_checkbox("Show the learned path", initial_value=True)
@@ -89,8 +89,11 @@ class PreviewPanel:
     def _on_controls(self, event: viser.GuiEvent) -> None:
         if event.target.value == "Play":
             self.app.preview_play(SPEEDS[self.speed.value])
-        else:
+        elif event.target.value == "Pause":
             self.app.preview_pause()
+        else:  # Stop: back to the live robot
+            self.app.preview_stop()
+            self.time.value = 0.0
 
     def _on_speed(self, event: viser.GuiEvent) -> None:
         if event.client is None:
