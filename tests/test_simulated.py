@@ -8,9 +8,10 @@ import time
 import numpy as np
 import pytest
 
-from studio.core.errors import InvalidInput
+from studio.core.errors import InvalidInput, StudioError
 from studio.core.kinematics import Baxter
 from studio.core.types import Recording
+from studio.robot_backend._clock import BatchClock
 from studio.robot_backend.base import JointStateBatch, RobotBackend
 from studio.robot_backend.replay import ReplayBackend
 from studio.robot_backend.simulated import SimulatedBaxter, rate_limited, rate_limited_series
@@ -269,3 +270,39 @@ def test_replay_refuses_empty_recording() -> None:
     empty = Recording(t=np.zeros(0), q=np.zeros((0, 14)), gripper=np.zeros((0, 2)))
     with pytest.raises(InvalidInput, match="no samples"):
         ReplayBackend(empty)
+
+
+def test_replay_refuses_a_one_sample_recording() -> None:
+    one = Recording(t=np.zeros(1), q=np.zeros((1, 14)), gripper=np.full((1, 2), 50.0), name="blip")
+    with pytest.raises(InvalidInput, match='"blip" has a single sample'):
+        ReplayBackend(one, loop=True)
+
+
+def test_clock_never_runs_two_threads_after_a_stop_that_timed_out() -> None:
+    release = threading.Event()
+    entered = threading.Event()
+
+    def busy(_t: float) -> None:  # a wakeup that outlasts stop()'s wait
+        entered.set()
+        release.wait(10)
+
+    clock = BatchClock(busy, period=0.005, name="test-clock")
+    clock.join_timeout = 0.05
+    try:
+        clock.start()
+        assert entered.wait(5)
+        clock.stop()
+        assert not clock.running
+        with pytest.raises(StudioError, match="still finishing"):
+            clock.start()
+        assert [t.name for t in threading.enumerate()].count("test-clock") == 1
+    finally:
+        release.set()
+    clock.join_timeout = 5.0
+    clock.start()  # the old thread finishes its wakeup and exits: a restart works
+    try:
+        assert clock.running
+        assert [t.name for t in threading.enumerate()].count("test-clock") == 1
+    finally:
+        clock.stop()
+    assert not clock.running

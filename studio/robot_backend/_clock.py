@@ -12,6 +12,8 @@ import threading
 import time
 from collections.abc import Callable
 
+from studio.core.errors import StudioError
+
 
 class BatchClock:
     """Calls ``advance_to(sim_seconds)`` from a daemon thread every ``period`` seconds of wall time.
@@ -43,15 +45,30 @@ class BatchClock:
         self._wall0 = 0.0
         self._sim0 = 0.0
         self.error: BaseException | None = None
+        #: Wall seconds :meth:`stop` (and a restart) wait for the ticking thread to finish.
+        self.join_timeout = 5.0
 
     @property
     def running(self) -> bool:
-        return self._thread is not None and self._thread.is_alive()
+        """Ticking (a clock asked to stop whose thread has not finished yet is not running)."""
+        return self._thread is not None and self._thread.is_alive() and not self._stop.is_set()
 
     def start(self, sim_start: float = 0.0) -> None:
-        """Start ticking; simulated time ``sim_start`` corresponds to now."""
+        """Start ticking; simulated time ``sim_start`` corresponds to now.
+
+        Raises:
+            StudioError: the previous ticking thread is still busy after :meth:`stop` (never two at once).
+        """
         if self.running:
             return
+        old = self._thread
+        if old is not None and old.is_alive():  # stopped, but its last wakeup has not returned yet
+            if old is not threading.current_thread():
+                old.join(timeout=self.join_timeout)
+            if old.is_alive():
+                raise StudioError(
+                    f'The "{self._name}" clock is still finishing its previous work; try again in a moment.'
+                )
         self._stop.clear()
         self._wall0 = time.perf_counter()
         self._sim0 = float(sim_start)
@@ -73,8 +90,9 @@ class BatchClock:
             return
         self._stop.set()
         if t is not threading.current_thread():
-            t.join(timeout=5.0)
-        self._thread = None
+            t.join(timeout=self.join_timeout)
+        if not t.is_alive():  # keep a thread that is still busy: start() must not run a second one beside it
+            self._thread = None
 
     def _run(self) -> None:
         next_wake = time.perf_counter()

@@ -34,7 +34,7 @@ class ReplayBackend(RobotBackend):
     """Streams ``recording`` sample by sample at its own time stamps.
 
     Args:
-        recording: the demonstration to replay (non-empty).
+        recording: the demonstration to replay (at least two samples).
         speed: playback speed (1.0 = as recorded).
         loop: start over at the end instead of stopping there.
         period: wall seconds between batches.
@@ -43,6 +43,10 @@ class ReplayBackend(RobotBackend):
     def __init__(self, recording: Recording, *, speed: float = 1.0, loop: bool = False, period: float = 0.015) -> None:
         if len(recording) == 0:
             raise InvalidInput(f'The demonstration "{recording.name}" has no samples to replay.')
+        if len(recording) < 2:
+            raise InvalidInput(
+                f'The demonstration "{recording.name}" has a single sample: there is no motion to replay.'
+            )
         self.recording = recording
         self.loop = bool(loop)
         n = len(recording)
