@@ -335,6 +335,7 @@ def test_sessions_cannot_change_while_training(app: Studio, sessions: Path) -> N
     _, data = app.session_zip()
     before = sorted(p.name for p in sessions.iterdir())
     fut = app.train()
+    assert app.panels.sessions.upload.disabled
     for action in (
         lambda: app.new_session("other"),
         lambda: app.open_session("stack-cup"),
@@ -344,7 +345,7 @@ def test_sessions_cannot_change_while_training(app: Studio, sessions: Path) -> N
         with pytest.raises(StudioError, match="Wait for the training to finish"):
             action()
     fut.result(timeout=120)
-    assert not app.training and app.session.name == "stack-cup"
+    assert not app.training and app.session.name == "stack-cup" and not app.panels.sessions.upload.disabled
     assert sorted(p.name for p in sessions.iterdir()) == before
     assert "left" in SessionStore(sessions).open("stack-cup").skills
     assert any(title == "Training finished" for _, title, _ in app.notes)  # type: ignore[attr-defined]

@@ -42,7 +42,7 @@ class SessionsPanel:
                 icon=viser.Icon.UPLOAD,
                 mime_type=".zip,application/zip",
                 disabled=app.recorder is not None,
-                hint="Add a downloaded session and open it (not while recording).",
+                hint="Add a downloaded session and open it (not while recording or training).",
             )
             self.export = gui.add_button(
                 "Export joint trajectory (Baxter SDK CSV)",
@@ -65,12 +65,13 @@ class SessionsPanel:
         app.events.on("session", self._sync_enabled)
         app.events.on("skill", self._sync_enabled)
         app.events.on("recording", self._sync_enabled)
+        app.events.on("training", self._sync_enabled)
         app.events.on("playback", self._sync_enabled)
 
     def _sync_enabled(self) -> None:
         with self.app.server.atomic():
             self.export.disabled = not self.app.skills()
-            self.upload.disabled = self.app.recorder is not None
+            self.upload.disabled = self.app.recorder is not None or self.app.training
             self.replay_time.disabled = self.app.playback_kind() != "replay"
 
     def _current_text(self) -> str:
