@@ -437,7 +437,10 @@ class Controller:
                 try:
                     self.session.add_recording(recording)
                 except InvalidInput:
-                    rec.discard()  # a take the session refuses (e.g. one sample) must not be recovered at next open
+                    # One sample is not a demonstration: nothing to keep. Any other take the session refuses
+                    # stays on disk; the next open sets it aside by name (recover_recordings), never lost.
+                    if len(recording) < 2:
+                        rec.discard()
                     raise
                 rec.discard()
             finally:
