@@ -271,11 +271,14 @@ class Recorder:
         if self._writer is not None and self._writer is not threading.current_thread():
             self._writer.join(timeout=30.0)
         self._drain(sync=True)
-        if self._file is not None:
-            with contextlib.suppress(OSError):
-                fcntl.flock(self._file.fileno(), fcntl.LOCK_UN)
-            self._file.close()
-            self._file = None
+        # Under the write lock: a back-pressure drain already under way on the backend thread (it passed the
+        # state check before the unsubscribe) then finds no file instead of writing into a closed one.
+        with self._write_lock:
+            if self._file is not None:
+                with contextlib.suppress(OSError):
+                    fcntl.flock(self._file.fileno(), fcntl.LOCK_UN)
+                self._file.close()
+                self._file = None
         self.state = "stopped"
 
     def _on_batch(self, batch: JointStateBatch) -> None:
