@@ -700,6 +700,11 @@ def _skill_class() -> Any:
     return getattr(types, "Skill", None)
 
 
+def _skipped_note(exc: SessionFormatError) -> str:
+    """The message of a damaged file that ``skip_damaged`` passed over, told as skipped."""
+    return str(exc).replace(" It was not loaded; your other files are untouched.", " It was skipped.")
+
+
 def load_session(path: Path, *, skip_damaged: bool = False) -> Session:
     """Load and validate the session in folder ``path`` (never writes).
 
@@ -732,9 +737,7 @@ def load_session(path: Path, *, skip_damaged: bool = False) -> Session:
         except SessionFormatError as exc:
             if not skip_damaged:
                 raise
-            s.problems.append(
-                str(exc).replace(" It was not loaded; your other files are untouched.", " It was skipped.")
-            )
+            s.problems.append(_skipped_note(exc))
             continue
         s.recordings.append(rec)
         s._files.append(rel)
@@ -752,9 +755,7 @@ def load_session(path: Path, *, skip_damaged: bool = False) -> Session:
         except SessionFormatError as exc:
             if not skip_damaged:
                 raise
-            s.problems.append(
-                str(exc).replace(" It was not loaded; your other files are untouched.", " It was skipped.")
-            )
+            s.problems.append(_skipped_note(exc))
             continue
         s.skills[arm] = skill
         s.skill_info[arm] = info
