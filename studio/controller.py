@@ -191,7 +191,6 @@ class Controller:
         self.display = self.live  # the pump draws whichever source is active
         self.selected_arms: tuple[str, ...] = self._session_arms()
         self.recorder: Any = None
-        self.hidden_demos: set[str] = set()
         self._demo_cache: dict[tuple[int, str], tuple[Any, Any]] = {}
         self._targets: dict[str, np.ndarray] = {}
         from studio.core.keypoints import KeypointCache
@@ -509,12 +508,14 @@ class Controller:
             if arm in r.arms and r.name not in self.hidden_demos
         ]
 
+    @property
+    def hidden_demos(self) -> set[str]:
+        """Names of the hidden demonstrations (saved with the session)."""
+        return self.session.hidden_demos
+
     def set_demo_visible(self, i: int, visible: bool) -> None:
-        name = self.demo_names()[i]
-        if visible:
-            self.hidden_demos.discard(name)
-        else:
-            self.hidden_demos.add(name)
+        with self.lock:
+            self.session.set_demo_hidden(i, not visible)
         self.demos_changed()
 
     def rename_demo(self, i: int, name: str) -> None:
@@ -524,11 +525,7 @@ class Controller:
         if name in self.demo_names() and self.demo_names()[i] != name:
             raise StudioError(f'There is already a demonstration called "{name}"; choose another name.')
         with self.lock:
-            old = self.demo_names()[i]
-            self.session.rename_demo(i, name)
-            if old in self.hidden_demos:
-                self.hidden_demos.discard(old)
-                self.hidden_demos.add(name)
+            self.session.rename_demo(i, name)  # a hidden demo stays hidden under its new name
         self.demos_changed()
 
     def trim_demo(self, i: int, t0: float, t1: float) -> None:
@@ -930,7 +927,6 @@ class Controller:
             self._params = session.params
             self._params_dirty = False
             self.k_override = session.n_clusters
-            self.hidden_demos = set()
             self._demo_cache = {}
             self.selected_arms = self._session_arms()
         self.show_live()

@@ -388,6 +388,8 @@ def _parse_manifest(path: Path, session: str) -> dict[str, Any]:
         s = d.get("samples")
         if not isinstance(s, int) or isinstance(s, bool) or not 0 < s <= MAX_SAMPLES:
             raise _damaged(session, rel, f"has an invalid sample count for demonstration {i + 1}")
+        if not isinstance(d.get("hidden", False), bool):
+            raise _damaged(session, rel, f'has an invalid "hidden" mark for demonstration {i + 1}')
     nid = m.get("next_id", max_id + 1)
     if not isinstance(nid, int) or isinstance(nid, bool) or nid < 1:
         raise _damaged(session, rel, 'has an invalid "next_id"')
@@ -441,6 +443,8 @@ class Session:
     #: k, the number of clusters chosen by hand (None: automatic, the pipeline's default).
     n_clusters: int | None = None
     recordings: list[Recording] = field(default_factory=list)
+    #: Names of the demonstrations the teacher hid: they are drawn faintly and left out of learning.
+    hidden_demos: set[str] = field(default_factory=set)
     skills: dict[str, Any] = field(default_factory=dict)
     precision: str = "float64"
     skills_stale: bool = False
@@ -544,6 +548,15 @@ class Session:
             raise InvalidInput(f'Another demonstration is already called "{nm}".')
         r = self.recordings[i]
         self.recordings[i] = Recording(t=r.t, q=r.q, gripper=r.gripper, arms=r.arms, name=nm)
+        if r.name in self.hidden_demos:
+            self.hidden_demos = (self.hidden_demos - {r.name}) | {nm}
+        self._write_manifest()
+
+    @_locked
+    def set_demo_hidden(self, i: int, hidden: bool) -> None:
+        """Hide demonstration ``i`` from learning (kept on disk and in the list), or show it again."""
+        name = self.recordings[self._check_index(i)].name
+        self.hidden_demos = (self.hidden_demos | {name}) if hidden else (self.hidden_demos - {name})
         self._write_manifest()
 
     @_locked
@@ -551,7 +564,7 @@ class Session:
         """Delete demonstration ``i``: the manifest stops listing it first, then its file is removed."""
         i = self._check_index(i)
         rel = self._files.pop(i)
-        self.recordings.pop(i)
+        self.hidden_demos = self.hidden_demos - {self.recordings.pop(i).name}
         self.skills_stale = bool(self.skills) or self.skills_stale
         self._write_manifest()
         with contextlib.suppress(FileNotFoundError):
@@ -681,6 +694,7 @@ class Session:
                     "arms": list(r.arms),
                     "samples": len(r),
                     "duration": round(r.duration, 6),
+                    "hidden": r.name in self.hidden_demos,
                 }
                 for f, r in zip(self._files, self.recordings, strict=True)
             ],
@@ -741,6 +755,8 @@ def load_session(path: Path, *, skip_damaged: bool = False) -> Session:
             continue
         s.recordings.append(rec)
         s._files.append(rel)
+        if entry.get("hidden", False):
+            s.hidden_demos.add(rec.name)
     Skill = _skill_class()
     for arm, info in m.get("skills", {}).items():
         rel = info["file"]

@@ -471,3 +471,19 @@ def test_a_recovery_is_told_once_not_to_every_new_tab(sessions: Path) -> None:
         assert len(a.demo_names()) == 4
     finally:
         a.stop()
+
+
+def test_hidden_demos_stay_hidden_after_a_restart(sessions: Path) -> None:
+    a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
+    try:
+        a.set_demo_visible(1, False)
+        a.rename_demo(1, "wobbly")
+    finally:
+        a.stop()
+    b = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
+    try:
+        assert not b.demo_visible(1) and b.demo_visible(0) and b.demo_visible(2)
+        assert [i for i, _ in b.demos_for("left")] == [0, 2]  # training leaves it out
+        assert "hidden" in b.panels.teach.demo_list.content  # the list says so
+    finally:
+        b.stop()

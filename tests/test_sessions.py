@@ -244,6 +244,29 @@ def test_skills_remember_the_demos_of_each_arm(store: SessionStore, three, monke
 
 
 # -- bad files: every case names the file and the problem, and touches nothing -----------------------------
+def test_hidden_demos_are_kept_with_the_session(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+    three.set_demo_hidden(1, True)
+    assert store.open("three demos").hidden_demos == {"demo 2"}
+    three.rename_demo(1, "wobbly")  # still hidden under its new name
+    assert store.open("three demos").hidden_demos == {"wobbly"}
+    assert store.duplicate("three demos", "copy").hidden_demos == {"wobbly"}
+    assert store.open(store.import_zip(store.export_zip("three demos"))).hidden_demos == {"wobbly"}
+    three.set_demo_hidden(1, False)
+    assert store.open("three demos").hidden_demos == set()
+    three.set_demo_hidden(0, True)
+    three.delete_demo(0)
+    assert store.open("three demos").hidden_demos == set()
+    m = json.loads((three.path / "session.json").read_text())
+    assert all("hidden" in d for d in m["demos"])
+    for d in m["demos"]:
+        del d["hidden"]  # manifests written before the mark existed still load
+    (three.path / "session.json").write_text(json.dumps(m))
+    assert store.open("three demos").hidden_demos == set()
+    m["demos"][0]["hidden"] = "yes"
+    (three.path / "session.json").write_text(json.dumps(m))
+    _expect_error(store, "three demos", 'invalid "hidden" mark for demonstration 1')
+
+
 def _expect_error(store: SessionStore, name: str, pattern: str) -> SessionFormatError:
     before = snapshot(store.root)
     with pytest.raises(SessionFormatError, match=pattern) as ei:
