@@ -15,6 +15,7 @@ import functools
 import logging
 import sys
 import threading
+import time
 import traceback
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -191,6 +192,7 @@ class Controller:
         self.display = self.live  # the pump draws whichever source is active
         self.selected_arms: tuple[str, ...] = self._session_arms()
         self.recorder: Any = None
+        self._delete_pending: tuple[str, float] | None = None  # (demo name, time of the first Delete press)
         self._demo_cache: dict[tuple[int, str], tuple[Any, Any]] = {}
         self._targets: dict[str, np.ndarray] = {}
         from studio.core.keypoints import KeypointCache
@@ -537,6 +539,29 @@ class Controller:
         with self.lock:
             self.session.delete_demo(i)
         self.demos_changed()
+
+    #: Seconds within which a second Delete press confirms the first.
+    DELETE_CONFIRM_S = 5.0
+
+    def delete_demo_confirmed(self, i: int, *, now: float | None = None) -> bool:
+        """The Delete button: the first press asks, a second press on the same demo within
+        :attr:`DELETE_CONFIRM_S` deletes it for good. Returns True when the demo was deleted."""
+        now = time.monotonic() if now is None else now
+        name = self.demo_names()[i]
+        pending = self._delete_pending
+        if pending is not None and pending[0] == name and now - pending[1] <= self.DELETE_CONFIRM_S:
+            self._delete_pending = None
+            self.delete_demo(i)
+            self.notify("Demonstration deleted", f'"{name}" was deleted.', kind="success")
+            return True
+        self._delete_pending = (name, now)
+        self.notify(
+            "Delete for good?",
+            f'Press Delete again within {self.DELETE_CONFIRM_S:.0f} seconds to delete "{name}" from disk. '
+            "To keep it but leave it out of learning, untick \"Show in the scene\" instead.",
+            kind="warning",
+        )
+        return False
 
     def demos_changed(self) -> None:
         """The set of demonstrations changed: drop stale caches and redraw traces and key-points."""

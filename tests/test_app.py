@@ -487,3 +487,15 @@ def test_hidden_demos_stay_hidden_after_a_restart(sessions: Path) -> None:
         assert "hidden" in b.panels.teach.demo_list.content  # the list says so
     finally:
         b.stop()
+
+
+def test_delete_asks_for_a_second_press(app: Studio) -> None:
+    names = app.demo_names()
+    assert app.delete_demo_confirmed(0, now=100.0) is False  # first press only asks
+    assert app.demo_names() == names
+    assert any(kind == "warning" and "Press Delete again" in body for kind, _, body in app.notes)  # type: ignore[attr-defined]
+    assert app.delete_demo_confirmed(0, now=100.0 + app.DELETE_CONFIRM_S + 1) is False  # too late: asks again
+    assert app.demo_names() == names
+    assert app.delete_demo_confirmed(1, now=107.0) is False  # another demo: asks for that one
+    assert app.delete_demo_confirmed(1, now=108.0) is True
+    assert app.demo_names() == [names[0], names[2]]

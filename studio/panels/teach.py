@@ -352,7 +352,7 @@ class TeachPanel:
             t0, t1 = self.demo_trim.value
             self.app.trim_demo(i, float(t0), float(t1))
         elif action == "Delete":
-            self.app.delete_demo(i)
+            self.app.delete_demo_confirmed(i)  # asks first: a second press deletes
 
 
 def _nothing() -> Exception:
