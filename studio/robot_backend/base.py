@@ -8,6 +8,8 @@ grippers are percent open, 0 = closed .. 100 = open, columns left, right.
 from __future__ import annotations
 
 import abc
+import logging
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -44,6 +46,44 @@ class RobotState:
 
 #: Called from the backend's streaming thread with each new batch; must return quickly.
 StateListener = Callable[[JointStateBatch], None]
+
+log = logging.getLogger(__name__)
+
+
+class ListenerHub:
+    """The listeners of one backend's stream: subscribe, unsubscribe, and deliver each batch to all of them.
+
+    Delivery happens outside any state lock (a listener may read ``state()`` or command the robot); one
+    faulty listener is counted in :attr:`errors` and logged, and never stops the stream.
+    """
+
+    def __init__(self) -> None:
+        self._listeners: list[StateListener] = []
+        self._lock = threading.Lock()
+        self.errors = 0
+
+    def subscribe(self, listener: StateListener) -> Callable[[], None]:
+        with self._lock:
+            self._listeners.append(listener)
+
+        def unsubscribe() -> None:
+            with self._lock:
+                if listener in self._listeners:
+                    self._listeners.remove(listener)
+
+        return unsubscribe
+
+    def deliver(self, batch: JointStateBatch) -> None:
+        if len(batch) == 0:
+            return
+        with self._lock:
+            listeners = list(self._listeners)
+        for fn in listeners:
+            try:
+                fn(batch)
+            except Exception:  # one faulty listener must not stop the robot's stream
+                self.errors += 1
+                log.exception("joint-state listener failed")
 
 
 class RobotBackend(abc.ABC):

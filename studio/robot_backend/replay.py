@@ -8,7 +8,6 @@ seeks (a listener such as the recorder may rely on increasing time).
 
 from __future__ import annotations
 
-import logging
 import threading
 from collections.abc import Callable
 
@@ -17,9 +16,7 @@ import numpy as np
 from studio.core.errors import InvalidInput
 from studio.core.types import Recording
 from studio.robot_backend._clock import BatchClock
-from studio.robot_backend.base import JointStateBatch, RobotBackend, RobotState, StateListener
-
-log = logging.getLogger(__name__)
+from studio.robot_backend.base import JointStateBatch, ListenerHub, RobotBackend, RobotState, StateListener
 
 MAX_BATCH = 1000
 
@@ -54,13 +51,12 @@ class ReplayBackend(RobotBackend):
         self._dt = 1.0 / self.rate_hz
         self._lock = threading.RLock()
         self._deliver_lock = threading.RLock()
-        self._listeners: list[StateListener] = []
+        self._hub = ListenerHub()
         self._idx = 0  # next sample to stream
         self._offset = 0.0  # streamed t = recording t + offset
         self._last_t: float | None = None
         self._cur = 0  # index of the latest streamed sample (state())
         self._clock = BatchClock(self._advance_to, period=period, time_scale=speed, name="replay")
-        self.listener_errors = 0
 
     # -- RobotBackend -------------------------------------------------------------------------------------
     def start(self) -> None:
@@ -83,15 +79,7 @@ class ReplayBackend(RobotBackend):
     pause = stop
 
     def subscribe(self, listener: StateListener) -> Callable[[], None]:
-        with self._lock:
-            self._listeners.append(listener)
-
-        def unsubscribe() -> None:
-            with self._lock:
-                if listener in self._listeners:
-                    self._listeners.remove(listener)
-
-        return unsubscribe
+        return self._hub.subscribe(listener)
 
     def command_joints(self, arm: str, q: np.ndarray) -> None:
         """Ignored: a replay cannot be steered."""
@@ -203,16 +191,12 @@ class ReplayBackend(RobotBackend):
                 self._deliver(batch)
 
     def _deliver(self, batch: JointStateBatch) -> None:
-        if len(batch) == 0:
-            return
-        with self._lock:
-            listeners = list(self._listeners)
-        for fn in listeners:
-            try:
-                fn(batch)
-            except Exception:
-                self.listener_errors += 1
-                log.exception("joint-state listener failed")
+        self._hub.deliver(batch)
+
+    @property
+    def listener_errors(self) -> int:
+        """How many times a listener raised (each one logged; the stream went on)."""
+        return self._hub.errors
 
 
 __all__ = ["ReplayBackend"]

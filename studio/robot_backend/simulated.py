@@ -18,7 +18,6 @@ Two ways to drive it:
 
 from __future__ import annotations
 
-import logging
 import math
 import threading
 from collections.abc import Callable
@@ -28,9 +27,7 @@ import numpy as np
 from studio.core.errors import InvalidInput
 from studio.core.types import ARMS, check_arm
 from studio.robot_backend._clock import BatchClock
-from studio.robot_backend.base import JointStateBatch, RobotBackend, RobotState, StateListener
-
-log = logging.getLogger(__name__)
+from studio.robot_backend.base import JointStateBatch, ListenerHub, RobotBackend, RobotState, StateListener
 
 #: Gripper travel speed, percent of the full stroke per second (Baxter's electric gripper: ~0.5 s stroke).
 GRIPPER_SPEED = 200.0
@@ -129,8 +126,7 @@ class SimulatedBaxter(RobotBackend):
         self._rng = np.random.default_rng(seed)
         self._lock = threading.RLock()
         self._deliver_lock = threading.RLock()
-        self._listeners: list[StateListener] = []
-        self._listeners_lock = threading.Lock()
+        self._hub = ListenerHub()
         self._k = 0  # index of the next sample to produce
         q = neutral if q0 is None else self._check_q("initial joint angles", q0, (14,))
         self._q = np.clip(q, self.lower, self.upper)
@@ -140,7 +136,6 @@ class SimulatedBaxter(RobotBackend):
         self._last_q = self._q.copy()
         self._last_g = self._g.copy()
         self._clock = BatchClock(self._advance_to, period=period, time_scale=time_scale, name="sim-baxter")
-        self.listener_errors = 0
 
     # -- helpers -------------------------------------------------------------------------------------------
     @staticmethod
@@ -183,15 +178,7 @@ class SimulatedBaxter(RobotBackend):
         self._clock.stop()
 
     def subscribe(self, listener: StateListener) -> Callable[[], None]:
-        with self._listeners_lock:
-            self._listeners.append(listener)
-
-        def unsubscribe() -> None:
-            with self._listeners_lock:
-                if listener in self._listeners:
-                    self._listeners.remove(listener)
-
-        return unsubscribe
+        return self._hub.subscribe(listener)
 
     def command_joints(self, arm: str, q: np.ndarray) -> None:
         """Move ``arm`` towards ``q`` (7,) rad; targets outside the joint limits are clipped into them."""
@@ -333,18 +320,12 @@ class SimulatedBaxter(RobotBackend):
         return batch
 
     def _deliver(self, batch: JointStateBatch) -> None:
-        # Outside the state lock (a listener may read state() or command the robot), inside the delivery
-        # lock (batches reach listeners in order).
-        if len(batch) == 0:
-            return
-        with self._listeners_lock:
-            listeners = list(self._listeners)
-        for fn in listeners:
-            try:
-                fn(batch)
-            except Exception:  # one faulty listener must not stop the robot's stream
-                self.listener_errors += 1
-                log.exception("joint-state listener failed")
+        self._hub.deliver(batch)
+
+    @property
+    def listener_errors(self) -> int:
+        """How many times a listener raised (each one logged; the stream went on)."""
+        return self._hub.errors
 
 
 __all__ = ["GRIPPER_SPEED", "SimulatedBaxter", "rate_limited", "rate_limited_series"]
