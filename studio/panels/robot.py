@@ -40,8 +40,11 @@ class RobotPanel:
         self._grip_idx = np.array([GRIPPER_JOINTS.get(n, -1) for n in names])
         self._cfg = np.zeros(len(names))
         self._names = names
-        self._fast = _FastPose.build(self.urdf)
         self.updates = 0  # scene pose updates sent (the benchmark reads it)
+        with server.atomic():
+            self._fast = _FastPose.build(self.urdf)  # places the fixed joints' frames once
+        _v, _t, q0, grip0 = app.display.get()
+        self.show_pose(q0, grip0)  # and the movable ones: the robot is drawn where it is from the start
         self._message = ""
         self._status_dirty = True
         self._last_status = 0.0
@@ -121,14 +124,21 @@ class RobotPanel:
 
 
 class _FastPose:
-    """Moves only the frames of the URDF's movable joints, and only those whose value changed.
+    """Places every frame of the URDF: fixed joints once, movable joints only when their value changed.
 
-    ViserUrdf.update_cfg recomputes all 56 frames through yourdfpy's scene graph (~12 ms a pose, most of a
-    core at 60 Hz); here each moving joint is one quaternion product in plain floats (~20 µs).
+    ViserUrdf sets frame poses only in ``update_cfg`` (viser 1.1.1), which recomputes all 56 frames through
+    yourdfpy's scene graph (~12 ms a pose, most of a core at 60 Hz). Here the fixed joints' frames (arm
+    mounts at ±0.22 m / ±45°, hands, gripper bases, head screen, ...) are placed once from their URDF
+    origin when the panel is built, and each moving joint is one quaternion product in plain floats
+    (~20 µs a pose). ``tests/test_robot_drawing.py`` composes what the server sends to the browser and
+    compares every link with pinocchio's FK.
     """
 
-    def __init__(self, items: list[tuple[Any, ...]]) -> None:
+    MOVABLE = ("revolute", "continuous", "prismatic")
+
+    def __init__(self, items: list[tuple[Any, ...]], fixed: list[tuple[Any, tuple[float, ...], np.ndarray]]) -> None:
         self.items = items
+        self.fixed = fixed
         self._last: list[float | None] = [None] * len(items)
 
     @classmethod
@@ -143,10 +153,13 @@ class _FastPose:
         if len(frames) != len(joints):
             return None
         items = []
+        fixed = []
         for joint, frame in zip(joints, frames, strict=True):
-            if joint.type not in ("revolute", "continuous", "prismatic"):
-                continue
             origin = np.eye(4) if joint.origin is None else np.asarray(joint.origin, dtype=np.float64)
+            q0 = tuple(float(x) for x in quat_wxyz_from_matrix(origin[:3, :3]))
+            if joint.type not in cls.MOVABLE:  # fixed (and any joint without a 1-D motion): its origin
+                fixed.append((frame, q0, origin[:3, 3].copy()))
+                continue
             axis = np.asarray(joint.axis if joint.axis is not None else (1.0, 0.0, 0.0), dtype=np.float64)
             axis = axis / np.linalg.norm(axis)
             mimic = (
@@ -154,11 +167,19 @@ class _FastPose:
                 if joint.mimic is not None
                 else (joint.name, 1.0, 0.0)
             )
-            q0 = tuple(float(x) for x in quat_wxyz_from_matrix(origin[:3, :3]))
             items.append((frame, q0, origin, joint.type == "prismatic", tuple(float(a) for a in axis), mimic))
-        return cls(items)
+        fast = cls(items, fixed)
+        fast.place_fixed()
+        return fast
+
+    def place_fixed(self) -> None:
+        """Put every fixed joint's frame at its URDF origin (they never move afterwards)."""
+        for frame, wxyz, position in self.fixed:
+            frame.wxyz = wxyz
+            frame.position = position
 
     def update(self, values: dict[str, float]) -> None:
+        """Move the movable joints' frames to ``values`` (joint name -> rad or m; missing names are 0)."""
         for k, (frame, (w0, x0, y0, z0), origin, prismatic, (ax, ay, az), (src, mult, off)) in enumerate(self.items):
             v = mult * float(values.get(src, 0.0)) + off
             last = self._last[k]
@@ -166,6 +187,8 @@ class _FastPose:
                 continue
             self._last[k] = v
             if prismatic:
+                if last is None:
+                    frame.wxyz = (w0, x0, y0, z0)
                 frame.position = origin[:3, 3] + origin[:3, :3] @ np.array([ax * v, ay * v, az * v])
                 continue
             c, s_ = math.cos(v / 2), math.sin(v / 2)
