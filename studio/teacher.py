@@ -42,6 +42,16 @@ JOINT_NOISE_RAD = 2.5e-4
 JOINT_QUANTUM_RAD = 2.0 * math.pi / 2**14
 GRIPPER_NOISE_PERCENT = 0.3
 
+#: Where the left arm's demonstrations act (base frame, metres; the right arm mirrors y and the yaws). The
+#: task scene (:mod:`studio.world`) puts the objects here: the cup handed over in the air and the stack it
+#: goes on; the block at A (grasped turned by YAW_A) and the target pad at B.
+STACK_CUP_HANDOVER = (0.66, 0.47, 0.20)  # gripper point where the handed-over cup is taken
+STACK_CUP_STACK = (0.78, 0.14, 0.06)  # gripper point where it is let go over the stack
+PICK_PLACE_A = (0.72, 0.40, -0.03)  # gripper point grasping the block at its start
+PICK_PLACE_B = (0.64, 0.02, -0.03)  # gripper point placing it on the pad
+PICK_PLACE_YAW_A = 0.35
+PICK_PLACE_YAW_B = -0.25
+
 #: IK knots per second along a moving segment (the 1 kHz signal is a clamped cubic between them).
 _IK_RATE_HZ = 40.0
 #: Fraction of the URDF velocity limit a plan may use (a human does not drive the arm to its limit).
@@ -153,7 +163,7 @@ def _task_keys(task: str, rng: np.random.Generator, home: np.ndarray) -> list[_K
     """The task's key-frames for the left arm (the right arm mirrors y), jittered per demonstration."""
     P = np.array
     if task == "stack-cup":
-        hand_over, stack = P([0.66, 0.47, 0.20]), P([0.78, 0.14, 0.06])
+        hand_over, stack = P(STACK_CUP_HANDOVER), P(STACK_CUP_STACK)
         keys = [
             _Key(home, 0.0, rng.uniform(0.8, 1.6), 0.1, kind="home"),
             _Key(hand_over + P([0, 0, 0.10]), 0.0, rng.uniform(0.0, 0.4), 0.11),
@@ -165,8 +175,8 @@ def _task_keys(task: str, rng: np.random.Generator, home: np.ndarray) -> list[_K
             _Key(home, 0.0, rng.uniform(0.8, 1.5), 0.11, kind="home"),
         ]
     elif task == "pick-place":
-        a, b = P([0.72, 0.40, -0.03]), P([0.64, 0.02, -0.03])
-        ya, yb = 0.35, -0.25
+        a, b = P(PICK_PLACE_A), P(PICK_PLACE_B)
+        ya, yb = PICK_PLACE_YAW_A, PICK_PLACE_YAW_B
         up = P([0, 0, 0.13])
         keys = [
             _Key(home, 0.0, rng.uniform(0.6, 1.2), 0.1, kind="home"),
