@@ -271,8 +271,12 @@ class Scene:
         name: str | None = None,
         size: Sequence[float] | None = None,
         settle: bool = True,
+        held_out: bool = False,
     ) -> Scene:
-        """A new scene with one more object (a cup, block or pad); named "<kind>", "<kind> 2", ... by default."""
+        """A new scene with one more object (a cup, block or pad); named "<kind>", "<kind> 2", ... by default.
+
+        With ``settle`` it comes to rest on the surface below; ``held_out``: the teacher holds it out in the
+        air (it stays where it is put until a gripper takes it)."""
         if kind not in KINDS:
             raise InvalidInput(f'Unknown object "{kind}": choose a cup, a block or a pad.')
         if name is None:
@@ -285,8 +289,8 @@ class Scene:
         elif name in self.names():
             raise InvalidInput(f'There is already a "{name}" in the scene; choose another name.')
         size_t = tuple(size) if size is not None else DEFAULT_SIZE[kind]
-        obj = WorldObject(name, kind, size_t, tuple(position), float(yaw))  # type: ignore[arg-type]
-        if settle:
+        obj = WorldObject(name, kind, size_t, tuple(position), float(yaw), held_out)  # type: ignore[arg-type]
+        if settle and not held_out:
             obj = replace(obj, position=_rest_position(obj, self.table, self.objects))
         return replace(self, objects=(*self.objects, obj))
 
@@ -411,10 +415,7 @@ def preset(name: str, arms: Sequence[str] = ("left",)) -> Scene:
             hx, hy, hz = teacher.STACK_CUP_HANDOVER
             sx, sy, _ = teacher.STACK_CUP_STACK
             scene = scene.add("cup", (sx, m * sy, TABLE_TOP_Z), name=f"bottom cup{tag}")
-            cup = WorldObject(
-                f"cup{tag}", "cup", DEFAULT_SIZE["cup"], (hx, m * hy, hz - CUP_GRASP_HEIGHT), held_out=True
-            )
-            scene = replace(scene, objects=(*scene.objects, cup))
+            scene = scene.add("cup", (hx, m * hy, hz - CUP_GRASP_HEIGHT), name=f"cup{tag}", held_out=True)
         elif name == "pick-place":
             ax, ay, _ = teacher.PICK_PLACE_A
             bx, by, _ = teacher.PICK_PLACE_B
@@ -631,33 +632,66 @@ class World:
     Thread-safe: a backend thread may feed it while the GUI reads it.
     """
 
-    def __init__(self, scene: Scene | None = None, baxter: Baxter | None = None) -> None:
+    def __init__(
+        self,
+        scene: Scene | None = None,
+        baxter: Baxter | None = None,
+        *,
+        start: Sequence[ObjectPose] | None = None,
+        record_path: bool = False,
+        path_rate_hz: float = 100.0,
+    ) -> None:
         self.baxter = baxter if baxter is not None else Baxter.load()
         self._lock = threading.RLock()
         self._scene = scene if scene is not None else Scene()
+        self._path_rate = float(path_rate_hz) if record_path else 0.0
         self.version = 0
-        self.reset(self._scene)
+        self.reset(self._scene, start)
 
     # -- set-up ---------------------------------------------------------------------------------------------
     @property
     def scene(self) -> Scene:
         return self._scene
 
-    def reset(self, scene: Scene | None = None) -> None:
-        """Put every object back where the scene sets it up (or set up a new scene); forget the events."""
+    def reset(self, scene: Scene | None = None, start: Sequence[ObjectPose] | None = None) -> None:
+        """Put every object back where the scene sets it up (or set up a new scene); forget the events.
+
+        ``start``: begin instead from these poses (a demonstration's "start" event, to replay it as it was
+        recorded): the objects are the ones listed there, an object held by a gripper is attached to it at
+        the first sample fed.
+        """
         with self._lock:
             if scene is not None:
                 self._scene = scene
-            self._objects: dict[str, _State] = {o.name: _State(o) for o in self._scene.objects}
-            for o in self._scene.objects:  # resting objects know what they rest on
-                st = self._objects[o.name]
-                if not o.held_out:
-                    others = [(p.obj, p.obj.yaw) for n, p in self._objects.items() if n != o.name and not p.held_out]
-                    level, on = _landing(o.kind, o.position[0], o.position[1], o.position[2], self._scene.table, others)
-                    st.on = on if abs(level - o.position[2]) < 1e-6 else None
+            if start is None:
+                objects = list(self._scene.objects)
+            else:
+                objects = [
+                    WorldObject(p.name, p.kind, p.size, p.position, p.yaw, held_out=p.on == "hand") for p in start
+                ]
+            self._objects: dict[str, _State] = {o.name: _State(o) for o in objects}
+            if start is None:
+                for o in objects:  # resting objects know what they rest on
+                    st = self._objects[o.name]
+                    if not o.held_out:
+                        others = [
+                            (x.obj, x.obj.yaw) for n, x in self._objects.items() if n != o.name and not x.held_out
+                        ]
+                        level, on = _landing(
+                            o.kind, o.position[0], o.position[1], o.position[2], self._scene.table, others
+                        )
+                        st.on = on if abs(level - o.position[2]) < 1e-6 else None
+            else:
+                for p in start:
+                    st = self._objects[p.name]
+                    st.T = _transform(p.position, p.wxyz)
+                    st.held_by, st.on = p.held_by, p.on  # a held one is attached at the first sample
             self._grips: dict[str, _Grip] | None = None
             self._events: list[WorldEvent] = []
             self._last: tuple[float, np.ndarray, np.ndarray] | None = None
+            self._path_t: list[np.ndarray] = []
+            self._path: dict[str, list[np.ndarray]] = {arm: [] for arm in ARMS}
+            self._path_bucket = -math.inf
             self.version += 1
 
     # -- reading --------------------------------------------------------------------------------------------
@@ -720,6 +754,15 @@ class World:
         with self._lock:
             if self._grips is None:
                 self._grips = {arm: _Grip(float(g[0, i])) for i, arm in enumerate(ARMS)}
+                for arm in ARMS:  # objects held at the start (a replayed demonstration) follow this gripper
+                    held = [st for st in self._objects.values() if st.held_by == arm and st.rel is None]
+                    if held:
+                        self._grips[arm].closed = True
+                        inv = np.linalg.inv(self._gripper_T(arm, q[0]))
+                        for st in held:
+                            st.rel = inv @ st.T
+            if self._path_rate > 0:
+                self._record_path(t, q)
             new: list[WorldEvent] = []
             for i, arm in enumerate(ARMS):
                 det = self._grips[arm]
@@ -745,7 +788,29 @@ class World:
                 self.version += 1
             return new
 
+    def run(self) -> WorldRun:
+        """What happened so far as a :class:`WorldRun` (for :func:`task_result`); the gripper path is there
+        only when the world was made with ``record_path=True``."""
+        with self._lock:
+            if self._path_t:
+                path_t = np.concatenate(self._path_t)
+                path = {arm: np.concatenate(self._path[arm]) for arm in ARMS}
+            else:
+                path_t, path = np.zeros(0), {arm: np.zeros((0, 3)) for arm in ARMS}
+            return WorldRun(tuple(self._events), self.poses(), path_t, path)
+
     # -- internals ------------------------------------------------------------------------------------------
+    def _record_path(self, t: np.ndarray, q: np.ndarray) -> None:
+        bucket = np.floor(t * self._path_rate)
+        prev = np.concatenate([[self._path_bucket], bucket[:-1]])
+        idx = np.flatnonzero(bucket > prev)
+        if len(idx) == 0:
+            return
+        self._path_bucket = float(bucket[-1])
+        self._path_t.append(t[idx].copy())
+        for arm in ARMS:
+            self._path[arm].append(self.baxter.fk_batch(arm, q[idx, :7] if arm == "left" else q[idx, 7:])[0])
+
     def _gripper_T(self, arm: str, q14: np.ndarray) -> np.ndarray:
         p, wxyz = self.baxter.fk(arm, q14[:7] if arm == "left" else q14[7:])
         return _transform(p, wxyz)
@@ -844,12 +909,14 @@ def simulate(
     scene: Scene,
     *,
     baxter: Baxter | None = None,
+    start: Sequence[ObjectPose] | None = None,
     path_rate_hz: float = 100.0,
 ) -> WorldRun:
     """Play a whole pose stream through ``scene``: (N,) times s, (N, 14) joints rad, (N, 2) openings percent.
 
     Deterministic: the same stream and scene give the same events. Works for any stream (a demonstration,
-    the skill preview, a robot execution's joint states).
+    the skill preview, a robot execution's joint states). ``start``: begin from these object poses instead
+    of the scene's set-up (see :meth:`World.reset`).
     """
     t = np.asarray(t, dtype=np.float64).reshape(-1)
     q = np.asarray(q, dtype=np.float64)
@@ -861,20 +928,14 @@ def simulate(
             "The motion must have 14 joint angles and 2 gripper openings per sample "
             f"(got {q.shape} and {gripper.shape} for {len(t)} samples)."
         )
-    world = World(scene, baxter)
     ok = np.isfinite(t) & np.all(np.isfinite(q), axis=1) & np.all(np.isfinite(gripper), axis=1)
     if not ok.any():
         raise InvalidInput("The motion contains only missing or invalid values (NaN).")
-    t0, t1 = float(t[ok][0]), float(t[ok][-1])
-    world.snapshot("start", t0)
+    world = World(scene, baxter, start=start, record_path=True, path_rate_hz=path_rate_hz)
+    world.snapshot("start", float(t[ok][0]))
     world.feed(t, q, gripper)
-    world.snapshot("end", t1)
-    tt, qq = t[ok], q[ok]
-    step = max(1, round((len(tt) - 1) / max((t1 - t0) * path_rate_hz, 1.0)))
-    idx = np.unique(np.concatenate([np.arange(0, len(tt), step), [len(tt) - 1]]))
-    b = world.baxter
-    path = {arm: b.fk_batch(arm, qq[idx, :7] if arm == "left" else qq[idx, 7:])[0] for arm in ARMS}
-    return WorldRun(tuple(world.events), world.poses(), tt[idx], path)
+    world.snapshot("end", float(t[ok][-1]))
+    return world.run()
 
 
 # -- what the demonstrations did, and whether a run does the same ----------------------------------------------
