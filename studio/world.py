@@ -1135,7 +1135,8 @@ def _object_result(run: WorldRun, g: ObjectGoal) -> ObjectResult:
     d = float(np.linalg.norm(np.asarray(fp.position) - np.asarray(g.final)))
     if d > SUCCESS_TOL:
         off = describe_offset(np.asarray(fp.position) - np.asarray(g.final), "where you put it")
-        return ObjectResult(name, False, "moved", f"The {name} ended {off}.", d)
+        again = ": it was picked up again afterwards" if len(grasps) > n else ""
+        return ObjectResult(name, False, "moved", f"The {name} ended {off}{again}.", d)
     return ObjectResult(
         name, True, "works", f"The {name} ended {format_distance(d)} from where you put it — the skill works.", d
     )

@@ -444,3 +444,21 @@ def test_a_replay_starts_from_the_recorded_poses_even_mid_grasp() -> None:
     assert run.events == full.events
     assert abs(len(run.path_t) - len(full.path_t)) <= 2
     assert task_result(run, goal) == task_result(full, goal)
+
+
+def test_result_moved_again_after_it_was_put_down() -> None:
+    # Demonstrations that carry the block from A to the pad and stop there (the first half of pick-place) ...
+    scene = preset("pick-place")
+    demos = []
+    for s in (0, 1, 2):
+        plan = teach("pick-place", s)
+        rec = recording_from_plan(plan)
+        n = int(np.searchsorted(rec.t, plan.event_poses("open")[0].time + 2.0))
+        demos.append(simulate(rec.t[:n], rec.q[:n], rec.gripper[:n], scene).events)
+    goal = task_goal(demos)
+    assert len(goal.objects[0].releases) == 1
+    # ... and a run that does the whole task: put on the pad, then picked up again and taken back to A.
+    res = task_result(run_plan(teach("pick-place", 7), scene), goal)
+    assert res.objects[0].verdict == "moved"
+    assert res.text.startswith("The block ended ") and "to the robot's left of where you put it" in res.text
+    assert res.text.endswith(": it was picked up again afterwards."), res.text
