@@ -43,7 +43,8 @@ Where this hooks into viser, and why there (viser 1.1.1 with websockets 16):
   :meth:`Access.start_viser` therefore swaps ``websockets.asyncio.server.serve`` for a wrapper *only while
   the studio's ViserServer is being built* (under a lock), and puts the original back as soon as the server
   listens: the wrapper wraps viser's ``process_request`` with :meth:`Access.check` and sets ``max_size``.
-  No other websockets server in the process is affected.
+  No other websockets server in the process is affected. (viser's own banner, which shows the address
+  without the key, is silenced for that moment: the studio prints the address to open.)
 * Every incoming websocket message is dispatched by ``WebsockServer._handle_incoming_message(client_id,
   message)``, looked up on the server instance for each message; :class:`UploadLimit` wraps it on this one
   instance to check uploads before viser's ``GuiApi`` buffers them.
@@ -301,10 +302,12 @@ class Access:
     # -- hooking into viser ------------------------------------------------------------------------------
     def start_viser(self, **kwargs: Any) -> viser.ViserServer:
         """``viser.ViserServer(**kwargs)`` with every request checked and uploads capped (see the module doc)."""
+        import rich
         import viser
         import websockets.asyncio.server as wss
 
         access = self
+        console = rich.get_console()
 
         with _SERVE_LOCK:
             real_serve = wss.serve
@@ -315,10 +318,13 @@ class Access:
                 return real_serve(handler, *args, process_request=access.check(process_request), **kw)
 
             setattr(wss, "serve", guarded_serve)  # noqa: B010 (mypy: `serve` is a class)
+            # viser prints a box with its address *without* the key; the studio prints the one to open.
+            quiet, console.quiet = console.quiet, True
             try:
                 server = viser.ViserServer(**kwargs)
             finally:
                 setattr(wss, "serve", real_serve)  # noqa: B010
+                console.quiet = quiet
         try:
             if self.hooked is None:
                 raise StudioError("its web server no longer starts where the studio checks who connects")
