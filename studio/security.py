@@ -297,7 +297,8 @@ class Access:
             return
         self._last_log[reason] = now
         origin = request.headers.get("Origin")
-        log.warning("refused a connection to the studio (%s)%s", reason, f" from a page at {origin}" if origin else "")
+        where = f", from a page at {origin}" if origin and "origin" not in reason else ""
+        log.warning("refused a connection to the studio (%s%s)", reason, where)
 
     # -- hooking into viser ------------------------------------------------------------------------------
     def start_viser(self, **kwargs: Any) -> viser.ViserServer:
@@ -406,6 +407,8 @@ class UploadLimit:
             return False  # not what viser's client sends: drop silently
         now = time.monotonic()
         with self._lock:
+            if tid in self._transfers:
+                return False  # the same upload announced twice
             for k in [k for k, t in self._transfers.items() if now - t.last > UPLOAD_IDLE_S]:
                 self._forget(k)
             busy = sum(t.declared for t in self._transfers.values())
@@ -417,8 +420,6 @@ class UploadLimit:
                     f"({_mb(size)}) is too large to upload while another upload of {_mb(busy)} is still running; "
                     "try again when it has finished"
                 )
-            elif tid in self._transfers:
-                return False
             else:
                 if size > 0:
                     self._transfers[tid] = _Transfer(client_id, size, parts, last=now)
