@@ -18,6 +18,9 @@ What is checked, on every HTTP request and every websocket upgrade, before viser
   key does not stay in the address bar. A websocket needs the cookie, or ``?key=`` in its own address (for
   programs, which send no Origin). ``--no-key`` turns the key off, on this computer only: listening beyond
   it without the key is refused (:class:`StudioError`).
+* **No other server**: a page address with viser's ``websocket=`` or ``playbackPath=`` parameter (the page
+  would connect to, or replay from, another server, whose HTML would then run as the studio's page) is
+  refused.
 
 A refused request gets HTTP 403 with a short plain-text explanation (what to open instead); nothing of the
 studio is sent, no websocket is opened and no callback runs. Accepted pages also carry headers that keep
@@ -87,6 +90,9 @@ UPLOAD_IDLE_S = 60.0
 LOOPBACK_HOSTS = frozenset({"127.0.0.1", "localhost", "::1"})
 WILDCARD_HOSTS = frozenset({"0.0.0.0", "::", ""})
 KEY_PARAM = "key"
+#: Address parameters of viser's page that make it connect to, or load a recording from, another server:
+#: a page driven by someone else's server would run their HTML inside the studio's origin.
+FOREIGN_SOURCE_PARAMS = frozenset({"websocket", "playbackPath"})
 _KEY_RE = re.compile(r"[A-Za-z0-9_-]{16,128}")
 _SERVE_LOCK = threading.Lock()
 
@@ -240,10 +246,14 @@ class Access:
             host = hosts[0].strip().lower()
             if origin not in (f"http://{host}", f"https://{host}"):
                 return Verdict("refuse", f"foreign origin {origins[0]!r}")
+        upgrade = any("websocket" in v.lower() for v in headers.get_all("Upgrade"))
+        if not upgrade:
+            names = {part.partition("=")[0] for part in path.partition("?")[2].split("&")}
+            if names & FOREIGN_SOURCE_PARAMS:
+                return Verdict("refuse", "the address asks the page to use another server")
         if self.key is None:
             return Verdict("pass")
         query_key, without_key = _query_key(path)
-        upgrade = any("websocket" in v.lower() for v in headers.get_all("Upgrade"))
         if query_key is not None:
             if not self._key_ok(query_key):
                 return Verdict("refuse", "wrong key in the address")

@@ -202,6 +202,15 @@ def test_without_the_key_the_page_says_what_to_open(app: Studio) -> None:
         assert "set-cookie" not in hdrs
 
 
+def test_the_page_may_not_be_pointed_at_another_server(app: Studio) -> None:
+    """viser's page reads ?websocket=... / ?playbackPath=...: another server's HTML would run as the studio's page.
+    From another port of this computer the cookie goes along with such a link, so the address itself is refused."""
+    for q in ("websocket=ws://127.0.0.1:1/", "playbackPath=http://127.0.0.1:1/x.viser", "darkMode&websocket=x"):
+        assert http_get(app.port, f"/?{q}", {"Cookie": cookie_of(app)})[0] == 403, q
+        assert http_get(app.port, f"/?{q}&key={key_of(app)}")[0] == 403, q
+    assert http_get(app.port, "/?darkMode", {"Cookie": cookie_of(app)})[0] == 200
+
+
 def test_other_host_names_are_refused(app: Studio) -> None:
     """DNS rebinding: a page at http://evil.example:<port> whose name resolves to 127.0.0.1."""
     evil = {"Host": f"evil.example:{app.port}", "Cookie": cookie_of(app)}
