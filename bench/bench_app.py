@@ -133,7 +133,7 @@ def bench_browser(root: Path, seconds: float = 5.0) -> dict[str, float]:
 
             frames: list[tuple[float, bytes]] = []
             ws = connect(
-                f"ws://127.0.0.1:{app.port}",
+                app.url().replace("http://", "ws://"),  # a program, not a page: the key in its address
                 subprotocols=[f"viser-v{viser.__version__}"],
                 max_size=None,
                 open_timeout=30,

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Starts Teaching Studio on http://127.0.0.1:8080 with the bundled "stack-cup" example session.
+# Starts Teaching Studio on http://127.0.0.1:8080 with the bundled "stack-cup" example session; open the address it
+# prints (http://127.0.0.1:8080/?key=..., a new key at each start: only that page may drive the studio).
 # Extra arguments go to `studio` (e.g. --port 9000, --session pick-place).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"

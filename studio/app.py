@@ -23,7 +23,7 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import viser
 
@@ -108,9 +108,12 @@ class Studio(Controller):
         meshes: str = "auto",
         backend: RobotBackend | None = None,
         verbose: bool = False,
+        key: str | Literal[False] | None = None,
     ) -> None:
+        from studio.security import Access
         from studio.sessions import SessionStore
 
+        self.access = Access(host, key)  # who may connect (checked first: a refused --host starts nothing)
         self._recent_notes: dict[tuple[str, str], float] = {}
         if backend is None:
             from studio.robot_backend.simulated import SimulatedBaxter
@@ -119,7 +122,7 @@ class Studio(Controller):
         super().__init__(store=SessionStore(Path(sessions_dir)), session=session or DEFAULT_SESSION, backend=backend)
         self.urdf_path = robot_urdf_path(meshes)
 
-        self.server = viser.ViserServer(host=host, port=port, label="Teaching Studio", verbose=verbose)
+        self.server = self.access.start_viser(host=host, port=port, label="Teaching Studio", verbose=verbose)
         self.port = int(self.server.get_port())
         self.host = host
         configure_scene(self.server)
@@ -182,8 +185,8 @@ class Studio(Controller):
 
     # -- lifecycle ---------------------------------------------------------------------------------------
     def url(self) -> str:
-        host = "127.0.0.1" if self.host in ("0.0.0.0", "") else self.host
-        return f"http://{host}:{self.port}"
+        """The address to open in the browser, with the key (see :mod:`studio.security`)."""
+        return self.access.url(self.port)
 
     def stop(self) -> None:
         """Stop the pump, the backend and the server (idempotent)."""
@@ -213,8 +216,12 @@ def build_app(
     *,
     backend: RobotBackend | None = None,
     verbose: bool = False,
+    key: str | Literal[False] | None = None,
 ) -> Studio:
-    """Build and start the studio (server listening, robot streaming); returns the :class:`Studio`."""
+    """Build and start the studio (server listening, robot streaming); returns the :class:`Studio`.
+
+    ``key``: None for a new random key in :meth:`Studio.url`, a chosen key, or False for none (this computer only).
+    """
     return Studio(
         host=host,
         port=port,
@@ -223,6 +230,7 @@ def build_app(
         meshes=meshes,
         backend=backend,
         verbose=verbose,
+        key=key,
     )
 
 
@@ -231,19 +239,27 @@ def exposure_warning(host: str, port: int) -> str | None:
     if host in ("127.0.0.1", "localhost", "::1"):
         return None
     return (
-        f"WARNING: listening on {host}: anyone who can reach this computer on port {port} can move the "
-        "robot and read or change your sessions. Use --host 127.0.0.1 to keep it to this computer."
+        f"WARNING: listening on {host}: anyone who can reach this computer on port {port} and learns the address "
+        "with its key (it travels unencrypted) can move the robot and read or change your sessions. "
+        "Use --host 127.0.0.1 to keep it to this computer."
     )
 
 
-def serve(host: str, port: int, session: str | None, sessions_dir: Path | str, meshes: str = "auto") -> None:
+def serve(
+    host: str,
+    port: int,
+    session: str | None,
+    sessions_dir: Path | str,
+    meshes: str = "auto",
+    key: str | Literal[False] | None = None,
+) -> None:
     """Start the studio and block until Ctrl+C or SIGTERM (the ``studio serve`` command)."""
     import signal
 
+    app = build_app(host, port, session, sessions_dir, meshes, key=key)
     warning = exposure_warning(host, port)
     if warning:
         print(warning, file=sys.stderr, flush=True)
-    app = build_app(host, port, session, sessions_dir, meshes)
     stop = threading.Event()
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, lambda *_: stop.set())

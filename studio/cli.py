@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -26,6 +27,17 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("serve", parents=[common], help="start the studio in the browser (the default command)")
     s.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1: this computer only)")
+    s.add_argument(
+        "--key",
+        default=os.environ.get("STUDIO_KEY") or None,
+        help="the key in the address to open (default: a new random one at each start, or $STUDIO_KEY); "
+        "16-128 letters, digits, - or _",
+    )
+    s.add_argument(
+        "--no-key",
+        action="store_true",
+        help="no key in the address (this computer only: refused with a --host other than 127.0.0.1)",
+    )
     s.add_argument("--port", type=int, default=8080, help="port to listen on (default 8080)")
     s.add_argument("--session", default="stack-cup", help='session to open (default "stack-cup")')
     s.add_argument(
@@ -78,6 +90,7 @@ def _dispatch(args: argparse.Namespace) -> int:
                 session=args.session,
                 sessions_dir=args.sessions_dir,
                 meshes=args.meshes,
+                key=False if args.no_key else args.key,
             )
             return 0
         from studio import commands

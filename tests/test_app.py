@@ -72,7 +72,7 @@ def test_light_robot_is_the_default_and_warning_beyond_localhost() -> None:
 
 def test_starts_on_the_session_and_follows_the_robot(app: Studio) -> None:
     assert app.session.name == "stack-cup"
-    assert app.url() == f"http://127.0.0.1:{app.port}"
+    assert app.url() == f"http://127.0.0.1:{app.port}/?key={app.access.key}"
     assert len(app.demo_names()) == 3
     n0 = app.panels.robot.updates
     q = app.arm_q("left")

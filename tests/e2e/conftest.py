@@ -50,10 +50,17 @@ class StudioProcess:
         self.proc: subprocess.Popen[str] | None = None
         self.output: list[str] = []
         self._reader: threading.Thread | None = None
+        self.printed_url = ""
+
+    @property
+    def base(self) -> str:
+        """The studio's origin, without the key."""
+        return f"http://127.0.0.1:{self.port}"
 
     @property
     def url(self) -> str:
-        return f"http://127.0.0.1:{self.port}"
+        """The address the studio printed (with its key): what a person opens."""
+        return self.printed_url
 
     def start(self, timeout: float = 60.0) -> StudioProcess:
         env = dict(os.environ, PYTHONUNBUFFERED="1")
@@ -93,7 +100,8 @@ class StudioProcess:
             text = "".join(self.output)
             m = re.search(r"open (http://\S+) in your browser", text)
             if m:
-                assert m.group(1) == self.url, text
+                self.printed_url = m.group(1)
+                assert re.fullmatch(re.escape(self.base) + r"/\?key=[A-Za-z0-9_-]{16,}", self.printed_url), text
                 return self
             if proc.poll() is not None:
                 time.sleep(0.2)

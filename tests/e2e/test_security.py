@@ -1,0 +1,137 @@
+"""Browser tests: only the studio's own page drives it (issue 13 §1), in real Chromium.
+
+* the printed address (with its key) opens the studio, the key leaves the address bar, reloads work, and
+  the address without the key shows what to open instead;
+* a page served from another port of this computer, in the same browser (so the studio's cookie goes along
+  with its requests), cannot open the studio's websocket, while the studio's own page can;
+* an upload above the limit is refused at once with a plain message, and the upload button works again.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterator
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+
+import pytest
+import viser
+from playwright.sync_api import Page, expect
+
+from tests.e2e import ui
+from tests.e2e.conftest import free_port
+
+pytestmark = pytest.mark.e2e
+
+#: Opens a websocket to the studio the way viser's client does and reports what happened.
+PROBE_JS = """
+async ([url, protocol]) => await new Promise((resolve) => {
+  let ws;
+  try { ws = new WebSocket(url, [protocol]); } catch (e) { resolve("error " + e); return; }
+  ws.onopen = () => { resolve("open"); ws.close(); };
+  ws.onclose = (e) => resolve("closed " + e.code);
+  setTimeout(() => resolve("timeout"), 15000);
+})
+"""
+
+
+def probe(page: Page, port: int) -> str:
+    return str(page.evaluate(PROBE_JS, [f"ws://127.0.0.1:{port}", f"viser-v{viser.__version__}"]))
+
+
+@pytest.fixture
+def other_site() -> Iterator[str]:
+    """A tiny web server on another port of this computer: the page an attacker would serve."""
+
+    class Handler(BaseHTTPRequestHandler):
+        def do_GET(self) -> None:
+            body = b"<!doctype html><html><head><title>Another site</title></head><body><h1>Another site</h1></body>"
+            self.send_response(200)
+            self.send_header("Content-Type", "text/html; charset=utf-8")
+            self.send_header("Content-Length", str(len(body)))
+            self.end_headers()
+            self.wfile.write(body)
+
+        def log_message(self, *args) -> None:
+            pass
+
+    server = ThreadingHTTPServer(("127.0.0.1", free_port()), Handler)
+    t = threading.Thread(target=server.serve_forever, daemon=True)
+    t.start()
+    try:
+        yield f"http://127.0.0.1:{server.server_address[1]}/"
+    finally:
+        server.shutdown()
+        server.server_close()
+        t.join(timeout=5)
+
+
+def test_the_printed_address_opens_the_studio_and_reloads_work(browser, studio_factory, shots, tmp_path) -> None:
+    server = studio_factory("fresh", sessions_dir=tmp_path / "sessions")
+    page = ui.open_studio(browser, server.url)
+    assert "key=" not in page.url and page.url.startswith(server.base)
+    shots(page, "opened with the key")
+    page.reload()
+    ui.wait_ready(page)
+    expect(page.get_by_role("button", name="Record")).to_be_enabled()
+    assert probe(page, server.port) == "open"  # the studio's own page may open its websocket
+    shots(page, "after reload")
+
+    # The same address without the key, in another browser: a plain explanation, nothing of the studio.
+    other = browser.new_page(viewport=ui.VIEWPORT)
+    response = other.goto(server.base)
+    assert response is not None and response.status == 403
+    expect(other.get_by_text("this address needs its key")).to_be_visible()
+    assert "?key=" in other.content()
+    shots(other, "without the key")
+    other.close()
+    page.close()
+
+
+def test_a_page_at_another_origin_cannot_connect(browser, studio_factory, shots, other_site, tmp_path) -> None:
+    server = studio_factory("fresh", sessions_dir=tmp_path / "sessions")
+    context = browser.new_context(viewport=ui.VIEWPORT)
+    page = context.new_page()
+    page.goto(server.url)
+    ui.wait_ready(page)
+    assert any(c["name"] == f"studio-key-{server.port}" for c in context.cookies())  # the browser holds the key
+    evil = context.new_page()
+    evil.goto(other_site)
+    expect(evil.get_by_text("Another site")).to_be_visible()
+    result = probe(evil, server.port)
+    assert result.startswith("closed") and result != "closed 1000", result  # refused during the handshake
+    shots(evil, "another site refused")
+    # The studio is untouched and its own page still works.
+    assert probe(page, server.port) == "open"
+    ui.click_in_row(page, "Left gripper", "Close")
+    expect(page.locator('.gripper-status[data-arm="left"][data-open="0"]')).to_have_count(1, timeout=15_000)
+    assert "refused a connection to the studio (foreign origin" in server.read_output()
+    context.close()
+
+
+def test_an_oversize_upload_is_refused_in_plain_words(browser, shots, tmp_path, monkeypatch) -> None:
+    from studio import security
+    from studio.app import build_app
+
+    monkeypatch.setattr(security, "MAX_UPLOAD_BYTES", 1024 * 1024)
+    sessions = tmp_path / "sessions"
+    sessions.mkdir()
+    app = build_app(port=free_port(), session="fresh", sessions_dir=sessions)
+    try:
+        page = ui.open_studio(browser, app.url())
+        ui.tab(page, "Sessions")
+        big = tmp_path / "big-session.zip"
+        big.write_bytes(b"PK\x03\x04" + bytes(3 * 1024 * 1024))
+        page.locator("input[type=file]").first.set_input_files(str(big))
+        note = page.locator(".mantine-Notification-root").filter(has_text="too large")
+        expect(note.first).to_be_visible(timeout=20_000)
+        text = note.first.inner_text()
+        assert '"big-session.zip" is too large (3 MB)' in text and "up to 1 MB" in text, text
+        assert "Nothing was imported" in text
+        shots(page, "oversize upload refused")
+        expect(page.get_by_text("File uploaded successfully")).to_have_count(0)
+        expect(page.get_by_role("button", name="Upload session (.zip)")).to_be_enabled()
+        assert app.session_names() == ["fresh"]
+        assert not app.server.gui._current_file_upload_states
+        page.close()
+    finally:
+        app.stop()

@@ -1,0 +1,464 @@
+"""Only the studio's own page drives the studio (issue 13 §1).
+
+Each test starts a real studio (viser server on a free 127.0.0.1 port) on a copy of the example session and
+attacks it the way another program or another web page would: over viser's websocket protocol
+(:mod:`tests.viser_client`) and with raw HTTP requests whose headers the test controls.
+"""
+
+from __future__ import annotations
+
+import base64
+import http.client
+import os
+import shutil
+import socket
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+from websockets.exceptions import ConnectionClosed, InvalidStatus
+
+from studio.app import Studio, build_app
+from tests.viser_client import ViserClient
+
+ROOT = Path(__file__).resolve().parent.parent
+MiB = 1024 * 1024
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def wait_for(pred, timeout: float = 10.0) -> Any:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        out = pred()
+        if out:
+            return out
+        time.sleep(0.05)
+    return pred()
+
+
+@pytest.fixture
+def sessions(tmp_path: Path) -> Path:
+    d = tmp_path / "sessions"
+    d.mkdir()
+    shutil.copytree(ROOT / "sessions" / "stack-cup", d / "stack-cup")
+    return d
+
+
+@pytest.fixture
+def app(sessions: Path):
+    a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
+    yield a
+    a.stop()
+
+
+def key_of(app: Studio) -> str:
+    return str(app.access.key)
+
+
+def cookie_of(app: Studio) -> str:
+    return f"studio-key-{app.port}={key_of(app)}"
+
+
+def own_origin(app: Studio) -> str:
+    return f"http://127.0.0.1:{app.port}"
+
+
+def attack(app: Studio, *, origin: str | None, cookie: str | None = None, url: str | None = None) -> dict:
+    """What a client with these headers achieves: GUI received, a demo deleted (two Delete presses), the
+    session zip downloaded. ``refused`` is the HTTP status of a refused handshake (None when accepted)."""
+    before = app.demo_names()
+    try:
+        c = ViserClient(url or f"ws://127.0.0.1:{app.port}", origin=origin, cookie=cookie)
+    except InvalidStatus as exc:
+        return {"refused": exc.response.status_code, "gui": 0, "deleted": set(), "downloads": {}}
+    try:
+        c.wait_gui("Demo action")
+        c.set_value("Demo", before[0])
+        wait_for(lambda: app.panels.teach.demo_pick.value == before[0], 5)
+        c.set_value("Demo action", "Delete")
+        time.sleep(0.3)
+        c.set_value("Demo action", "Delete")
+        c.set_value("Download session (.zip)", True)
+        c.wait_for(lambda _m: c.downloads(), 20)
+        wait_for(lambda: len(app.demo_names()) < len(before), 5)
+        return {
+            "refused": None,
+            "gui": c.gui_count(),
+            "deleted": set(before) - set(app.demo_names()),
+            "downloads": c.downloads(),
+        }
+    finally:
+        c.close()
+
+
+def nothing_achieved(result: dict) -> None:
+    assert result["refused"] == 403, result
+    assert result["gui"] == 0 and not result["deleted"] and not result["downloads"], result
+
+
+# -- the websocket: who may connect --------------------------------------------------------------------------
+def test_a_foreign_web_page_cannot_drive_the_studio(app: Studio) -> None:
+    """Today's regression: Origin http://evil.example got all 84 GUI elements, deleted a demo, got the zip."""
+    nothing_achieved(attack(app, origin="http://evil.example"))
+    assert app.demo_names() == ["demo 1", "demo 2", "demo 3"]
+
+
+def test_a_page_on_another_local_port_cannot_drive_it_even_with_the_cookie(app: Studio) -> None:
+    # A page served by some other program on this computer is "same-site" for the browser, so the studio's
+    # SameSite=Strict cookie does go along with its websocket: only the Origin check stops it.
+    nothing_achieved(attack(app, origin=f"http://127.0.0.1:{free_port()}", cookie=cookie_of(app)))
+    nothing_achieved(attack(app, origin=f"http://localhost:{free_port()}", cookie=cookie_of(app)))
+    nothing_achieved(attack(app, origin="null", cookie=cookie_of(app)))
+
+
+def test_a_program_without_the_key_cannot_drive_it(app: Studio) -> None:
+    nothing_achieved(attack(app, origin=None))  # no Origin: not a browser
+    nothing_achieved(attack(app, origin=own_origin(app)))  # the right origin but no cookie
+    nothing_achieved(attack(app, origin=own_origin(app), cookie=f"studio-key-{app.port}=wrong-key-0123456789"))
+    nothing_achieved(attack(app, origin=None, url=f"ws://127.0.0.1:{app.port}/?key=wrong-key-0123456789"))
+    assert app.demo_names() == ["demo 1", "demo 2", "demo 3"]
+
+
+def test_the_studio_page_with_its_cookie_drives_it(app: Studio) -> None:
+    r = attack(app, origin=own_origin(app), cookie=cookie_of(app))
+    assert r["refused"] is None and r["gui"] >= 80
+    assert r["deleted"] == {"demo 1"} and set(r["downloads"]) == {"stack-cup.zip"}
+
+
+def test_a_program_with_the_key_in_its_address_may_connect(app: Studio) -> None:
+    c = ViserClient(f"ws://127.0.0.1:{app.port}/?key={key_of(app)}")
+    try:
+        assert c.wait_gui("Record")
+    finally:
+        c.close()
+
+
+# -- the page: the key in the printed address becomes a cookie -----------------------------------------------
+def http_get(port: int, path: str, headers: dict[str, str] | None = None) -> tuple[int, dict[str, str], bytes]:
+    conn = http.client.HTTPConnection("127.0.0.1", port, timeout=20)
+    try:
+        h = {"Host": f"127.0.0.1:{port}", **(headers or {})}
+        conn.request("GET", path, headers=h)
+        r = conn.getresponse()
+        return r.status, {k.lower(): v for k, v in r.getheaders()}, r.read()
+    finally:
+        conn.close()
+
+
+def handshake(port: int, headers: dict[str, str], path: str = "/") -> int:
+    """Status of a websocket upgrade request with exactly these headers (101 = accepted)."""
+    import viser
+
+    h = {
+        "Host": f"127.0.0.1:{port}",
+        "Upgrade": "websocket",
+        "Connection": "Upgrade",
+        "Sec-WebSocket-Key": base64.b64encode(os.urandom(16)).decode(),
+        "Sec-WebSocket-Version": "13",
+        "Sec-WebSocket-Protocol": f"viser-v{viser.__version__}",
+        **headers,
+    }
+    return http_get(port, path, h)[0]
+
+
+def test_printed_address_sets_a_cookie_and_reloads_work(app: Studio) -> None:
+    assert app.url() == f"http://127.0.0.1:{app.port}/?key={key_of(app)}"
+    status, headers, body = http_get(app.port, f"/?key={key_of(app)}")
+    assert status == 303 and headers["location"] == "/"  # the key does not stay in the address bar
+    cookie = headers["set-cookie"]
+    assert cookie.startswith(f"{cookie_of(app)};")
+    assert "HttpOnly" in cookie and "SameSite=Strict" in cookie and "Path=/" in cookie
+    # Other parameters of the address survive the redirect.
+    status, headers, _ = http_get(app.port, f"/?darkMode&key={key_of(app)}")
+    assert status == 303 and headers["location"] == "/?darkMode"
+
+    # A reload sends the cookie: the page loads, and the browser may not frame it into another site.
+    status, headers, body = http_get(app.port, "/", {"Cookie": f"other=1; {cookie_of(app)}"})
+    assert status == 200 and b"<html" in body[:200].lower()
+    assert "frame-ancestors 'self'" in headers["content-security-policy"]
+    # ... and the websocket of that page is accepted, from 127.0.0.1 or localhost.
+    assert handshake(app.port, {"Origin": own_origin(app), "Cookie": cookie_of(app)}) == 101
+    local = {"Host": f"localhost:{app.port}", "Origin": f"http://localhost:{app.port}", "Cookie": cookie_of(app)}
+    assert handshake(app.port, local) == 101
+
+
+def test_without_the_key_the_page_says_what_to_open(app: Studio) -> None:
+    for path, headers in [
+        ("/", {}),
+        ("/?key=wrong-key-0123456789", {}),
+        ("/", {"Cookie": f"studio-key-{app.port}=wrong-key-0123456789"}),
+        ("/", {"Cookie": f"studio-key-{app.port + 1}={key_of(app)}"}),  # another studio's cookie
+    ]:
+        status, hdrs, body = http_get(app.port, path, headers)
+        text = body.decode()
+        assert status == 403, (path, headers)
+        assert "address the studio printed" in text and "?key=" in text and "Traceback" not in text
+        assert "set-cookie" not in hdrs
+
+
+def test_the_page_may_not_be_pointed_at_another_server(app: Studio) -> None:
+    """viser's page reads ?websocket=... / ?playbackPath=...: another server's HTML would run as the studio's page.
+    From another port of this computer the cookie goes along with such a link, so the address itself is refused."""
+    for q in ("websocket=ws://127.0.0.1:1/", "playbackPath=http://127.0.0.1:1/x.viser", "darkMode&websocket=x"):
+        assert http_get(app.port, f"/?{q}", {"Cookie": cookie_of(app)})[0] == 403, q
+        assert http_get(app.port, f"/?{q}&key={key_of(app)}")[0] == 403, q
+    assert http_get(app.port, "/?darkMode", {"Cookie": cookie_of(app)})[0] == 200
+
+
+def test_other_host_names_are_refused(app: Studio) -> None:
+    """DNS rebinding: a page at http://evil.example:<port> whose name resolves to 127.0.0.1."""
+    evil = {"Host": f"evil.example:{app.port}", "Cookie": cookie_of(app)}
+    assert http_get(app.port, f"/?key={key_of(app)}", evil)[0] == 403
+    assert handshake(app.port, {**evil, "Origin": f"http://evil.example:{app.port}"}) == 403
+    assert handshake(app.port, {**evil}) == 403
+    # The right name on another port is someone else.
+    assert handshake(app.port, {"Host": f"127.0.0.1:{app.port + 1}", "Cookie": cookie_of(app)}) == 403
+
+
+# -- listening beyond this computer -------------------------------------------------------------------------
+def test_listening_beyond_this_computer_needs_the_key(sessions: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from studio import cli
+    from studio.core.errors import StudioError
+
+    port = free_port()
+    for host in ("0.0.0.0", "::", "192.168.1.5"):
+        with pytest.raises(StudioError, match="key"):
+            build_app(host=host, port=port, sessions_dir=sessions, key=False)
+    # Nothing was started: the port is still free.
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", port))
+
+    code = cli.main(["serve", "--host", "0.0.0.0", "--no-key", "--port", str(port), "--sessions-dir", str(sessions)])
+    err = capsys.readouterr().err
+    assert code == 2 and "key" in err and "Traceback" not in err
+
+    # On this computer only, the key may be turned off: the origin is still checked.
+    a = build_app(port=port, session="stack-cup", sessions_dir=sessions, key=False)
+    try:
+        assert a.url() == f"http://127.0.0.1:{a.port}"
+        assert http_get(a.port, "/")[0] == 200
+        nothing_achieved(attack(a, origin="http://evil.example"))
+        assert handshake(a.port, {"Origin": f"http://127.0.0.1:{a.port}"}) == 101
+    finally:
+        a.stop()
+
+
+def test_a_chosen_key_is_checked(sessions: Path) -> None:
+    from studio.core.errors import StudioError
+
+    for bad in ("short", "has space in it 0123456789", "semi;colon-0123456789"):
+        with pytest.raises(StudioError, match="key"):
+            build_app(port=free_port(), sessions_dir=sessions, key=bad)
+    a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions, key="my-own-key-0123456789")
+    try:
+        assert a.url().endswith("/?key=my-own-key-0123456789")
+        assert http_get(a.port, "/?key=my-own-key-0123456789")[0] == 303
+    finally:
+        a.stop()
+
+
+# -- uploads are capped at the server ----------------------------------------------------------------------
+def rss_bytes() -> int:
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) * 1024
+    raise RuntimeError("no VmRSS")
+
+
+def peak_rss_bytes() -> int:
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) * 1024
+    raise RuntimeError("no VmHWM")
+
+
+def reset_peak_rss() -> bool:
+    try:
+        with open("/proc/self/clear_refs", "w") as f:
+            f.write("5")
+        return True
+    except OSError:
+        return False
+
+
+def start_upload(c: ViserClient, uuid: str, tid: str, size: int, parts: int, name: str = "big.zip") -> None:
+    c.send(
+        {
+            "type": "FileTransferStartUpload",
+            "source_component_uuid": uuid,
+            "transfer_uuid": tid,
+            "filename": name,
+            "mime_type": "application/zip",
+            "part_count": parts,
+            "size_bytes": size,
+        }
+    )
+
+
+def send_part(c: ViserClient, uuid: str, tid: str, i: int, content: bytes) -> None:
+    c.send(
+        {
+            "type": "FileTransferPart",
+            "source_component_uuid": uuid,
+            "transfer_uuid": tid,
+            "part_index": i,
+            "content": content,
+        }
+    )
+
+
+def refusals(c: ViserClient) -> list[str]:
+    return [str(m.get("props", m).get("body", "")) for m in c.notifications() if "too large" in str(m)]
+
+
+def test_an_oversize_upload_is_refused_before_it_is_buffered(sessions: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from studio import security
+
+    monkeypatch.setattr(security, "MAX_UPLOAD_BYTES", 8 * MiB)
+    a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
+    c = ViserClient(f"ws://127.0.0.1:{a.port}/?key={key_of(a)}")
+    try:
+        uuid = c.wait_gui("Upload session (.zip)")["uuid"]
+        time.sleep(1.0)  # the initial scene has arrived; the studio is idle
+        chunk = 512 * 1024
+        size = 96 * MiB
+        part = os.urandom(chunk)
+        has_peak = reset_peak_rss()
+        rss0 = rss_bytes()
+        start_upload(c, uuid, "t-big", size, size // chunk)
+        for i in range(size // chunk):
+            send_part(c, uuid, "t-big", i, part)
+        # Messages are handled in order: the refusal of a second upload means every part above was handled.
+        start_upload(c, uuid, "t-marker", 10 * 1024**3, 20480)
+        assert c.wait_for(lambda _m: len(refusals(c)) >= 2, 60), c.notifications()
+        grew = (peak_rss_bytes() if has_peak else rss_bytes()) - rss0
+        print(f"memory growth while a {size / MiB:.0f} MB upload was refused: {grew / MiB:.1f} MB")
+        assert grew < 24 * MiB, f"the server grew by {grew / MiB:.0f} MB for a refused {size / MiB:.0f} MB upload"
+        body = refusals(c)[0]
+        assert '"big.zip"' in body and "96" in body and "8" in body and "Nothing was imported" in body
+        # The browser's progress notice is closed and its upload button released.
+        msgs = c.snapshot()
+        assert any(m["type"] == "RemoveNotificationMessage" and m["uuid"] == "upload-t-big" for m in msgs)
+        assert any(
+            m["type"] == "FileTransferPartAck" and m["transfer_uuid"] == "t-big" and m["transferred_bytes"] == size
+            for m in msgs
+        )
+        assert a.session_names() == ["stack-cup"] and a.session.name == "stack-cup"
+        assert not a.server.gui._current_file_upload_states
+    finally:
+        c.close()
+        a.stop()
+
+
+def test_parts_beyond_the_declared_size_end_the_upload(sessions: Path) -> None:
+    a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
+    c = ViserClient(f"ws://127.0.0.1:{a.port}/?key={key_of(a)}")
+    try:
+        uuid = c.wait_gui("Upload session (.zip)")["uuid"]
+        start_upload(c, uuid, "t-lie", 1 * MiB, 8)  # declares 1 MB, then sends 4 MB
+        for i in range(8):
+            send_part(c, uuid, "t-lie", i, b"x" * (512 * 1024))
+        assert c.wait_for(lambda _m: refusals(c), 20), c.notifications()
+        assert not a.server.gui._current_file_upload_states
+        assert a.session_names() == ["stack-cup"]
+    finally:
+        c.close()
+        a.stop()
+
+
+def test_an_upload_within_the_limit_still_works(app: Studio) -> None:
+    """A real session archive (several 512 KB parts, as the browser sends them) is imported."""
+    _, data = app.session_zip()
+    assert len(data) > 1024 * 1024  # three parts or more
+    c = ViserClient(f"ws://127.0.0.1:{app.port}/?key={key_of(app)}")
+    try:
+        uuid = c.wait_gui("Upload session (.zip)")["uuid"]
+        chunk = 512 * 1024
+        n = -(-len(data) // chunk)
+        start_upload(c, uuid, "t-ok", len(data), n, name="copy.zip")
+        for i in range(n):
+            send_part(c, uuid, "t-ok", i, data[i * chunk : (i + 1) * chunk])
+        assert wait_for(lambda: len(app.session_names()) == 2, 30), (app.session_names(), c.notifications())
+        assert not refusals(c)
+    finally:
+        c.close()
+
+
+def test_a_single_huge_message_closes_only_that_connection(app: Studio) -> None:
+    from studio import security
+
+    c = ViserClient(f"ws://127.0.0.1:{app.port}/?key={key_of(app)}")
+    try:
+        c.wait_gui("Record")
+        rss0 = rss_bytes()
+        try:
+            c.ws.send(b"\0" * (security.MAX_MESSAGE_BYTES + 1))
+        except ConnectionClosed:
+            pass
+        assert c.closed.wait(10)
+        assert c.ws.close_code == 1009  # "message too big"
+        assert rss_bytes() - rss0 < 24 * MiB
+    finally:
+        c.close()
+    d = ViserClient(f"ws://127.0.0.1:{app.port}/?key={key_of(app)}")  # the studio still serves others
+    try:
+        assert d.wait_gui("Record")
+    finally:
+        d.close()
+
+
+# -- the hook into viser -----------------------------------------------------------------------------------
+def test_the_guard_sits_where_viser_serves(app: Studio) -> None:
+    """Fails loudly when a viser upgrade moves the points studio.security hooks into (see its docstring)."""
+    import inspect
+
+    import viser.infra._infra as infra
+
+    src = inspect.getsource(infra.WebsockServer._background_worker)
+    assert "websockets.asyncio.server.serve(" in src, "viser no longer starts websockets' serve() here"
+    assert "process_request=" in src and "max_size=" in src
+    assert "self._handle_incoming_message(client_id, message)" in src
+    assert app.access.hooked == "WebsockServer._background_worker.<locals>.viser_http_server"
+    assert hasattr(app.server.gui, "_current_file_upload_states")
+
+
+def test_the_studio_refuses_to_start_unprotected(sessions: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """If viser stopped calling websockets' serve() where the guard waits for it, the studio must not start."""
+    import types
+
+    import viser.infra._infra as infra
+    import websockets.asyncio.server as wss
+
+    from studio.core.errors import StudioError
+
+    real = infra.websockets
+    bypass = types.SimpleNamespace(
+        asyncio=types.SimpleNamespace(
+            server=types.SimpleNamespace(serve=wss.serve, ServerConnection=wss.ServerConnection)
+        ),
+        datastructures=real.datastructures,
+        exceptions=real.exceptions,
+    )
+    monkeypatch.setattr(infra, "websockets", bypass)
+    port = free_port()
+    with pytest.raises(StudioError, match="protect"):
+        build_app(port=port, session="stack-cup", sessions_dir=sessions)
+    monkeypatch.setattr(infra, "websockets", real)
+    assert wait_for(lambda: _port_free(port), 10)
+
+
+def _port_free(port: int) -> bool:
+    with socket.socket() as s:
+        try:
+            s.bind(("127.0.0.1", port))
+            return True
+        except OSError:
+            return False

@@ -1,0 +1,141 @@
+"""A minimal client of viser's websocket protocol, for tests that act as another program (or an attacker).
+
+It speaks what viser's browser client speaks: subprotocol ``viser-v<version>``; messages to the server are
+msgpack dicts with a ``type``; frames from the server are zstd-compressed msgpack followed by raw binary
+buffers (see ``viser.infra._infra._message_producer``). It collects every message it receives, finds GUI
+elements by their label, presses buttons, and reassembles file downloads.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+import msgspec
+import viser
+import zstandard
+from websockets.sync.client import ClientConnection, connect
+
+
+def decode_frame(frame: bytes) -> list[dict[str, Any]]:
+    n_inner = int.from_bytes(frame[0:8], "little")
+    n_comp = int.from_bytes(frame[8:16], "little")
+    inner = zstandard.ZstdDecompressor().decompress(frame[16 : 16 + n_comp], max_output_size=n_inner)
+    return list(msgspec.msgpack.decode(inner).get("messages", ()))
+
+
+class ViserClient:
+    """Connect to ``url`` (``ws://...``) with optional ``Origin`` and ``Cookie`` headers.
+
+    Raises ``websockets.exceptions.InvalidStatus`` when the server refuses the handshake.
+    """
+
+    def __init__(self, url: str, *, origin: str | None = None, cookie: str | None = None) -> None:
+        headers: dict[str, str] = {}
+        if origin is not None:
+            headers["Origin"] = origin
+        if cookie is not None:
+            headers["Cookie"] = cookie
+        self.ws: ClientConnection = connect(
+            url,
+            subprotocols=[f"viser-v{viser.__version__}"],  # type: ignore[list-item]
+            additional_headers=headers,
+            max_size=None,
+            open_timeout=20,
+        )
+        self.messages: list[dict[str, Any]] = []
+        self.closed = threading.Event()
+        self._lock = threading.Lock()
+        self._thread = threading.Thread(target=self._read, daemon=True)
+        self._thread.start()
+        # viser counts a client as connected (its button presses reach callbacks) after its first camera.
+        self.send(
+            {
+                "type": "ViewerCameraMessage",
+                "wxyz": (1.0, 0.0, 0.0, 0.0),
+                "position": (2.5, -0.95, 1.05),
+                "fov": 0.96,
+                "near": 0.01,
+                "far": 100.0,
+                "image_height": 800,
+                "image_width": 1280,
+                "look_at": (0.3, 0.12, 0.12),
+                "up_direction": (0.0, 0.0, 1.0),
+            }
+        )
+
+    def _read(self) -> None:
+        try:
+            while True:
+                data = self.ws.recv()
+                if isinstance(data, bytes):
+                    msgs = decode_frame(data)
+                    with self._lock:
+                        self.messages.extend(msgs)
+        except Exception:
+            self.closed.set()
+
+    def snapshot(self) -> list[dict[str, Any]]:
+        with self._lock:
+            return list(self.messages)
+
+    def wait_for(self, pred: Callable[[list[dict[str, Any]]], Any], timeout: float = 20.0) -> Any:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            out = pred(self.snapshot())
+            if out:
+                return out
+            time.sleep(0.05)
+        return pred(self.snapshot())
+
+    def gui(self) -> dict[str, dict[str, Any]]:
+        """GUI elements received so far, by label (the last one added wins)."""
+        out: dict[str, dict[str, Any]] = {}
+        for m in self.snapshot():
+            if m["type"].startswith("Gui") and isinstance(m.get("props"), dict) and m["props"].get("label"):
+                out[m["props"]["label"]] = m
+        return out
+
+    def gui_count(self) -> int:
+        """How many GUI elements (folders, buttons, sliders, ...) were received."""
+        return len({m["uuid"] for m in self.snapshot() if m["type"].startswith("Gui") and "props" in m})
+
+    def wait_gui(self, label: str, timeout: float = 30.0) -> dict[str, Any]:
+        el = self.wait_for(lambda _m: self.gui().get(label), timeout)
+        assert el, f'no GUI element "{label}" received'
+        return el
+
+    def send(self, message: dict[str, Any]) -> None:
+        self.ws.send(msgspec.msgpack.encode(message))
+
+    def set_value(self, label: str, value: Any) -> None:
+        """Change an input or press a button (buttons: value True; button groups: the option)."""
+        uuid = self.wait_gui(label)["uuid"]
+        self.send({"type": "GuiUpdateMessage", "uuid": uuid, "updates": {"value": value}})
+
+    def notifications(self) -> list[dict[str, Any]]:
+        return [m for m in self.snapshot() if m["type"] in ("NotificationShowMessage", "NotificationUpdateMessage")]
+
+    def downloads(self) -> dict[str, bytes]:
+        """Files fully received, by name."""
+        starts: dict[str, dict[str, Any]] = {}
+        parts: dict[str, dict[int, bytes]] = {}
+        for m in self.snapshot():
+            if m["type"] == "FileTransferStartDownload":
+                starts[m["transfer_uuid"]] = m
+            elif m["type"] == "FileTransferPart" and m.get("source_component_uuid") is None:
+                parts.setdefault(m["transfer_uuid"], {})[m["part_index"]] = bytes(m["content"])
+        out: dict[str, bytes] = {}
+        for tid, s in starts.items():
+            got = parts.get(tid, {})
+            if len(got) == s["part_count"]:
+                out[s["filename"]] = b"".join(got[i] for i in range(s["part_count"]))
+        return out
+
+    def close(self) -> None:
+        try:
+            self.ws.close()
+        finally:
+            self._thread.join(timeout=5)
