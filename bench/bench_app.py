@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import shutil
-import socket
 import statistics
 import sys
 import tempfile
@@ -27,27 +26,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-CHROMIUM_ARGS = [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-]
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
+from tests.conftest import CHROMIUM, CHROMIUM_ARGS, free_port  # noqa: E402  (after the path insert)
 
 
 def make_session(root: Path, n_samples: int = 30_000) -> str:
     """A session with three 30,000-sample left-arm demos from the scripted teacher (time-stretched)."""
     from studio.core.types import Recording
-    from studio.sessions import SessionStore
+    from studio.storage import SessionStore
     from studio.teacher import recording_from_plan, teach
 
     store = SessionStore(root)
@@ -67,15 +52,15 @@ def bench_slider(root: Path, repeats: int = 40) -> dict[str, float]:
 
     app = build_app(port=free_port(), session="bench", sessions_dir=root)
     try:
-        panel = app.panels.keypoints
+        panel, kp = app.panels.keypoints, app.controller.keypoints
         time.sleep(1.0)
-        panel.refresh()  # warm: forward kinematics and the per-demo derived series are cached once
+        panel.draw(kp.refresh())  # warm: forward kinematics and the per-demo derived series are cached once
         total, compute, draw, counts = [], [], [], []
         values = [0.03, 0.12, 0.05, 0.2, 0.08]
         for i in range(repeats):
             t0 = time.perf_counter()
-            app.set_param("eps5", values[i % len(values)])  # what the ε5 slider's callback does
-            view = app.keypoint_view()
+            kp.set_param("eps5", values[i % len(values)])  # what the ε5 slider's callback does
+            view = kp.compute()  # what the key-point thread then does
             t1 = time.perf_counter()
             panel.draw(view)  # markers + labels + counts, one atomic batch for the browsers
             t2 = time.perf_counter()
@@ -83,7 +68,7 @@ def bench_slider(root: Path, repeats: int = 40) -> dict[str, float]:
             compute.append(t1 - t0)
             draw.append(t2 - t1)
             counts.append(sum(d.count for d in view.demos))
-        n = [len(app.demo(i, "left")) for i in range(3)]
+        n = [len(app.controller.demos.demo(i, "left")) for i in range(3)]
         return {
             "samples_per_demo": float(min(n)),
             "median_ms": 1e3 * statistics.median(total),
@@ -125,7 +110,7 @@ def bench_browser(root: Path, seconds: float = 5.0) -> dict[str, float]:
     app = build_app(port=free_port(), session="bench", sessions_dir=root)
     try:
         with sync_playwright() as p:
-            b = p.chromium.launch(executable_path="/usr/bin/chromium", headless=True, args=CHROMIUM_ARGS)
+            b = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
             page = b.new_page(viewport={"width": 1280, "height": 800})
             page.goto(app.url())
             page.get_by_role("button", name="Record").wait_for(timeout=60_000)
@@ -159,13 +144,13 @@ def bench_browser(root: Path, seconds: float = 5.0) -> dict[str, float]:
             stop = threading.Event()
 
             def mover() -> None:
-                q0 = app.arm_q("left")
+                q0 = app.controller.teaching.arm_q("left")
                 k = 0
                 while not stop.is_set():
                     q = q0.copy()
                     q[0] += 0.6 * np.sin(k * 0.05)
                     q[3] += 0.4 * np.sin(k * 0.03)
-                    app.command_arm("left", q)
+                    app.controller.teaching.command_arm("left", q)
                     k += 1
                     time.sleep(0.01)
 
@@ -215,7 +200,7 @@ def bench_full_meshes(root: Path) -> float:
     app = build_app(port=free_port(), session="bench", sessions_dir=root, meshes="full")
     try:
         with sync_playwright() as p:
-            b = p.chromium.launch(executable_path="/usr/bin/chromium", headless=True, args=CHROMIUM_ARGS)
+            b = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
             page = b.new_page(viewport={"width": 1280, "height": 800})
             page.set_default_timeout(180_000)
             page.goto(app.url())

@@ -32,7 +32,7 @@ from studio.core.types import Recording
 from studio.recorder import Recorder
 from studio.robot_backend.base import JointStateBatch, RobotBackend, RobotState
 from studio.robot_backend.simulated import SimulatedBaxter
-from studio.sessions import SessionStore
+from studio.storage import SessionStore
 
 
 class PushBackend(RobotBackend):

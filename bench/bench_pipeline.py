@@ -26,11 +26,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from studio.core.alignment import MAX_POINTS, dtw
 from studio.core.clustering import cluster
-from studio.core.keypoints import KeypointCache, extract_keypoints_reference
+from studio.core.keypoints import KeypointCache
 from studio.core.kinematics import Baxter
 from studio.core.pipeline import demo_from_recording, learn_skill
 from studio.core.types import Demo, KeypointParams
 from studio.teacher import recording_from_plan, teach
+from tests.core.oracles import extract_keypoints_reference
 
 
 def _demo_of_length(seeds: list[int], n: int, name: str) -> Demo:

@@ -19,15 +19,15 @@ def main() -> int:
     from playwright.sync_api import sync_playwright
 
     from studio.app import build_app
+    from tests.conftest import CHROMIUM, CHROMIUM_ARGS, free_port
     from tests.e2e import ui
-    from tests.e2e.conftest import CHROMIUM, CHROMIUM_ARGS, free_port
 
     out = Path(sys.argv[1]) if len(sys.argv) > 1 else ROOT / "docs" / "screenshot.png"
     tmp = Path(tempfile.mkdtemp(prefix="studio-shot-"))
     shutil.copytree(ROOT / "sessions" / "stack-cup", tmp / "stack-cup")
     app = build_app(port=free_port(), sessions_dir=tmp, session="stack-cup")
     try:
-        app.train().result()
+        app.controller.training.train().result()
         with sync_playwright() as p:
             b = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
             page = ui.open_studio(b, app.url())

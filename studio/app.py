@@ -3,16 +3,14 @@
 Everything a user sees is shared by all browser tabs (viser's server-level GUI and scene are broadcast),
 so two tabs show the same robot and session and a reloaded page gets the current state replayed.
 
-The GUI state and every action live in :class:`studio.controller.Controller`; :class:`Studio` adds the
-viser parts on top of it: the server and its scene, the panels, notifications in the tabs, and the pose pump.
+The state and every action live in the :class:`~studio.controller.Controller` (no viser); :class:`Studio`
+*has* one and adds the viser parts: the server and its scene, the panels, notifications in the tabs, and the
+pose pump.
 
-Threads:
-    * viser's thread pool runs GUI callbacks; each is wrapped by :meth:`Studio.guarded` so a failure is a
+Threads (besides the controller's, see :mod:`studio.controller`):
+    * viser's thread pool runs GUI callbacks; each is wrapped by ``controller.guarded`` so a failure is a
       notification in plain words and never stops the studio;
-    * one *pose pump* thread pushes the latest robot pose to the scene at ~60 Hz (never per 1 kHz sample);
-    * one *work* thread runs heavy jobs (training, IK along a trajectory, session files) one at a time;
-    * one *key-point* thread recomputes key-points for the latest ε values (older slider positions are
-      skipped, so dragging a slider never queues work).
+    * one *pose pump* thread pushes the latest robot pose to the scene at ~60 Hz (never per 1 kHz sample).
 """
 
 from __future__ import annotations
@@ -23,25 +21,18 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, Protocol, runtime_checkable
 
 import viser
 
-from studio.controller import (
-    PALETTE,
-    Controller,
-    Events,
-    KeypointItem,
-    KeypointView,
-    Playback,
-    PoseSource,
-)
+from studio.controller import Controller, Kind, LogNotifier
 from studio.core.errors import StudioError
 from studio.core.kinematics import baxter_urdf_path
-from studio.core.types import ALL_ARM_JOINTS
+from studio.panels import Panels, build_panels
 from studio.robot_backend.base import RobotBackend
+from studio.storage import DEFAULT_ROOT, SessionStore
 
-log = logging.getLogger("studio")
+log = logging.getLogger(__name__)
 
 ROOT = Path(__file__).resolve().parent.parent
 LIGHT_URDF = ROOT / "urdf" / "baxter_light.urdf"
@@ -50,6 +41,12 @@ DEFAULT_SESSION = "stack-cup"
 CAMERA_POSITION = (2.5, -0.95, 1.05)
 CAMERA_LOOK_AT = (0.3, 0.12, 0.12)
 CAMERA_FOV_DEG = 55.0
+_COLORS: dict[Kind, Literal["red", "blue", "green", "yellow"]] = {
+    "error": "red",
+    "info": "blue",
+    "success": "green",
+    "warning": "yellow",
+}
 
 
 def robot_urdf_path(meshes: str = "auto") -> Path:
@@ -84,74 +81,70 @@ def configure_scene(server: viser.ViserServer) -> None:
     s.scene.add_grid("/ground", width=3.0, height=3.0, position=(0.5, 0.0, -0.93), cell_size=0.25, shadow_opacity=0.0)
 
 
-class Studio(Controller):
-    """The running studio: the :class:`Controller` plus its viser server, panels and pose pump.
+@runtime_checkable
+class _Tab(Protocol):
+    """A browser tab that can show a notification (viser's ClientHandle)."""
 
-    Build with :func:`build_app`; stop with :meth:`stop`.
+    def add_notification(self, title: str, body: str, **kwargs: Any) -> object: ...
 
-    Attributes:
-        server: the viser server (``server.gui`` / ``server.scene`` are shared by every tab).
-        port: the port it listens on.
-        panels: the side-bar panels (:class:`studio.panels.Panels`).
-        (and the controller's: ``baxter``, ``backend``, ``store``, ``session``, ...)
+
+class BrowserNotifier:
+    """Notifications in the browser tabs (one tab, or all); logged until the server is attached.
+
+    The same message again within 5 s (e.g. from a slider being dragged) is shown once.
     """
 
-    pump_hz = 60.0
+    def __init__(self) -> None:
+        self.server: viser.ViserServer | None = None
+        self._recent: dict[tuple[str, str], float] = {}
 
-    def __init__(
-        self,
-        *,
-        host: str = "127.0.0.1",
-        port: int = 8080,
-        session: str | None = DEFAULT_SESSION,
-        sessions_dir: Path | str = ROOT / "sessions",
-        meshes: str = "auto",
-        backend: RobotBackend | None = None,
-        verbose: bool = False,
-        key: str | Literal[False] | None = None,
-    ) -> None:
-        from studio.security import Access
-        from studio.sessions import SessionStore
+    def notify(self, title: str, body: str, *, kind: Kind = "error", client: object | None = None) -> None:
+        if self.server is None:
+            LogNotifier().notify(title, body, kind=kind)
+            return
+        key = (title, body)
+        now = time.monotonic()
+        if client is None and now - self._recent.get(key, -1e9) < 5.0:
+            return
+        self._recent[key] = now
+        if kind == "error":
+            log.warning("%s: %s", title, body)
+        tabs: list[_Tab] = [client] if isinstance(client, _Tab) else list(self.server.get_clients().values())
+        close_after = None if kind == "error" else 6.0  # errors stay until closed
+        for c in tabs:
+            try:
+                c.add_notification(title, body, color=_COLORS[kind], auto_close_seconds=close_after)
+            except Exception:  # a tab that just closed
+                log.debug("notification to a closed tab", exc_info=True)
 
-        self.access = Access(host, key)  # who may connect (checked first: a refused --host starts nothing)
-        self._recent_notes: dict[tuple[str, str], float] = {}
-        if backend is None:
-            from studio.robot_backend.simulated import SimulatedBaxter
 
-            backend = SimulatedBaxter()
-        super().__init__(store=SessionStore(Path(sessions_dir)), session=session or DEFAULT_SESSION, backend=backend)
-        self.urdf_path = robot_urdf_path(meshes)
+class PosePump:
+    """Pushes the pose the scene should show (``controller.display``) to the drawn robot at ~60 Hz, and ticks
+    the panels (timers, handles following the robot, playback positions)."""
 
-        self.server = self.access.start_viser(host=host, port=port, label="Teaching Studio", verbose=verbose)
-        self.port = int(self.server.get_port())
-        self.host = host
-        configure_scene(self.server)
+    hz = 60.0
 
+    def __init__(self, controller: Controller, panels: Panels) -> None:
+        self.controller = controller
+        self.panels = panels
         self._stop = threading.Event()
-        self.start_robot()
+        self._thread = threading.Thread(target=self._loop, name="studio-pose-pump", daemon=True)
 
-        from studio.panels import build_panels
+    def start(self) -> None:
+        self._thread.start()
 
-        self.panels = build_panels(self)
-        self._pump = threading.Thread(target=self._pump_loop, name="studio-pose-pump", daemon=True)
-        self._pump.start()
-        self.server.on_client_connect(self._greet)
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=2.0)
 
-    def _greet(self, client: viser.ClientHandle) -> None:
-        """Show what happened while opening the session to a new tab (a crash recovery only to the first)."""
-        for title, body in self.startup_notes():
-            self.notify(title, body, kind="warning", client=client)
-        self.startup_notes_shown()
-
-    # -- the scene follows the robot -------------------------------------------------------------------
-    def _pump_loop(self) -> None:
-        period = 1.0 / self.pump_hz
+    def _loop(self) -> None:
+        period = 1.0 / self.hz
         last_version = -1
         next_t = time.perf_counter()
         while not self._stop.is_set():
             now = time.perf_counter()
             try:
-                version, _t, q, grip = self.display.get()
+                version, _t, q, grip = self.controller.display.get()
                 if version != last_version:
                     last_version = version
                     self.panels.robot.show_pose(q, grip)
@@ -165,45 +158,82 @@ class Studio(Controller):
                 delay = 0.0
             self._stop.wait(max(delay, 0.0))
 
-    # -- notifications in the browser tabs -------------------------------------------------------------
-    def notify(self, title: str, body: str, *, kind: str = "error", client: viser.ClientHandle | None = None) -> None:
-        """Show a notification in plain words (to one tab, or to every tab when ``client`` is None)."""
-        key = (title, body)
-        now = time.monotonic()
-        if client is None and now - self._recent_notes.get(key, -1e9) < 5.0:
-            return  # the same message again within seconds (e.g. from a slider being dragged): once is enough
-        self._recent_notes[key] = now
-        color: Any = {"error": "red", "info": "blue", "success": "green", "warning": "yellow"}.get(kind, "blue")
-        clients = [client] if client is not None else list(self.server.get_clients().values())
-        for c in clients:
-            try:
-                c.add_notification(title, body, color=color, auto_close_seconds=None if kind == "error" else 6.0)
-            except Exception:  # a tab that just closed
-                log.debug("notification to a closed tab", exc_info=True)
-        if kind == "error":
-            log.warning("%s: %s", title, body)
 
-    # -- lifecycle ---------------------------------------------------------------------------------------
+class Studio:
+    """The running studio: a :class:`Controller` plus its viser server, panels and pose pump.
+
+    Build with :func:`build_app`; stop with :meth:`stop`.
+
+    Attributes:
+        controller: the studio's state and actions (what the panels drive).
+        server: the viser server (``server.gui`` / ``server.scene`` are shared by every tab).
+        port: the port it listens on.
+        panels: the side-bar panels (:class:`studio.panels.Panels`).
+    """
+
+    def __init__(
+        self,
+        *,
+        host: str = "127.0.0.1",
+        port: int = 8080,
+        session: str | None = DEFAULT_SESSION,
+        sessions_dir: Path | str = DEFAULT_ROOT,
+        meshes: str = "auto",
+        backend: RobotBackend | None = None,
+        verbose: bool = False,
+        key: str | Literal[False] | None = None,
+    ) -> None:
+        from studio.security import Access
+
+        self.access = Access(host, key)  # who may connect (checked first: a refused --host starts nothing)
+        if backend is None:
+            from studio.robot_backend.simulated import SimulatedBaxter
+
+            backend = SimulatedBaxter()
+        self.notifier = BrowserNotifier()
+        self.controller = Controller(
+            store=SessionStore(Path(sessions_dir)),
+            session=session or DEFAULT_SESSION,
+            backend=backend,
+            notifier=self.notifier,
+        )
+        self.urdf_path = robot_urdf_path(meshes)
+        self.server = self.access.start_viser(host=host, port=port, label="Teaching Studio", verbose=verbose)
+        self.notifier.server = self.server
+        self.port = int(self.server.get_port())
+        self.host = host
+        configure_scene(self.server)
+        self._stopped = False
+        self.controller.start()
+        self.panels = build_panels(self.controller, self.server, self.urdf_path)
+        self._pump = PosePump(self.controller, self.panels)
+        self._pump.start()
+        self.server.on_client_connect(self._greet)
+
+    def _greet(self, client: viser.ClientHandle) -> None:
+        """Show what happened while opening the session to a new tab (a crash recovery only to the first)."""
+        sessions = self.controller.sessions
+        for title, body in sessions.startup_notes():
+            self.notifier.notify(title, body, kind="warning", client=client)
+        sessions.startup_notes_shown()
+
     def url(self) -> str:
         """The address to open in the browser, with the key (see :mod:`studio.security`)."""
         return self.access.url(self.port)
 
     def stop(self) -> None:
-        """Stop the pump, the backend and the server (idempotent)."""
-        if self._stop.is_set():
+        """Keep a running take and unsaved thresholds, then stop the pump, the panels, the robot and the server
+        (idempotent)."""
+        if self._stopped:
             return
-        self.save_running_recording()  # keep a take that was running when the studio was stopped
-        try:
-            self.persist_params()  # and ε values not yet written by the key-point thread
-        except Exception:
-            log.exception("saving the key-point settings at shutdown")
-        self._stop.set()
+        self._stopped = True
+        self.controller.close()
+        self._pump.stop()
         try:
             self.panels.close()
         except Exception:
             log.exception("closing panels")
-        self._pump.join(timeout=2.0)
-        self.shutdown()
+        self.controller.shutdown()
         self.server.stop()
 
 
@@ -211,7 +241,7 @@ def build_app(
     host: str = "127.0.0.1",
     port: int = 8080,
     session: str | None = DEFAULT_SESSION,
-    sessions_dir: Path | str = ROOT / "sessions",
+    sessions_dir: Path | str = DEFAULT_ROOT,
     meshes: str = "auto",
     *,
     backend: RobotBackend | None = None,
@@ -274,16 +304,11 @@ def serve(
 
 
 __all__ = [
-    "ALL_ARM_JOINTS",
-    "PALETTE",
-    "Controller",
-    "Events",
-    "KeypointItem",
-    "KeypointView",
-    "Playback",
-    "PoseSource",
+    "BrowserNotifier",
+    "PosePump",
     "Studio",
     "build_app",
+    "configure_scene",
     "exposure_warning",
     "robot_urdf_path",
     "serve",

@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import logging
 import os
 import sys
 from pathlib import Path
 
 from studio.core.errors import StudioError
-
-DEFAULT_SESSIONS = Path(__file__).resolve().parent.parent / "sessions"
-
+from studio.storage.format import DEFAULT_ROOT
 
 COMMANDS = ("serve", "learn", "import-csv", "export-csv", "make-examples")
 
@@ -22,7 +21,7 @@ def build_parser() -> argparse.ArgumentParser:
         "Without a command, `studio` starts the studio (same as `studio serve`).",
     )
     common = argparse.ArgumentParser(add_help=False)
-    common.add_argument("--sessions-dir", type=Path, default=DEFAULT_SESSIONS, help="folder that holds the sessions")
+    common.add_argument("--sessions-dir", type=Path, default=DEFAULT_ROOT, help="folder that holds the sessions")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
     s = sub.add_parser("serve", parents=[common], help="start the studio in the browser (the default command)")
@@ -80,6 +79,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _dispatch(args: argparse.Namespace) -> int:
+    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
         if args.command == "serve":
             from studio.app import serve

@@ -12,15 +12,20 @@ import shutil
 import sys
 import time
 import uuid
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, TextIO
 
 import numpy as np
 
+from studio.core import sampling
+from studio.core.arms import normalize_arms
 from studio.core.errors import InvalidInput, NotEnoughData, StudioError
-from studio.core.types import Recording
-from studio.sessions import Session, SessionStore
+from studio.core.types import Recording, Skill
+from studio.storage import DEFAULT_ROOT, Session, SessionStore
+
+if TYPE_CHECKING:
+    from studio.teacher import TeacherPlan
 
 #: The example sessions: task -> (seeds of the three demonstrations, taught arm, notes).
 EXAMPLES: dict[str, tuple[tuple[int, ...], str, str]] = {
@@ -43,17 +48,11 @@ EXAMPLES: dict[str, tuple[tuple[int, ...], str, str]] = {
 
 def _sessions_dir(args: argparse.Namespace) -> Path:
     d = getattr(args, "sessions_dir", None)
-    if d is None:
-        from studio.sessions import DEFAULT_ROOT
-
-        return DEFAULT_ROOT
-    return Path(d)
+    return DEFAULT_ROOT if d is None else Path(d)
 
 
 def _arms(value: str | None, default: Sequence[str]) -> tuple[str, ...]:
-    if value is None:
-        return tuple(default)
-    return ("left", "right") if value == "both" else (value,)
+    return tuple(default) if value is None else normalize_arms(value)
 
 
 # -- learn ----------------------------------------------------------------------------------------------------
@@ -83,76 +82,76 @@ def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
     return 0
 
 
-def _fmt(x: Any, spec: str = ".3g") -> str:
+def _fmt(x: float, spec: str = ".3g") -> str:
     try:
         return format(float(x), spec)
     except (TypeError, ValueError):
         return "—"
 
 
-def report(session: Session, skills: dict[str, Any], elapsed: float | None = None) -> str:
+def report(session: Session, skills: Mapping[str, Skill], elapsed: float | None = None) -> str:
     """The plain-text learning report: per demo samples and key-points, k, log-likelihood, reference, quality."""
     lines = [f'Session "{session.name}": {len(session.recordings)} demonstrations, learned ' + ", ".join(skills)]
     if elapsed is not None:
         lines[0] += f" in {elapsed:.1f} s"
     for arm, sk in skills.items():
-        names = list(getattr(sk, "demo_names", ()) or session.skill_info.get(arm, {}).get("demos") or [])
-        names = names or [r.name for r in session.recordings if arm in r.arms]
-        kps = list(getattr(sk, "keypoints", []) or [])
-        ll = (
-            np.atleast_1d(np.asarray(getattr(sk, "loglik", []), dtype=float))
-            if getattr(sk, "loglik", None) is not None
-            else None
-        )
-        ref = int(getattr(sk, "reference", -1))
-        lines.append("")
-        lines.append(f"{arm} arm")
-        lines.append(f"  {'demonstration':<28}{'samples':>10}{'key-points':>12}{'log-likelihood':>16}")
-        recs = {r.name: r for r in session.recordings}
-        for i, nm in enumerate(names):
-            n = len(recs[nm]) if nm in recs else 0
-            k = len(kps[i]) if i < len(kps) else 0
-            llv = _fmt(ll[i], ".1f") if ll is not None and i < ll.shape[0] else "—"
-            mark = "  ← reference" if i == ref else ""
-            lines.append(f"  {nm[:27]:<28}{n:>10}{k:>12}{llv:>16}{mark}")
-        cent = getattr(sk, "centroids", None)
-        k_clusters = int(np.asarray(cent).shape[0]) if cent is not None else 0
-        lines.append(f"  clusters (HMM states) k = {k_clusters}")
-        tr = getattr(sk, "trajectory", None)
-        if tr is not None:
-            lines.append(f"  generalized trajectory: {len(tr)} samples, {tr.duration:.1f} s")
-        jt = getattr(sk, "joint_trajectory", None)
-        if jt is not None:
-            pe = np.asarray(jt.position_error, dtype=float)
-            oe = np.asarray(jt.orientation_error, dtype=float)
-            conv = np.asarray(jt.converged, dtype=bool)
-            lines.append(
-                f"  joint trajectory (IK): {conv.mean() * 100:.1f} % of poses reached; position error "
-                f"median {np.median(pe) * 1000:.2f} mm, max {pe.max() * 1000:.2f} mm; orientation error max "
-                f"{np.degrees(oe.max()):.2f}°"
-            )
-        if tr is not None and names:
-            # How far the generalized path stays from the demonstrations (mean nearest distance).
-            from studio.core.kinematics import Baxter
-
-            b = Baxter.load()
-            dists = []
-            for nm in names:
-                r = recs.get(nm)
-                if r is None:
-                    continue
-                pos, _ = b.fk_batch(arm, r.arm_q(arm)[:: max(1, len(r) // 2000)])
-                p = np.asarray(tr.position)[:: max(1, len(tr) // 2000)]
-                d = np.sqrt(((p[:, None, :] - pos[None, :, :]) ** 2).sum(-1)).min(axis=1)
-                dists.append(float(d.mean()))
-            if dists:
-                lines.append(
-                    f"  distance of the generalized path to the demonstrations: mean {np.mean(dists) * 1000:.1f} mm "
-                    f"(per demo {', '.join(f'{x * 1000:.1f}' for x in dists)} mm)"
-                )
+        lines += _arm_report(session, arm, sk)
     lines.append("")
     lines.append(f"Saved into the session ({session.path}).")
     return "\n".join(lines)
+
+
+def _arm_report(session: Session, arm: str, sk: Skill) -> list[str]:
+    info = session.skill_info.get(arm)
+    names = list(sk.demo_names or (info.demos if info is not None else ()))
+    names = names or [r.name for r in session.recordings if arm in r.arms]
+    kps = list(sk.keypoints)
+    ll = np.atleast_1d(np.asarray(sk.loglik, dtype=float))
+    ref = int(sk.reference)
+    lines = ["", f"{arm} arm", f"  {'demonstration':<28}{'samples':>10}{'key-points':>12}{'log-likelihood':>16}"]
+    recs = {r.name: r for r in session.recordings}
+    for i, nm in enumerate(names):
+        n = len(recs[nm]) if nm in recs else 0
+        k = len(kps[i]) if i < len(kps) else 0
+        llv = _fmt(ll[i], ".1f") if i < ll.shape[0] else "—"
+        mark = "  ← reference" if i == ref else ""
+        lines.append(f"  {nm[:27]:<28}{n:>10}{k:>12}{llv:>16}{mark}")
+    lines.append(f"  clusters (HMM states) k = {sk.n_clusters}")
+    tr = sk.trajectory
+    lines.append(f"  generalized trajectory: {len(tr)} samples, {tr.duration:.1f} s")
+    jt = sk.joint_trajectory
+    if jt is not None:
+        pe = np.asarray(jt.position_error, dtype=float)
+        oe = np.asarray(jt.orientation_error, dtype=float)
+        conv = np.asarray(jt.converged, dtype=bool)
+        lines.append(
+            f"  joint trajectory (IK): {conv.mean() * 100:.1f} % of poses reached; position error "
+            f"median {np.median(pe) * 1000:.2f} mm, max {pe.max() * 1000:.2f} mm; orientation error max "
+            f"{np.degrees(oe.max()):.2f}°"
+        )
+    dists = _distances_to_demos(tr.position, [recs[nm] for nm in names if nm in recs], arm)
+    if dists:
+        lines.append(
+            f"  distance of the generalized path to the demonstrations: mean {np.mean(dists) * 1000:.1f} mm "
+            f"(per demo {', '.join(f'{x * 1000:.1f}' for x in dists)} mm)"
+        )
+    return lines
+
+
+def _distances_to_demos(path: np.ndarray, recordings: list[Recording], arm: str) -> list[float]:
+    """How far the generalized path stays from each demonstration (mean nearest distance, m)."""
+    if not recordings:
+        return []
+    from studio.core.kinematics import Baxter  # pinocchio: loaded only for a report
+
+    b = Baxter.load()
+    dists = []
+    p = np.asarray(path)[:: max(1, len(path) // 2000)]
+    for r in recordings:
+        pos, _ = b.fk_batch(arm, r.arm_q(arm)[:: max(1, len(r) // 2000)])
+        d = np.sqrt(((p[:, None, :] - pos[None, :, :]) ** 2).sum(-1)).min(axis=1)
+        dists.append(float(d.mean()))
+    return dists
 
 
 # -- CSV ------------------------------------------------------------------------------------------------------
@@ -200,7 +199,7 @@ def export_csv(args: argparse.Namespace, out: TextIO | None = None) -> int:
     out = out or sys.stdout
     store = SessionStore(_sessions_dir(args))
     session = store.open(args.session, recover=False)
-    skills = {a: s for a, s in session.skills.items() if getattr(s, "joint_trajectory", None) is not None}
+    skills = sampling.executable(session.skills)
     if not skills:
         raise NotEnoughData(
             f'Session "{session.name}" has no learned joint trajectory yet. '
@@ -220,7 +219,7 @@ def export_csv(args: argparse.Namespace, out: TextIO | None = None) -> int:
 
 
 # -- example sessions -----------------------------------------------------------------------------------------
-def record_plan(session: Session, plan: Any, name: str, *, noise_seed: int) -> int:
+def record_plan(session: Session, plan: TeacherPlan, name: str, *, noise_seed: int) -> int:
     """Drive a :class:`SimulatedBaxter` through ``plan`` in manual-step mode, record it, add it to ``session``.
 
     The real path of the studio (backend → recorder → session), faster than real time and deterministic.

@@ -14,12 +14,14 @@ import math
 import os
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
+from studio.core import sampling
+from studio.core.arms import normalize_arms
 from studio.core.errors import InvalidInput, NotEnoughData
-from studio.core.types import ALL_ARM_JOINTS, ARM_JOINTS, ARMS, Recording, check_arm
+from studio.core.types import ALL_ARM_JOINTS, ARM_JOINTS, ARMS, Recording, Skill, check_arm
+from studio.storage.atomic import atomic_write_bytes
 
 #: The SDK's column order.
 CSV_COLUMNS: tuple[str, ...] = (
@@ -57,9 +59,31 @@ def import_csv(
         CsvFormatError: missing columns, non-numbers, NaN, too few rows — with file and line number.
     """
     p = Path(path)
-    if isinstance(arms, str):
-        arms = ("left", "right") if arms == "both" else (check_arm(arms),)
+    arms = normalize_arms(arms)
     label = p.name
+    header_line, body = _read_text(p, label)
+    header = _check_header(header_line, label)
+    col = {h: i for i, h in enumerate(header)}
+    rows = _parse_rows(body, len(header), label)
+    t = rows[:, col["time"]]
+    keep = np.concatenate([[True], np.diff(t) > 0]) if len(t) else np.zeros(0, bool)
+    # A time stamp that goes backwards (not just repeats) means the file is not one recording.
+    if len(t) > 1 and np.any(np.diff(t) < 0):
+        i = int(np.argmax(np.diff(t) < 0)) + 3
+        raise CsvFormatError(f'"{label}" line {i}: the time goes backwards.')
+    rows = rows[keep]
+    if rows.shape[0] < 2:
+        raise NotEnoughData(f'"{label}" holds fewer than two samples; there is nothing to learn from.')
+    q = rows[:, [col[j] for j in ALL_ARM_JOINTS]]
+    g = rows[:, [col["left_gripper"], col["right_gripper"]]]
+    if np.any(g < -0.5) or np.any(g > 100.5):
+        raise CsvFormatError(f'"{label}": gripper positions must be percent 0..100.')
+    t = rows[:, col["time"]]
+    return Recording(t=t - t[0], q=q, gripper=np.clip(g, 0.0, 100.0), arms=tuple(arms), name=name or p.stem[:100])
+
+
+def _read_text(p: Path, label: str) -> tuple[str, str]:
+    """The header line and the rest of the file (size checked before reading)."""
     try:
         size = p.stat().st_size
     except OSError as exc:
@@ -68,12 +92,14 @@ def import_csv(
         raise CsvFormatError(f'The file "{label}" is too large to be a joint recording ({size / 1e9:.1f} GB).')
     try:
         with open(p, encoding="utf-8-sig", newline="") as f:
-            header_line = f.readline()
-            body = f.read()
+            return f.readline(), f.read()
     except UnicodeDecodeError as exc:
         raise CsvFormatError(f'The file "{label}" is not a text (CSV) file.') from exc
     except OSError as exc:
         raise CsvFormatError(f'The file "{label}" cannot be read ({exc.strerror}).') from exc
+
+
+def _check_header(header_line: str, label: str) -> list[str]:
     header = [h.strip() for h in header_line.strip().split(",")]
     if not header or header[0] != "time":
         raise CsvFormatError(
@@ -85,10 +111,14 @@ def import_csv(
         raise CsvFormatError(f'"{label}" lacks the column(s) {", ".join(missing)} of the Baxter joint-recorder format.')
     if len(set(header)) != len(header):
         raise CsvFormatError(f'"{label}" has a column name twice in its first line.')
+    return header
+
+
+def _parse_rows(body: str, ncol: int, label: str) -> np.ndarray:
+    """(rows, ncol) numbers; every problem names its line (the header is line 1)."""
     lines = body.splitlines()
     while lines and not lines[-1].strip():
         lines.pop()
-    ncol = len(header)
     rows = np.empty((len(lines), ncol))
     for i, ln in enumerate(lines):
         parts = ln.split(",")
@@ -105,22 +135,7 @@ def import_csv(
         raise CsvFormatError(
             f'"{label}" line {int(np.argmax(bad)) + 2} contains a missing or invalid value (NaN or infinity).'
         )
-    col = {h: i for i, h in enumerate(header)}
-    t = rows[:, col["time"]]
-    keep = np.concatenate([[True], np.diff(t) > 0]) if len(t) else np.zeros(0, bool)
-    # A time stamp that goes backwards (not just repeats) means the file is not one recording.
-    if len(t) > 1 and np.any(np.diff(t) < 0):
-        i = int(np.argmax(np.diff(t) < 0)) + 3
-        raise CsvFormatError(f'"{label}" line {i}: the time goes backwards.')
-    rows = rows[keep]
-    if rows.shape[0] < 2:
-        raise NotEnoughData(f'"{label}" holds fewer than two samples; there is nothing to learn from.')
-    q = rows[:, [col[j] for j in ALL_ARM_JOINTS]]
-    g = rows[:, [col["left_gripper"], col["right_gripper"]]]
-    if np.any(g < -0.5) or np.any(g > 100.5):
-        raise CsvFormatError(f'"{label}": gripper positions must be percent 0..100.')
-    t = rows[:, col["time"]]
-    return Recording(t=t - t[0], q=q, gripper=np.clip(g, 0.0, 100.0), arms=tuple(arms), name=name or p.stem[:100])
+    return rows
 
 
 def _fmt_rows(t: np.ndarray, q: np.ndarray, g: np.ndarray) -> str:
@@ -149,8 +164,6 @@ def write_csv(path: str | os.PathLike[str], t: np.ndarray, q: np.ndarray, grippe
         raise InvalidInput(f"Expected t (N,), q (N, 14), gripper (N, 2); got {t.shape}, {q.shape}, {g.shape}.")
     if not (np.all(np.isfinite(t)) and np.all(np.isfinite(q)) and np.all(np.isfinite(g))):
         raise InvalidInput("The trajectory contains missing or invalid values (NaN or infinity); nothing was written.")
-    from studio.sessions import atomic_write_bytes
-
     atomic_write_bytes(Path(path), _fmt_rows(t, q, g).encode())
 
 
@@ -159,15 +172,8 @@ def export_recording_csv(rec: Recording, path: str | os.PathLike[str]) -> None:
     write_csv(path, rec.t, rec.q, rec.gripper)
 
 
-def _resample(t_src: np.ndarray, values: np.ndarray, t_new: np.ndarray) -> np.ndarray:
-    values = np.asarray(values, dtype=np.float64)
-    if values.ndim == 1:
-        return np.interp(t_new, t_src, values)
-    return np.column_stack([np.interp(t_new, t_src, values[:, j]) for j in range(values.shape[1])])
-
-
 def export_joint_trajectory_csv(
-    skills: Mapping[str, Any],
+    skills: Mapping[str, Skill],
     path: str | os.PathLike[str],
     *,
     rest: np.ndarray | None = None,
@@ -176,11 +182,10 @@ def export_joint_trajectory_csv(
 ) -> int:
     """Write learned skills' joint trajectories as a CSV the Baxter SDK playback example can run.
 
-    Each skill (arm -> Skill) must have ``joint_trajectory`` (t (M,), q (M, 7)); its gripper comes from
-    ``joint_trajectory.gripper`` if present, else from ``skill.trajectory`` (resampled onto the same times).
-    The SDK's playback first moves slowly from wherever the arms are to the first row, then follows the rows'
-    times, so the file starts at t = 0. An arm without a skill holds ``rest`` (the
-    Baxter untuck pose by default) with its gripper at ``rest_gripper``.
+    Each skill (arm -> Skill) must have ``joint_trajectory``; the rows are sampled as Preview plays them
+    (:func:`studio.core.sampling.sample_joints`, gripper included). The SDK's playback first moves slowly from
+    wherever the arms are to the first row, then follows the rows' times, so the file starts at t = 0. An arm
+    without a skill holds ``rest`` (the Baxter untuck pose by default) with its gripper at ``rest_gripper``.
 
     Args:
         rate_hz: rows per second in the file (the SDK's recorder default is 100; its playback interpolates).
@@ -192,36 +197,20 @@ def export_joint_trajectory_csv(
         raise NotEnoughData("There is no learned skill to export yet; learn the skill first.")
     if not (rate_hz > 0 and math.isfinite(rate_hz)):
         raise InvalidInput("The export rate must be a positive number of rows per second.")
-    trajs = {}
     for arm, sk in skills.items():
         check_arm(arm)
-        jt = getattr(sk, "joint_trajectory", None)
-        if jt is None:
+        if sk.joint_trajectory is None:
             raise NotEnoughData(
                 f"The {arm} arm's skill has no joint trajectory (inverse kinematics was not run); learn it again."
             )
-        trajs[arm] = (np.asarray(jt.t, dtype=np.float64), np.asarray(jt.q, dtype=np.float64), sk)
-    t_end = max(float(tt[-1] - tt[0]) for tt, _, _ in trajs.values())
-    n = math.floor(t_end * rate_hz + 1e-9) + 1
+    n = math.floor(sampling.duration(skills) * rate_hz + 1e-9) + 1
     t = np.arange(n) / rate_hz
     if rest is None:
-        from studio.core.kinematics import Baxter
+        from studio.core.kinematics import Baxter  # pinocchio: loaded only when a rest pose is needed
 
         b = Baxter.load()
         rest = np.concatenate([b.neutral(a) for a in ARMS])
-    q = np.tile(np.asarray(rest, dtype=np.float64), (n, 1))
-    g = np.tile(np.asarray(rest_gripper, dtype=np.float64), (n, 1))
-    for arm, (tt, qq, sk) in trajs.items():
-        ts = tt - tt[0]
-        cols = slice(0, 7) if arm == "left" else slice(7, 14)
-        q[:, cols] = _resample(ts, qq, np.minimum(t, ts[-1]))
-        jg = getattr(sk.joint_trajectory, "gripper", None)
-        if jg is not None:  # the gripper command that goes with the joint trajectory, same times
-            gt, gv = ts, np.asarray(jg, dtype=np.float64)
-        else:
-            tr = sk.trajectory
-            gt, gv = np.asarray(tr.t, dtype=np.float64) - float(tr.t[0]), np.asarray(tr.gripper, dtype=np.float64)
-        g[:, 0 if arm == "left" else 1] = np.clip(_resample(gt, gv, np.minimum(t, gt[-1])), 0, 100)
+    q, g = sampling.sample_joints(skills, t, rest, np.asarray(rest_gripper, dtype=np.float64))
     write_csv(path, t, q, g)
     return n
 

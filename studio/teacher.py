@@ -28,7 +28,8 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from studio.core.errors import InvalidInput
-from studio.core.kinematics import Baxter, matrix_from_quat_wxyz, quat_angle, quat_wxyz_from_matrix
+from studio.core.kinematics import Baxter
+from studio.core.rotations import matrix_from_quat_wxyz, quat_angle, quat_wxyz_from_matrix, rotvec_matrix, slerp
 from studio.core.types import Recording, check_arm, readonly
 
 TASKS: tuple[str, ...] = ("stack-cup", "pick-place")
@@ -113,29 +114,8 @@ def _down(yaw: float, tilt: np.ndarray | None = None) -> np.ndarray:
     Ry = np.diag([-1.0, 1.0, -1.0])  # rotation by π about y: the gripper's z axis points down
     R = Rz @ Ry
     if tilt is not None:  # a small hand wobble, rotation vector in the world frame
-        R = _rotvec_matrix(tilt) @ R
+        R = rotvec_matrix(tilt) @ R
     return quat_wxyz_from_matrix(R)
-
-
-def _rotvec_matrix(r: np.ndarray) -> np.ndarray:
-    th = float(np.linalg.norm(r))
-    if th < 1e-12:
-        return np.eye(3)
-    k = r / th
-    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + math.sin(th) * K + (1 - math.cos(th)) * K @ K
-
-
-def _slerp(q0: np.ndarray, q1: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """Spherical interpolation (M, 4) between unit quaternions at fractions s (M,), shortest way."""
-    q1 = q1 if float(np.dot(q0, q1)) >= 0 else -q1
-    d = min(1.0, float(np.dot(q0, q1)))
-    th = math.acos(d)
-    if th < 1e-9:
-        out = np.outer(1 - s, q0) + np.outer(s, q1)
-    else:
-        out = (np.outer(np.sin((1 - s) * th), q0) + np.outer(np.sin(s * th), q1)) / math.sin(th)
-    return out / np.linalg.norm(out, axis=1, keepdims=True)
 
 
 def _min_jerk(u: np.ndarray) -> np.ndarray:
@@ -227,7 +207,7 @@ class _Segment:
     def cartesian(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         s = _min_jerk((t - self.t0) / self.duration)
         pos = self.p0 + np.outer(s, self.p1 - self.p0) + np.outer(np.sin(math.pi * s), self.bow)
-        return pos, _slerp(self.q0, self.q1, s)
+        return pos, slerp(self.q0, self.q1, s)
 
 
 def _plan_arm(
@@ -244,7 +224,7 @@ def _plan_arm(
     pace = rng.uniform(0.82, 1.3) * (1.25 if task == "pick-place" else 1.0)  # overall speed
     oris = [_down(k.yaw, rng.normal(0, 0.03, 3)) for k in keys]
     oris[0] = home_ori
-    oris[-1] = quat_wxyz_from_matrix(_rotvec_matrix(rng.normal(0, 0.01, 3)) @ matrix_from_quat_wxyz(home_ori))
+    oris[-1] = quat_wxyz_from_matrix(rotvec_matrix(rng.normal(0, 0.01, 3)) @ matrix_from_quat_wxyz(home_ori))
     # Start exactly at the home configuration's pose so IK starts from a solved seed.
     keys[0].position = home
     items: list[tuple[str, float, object]] = []

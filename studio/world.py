@@ -99,6 +99,16 @@ def _finite(name: str, value: object, n: int) -> tuple[float, ...]:
     return tuple(float(x) for x in a)
 
 
+def _finite3(name: str, value: object) -> tuple[float, float, float]:
+    a = _finite(name, value, 3)
+    return (a[0], a[1], a[2])
+
+
+def _finite4(name: str, value: object) -> tuple[float, float, float, float]:
+    a = _finite(name, value, 4)
+    return (a[0], a[1], a[2], a[3])
+
+
 def _yaw_quat(yaw: float) -> tuple[float, float, float, float]:
     return (math.cos(yaw / 2.0), 0.0, 0.0, math.sin(yaw / 2.0))
 
@@ -227,8 +237,8 @@ class WorldObject:
         return cls(
             name=str(d["name"]),
             kind=str(d["kind"]),
-            size=tuple(d["size"]),  # type: ignore[arg-type]
-            position=tuple(d["position"]),  # type: ignore[arg-type]
+            size=_finite3("object size", d["size"]),
+            position=_finite3("object position", d["position"]),
             yaw=float(d.get("yaw", 0.0)),
             held_out=bool(d.get("held_out", False)),
         )
@@ -288,8 +298,8 @@ class Scene:
                 n += 1
         elif name in self.names():
             raise InvalidInput(f'There is already a "{name}" in the scene; choose another name.')
-        size_t = tuple(size) if size is not None else DEFAULT_SIZE[kind]
-        obj = WorldObject(name, kind, size_t, tuple(position), float(yaw), held_out)  # type: ignore[arg-type]
+        size_t = _finite3("object size", size) if size is not None else DEFAULT_SIZE[kind]
+        obj = WorldObject(name, kind, size_t, _finite3("object position", position), float(yaw), held_out)
         if settle and not held_out:
             obj = replace(obj, position=_rest_position(obj, self.table, self.objects))
         return replace(self, objects=(*self.objects, obj))
@@ -301,7 +311,7 @@ class Scene:
         out in the air stays where it is put.
         """
         old = self.object(name)
-        obj = replace(old, position=tuple(position), yaw=old.yaw if yaw is None else float(yaw))  # type: ignore[arg-type]
+        obj = replace(old, position=_finite3("object position", position), yaw=old.yaw if yaw is None else float(yaw))
         if settle and not obj.held_out:
             others = tuple(o for o in self.objects if o.name != name)
             obj = replace(obj, position=_rest_position(obj, self.table, others))
@@ -482,9 +492,9 @@ class ObjectPose:
         return cls(
             name=str(d["name"]),
             kind=kind,
-            size=_finite("object size", d["size"], 3),  # type: ignore[arg-type]
-            position=_finite("object position", d["position"], 3),  # type: ignore[arg-type]
-            wxyz=_finite("object orientation", d["wxyz"], 4),  # type: ignore[arg-type]
+            size=_finite3("object size", d["size"]),
+            position=_finite3("object position", d["position"]),
+            wxyz=_finite4("object orientation", d["wxyz"]),
             held_by=None if held is None else str(held),
             on=None if d.get("on") is None else str(d["on"]),
         )
@@ -541,7 +551,7 @@ class WorldEvent:
             kind=kind,
             arm=None if arm is None else str(arm),
             object=None if d.get("object") is None else str(d["object"]),
-            gripper=None if g is None else _finite("gripper position", g, 3),  # type: ignore[arg-type]
+            gripper=None if g is None else _finite3("gripper position", g),
             poses=tuple(ObjectPose.from_dict(p) for p in d.get("poses", [])),
         )
 
@@ -736,7 +746,7 @@ class World:
         """``RobotBackend.subscribe`` listener: feed a :class:`JointStateBatch`."""
         self.feed(batch.t, batch.q, batch.gripper)
 
-    def feed(self, t: np.ndarray, q: np.ndarray, gripper: np.ndarray) -> list[WorldEvent]:
+    def feed(self, t: np.ndarray, q: np.ndarray, gripper: np.ndarray) -> list[WorldEvent]:  # noqa: C901
         """Play samples (n,) times, (n, 14) joints (rad), (n, 2) gripper openings (percent); returns new events.
 
         Rows with missing values (NaN) are skipped, as the recorder skips them.

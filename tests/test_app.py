@@ -1,63 +1,40 @@
-"""The studio app without a browser: teaching, recording, key-points, training, preview, replay, sessions.
+"""The studio app without a browser: the viser server, the panels and what they show, over the controller.
 
 Each test starts a real studio (viser server on a free port, simulated Baxter, real pipeline and session
-store) on a copy of the example session and stops it at the end.
+store) on a copy of the example session and stops it at the end. The controller's own behaviour is tested
+without a server in test_controller.py.
 """
 
 from __future__ import annotations
 
-import shutil
-import socket
-import time
+import re
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from studio.app import Studio, build_app, exposure_warning, robot_urdf_path
-from studio.core.errors import NotEnoughData, SessionFormatError, StudioError
-from studio.sessions import SessionStore
-
-ROOT = Path(__file__).resolve().parent.parent
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-def wait_for(pred, timeout: float = 10.0) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if pred():
-            return True
-        time.sleep(0.05)
-    return bool(pred())
+from studio.controller import PREVIEW
+from studio.core.errors import StudioError
+from studio.recorder import Recorder
+from studio.robot_backend.simulated import SimulatedBaxter
+from studio.storage import RECORDING_DIR, SessionStore
+from tests.conftest import ROOT, RecordingNotifier, free_port, wait_for
 
 
 @pytest.fixture
-def sessions(tmp_path: Path) -> Path:
-    d = tmp_path / "sessions"
-    d.mkdir()
-    shutil.copytree(ROOT / "sessions" / "stack-cup", d / "stack-cup")
-    return d
-
-
-@pytest.fixture
-def app(sessions: Path):
+def app(sessions: Path) -> Iterator[Studio]:
     a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
-    notes: list[tuple[str, str, str]] = []
-    original = a.notify
-
-    def record(title: str, body: str, *, kind: str = "error", client=None) -> None:
-        notes.append((kind, title, body))
-        original(title, body, kind=kind, client=client)
-
-    a.notify = record  # type: ignore[method-assign]
-    a.notes = notes  # type: ignore[attr-defined]
+    a.controller.notifier = RecordingNotifier(then=a.notifier)
     yield a
     a.stop()
+
+
+def notes(app: Studio) -> list[tuple[str, str, str]]:
+    notifier = app.controller.notifier
+    assert isinstance(notifier, RecordingNotifier)
+    return notifier.notes
 
 
 def test_light_robot_is_the_default_and_warning_beyond_localhost() -> None:
@@ -71,162 +48,82 @@ def test_light_robot_is_the_default_and_warning_beyond_localhost() -> None:
 
 
 def test_starts_on_the_session_and_follows_the_robot(app: Studio) -> None:
-    assert app.session.name == "stack-cup"
+    ctl = app.controller
+    assert ctl.session.name == "stack-cup"
     assert app.url() == f"http://127.0.0.1:{app.port}/?key={app.access.key}"
-    assert len(app.demo_names()) == 3
+    assert len(ctl.demos.names()) == 3
     n0 = app.panels.robot.updates
-    q = app.arm_q("left")
+    q = ctl.teaching.arm_q("left")
     q[3] += 0.2
-    app.command_arm("left", q)
+    ctl.teaching.command_arm("left", q)
     assert wait_for(lambda: app.panels.robot.updates > n0 + 5)
-    assert wait_for(lambda: abs(app.arm_q("left")[3] - q[3]) < 1e-3)
+    assert wait_for(lambda: abs(ctl.teaching.arm_q("left")[3] - q[3]) < 1e-3)
 
 
-def test_gizmo_ik_reachable_and_unreachable(app: Studio) -> None:
+def test_unreachable_handle_is_marked_and_told(app: Studio) -> None:
+    ctl, teach, robot = app.controller, app.panels.teach, app.panels.robot
     arm = "left"
-    pos, wxyz = app.baxter.fk(arm, app.arm_q(arm))
-    res = app.move_gripper(arm, pos + np.array([0.0, 0.0, 0.05]), wxyz)
-    assert res.converged
-    far = app.move_gripper(arm, pos + np.array([3.0, 0.0, 0.0]), wxyz)
+    pos, wxyz = ctl.baxter.fk(arm, ctl.teaching.arm_q(arm))
+    far = ctl.teaching.move_gripper(arm, pos + np.array([3.0, 0.0, 0.0]), wxyz)
     assert not far.converged
-    teach = app.panels.teach
-    teach._show_reach(arm, far.converged, pos + np.array([3.0, 0.0, 0.0]))
-    assert teach.miss_markers[arm].visible and teach.unreachable[arm]
+    assert teach.miss_markers[arm].visible and teach.miss_labels[arm].visible
+    assert np.allclose(teach.miss_markers[arm].position, pos + np.array([3.0, 0.0, 0.0]))
+    assert wait_for(lambda: "cannot reach" in robot.status.content)
+    back, back_wxyz = ctl.baxter.fk(arm, far.q)  # where the arm stopped: within reach again
+    near = ctl.teaching.move_gripper(arm, back, back_wxyz)
+    assert near.converged and not teach.miss_markers[arm].visible
+    assert wait_for(lambda: "cannot reach" not in robot.status.content)
 
 
-def test_record_stop_saves_to_disk_one_recording_at_a_time(app: Studio, sessions: Path) -> None:
-    app.start_recording()
-    with pytest.raises(StudioError, match="already running"):
-        app.start_recording()
-    app.move_joint(0, float(app.robot_q()[0] + 0.2))
-    app.set_gripper("left", 0.0)
-    assert wait_for(lambda: app.recorder is not None and app.recorder.n_samples > 600)
-    app.stop_recording()
-    assert app.recorder is None
-    assert len(app.demo_names()) == 4
-    again = SessionStore(sessions).open("stack-cup")
-    assert len(again.recordings) == 4 and len(again.recordings[-1]) > 600
-    app.start_recording()
-    app.discard_recording()
-    assert len(app.demo_names()) == 4
+def test_demo_edits_redraw_the_traces(app: Studio) -> None:
+    demos = app.controller.demos
+    demos.set_visible(0, False)
+    assert len(app.panels.demos._traces) == 2 and "hidden" in app.panels.demos.demo_list.content
+    demos.set_visible(0, True)
+    demos.delete(0)
+    assert len(app.panels.demos._traces) == 2
 
 
-def test_demo_list_hide_rename_trim_delete(app: Studio) -> None:
-    app.set_demo_visible(0, False)
-    assert [i for i, _ in app.demos_for("left")] == [1, 2]
-    app.set_demo_visible(0, True)
-    app.rename_demo(1, "slow one")
-    assert app.demo_names()[1] == "slow one"
-    with pytest.raises(StudioError):
-        app.rename_demo(0, "slow one")
-    d0 = app.demo_duration(2)
-    app.trim_demo(2, 1.0, d0 - 1.0)
-    assert app.demo_duration(2) == pytest.approx(d0 - 2.0, abs=0.01)
-    app.delete_demo(0)
-    assert app.demo_names() == ["slow one", "demo 3"]
-    assert len(app.panels.teach._traces) == 2
-
-
-def test_keypoints_follow_the_sliders_and_k_override(app: Studio) -> None:
-    v0 = app.keypoint_view()
-    c0 = [d.count for d in v0.demos]
-    assert len(c0) == 3 and min(c0) > 2 and v0.k["left"] >= 2
-    app.set_param("eps5", 0.03)
-    v1 = app.keypoint_view()
-    assert sum(d.count for d in v1.demos) > sum(c0)
-    app.set_k(5)
-    assert app.keypoint_view().k["left"] == 5
-    app.reset_params()
-    assert [d.count for d in app.keypoint_view().demos] == c0
+def test_keypoints_are_drawn(app: Studio) -> None:
+    kp = app.controller.keypoints
+    kp.set_param("eps5", 0.03)
+    v1 = kp.compute()
     app.panels.keypoints.draw(v1)
     assert len(app.panels.keypoints._kp_nodes) == 3
     assert sum(lab.visible for lab in app.panels.keypoints._labels) == v1.k["left"]
     assert 'data-count="' in app.panels.keypoints.counts.content
 
 
-def test_train_preview_replay_export(app: Studio) -> None:
-    app.train().result(timeout=120)
-    assert not app.training
-    skill = app.skills()["left"]
-    assert skill.joint_trajectory is not None
+def test_train_panel_and_preview_after_training(app: Studio) -> None:
+    ctl = app.controller
+    ctl.training.train().result(timeout=120)
     assert "heatmap" in app.panels.train.heatmap.content
     assert app.panels.train.plots.content.count("position-plot") == 4
-    assert app.preview_duration() > 1.0
-
-    app.preview_play(speed=4.0)
-    assert wait_for(lambda: (app.preview_position() or 0.0) > 0.5)
-    assert "preview" in app.display_label()
-    app.preview_pause()
-    app.preview_seek(1.0)
-    assert app.display is not app.live
-
-    app.replay_demo(1)
-    assert wait_for(lambda: (app.replay_position() or 0.0) > 0.2)
-    app.replay_seek(3.0)
-    app.replay_stop()
-    assert app.display is app.live
-
-    name, data = app.joint_trajectory_csv()
-    assert name.endswith(".csv") and data.startswith(b"time,left_s0")
-    zname, zdata = app.session_zip()
-    assert zname == "stack-cup.zip" and zdata[:2] == b"PK"
-
-
-def test_training_needs_two_demos_in_plain_words(app: Studio) -> None:
-    app.new_session("only-one")
-    with pytest.raises(NotEnoughData, match="at least two"):
-        app.train()
-    assert not app.training
-
-
-def test_corrupt_upload_changes_nothing(app: Studio, sessions: Path) -> None:
-    before = sorted(p.name for p in sessions.iterdir())
-    with pytest.raises(SessionFormatError):
-        app.import_session_zip("bad.zip", b"PK\x03\x04 not a zip at all")
-    assert sorted(p.name for p in sessions.iterdir()) == before
-    assert app.session.name == "stack-cup"
-
-
-def test_upload_of_a_downloaded_session_opens_it(app: Studio) -> None:
-    _, data = app.session_zip()
-    name = app.import_session_zip("stack-cup.zip", data)
-    assert name != "stack-cup" and app.session.name == name
-    assert len(app.demo_names()) == 3
-
-
-def test_new_open_duplicate(app: Studio) -> None:
-    app.new_session("lesson two")
-    assert app.session.name == "lesson two" and app.demo_names() == []
-    app.open_session("stack-cup")
-    app.duplicate_session("stack-cup copy")
-    assert app.session.name == "stack-cup copy" and len(app.demo_names()) == 3
-    assert set(app.session_names()) >= {"stack-cup", "lesson two", "stack-cup copy"}
+    ctl.playback.play_preview(speed=4.0)
+    assert wait_for(lambda: (ctl.playback.position(PREVIEW) or 0.0) > 0.5)
+    assert wait_for(lambda: "preview" in app.panels.robot.status.content)
+    assert "Stop" in app.panels.preview.controls.options  # Stop in Preview: back to the live robot
+    ctl.playback.stop(PREVIEW)
+    assert ctl.display.is_live
 
 
 def test_both_arms(app: Studio) -> None:
-    app.set_arms(("left", "right"))
+    ctl = app.controller
+    ctl.teaching.set_arms(("left", "right"))
     assert all(h.visible for h in app.panels.teach.handles.values())
-    app.start_recording()
-    assert app.recorder.arms == ("left", "right")
-    app.discard_recording()
-    app.set_arms(("right",))
+    ctl.teaching.start_recording()
+    recorder = ctl.teaching.recorder
+    assert recorder is not None and recorder.arms == ("left", "right")
+    ctl.teaching.discard_recording()
+    ctl.teaching.set_arms(("right",))
     assert not app.panels.teach.handles["left"].visible
-
-
-def test_too_many_clusters_is_a_plain_notification(app: Studio) -> None:
-    app.set_k(500)
-    view = app.panels.keypoints.refresh()
-    assert view.messages and "left" not in view.k
-    assert any(kind == "warning" and title == "Key-points" for kind, title, _ in app.notes)  # type: ignore[attr-defined]
-    app.set_k(None)
-    assert app.panels.keypoints.refresh().k["left"] >= 2
 
 
 def test_stopping_the_studio_keeps_a_running_recording(sessions: Path) -> None:
     a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
     try:
-        a.start_recording()
-        assert wait_for(lambda: a.recorder.n_samples > 200)
+        a.controller.teaching.start_recording()
+        assert wait_for(lambda: (r := a.controller.teaching.recorder) is not None and r.n_samples > 200)
     finally:
         a.stop()
     assert len(SessionStore(sessions).open("stack-cup").recordings) == 4
@@ -235,9 +132,10 @@ def test_stopping_the_studio_keeps_a_running_recording(sessions: Path) -> None:
 def test_light_robot_is_light_and_coloured() -> None:
     import trimesh
 
-    faces, colours = 0, set()
+    faces, colours = 0, set[tuple[int, ...]]()
     for glb in (ROOT / "urdf" / "meshes").rglob("*.glb"):
         scene = trimesh.load(str(glb), force="scene")
+        assert isinstance(scene, trimesh.Scene)
         for g in scene.geometry.values():
             faces += len(g.faces)
             colours.update(map(tuple, np.unique(g.visual.face_colors[:, :3], axis=0)))
@@ -259,71 +157,73 @@ def test_charts_are_plain_svg() -> None:
 
 
 def test_k_override_is_kept_with_the_session(app: Studio, sessions: Path) -> None:
-    app.set_k(5)
-    app.persist_params()  # what the key-point thread does after each change
+    ctl, kp = app.controller, app.panels.keypoints
+    ctl.keypoints.set_k(5)
+    ctl.keypoints.persist()  # what the key-point thread does after each change
     assert SessionStore(sessions).open("stack-cup").n_clusters == 5
-    app.new_session("automatic k")
-    assert app.k_override is None and app.panels.keypoints.k_auto.value
-    app.open_session("stack-cup")
-    kp = app.panels.keypoints
-    assert app.k_override == 5 and app.keypoint_view().k["left"] == 5
+    ctl.sessions.new("automatic k")
+    assert ctl.keypoints.k is None and kp.k_auto.value
+    ctl.sessions.open("stack-cup")
+    assert ctl.keypoints.k == 5 and ctl.keypoints.compute().k["left"] == 5
     assert not kp.k_auto.value and kp.k.value == 5 and not kp.k.disabled
     with pytest.raises(StudioError, match="at least 1"):
-        app.set_k(0)
-    app.reset_params()
-    app.persist_params()
+        ctl.keypoints.set_k(0)
+    ctl.keypoints.reset()
+    ctl.keypoints.persist()
     assert SessionStore(sessions).open("stack-cup").n_clusters is None
 
 
 def test_k_override_comes_back_after_a_restart(sessions: Path) -> None:
     a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
     try:
-        a.set_k(6)
-        a.save_session()
+        a.controller.keypoints.set_k(6)
+        a.controller.sessions.save()
     finally:
         a.stop()
     b = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
     try:
-        assert b.k_override == 6 and b.panels.keypoints.k.value == 6 and not b.panels.keypoints.k_auto.value
+        kp = b.panels.keypoints
+        assert b.controller.keypoints.k == 6 and kp.k.value == 6 and not kp.k_auto.value
     finally:
         b.stop()
 
 
 def test_buttons_that_cannot_act_now_are_disabled(app: Studio, sessions: Path) -> None:
+    ctl = app.controller
     teach, files = app.panels.teach, app.panels.sessions
     assert not teach.record_btn.disabled and teach.stop_btn.disabled and teach.discard_btn.disabled
     assert files.export.disabled and not files.upload.disabled and files.replay_time.disabled
-    app.start_recording()
+    ctl.teaching.start_recording()
     assert teach.record_btn.disabled and not teach.stop_btn.disabled and not teach.discard_btn.disabled
     assert files.upload.disabled
-    _, data = app.session_zip()
+    _, data = ctl.sessions.zip()
     before = sorted(p.name for p in sessions.iterdir())
     with pytest.raises(StudioError, match="Stop the recording"):  # a raced click still gets plain words
-        app.import_session_zip("copy.zip", data)
+        ctl.sessions.import_zip("copy.zip", data)
     assert sorted(p.name for p in sessions.iterdir()) == before
-    app.discard_recording()
+    ctl.teaching.discard_recording()
     assert not teach.record_btn.disabled and teach.stop_btn.disabled and not files.upload.disabled
     with pytest.raises(StudioError, match="Nothing is being recorded"):
-        app.stop_recording()
-    app.replay_demo(0)
+        ctl.teaching.stop_recording()
+    ctl.playback.play_demo(0)
     assert not files.replay_time.disabled
-    app.replay_stop()
+    ctl.playback.stop("replay")
     assert files.replay_time.disabled
-    app.set_demo_visible(0, False)  # trained from demos 2 and 3 only: the session remembers which
-    app.train().result(timeout=120)
+    ctl.demos.set_visible(0, False)  # trained from demos 2 and 3 only: the session remembers which
+    ctl.training.train().result(timeout=120)
     assert not files.export.disabled
-    assert app.session.skill_info["left"]["demos"] == app.demo_names()[1:]
-    assert SessionStore(sessions).open("stack-cup").skill_info["left"]["demos"] == app.demo_names()[1:]
+    assert list(ctl.session.skill_info["left"].demos) == ctl.demos.names()[1:]
+    assert list(SessionStore(sessions).open("stack-cup").skill_info["left"].demos) == ctl.demos.names()[1:]
 
 
 def test_a_k_outside_the_slider_range_still_opens(sessions: Path) -> None:
     SessionStore(sessions).open("stack-cup").set_n_clusters(500)  # possible from code, not from the slider
     a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
     try:
-        assert a.k_override == 500 and a.panels.keypoints.k.value == 40
-        a.session.set_n_clusters(1)
-        a.open_session("stack-cup")
-        assert a.k_override == 1 and a.panels.keypoints.k.value == 2
+        assert a.controller.keypoints.k == 500 and a.panels.keypoints.k.value == 40
+        a.controller.session.set_n_clusters(1)
+        a.controller.sessions.open("stack-cup")
+        assert a.controller.keypoints.k == 1 and a.panels.keypoints.k.value == 2
     finally:
         a.stop()
 
@@ -332,115 +232,67 @@ def test_a_k_outside_the_slider_range_still_opens(sessions: Path) -> None:
 
 
 def test_sessions_cannot_change_while_training(app: Studio, sessions: Path) -> None:
-    _, data = app.session_zip()
+    ctl = app.controller
+    _, data = ctl.sessions.zip()
     before = sorted(p.name for p in sessions.iterdir())
-    fut = app.train()
+    fut = ctl.training.train()
     assert app.panels.sessions.upload.disabled
     for action in (
-        lambda: app.new_session("other"),
-        lambda: app.open_session("stack-cup"),
-        lambda: app.duplicate_session("copy"),
-        lambda: app.import_session_zip("copy.zip", data),
+        lambda: ctl.sessions.new("other"),
+        lambda: ctl.sessions.open("stack-cup"),
+        lambda: ctl.sessions.duplicate("copy"),
+        lambda: ctl.sessions.import_zip("copy.zip", data),
     ):
         with pytest.raises(StudioError, match="Wait for the training to finish"):
             action()
     fut.result(timeout=120)
-    assert not app.training and app.session.name == "stack-cup" and not app.panels.sessions.upload.disabled
+    assert not ctl.training.busy and ctl.session.name == "stack-cup" and not app.panels.sessions.upload.disabled
     assert sorted(p.name for p in sessions.iterdir()) == before
     assert "left" in SessionStore(sessions).open("stack-cup").skills
-    assert any(title == "Training finished" for _, title, _ in app.notes)  # type: ignore[attr-defined]
-
-
-def test_eps_changed_during_training_is_kept(app: Studio, sessions: Path) -> None:
-    trained_eps5 = app.params().eps5
-    fut = app.train()
-    app.set_param("eps5", 0.33)
-    app.persist_params()
-    fut.result(timeout=120)
-    assert app.params().eps5 == 0.33 and app.session.params.eps5 == 0.33
-    again = SessionStore(sessions).open("stack-cup")
-    assert again.params.eps5 == 0.33
-    assert again.skill_info["left"]["params"]["eps5"] == trained_eps5  # the skill remembers what it used
-
-
-def test_retraining_unloads_the_old_preview(app: Studio) -> None:
-    app.train().result(timeout=120)
-    app.preview_play(speed=4.0)
-    app.preview_pause()
-    app.set_demo_visible(0, False)
-    app.train().result(timeout=120)
-    assert app.playback_kind() is None and app.display is app.live
-    app.preview_play()
-    assert app._playback is not None
-    assert app._playback.recording.duration == pytest.approx(app.preview_duration(), abs=0.02)
-    assert "Stop" in app.panels.preview.controls.options  # Stop in Preview: back to the live robot
-    app.preview_stop()
-    assert app.playback_kind() is None and app.display is app.live
+    assert any(title == "Training finished" for _, title, _ in notes(app))
 
 
 def _loglik_rows(app: Studio) -> list[str]:
-    import re
-
     return re.findall(r'<tr class="loglik-row"><td>(.*?)</td>', app.panels.train.summary.content)
 
 
 def test_train_panel_rows_stay_matched_to_the_skill(app: Studio) -> None:
-    app.train().result(timeout=120)
+    ctl = app.controller
+    ctl.training.train().result(timeout=120)
     assert _loglik_rows(app) == ["demo 1", "demo 2", "demo 3"]
-    app.rename_demo(0, "first try")  # the panel follows demo changes, rows keep the skill's order
+    ctl.demos.rename(0, "first try")  # the panel follows demo changes, rows keep the skill's order
     assert _loglik_rows(app) == ["demo 1 (renamed or deleted since)", "demo 2", "demo 3"]
     assert app.panels.train.plots.content.count("position-plot") == 3  # demos 2, 3 and the learned path
-    app.delete_demo(1)
+    ctl.demos.delete(1)
     assert _loglik_rows(app) == ["demo 1 (renamed or deleted since)", "demo 2 (renamed or deleted since)", "demo 3"]
     assert app.panels.train.plots.content.count("position-plot") == 2
     assert "out of date" in app.panels.train.status.content
 
 
 def test_arms_cannot_change_while_recording(app: Studio) -> None:
-    app.start_recording()
+    ctl = app.controller
+    ctl.teaching.start_recording()
     assert app.panels.robot.arms.disabled
     with pytest.raises(StudioError, match="Stop the recording before changing the arms to teach"):
-        app.set_arms(("right",))
-    assert app.selected_arms == ("left",) and app.recorder.arms == ("left",)
-    app.discard_recording()
+        ctl.teaching.set_arms(("right",))
+    recorder = ctl.teaching.recorder
+    assert ctl.teaching.selected_arms == ("left",) and recorder is not None and recorder.arms == ("left",)
+    ctl.teaching.discard_recording()
     assert not app.panels.robot.arms.disabled
-    app.set_arms(("right",))
-    assert app.selected_arms == ("right",)
-
-
-def test_duplicate_is_refused_while_recording_and_checks_the_name_first(app: Studio) -> None:
-    app.start_recording()
-    with pytest.raises(StudioError, match="Stop the recording"):
-        app.duplicate_session("copy")
-    app.discard_recording()
-    assert "copy" not in app.session_names() and app.session.name == "stack-cup"
-    app.new_session("taken")
-    app.open_session("stack-cup")
-    with pytest.raises(StudioError, match="already exists"):
-        app.duplicate_session("taken")
-    assert not any(title == "Saved" for _, title, _ in app.notes)  # type: ignore[attr-defined]
-    for action in (app.new_session, app.duplicate_session):
-        with pytest.raises(StudioError, match="Type a name in 'New name' first"):
-            action("  ")
-    assert app.session.name == "stack-cup"
+    ctl.teaching.set_arms(("right",))
+    assert ctl.teaching.selected_arms == ("right",)
 
 
 def test_unsaved_eps_values_survive_switching_and_stopping(app: Studio, sessions: Path) -> None:
-    app.set_param("eps5", 0.41)  # not yet written by the key-point thread
-    app.new_session("x")
+    ctl = app.controller
+    ctl.keypoints.set_param("eps5", 0.41)  # not yet written by the key-point thread
+    ctl.sessions.new("x")
     assert SessionStore(sessions).open("x").params.eps5 != 0.41
-    app.open_session("stack-cup")
-    assert app.params().eps5 == 0.41
-    app.set_param("eps5", 0.37)
+    ctl.sessions.open("stack-cup")
+    assert ctl.keypoints.params().eps5 == 0.41
+    ctl.keypoints.set_param("eps5", 0.37)
     app.stop()
     assert SessionStore(sessions).open("stack-cup").params.eps5 == 0.37
-
-
-def test_demos_are_read_from_one_list(app: Studio, monkeypatch: pytest.MonkeyPatch) -> None:
-    recs = list(app.session.recordings)
-    calls = iter([recs] + [recs[1:]] * 100)  # the first demo is deleted right after the list was read
-    monkeypatch.setattr(app, "recordings", lambda: list(next(calls)))
-    assert [d.name for _, d in app.demos_for("left")] == [r.name for r in recs]
 
 
 class _FakeTab:
@@ -452,10 +304,6 @@ class _FakeTab:
 
 
 def test_a_recovery_is_told_once_not_to_every_new_tab(sessions: Path) -> None:
-    from studio.recorder import Recorder
-    from studio.robot_backend.simulated import SimulatedBaxter
-    from studio.sessions import RECORDING_DIR
-
     sim = SimulatedBaxter()
     rec = Recorder(sim, sessions / "stack-cup" / RECORDING_DIR, arms="left")
     rec.start()
@@ -468,7 +316,7 @@ def test_a_recovery_is_told_once_not_to_every_new_tab(sessions: Path) -> None:
         a._greet(first)  # type: ignore[arg-type]
         a._greet(second)  # type: ignore[arg-type]
         assert first.titles == ["Recovered recordings"] and second.titles == []
-        assert len(a.demo_names()) == 4
+        assert len(a.controller.demos.names()) == 4
     finally:
         a.stop()
 
@@ -476,26 +324,15 @@ def test_a_recovery_is_told_once_not_to_every_new_tab(sessions: Path) -> None:
 def test_hidden_demos_stay_hidden_after_a_restart(sessions: Path) -> None:
     a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
     try:
-        a.set_demo_visible(1, False)
-        a.rename_demo(1, "wobbly")
+        a.controller.demos.set_visible(1, False)
+        a.controller.demos.rename(1, "wobbly")
     finally:
         a.stop()
     b = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
     try:
-        assert not b.demo_visible(1) and b.demo_visible(0) and b.demo_visible(2)
-        assert [i for i, _ in b.demos_for("left")] == [0, 2]  # training leaves it out
-        assert "hidden" in b.panels.teach.demo_list.content  # the list says so
+        demos = b.controller.demos
+        assert not demos.visible(1) and demos.visible(0) and demos.visible(2)
+        assert [i for i, _ in demos.for_arm("left")] == [0, 2]  # training leaves it out
+        assert "hidden" in b.panels.demos.demo_list.content  # the list says so
     finally:
         b.stop()
-
-
-def test_delete_asks_for_a_second_press(app: Studio) -> None:
-    names = app.demo_names()
-    assert app.delete_demo_confirmed(0, now=100.0) is False  # first press only asks
-    assert app.demo_names() == names
-    assert any(kind == "warning" and "Press Delete again" in body for kind, _, body in app.notes)  # type: ignore[attr-defined]
-    assert app.delete_demo_confirmed(0, now=100.0 + app.DELETE_CONFIRM_S + 1) is False  # too late: asks again
-    assert app.demo_names() == names
-    assert app.delete_demo_confirmed(1, now=107.0) is False  # another demo: asks for that one
-    assert app.delete_demo_confirmed(1, now=108.0) is True
-    assert app.demo_names() == [names[0], names[2]]

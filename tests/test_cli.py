@@ -41,7 +41,7 @@ def test_unknown_option_is_rejected() -> None:
 
 
 def test_sessions_dir_before_the_command(monkeypatch: pytest.MonkeyPatch, tmp_path) -> None:
-    seen = {}
+    seen: dict[str, object] = {}
     monkeypatch.setattr(cli, "_dispatch", lambda args: seen.update(vars(args)) or 0)
     assert cli.main(["--sessions-dir", str(tmp_path), "learn", "stack-cup"]) == 0
     assert seen["command"] == "learn" and seen["session"] == "stack-cup" and seen["sessions_dir"] == tmp_path

@@ -10,9 +10,9 @@ import pytest
 
 from studio.cli import main
 from studio.commands import EXAMPLES, build_example
-from studio.core.types import Recording
+from studio.core.types import Demo, Recording
 from studio.csv_io import export_recording_csv
-from studio.sessions import DEFAULT_ROOT, SessionStore
+from studio.storage import DEFAULT_ROOT, SessionStore
 
 
 def _csv(path: Path, n: int = 800, seed: int = 0) -> Path:
@@ -128,14 +128,20 @@ def test_learn_uses_the_sessions_k_and_remembers_each_arms_demos(
     pipeline = pytest.importorskip("studio.core.pipeline")
     calls: list[dict] = []
 
-    class FakeSkill:
+    class FakeSkill:  # what `studio learn` saves and reports, without learning
         def __init__(self, names: tuple[str, ...]) -> None:
             self.demo_names = names
+            self.keypoints: list[np.ndarray] = []
+            self.loglik = np.zeros(0)
+            self.reference = 0
+            self.n_clusters = 0
+            self.trajectory = Demo(np.arange(2.0), np.zeros((2, 3)), np.tile([1.0, 0, 0, 0], (2, 1)), np.full(2, 100.0))
+            self.joint_trajectory = None
 
         def to_arrays(self) -> dict[str, np.ndarray]:
             return {"x": np.zeros(1)}
 
-    def fake_learn_arms(recordings, params=None, *, arms=None, n_clusters=None, seed=0, baxter=None):  # type: ignore[no-untyped-def]
+    def fake_learn_arms(recordings, params=None, *, arms=None, n_clusters=None, seed=0, baxter=None):
         calls.append({"n_clusters": n_clusters})
         return {a: FakeSkill(tuple(r.name for r in recordings if a in r.arms)) for a in arms}
 

@@ -4,13 +4,14 @@ from __future__ import annotations
 
 from pathlib import Path
 from types import SimpleNamespace
+from typing import cast
 
 import numpy as np
 import pytest
 
 from studio.core.errors import InvalidInput, NotEnoughData
 from studio.core.kinematics import Baxter
-from studio.core.types import Recording
+from studio.core.types import Recording, Skill
 from studio.csv_io import (
     CSV_COLUMNS,
     JOINT_DECIMALS,
@@ -124,10 +125,14 @@ def test_too_short_missing_and_binary_files(tmp_path: Path) -> None:
         import_csv(b)
 
 
-def _fake_skill(t: np.ndarray, q: np.ndarray, grip: np.ndarray) -> SimpleNamespace:
-    return SimpleNamespace(
-        joint_trajectory=SimpleNamespace(t=t, q=q),
-        trajectory=SimpleNamespace(t=t, gripper=grip),
+def _fake_skill(t: np.ndarray, q: np.ndarray, grip: np.ndarray, jgrip: np.ndarray | None = None) -> Skill:
+    """Only what the export reads (a learned Skill needs demonstrations)."""
+    return cast(
+        Skill,
+        SimpleNamespace(
+            joint_trajectory=SimpleNamespace(t=t, q=q, gripper=jgrip),
+            trajectory=SimpleNamespace(t=t, gripper=grip),
+        ),
     )
 
 
@@ -149,7 +154,7 @@ def test_skill_export_refuses_missing_or_bad_trajectories(tmp_path: Path) -> Non
     with pytest.raises(NotEnoughData, match="learn the skill first"):
         export_joint_trajectory_csv({}, tmp_path / "x.csv")
     with pytest.raises(NotEnoughData, match="no joint trajectory"):
-        export_joint_trajectory_csv({"left": SimpleNamespace(joint_trajectory=None)}, tmp_path / "x.csv")
+        export_joint_trajectory_csv({"left": cast(Skill, SimpleNamespace(joint_trajectory=None))}, tmp_path / "x.csv")
     t = np.linspace(0, 1, 11)
     q = np.zeros((11, 7))
     q[3, 2] = np.nan
@@ -161,8 +166,7 @@ def test_skill_export_refuses_missing_or_bad_trajectories(tmp_path: Path) -> Non
 def test_skill_export_prefers_the_joint_trajectory_gripper(tmp_path: Path) -> None:
     t = np.linspace(0, 1.0, 101)
     q = np.tile(Baxter.load().neutral("right"), (101, 1))
-    sk = _fake_skill(t, q, np.full(101, 100.0))
-    sk.joint_trajectory.gripper = np.where(t < 0.5, 80.0, 20.0)
+    sk = _fake_skill(t, q, np.full(101, 100.0), jgrip=np.where(t < 0.5, 80.0, 20.0))
     f = tmp_path / "r.csv"
     export_joint_trajectory_csv({"right": sk}, f)
     back = import_csv(f, arms="right")

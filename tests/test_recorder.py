@@ -16,10 +16,11 @@ import pytest
 
 from studio.core.errors import InvalidInput, RecordingError
 from studio.core.kinematics import Baxter
+from studio.core.types import Recording
 from studio.recorder import Recorder, pending_recordings, read_recording_file, recover_recordings
 from studio.robot_backend.base import JointStateBatch, RobotBackend, RobotState
 from studio.robot_backend.simulated import SimulatedBaxter
-from studio.sessions import SessionStore
+from studio.storage import SessionStore
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -33,12 +34,12 @@ class FakeBackend(RobotBackend):
     def start(self) -> None: ...
     def stop(self) -> None: ...
 
-    def subscribe(self, listener):  # type: ignore[no-untyped-def]
+    def subscribe(self, listener):
         self.listeners.append(listener)
         return lambda: self.listeners.remove(listener)
 
-    def command_joints(self, arm, q) -> None: ...  # type: ignore[no-untyped-def]
-    def command_gripper(self, arm, width) -> None: ...  # type: ignore[no-untyped-def]
+    def command_joints(self, arm, q) -> None: ...
+    def command_gripper(self, arm, width) -> None: ...
 
     def state(self) -> RobotState:
         return RobotState(0.0, np.zeros(14), np.zeros(2))
@@ -215,7 +216,7 @@ def test_kill_dash_nine_mid_recording_then_recover_on_next_open(tmp_path: Path) 
 def test_memory_stays_bounded_when_the_producer_outruns_the_writer(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import studio.recorder as recorder_mod
+    import studio.recorder.writer as recorder_mod
 
     monkeypatch.setattr(recorder_mod, "MAX_PENDING", 500)
     sim = SimulatedBaxter()
@@ -271,11 +272,10 @@ def test_a_recording_the_session_refuses_is_kept_aside_and_reported(tmp_path: Pa
     rec._finish()
     assert rec.path is not None
 
-    class Refusing:
-        def add_recording(self, r):  # type: ignore[no-untyped-def]
-            raise InvalidInput("A session holds at most 1000 demonstrations.")
+    def refuse(r: Recording) -> int:
+        raise InvalidInput("A session holds at most 1000 demonstrations.")
 
-    recs, msg = recover_recordings(session.recording_dir, session=Refusing())
+    recs, msg = recover_recordings(session.recording_dir, add=refuse)
     assert recs == []
     assert f'"{rec.path.name}"' in msg and "at most 1000" in msg and f'"{rec.path.name}.damaged"' in msg
     assert not rec.path.exists() and rec.path.with_name(rec.path.name + ".damaged").exists()
@@ -290,10 +290,10 @@ def test_stopping_a_take_the_session_refuses_leaves_nothing_for_the_next_open(tm
     sim = SimulatedBaxter()
     ctl = Controller(store=store, session="s1", backend=sim)
     try:
-        ctl.start_recording()
+        ctl.teaching.start_recording()
         sim.step(1)
         with pytest.raises(InvalidInput, match="at least two"):
-            ctl.stop_recording()
+            ctl.teaching.stop_recording()
         assert pending_recordings(ctl.session.recording_dir) == []
         assert store.open("s1").recovery_message == ""
     finally:

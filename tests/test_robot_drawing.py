@@ -11,6 +11,7 @@ from __future__ import annotations
 import shutil
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -18,8 +19,8 @@ import pytest
 
 from studio.app import build_app
 from studio.core.kinematics import Baxter
+from tests.conftest import free_port, wait_for
 from tests.drawing import drawn_node_poses, fk_link_poses, pose_errors
-from tests.test_app import free_port, wait_for
 
 ROOT = Path(__file__).resolve().parent.parent
 POS_TOL = 1e-3  # m
@@ -59,6 +60,14 @@ class _Spy:
             return self.q.copy(), self.g.copy(), drawn_node_poses(server)
 
 
+def _calls_above(spy: _Spy, n: int) -> Callable[[], bool]:
+    return lambda: spy.calls > n
+
+
+def _near(read: Callable[[], np.ndarray], target: np.ndarray) -> Callable[[], bool]:
+    return lambda: bool(np.max(np.abs(read() - target)) < 1e-6)
+
+
 def _check(baxter: Baxter, q: np.ndarray, g: np.ndarray, drawn: dict[str, np.ndarray], what: str) -> None:
     fk = fk_link_poses(baxter, q, g)
     missing = sorted(set(fk) - set(drawn))
@@ -69,9 +78,9 @@ def _check(baxter: Baxter, q: np.ndarray, g: np.ndarray, drawn: dict[str, np.nda
 
 
 def test_every_drawn_link_is_where_fk_puts_it(app) -> None:
-    baxter = app.baxter
+    baxter = app.controller.baxter
     spy = _Spy(app.panels.robot)
-    app.live.touch()  # make the pump draw once more, through the spy
+    app.controller.display.live.touch()  # make the pump draw once more, through the spy
     assert wait_for(lambda: spy.calls > 0, 5.0)
     q, g, drawn = spy.snapshot(app.server)
     _check(baxter, q, g, drawn, "at start")
@@ -86,21 +95,21 @@ def test_every_drawn_link_is_where_fk_puts_it(app) -> None:
         hi = np.concatenate([baxter.upper_limits(a) for a in ("left", "right")])
         target = np.clip(target, lo + 0.05, hi - 0.05)
         grip = rng.uniform(0.0, 100.0, 2)
-        app.command_arm("left", target[:7])
-        app.command_arm("right", target[7:])
-        app.set_gripper("left", float(grip[0]))
-        app.set_gripper("right", float(grip[1]))
+        app.controller.teaching.command_arm("left", target[:7])
+        app.controller.teaching.command_arm("right", target[7:])
+        app.controller.teaching.set_gripper("left", float(grip[0]))
+        app.controller.teaching.set_gripper("right", float(grip[1]))
         # While moving: what was drawn matches FK of what was drawn.
         n0 = spy.calls
-        assert wait_for(lambda n0=n0: spy.calls > n0 + 3, 5.0)
+        assert wait_for(_calls_above(spy, n0 + 3), 5.0)
         q, g, drawn = spy.snapshot(app.server)
         _check(baxter, q, g, drawn, f"configuration {k}, moving")
         # Arrived: the drawn robot is the commanded configuration.
-        assert wait_for(lambda t=target: np.max(np.abs(app.robot_q() - t)) < 1e-6, 15.0)
-        assert wait_for(lambda gr=grip: np.max(np.abs(app.robot_gripper() - gr)) < 1e-6, 10.0)
+        assert wait_for(_near(app.controller.teaching.robot_q, target), 15.0)
+        assert wait_for(_near(app.controller.teaching.robot_gripper, grip), 10.0)
         n1 = spy.calls
-        app.live.touch()
-        assert wait_for(lambda n1=n1: spy.calls > n1, 5.0)
+        app.controller.display.live.touch()
+        assert wait_for(_calls_above(spy, n1), 5.0)
         time.sleep(0.05)
         q, g, drawn = spy.snapshot(app.server)
         assert np.max(np.abs(q - target)) < 1e-6

@@ -72,7 +72,7 @@ def own_origin(app: Studio) -> str:
 def attack(app: Studio, *, origin: str | None, cookie: str | None = None, url: str | None = None) -> dict:
     """What a client with these headers achieves: GUI received, a demo deleted (two Delete presses), the
     session zip downloaded. ``refused`` is the HTTP status of a refused handshake (None when accepted)."""
-    before = app.demo_names()
+    before = app.controller.demos.names()
     try:
         c = ViserClient(url or f"ws://127.0.0.1:{app.port}", origin=origin, cookie=cookie)
     except InvalidStatus as exc:
@@ -80,17 +80,17 @@ def attack(app: Studio, *, origin: str | None, cookie: str | None = None, url: s
     try:
         c.wait_gui("Demo action")
         c.set_value("Demo", before[0])
-        wait_for(lambda: app.panels.teach.demo_pick.value == before[0], 5)
+        wait_for(lambda: app.panels.demos.demo_pick.value == before[0], 5)
         c.set_value("Demo action", "Delete")
         time.sleep(0.3)
         c.set_value("Demo action", "Delete")
         c.set_value("Download session (.zip)", True)
         c.wait_for(lambda _m: c.downloads(), 20)
-        wait_for(lambda: len(app.demo_names()) < len(before), 5)
+        wait_for(lambda: len(app.controller.demos.names()) < len(before), 5)
         return {
             "refused": None,
             "gui": c.gui_count(),
-            "deleted": set(before) - set(app.demo_names()),
+            "deleted": set(before) - set(app.controller.demos.names()),
             "downloads": c.downloads(),
         }
     finally:
@@ -106,7 +106,7 @@ def nothing_achieved(result: dict) -> None:
 def test_a_foreign_web_page_cannot_drive_the_studio(app: Studio) -> None:
     """Today's regression: Origin http://evil.example got all 84 GUI elements, deleted a demo, got the zip."""
     nothing_achieved(attack(app, origin="http://evil.example"))
-    assert app.demo_names() == ["demo 1", "demo 2", "demo 3"]
+    assert app.controller.demos.names() == ["demo 1", "demo 2", "demo 3"]
 
 
 def test_a_page_on_another_local_port_cannot_drive_it_even_with_the_cookie(app: Studio) -> None:
@@ -122,7 +122,7 @@ def test_a_program_without_the_key_cannot_drive_it(app: Studio) -> None:
     nothing_achieved(attack(app, origin=own_origin(app)))  # the right origin but no cookie
     nothing_achieved(attack(app, origin=own_origin(app), cookie=f"studio-key-{app.port}=wrong-key-0123456789"))
     nothing_achieved(attack(app, origin=None, url=f"ws://127.0.0.1:{app.port}/?key=wrong-key-0123456789"))
-    assert app.demo_names() == ["demo 1", "demo 2", "demo 3"]
+    assert app.controller.demos.names() == ["demo 1", "demo 2", "demo 3"]
 
 
 def test_the_studio_page_with_its_cookie_drives_it(app: Studio) -> None:
@@ -351,7 +351,7 @@ def test_an_oversize_upload_is_refused_before_it_is_buffered(sessions: Path, mon
             m["type"] == "FileTransferPartAck" and m["transfer_uuid"] == "t-big" and m["transferred_bytes"] == size
             for m in msgs
         )
-        assert a.session_names() == ["stack-cup"] and a.session.name == "stack-cup"
+        assert a.controller.sessions.names() == ["stack-cup"] and a.controller.session.name == "stack-cup"
         assert not a.server.gui._current_file_upload_states
     finally:
         c.close()
@@ -368,7 +368,7 @@ def test_parts_beyond_the_declared_size_end_the_upload(sessions: Path) -> None:
             send_part(c, uuid, "t-lie", i, b"x" * (512 * 1024))
         assert c.wait_for(lambda _m: refusals(c), 20), c.notifications()
         assert not a.server.gui._current_file_upload_states
-        assert a.session_names() == ["stack-cup"]
+        assert a.controller.sessions.names() == ["stack-cup"]
     finally:
         c.close()
         a.stop()
@@ -376,7 +376,7 @@ def test_parts_beyond_the_declared_size_end_the_upload(sessions: Path) -> None:
 
 def test_an_upload_within_the_limit_still_works(app: Studio) -> None:
     """A real session archive (several 512 KB parts, as the browser sends them) is imported."""
-    _, data = app.session_zip()
+    _, data = app.controller.sessions.zip()
     assert len(data) > 1024 * 1024  # three parts or more
     c = ViserClient(f"ws://127.0.0.1:{app.port}/?key={key_of(app)}")
     try:
@@ -386,7 +386,8 @@ def test_an_upload_within_the_limit_still_works(app: Studio) -> None:
         start_upload(c, uuid, "t-ok", len(data), n, name="copy.zip")
         for i in range(n):
             send_part(c, uuid, "t-ok", i, data[i * chunk : (i + 1) * chunk])
-        assert wait_for(lambda: len(app.session_names()) == 2, 30), (app.session_names(), c.notifications())
+        names = app.controller.sessions.names
+        assert wait_for(lambda: len(names()) == 2, 30), (names(), c.notifications())
         assert not refusals(c)
     finally:
         c.close()

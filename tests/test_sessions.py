@@ -10,13 +10,14 @@ import pickle
 import zipfile
 import zlib
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 import pytest
 
 from studio.core.errors import InvalidInput, SessionFormatError
-from studio.core.types import KeypointParams, Recording
-from studio.sessions import (
+from studio.core.types import KeypointParams, Recording, Skill
+from studio.storage import (
     FORMAT_VERSION,
     SessionStore,
     atomic_write_bytes,
@@ -52,7 +53,7 @@ def store(tmp_path: Path) -> SessionStore:
 
 
 @pytest.fixture
-def three(store: SessionStore):  # type: ignore[no-untyped-def]
+def three(store: SessionStore):
     s = store.create("three demos", notes="for tests")
     for i in range(3):
         s.add_recording(make_rec(seed=i, name=f"demo {i + 1}"))
@@ -60,7 +61,7 @@ def three(store: SessionStore):  # type: ignore[no-untyped-def]
 
 
 # -- round trips -------------------------------------------------------------------------------------------
-def test_save_load_round_trip_is_identical(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+def test_save_load_round_trip_is_identical(store: SessionStore, three) -> None:
     params = KeypointParams(eps2=0.02, eps5=0.1)
     three.set_params(params)
     loaded = store.open("three demos")
@@ -89,7 +90,7 @@ def test_float32_precision_is_close_and_smaller(store: SessionStore) -> None:
     assert size(s32) < 0.7 * size(s64)
 
 
-def test_store_save_and_list(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+def test_store_save_and_list(store: SessionStore, three) -> None:
     assert store.list_sessions() == ["three demos"]
     (three.path / three.demo_files[1]).unlink()
     with pytest.raises(SessionFormatError, match="is missing"):
@@ -101,7 +102,7 @@ def test_store_save_and_list(store: SessionStore, three) -> None:  # type: ignor
 
 
 # -- editing ------------------------------------------------------------------------------------------------
-def test_rename_delete_trim_touch_only_their_demo(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+def test_rename_delete_trim_touch_only_their_demo(store: SessionStore, three) -> None:
     others = {f: (three.path / f).read_bytes() for f in three.demo_files}
     three.rename_demo(0, "first")
     three.trim_demo(1, 0.2, 1.0)
@@ -146,7 +147,7 @@ def test_duplicate_long_names_stay_within_the_limit_and_reload(store: SessionSto
     assert store.open("long").demo_names == s.demo_names
 
 
-def test_duplicate_and_zip_round_trip(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+def test_duplicate_and_zip_round_trip(store: SessionStore, three) -> None:
     copy = store.duplicate("three demos", "copy")
     assert copy.demo_names == three.demo_names
     data = store.export_zip("three demos")
@@ -160,7 +161,7 @@ def test_atomic_write_keeps_old_file_when_interrupted(tmp_path: Path, monkeypatc
     f = tmp_path / "x.json"
     atomic_write_bytes(f, b"old")
 
-    def boom(*_a, **_k):  # type: ignore[no-untyped-def]
+    def boom(*_a, **_k):
         raise OSError(28, "No space left on device")
 
     monkeypatch.setattr(os, "replace", boom)
@@ -170,8 +171,8 @@ def test_atomic_write_keeps_old_file_when_interrupted(tmp_path: Path, monkeypatc
     assert [p.name for p in tmp_path.iterdir()] == ["x.json"]  # no temporary file left
 
 
-def test_skills_round_trip_through_to_arrays(store: SessionStore, three, monkeypatch) -> None:  # type: ignore[no-untyped-def]
-    import studio.core.types as types
+def test_skills_round_trip_through_to_arrays(store: SessionStore, three, monkeypatch) -> None:
+    import studio.storage.npz as npz
 
     class FakeSkill:
         def __init__(self, a: np.ndarray) -> None:
@@ -181,16 +182,16 @@ def test_skills_round_trip_through_to_arrays(store: SessionStore, three, monkeyp
             return {"a": self.a, "arm": np.array("left")}
 
         @classmethod
-        def from_arrays(cls, d):  # type: ignore[no-untyped-def]
+        def from_arrays(cls, d):
             assert d["arm"].shape == () and str(d["arm"]) == "left"  # 0-d arrays stay 0-d
             if d["a"].ndim != 1:
                 raise ValueError("bad a")
             return cls(d["a"])
 
-    monkeypatch.setattr(types, "Skill", FakeSkill, raising=False)
-    three.set_skills({"left": FakeSkill(np.arange(5.0))})
+    monkeypatch.setattr(npz, "Skill", FakeSkill)  # what loading builds from the arrays
+    three.set_skills({"left": cast(Skill, FakeSkill(np.arange(5.0)))})
     loaded = store.open("three demos")
-    assert np.array_equal(loaded.skills["left"].a, np.arange(5.0))
+    assert np.array_equal(cast(FakeSkill, loaded.skills["left"]).a, np.arange(5.0))
     assert not loaded.skills_stale
     loaded.delete_demo(0)
     assert store.open("three demos").skills_stale  # learned from other demos than the session now holds
@@ -199,7 +200,7 @@ def test_skills_round_trip_through_to_arrays(store: SessionStore, three, monkeyp
         store.open("three demos")
 
 
-def test_number_of_clusters_is_kept_with_the_session(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+def test_number_of_clusters_is_kept_with_the_session(store: SessionStore, three) -> None:
     assert three.n_clusters is None and store.open("three demos").n_clusters is None  # automatic by default
     three.set_n_clusters(7)
     assert json.loads((three.path / "session.json").read_text())["n_clusters"] == 7
@@ -211,11 +212,11 @@ def test_number_of_clusters_is_kept_with_the_session(store: SessionStore, three)
     assert store.open("three demos").n_clusters is None
     for bad in (0, -3, 2.5, "7", True, 10**9):
         with pytest.raises(InvalidInput, match="number of clusters"):
-            three.set_n_clusters(bad)  # type: ignore[arg-type]
+            three.set_n_clusters(bad)
     assert store.open("three demos").n_clusters is None  # a refused value changes nothing
 
 
-def test_manifests_without_n_clusters_still_load(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+def test_manifests_without_n_clusters_still_load(store: SessionStore, three) -> None:
     m = json.loads((three.path / "session.json").read_text())
     del m["n_clusters"]
     (three.path / "session.json").write_text(json.dumps(m))
@@ -223,28 +224,31 @@ def test_manifests_without_n_clusters_still_load(store: SessionStore, three) -> 
     assert loaded.n_clusters is None and loaded.demo_names == ["demo 1", "demo 2", "demo 3"]
 
 
-def test_skills_remember_the_demos_of_each_arm(store: SessionStore, three, monkeypatch) -> None:  # type: ignore[no-untyped-def]
-    import studio.core.types as types
+def test_skills_remember_the_demos_of_each_arm(store: SessionStore, three, monkeypatch) -> None:
+    import studio.storage.npz as npz
 
     class FakeSkill:
         def to_arrays(self) -> dict[str, np.ndarray]:
             return {"a": np.arange(3.0)}
 
         @classmethod
-        def from_arrays(cls, d):  # type: ignore[no-untyped-def]
+        def from_arrays(cls, d):
             return cls()
 
-    monkeypatch.setattr(types, "Skill", FakeSkill, raising=False)
-    three.set_skills({"left": FakeSkill(), "right": FakeSkill()}, demos={"left": ["demo 2", "demo 3"]})
+    monkeypatch.setattr(npz, "Skill", FakeSkill)
+    fake = cast(Skill, FakeSkill())
+    three.set_skills({"left": fake, "right": fake}, demos={"left": ["demo 2", "demo 3"]})
     info = store.open("three demos").skill_info
-    assert info["left"]["demos"] == ["demo 2", "demo 3"]
-    assert info["right"]["demos"] == ["demo 1", "demo 2", "demo 3"]  # not given: all of the session's
-    three.set_skills({"left": FakeSkill()}, demos=["demo 1"])
-    assert store.open("three demos").skill_info["left"]["demos"] == ["demo 1"]
+    assert info["left"].demos == ("demo 2", "demo 3")
+    assert info["right"].demos == ("demo 1", "demo 2", "demo 3")  # not given: all of the session's
+    m = json.loads((three.path / "session.json").read_text())
+    assert m["skills"]["left"]["demos"] == ["demo 2", "demo 3"]  # a list of names in the manifest
+    three.set_skills({"left": fake}, demos=["demo 1"])
+    assert store.open("three demos").skill_info["left"].demos == ("demo 1",)
 
 
 # -- bad files: every case names the file and the problem, and touches nothing -----------------------------
-def test_hidden_demos_are_kept_with_the_session(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+def test_hidden_demos_are_kept_with_the_session(store: SessionStore, three) -> None:
     three.set_demo_hidden(1, True)
     assert store.open("three demos").hidden_demos == {"demo 2"}
     three.rename_demo(1, "wobbly")  # still hidden under its new name
@@ -277,23 +281,23 @@ def _expect_error(store: SessionStore, name: str, pattern: str) -> SessionFormat
     return ei.value
 
 
-def _demo(three) -> Path:  # type: ignore[no-untyped-def]
+def _demo(three) -> Path:
     return three.path / three.demo_files[1]
 
 
-def test_missing_demo(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+def test_missing_demo(store: SessionStore, three) -> None:
     _demo(three).unlink()
     e = _expect_error(store, "three demos", r'"demos/d0002.npz".*is missing')
-    assert e.file == "demos/d0002.npz"  # type: ignore[attr-defined]
+    assert e.file == "demos/d0002.npz"
 
 
-def test_truncated_demo(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+def test_truncated_demo(store: SessionStore, three) -> None:
     p = _demo(three)
     p.write_bytes(p.read_bytes()[: p.stat().st_size // 2])
     _expect_error(store, "three demos", r'"demos/d0002.npz".*ends early')
 
 
-def test_truncated_array_inside_an_intact_zip(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+def test_truncated_array_inside_an_intact_zip(store: SessionStore, three) -> None:
     p = _demo(three)
     with np.load(p) as z:
         d = dict(z)
@@ -313,25 +317,25 @@ def _npy(a: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
-def test_wrong_version(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+def test_wrong_version(store: SessionStore, three) -> None:
     m = json.loads((three.path / "session.json").read_text())
     m["version"] = FORMAT_VERSION + 1
     (three.path / "session.json").write_text(json.dumps(m))
     _expect_error(store, "three demos", r'"session.json".*newer Teaching Studio')
 
 
-def test_truncated_manifest(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+def test_truncated_manifest(store: SessionStore, three) -> None:
     p = three.path / "session.json"
     p.write_bytes(p.read_bytes()[:100])
     _expect_error(store, "three demos", r'"session.json".*ends early')
 
 
-def test_missing_manifest(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+def test_missing_manifest(store: SessionStore, three) -> None:
     (three.path / "session.json").unlink()
     _expect_error(store, "three demos", r'"session.json".*is missing')
 
 
-def test_wrong_shape(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+def test_wrong_shape(store: SessionStore, three) -> None:
     p = _demo(three)
     with np.load(p) as z:
         d = dict(z)
@@ -339,7 +343,7 @@ def test_wrong_shape(store: SessionStore, three) -> None:  # type: ignore[no-unt
     _expect_error(store, "three demos", r'"demos/d0002.npz".*q of the wrong shape \(1500, 7\), expected \(1500, 14\)')
 
 
-def test_wrong_length_against_manifest(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+def test_wrong_length_against_manifest(store: SessionStore, three) -> None:
     p = _demo(three)
     with np.load(p) as z:
         d = dict(z)
@@ -347,7 +351,7 @@ def test_wrong_length_against_manifest(store: SessionStore, three) -> None:  # t
     _expect_error(store, "three demos", r'"demos/d0002.npz".*wrong shape')
 
 
-def test_nan_filled(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+def test_nan_filled(store: SessionStore, three) -> None:
     p = _demo(three)
     with np.load(p) as z:
         d = dict(z)
@@ -356,7 +360,7 @@ def test_nan_filled(store: SessionStore, three) -> None:  # type: ignore[no-unty
     _expect_error(store, "three demos", r'"demos/d0002.npz".*100 invalid values \(NaN')
 
 
-def test_pickled_object_array(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+def test_pickled_object_array(store: SessionStore, three) -> None:
     p = _demo(three)
     with np.load(p) as z:
         d = dict(z)
@@ -365,12 +369,12 @@ def test_pickled_object_array(store: SessionStore, three) -> None:  # type: igno
     _expect_error(store, "three demos", r'"demos/d0002.npz".*pickle')
 
 
-def test_raw_pickle_file(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+def test_raw_pickle_file(store: SessionStore, three) -> None:
     _demo(three).write_bytes(pickle.dumps({"t": [1, 2, 3]}))
     _expect_error(store, "three demos", r'"demos/d0002.npz".*pickle')
 
 
-def test_absurd_size_declared_in_header(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+def test_absurd_size_declared_in_header(store: SessionStore, three) -> None:
     p = _demo(three)
     header = {"descr": "<f8", "fortran_order": False, "shape": (10**12, 14)}
     buf = io.BytesIO()
@@ -382,7 +386,7 @@ def test_absurd_size_declared_in_header(store: SessionStore, three) -> None:  # 
     _expect_error(store, "three demos", r'"demos/d0002.npz".*(absurd size|wrong shape)')
 
 
-def test_zip_bomb_declared_size(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+def test_zip_bomb_declared_size(store: SessionStore, three) -> None:
     p = _demo(three)
     with zipfile.ZipFile(p, "w", compression=zipfile.ZIP_DEFLATED) as zf:
         zf.writestr("t.npy", _npy(np.arange(1500) / 1000.0) + b"\0" * 50_000_000)
@@ -391,7 +395,7 @@ def test_zip_bomb_declared_size(store: SessionStore, three) -> None:  # type: ig
     _expect_error(store, "three demos", r'"demos/d0002.npz".*absurd size')
 
 
-def test_manifest_names_a_file_outside_the_session(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+def test_manifest_names_a_file_outside_the_session(store: SessionStore, three) -> None:
     for bad in ("../other/demos/d0001.npz", "/etc/passwd", "demos/../../x.npz", "demos/sub/d0001.npz"):
         m = json.loads((three.path / "session.json").read_text())
         m["demos"][0]["file"] = bad
@@ -399,7 +403,7 @@ def test_manifest_names_a_file_outside_the_session(store: SessionStore, three) -
         _expect_error(store, "three demos", r'"session.json".*unsafe or invalid file')
 
 
-def test_session_names_with_dots_or_slashes_are_refused(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+def test_session_names_with_dots_or_slashes_are_refused(store: SessionStore, three) -> None:
     for bad in ("../three demos", "a/b", "..", ".hidden", "x\0y", ""):
         with pytest.raises(InvalidInput, match="cannot be a session name"):
             store.open(bad)
@@ -409,7 +413,7 @@ def test_session_names_with_dots_or_slashes_are_refused(store: SessionStore, thr
         store.open("not there")
 
 
-def test_hostile_zip_import_is_refused_and_adds_nothing(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+def test_hostile_zip_import_is_refused_and_adds_nothing(store: SessionStore, three) -> None:
     before = snapshot(store.root)
     for member in ("evil/../../escape.txt", "/abs/session.json", "evil/demos/x.sh"):
         buf = io.BytesIO()
@@ -432,7 +436,7 @@ def test_hostile_zip_import_is_refused_and_adds_nothing(store: SessionStore, thr
     assert snapshot(store.root) == before
 
 
-def test_damaged_archive_is_refused_in_plain_words_naming_it(store: SessionStore, three, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+def test_damaged_archive_is_refused_in_plain_words_naming_it(store: SessionStore, three, tmp_path: Path) -> None:
     data = store.export_zip("three demos")
     before = snapshot(store.root)
     # A flipped byte inside a stored member: its CRC no longer matches.
@@ -468,7 +472,7 @@ def test_damaged_archive_is_refused_in_plain_words_naming_it(store: SessionStore
     assert snapshot(store.root) == before
 
 
-def test_skip_damaged_loads_the_rest(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+def test_skip_damaged_loads_the_rest(store: SessionStore, three) -> None:
     _demo(three).write_bytes(b"garbage")
     s = store.open("three demos", skip_damaged=True)
     assert s.demo_names == ["demo 1", "demo 3"]
@@ -496,21 +500,21 @@ def _corrupt_deflate_stream(path: Path, member: str) -> None:
     raise AssertionError("no corruption found that breaks decompression")
 
 
-def test_corrupt_compressed_data_is_a_damaged_file(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+def test_corrupt_compressed_data_is_a_damaged_file(store: SessionStore, three) -> None:
     _corrupt_deflate_stream(_demo(three), "q.npy")
     _expect_error(store, "three demos", r'"demos/d0002.npz".*is damaged')
     s = store.open("three demos", skip_damaged=True)
     assert s.demo_names == ["demo 1", "demo 3"] and "d0002.npz" in s.problems[0]
 
 
-def test_load_never_writes(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+def test_load_never_writes(store: SessionStore, three) -> None:
     before = snapshot(store.root)
     load_session(three.path)
     store.open("three demos")
     assert snapshot(store.root) == before
 
 
-def test_bad_manifest_fields(store: SessionStore, three) -> None:  # type: ignore[no-untyped-def]
+def test_bad_manifest_fields(store: SessionStore, three) -> None:
     cases = {
         "arms": (["middle"], "arms"),
         "params": ({"eps99": 1}, "key-point thresholds"),
@@ -532,7 +536,7 @@ def test_bad_manifest_fields(store: SessionStore, three) -> None:  # type: ignor
 def test_add_recording_refuses_bad_input(store: SessionStore) -> None:
     s = store.create("bad")
     with pytest.raises(InvalidInput):
-        s.add_recording("not a recording")  # type: ignore[arg-type]
+        s.add_recording("not a recording")  # type: ignore[arg-type]  # on purpose
     with pytest.raises(InvalidInput, match="at least two"):
         s.add_recording(make_rec(1))
     with pytest.raises(InvalidInput, match="printable"):
@@ -542,7 +546,7 @@ def test_add_recording_refuses_bad_input(store: SessionStore) -> None:
 
 
 @pytest.mark.parametrize("value", [0, -1, 2.5, "12", True, 10**9, [3]])
-def test_invalid_n_clusters_in_the_manifest_is_named(store: SessionStore, three, value) -> None:  # type: ignore[no-untyped-def]
+def test_invalid_n_clusters_in_the_manifest_is_named(store: SessionStore, three, value) -> None:
     m = json.loads((three.path / "session.json").read_text())
     m["n_clusters"] = value
     (three.path / "session.json").write_text(json.dumps(m))

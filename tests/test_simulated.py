@@ -125,9 +125,9 @@ def test_gripper_moves_at_finite_speed_and_stops_anywhere() -> None:
 def test_bad_commands_are_refused_in_plain_words() -> None:
     sim = SimulatedBaxter()
     with pytest.raises(InvalidInput, match="NaN"):
-        sim.command_joints("left", [0, 0, np.nan, 0, 0, 0, 0])
+        sim.command_joints("left", np.array([0, 0, np.nan, 0, 0, 0, 0]))
     with pytest.raises(InvalidInput, match="7 numbers"):
-        sim.command_joints("left", [0, 0])
+        sim.command_joints("left", np.array([0, 0]))
     with pytest.raises(InvalidInput, match="arm"):
         sim.command_joints("middle", np.zeros(7))
     with pytest.raises(InvalidInput):
@@ -208,7 +208,7 @@ def _recording(n: int = 3000) -> Recording:
     return Recording(t=t, q=q, gripper=g, arms=("left",), name="r")
 
 
-def _wait(cond, timeout: float = 20.0) -> None:  # type: ignore[no-untyped-def]
+def _wait(cond, timeout: float = 20.0) -> None:
     deadline = time.monotonic() + timeout
     while not cond():
         assert time.monotonic() < deadline, "timed out"

@@ -1,5 +1,7 @@
 """The GUI-free core: the paper's pipeline over numpy arrays (never imports viser or threading)."""
 
+from typing import TYPE_CHECKING
+
 from studio.core.errors import (
     IkFailed,
     InvalidInput,
@@ -20,6 +22,10 @@ from studio.core.types import (
     Skill,
 )
 
+if TYPE_CHECKING:  # loaded lazily below; named here for the type checker
+    from studio.core.keypoints import KeypointCache, extract_keypoints
+    from studio.core.pipeline import demo_from_recording, learn_arms, learn_skill
+
 # The learning pipeline pulls in pinocchio, scipy and hmmlearn; load it on first use so that importing
 # the types (sessions, backends) stays light.
 _LAZY = {
@@ -31,7 +37,7 @@ _LAZY = {
 }
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> object:
     if name in _LAZY:
         import importlib
 

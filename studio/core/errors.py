@@ -28,7 +28,21 @@ class LearningFailed(StudioError):
 
 
 class SessionFormatError(StudioError):
-    """A session file is missing, damaged or not a Teaching Studio file."""
+    """A session file is missing, damaged or not a Teaching Studio file.
+
+    Attributes:
+        session: the session's name, when one file of a session is at fault (else None).
+        file: that file, relative to the session folder (e.g. "demos/d0002.npz"), or None.
+        problem: what is wrong with it, in plain words ("is missing", "ends early", ...), or None.
+    """
+
+    def __init__(
+        self, message: str, *, session: str | None = None, file: str | None = None, problem: str | None = None
+    ) -> None:
+        super().__init__(message)
+        self.session = session
+        self.file = file
+        self.problem = problem
 
 
 class RecordingError(StudioError):

@@ -46,7 +46,9 @@ MIN_SPACING_S = 0.02
 IK_RATE_HZ = 50.0
 
 
-def _merge_close(times: np.ndarray, points: np.ndarray, weights: np.ndarray):
+def _merge_close(
+    times: np.ndarray, points: np.ndarray, weights: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     keep_t, keep_p, keep_w = [times[0]], [points[0].copy()], [weights[0]]
     for t, p, w in zip(times[1:], points[1:], weights[1:], strict=True):
         if t - keep_t[-1] < MIN_SPACING_S:

@@ -30,8 +30,8 @@ Speed: :func:`precompute` derives everything that does not depend on ε once per
 (:class:`KeypointSeries`); :func:`extract_keypoints` then only thresholds and runs a sequential scan that
 jumps from candidate to candidate (the pause and distance tests depend on the last key-point, so the
 scan is sequential, but each step looks at short chunks of samples and stops at the earliest candidate
-found so far). :func:`extract_keypoints_reference` is a literal per-sample loop over the same series,
-kept as the oracle the fast path is tested against.
+found so far). ``tests/core/oracles.py`` holds a literal per-sample loop over the same series, the oracle
+the fast path is tested against.
 """
 
 from __future__ import annotations
@@ -46,6 +46,9 @@ import numpy as np
 from scipy.ndimage import uniform_filter1d
 
 from studio.core.errors import InvalidInput, NotEnoughData
+from studio.core.rotations import make_sign_continuous as _sign_continuous
+from studio.core.rotations import relative_axis as _relative_axis
+from studio.core.rotations import rotation_angle
 from studio.core.types import Demo, KeypointParams, readonly
 
 #: Moving-average window applied to poses before any test, seconds.
@@ -120,48 +123,7 @@ class KeypointSeries:
         return readonly(self.orientation.T)
 
 
-# -- quaternion helpers ------------------------------------------------------------------------------------------
-
-
-def _sign_continuous(q: np.ndarray) -> np.ndarray:
-    flips = np.einsum("ij,ij->i", q[1:], q[:-1]) < 0
-    sign = np.concatenate([[1.0], np.where(np.cumsum(flips) % 2 == 1, -1.0, 1.0)])
-    return q * sign[:, None]
-
-
-def rotation_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Rotation angle (rad) between unit quaternions a and b (…, 4); q and −q are the same orientation."""
-    d = np.abs(np.einsum("...i,...i->...", a, b))
-    return 2.0 * np.arccos(np.minimum(d, 1.0))
-
-
-def relative_rotvec(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Rotation vectors (…, 3) of conj(a) ⊗ b for unit quaternions w, x, y, z (shortest rotation)."""
-    aw, av = a[..., :1], a[..., 1:]
-    bw, bv = b[..., :1], b[..., 1:]
-    w = aw * bw + np.sum(av * bv, axis=-1, keepdims=True)
-    v = aw * bv - bw * av - np.cross(av, bv)
-    s = np.where(w < 0, -1.0, 1.0)
-    w, v = w * s, v * s
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    ang = 2.0 * np.arctan2(n, w)
-    return np.where(n > 1e-15, v * (ang / np.maximum(n, 1e-300)), 0.0)
-
-
-def _relative_axis(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Vector part of conj(a) ⊗ b with the sign that makes its scalar part ≥ 0, (N, 3).
-
-    It points along the rotation vector of conj(a) ⊗ b (only its length differs), which is all an angle
-    between two such vectors needs; cheaper than :func:`relative_rotvec` (no arctan, no cross product call).
-    """
-    aw, ax, ay, az = a[:, 0], a[:, 1], a[:, 2], a[:, 3]
-    bw, bx, by, bz = b[:, 0], b[:, 1], b[:, 2], b[:, 3]
-    w = aw * bw + ax * bx + ay * by + az * bz
-    s = np.where(w < 0, -1.0, 1.0)
-    vx = aw * bx - bw * ax - (ay * bz - az * by)
-    vy = aw * by - bw * ay - (az * bx - ax * bz)
-    vz = aw * bz - bw * az - (ax * by - ay * bx)
-    return np.column_stack([vx * s, vy * s, vz * s])
+# -- vector helpers ----------------------------------------------------------------------------------------------
 
 
 def _angle_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -411,75 +373,6 @@ def extract_keypoints(
     return extract_from_series(s, params)
 
 
-def extract_keypoints_reference(demo: Demo, params: KeypointParams | None = None, *, series=None) -> np.ndarray:
-    """Literal per-sample implementation of the criteria over the same derived series (the test oracle).
-
-    Walks every sample in order, evaluates the six tests exactly as written in the module docstring and
-    the paper's equations, with the last key-point τ updated as it goes. About 100× slower than
-    :func:`extract_keypoints`.
-    """
-    p = params or KeypointParams()
-    s = series if series is not None else precompute(demo)
-    n = len(s)
-    t, P, O = s.t.tolist(), s.position.tolist(), s.orientation.tolist()
-    speed, aspeed = s.speed.tolist(), s.angular_speed.tolist()
-    grip = set(s.gripper_events.tolist())
-
-    def corner_flags(angle: np.ndarray, thr: float) -> list[bool]:
-        a = angle.tolist()
-        flags = [False] * n
-        i = 0
-        while i < n:
-            if a[i] < thr:
-                j = i
-                while j < n and a[j] < thr:
-                    j += 1
-                run = a[i:j]
-                flags[i + run.index(min(run))] = True
-                i = j
-            else:
-                i += 1
-        return flags
-
-    cp = corner_flags(s.corner_angle, 2 * math.pi - p.eps1)
-    co = corner_flags(s.corner_angle_o, 2 * math.pi - p.eps8)
-
-    def dpos(i: int, j: int) -> float:
-        a, b = P[i], P[j]
-        d0, d1, d2 = a[0] - b[0], a[1] - b[1], a[2] - b[2]
-        return math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-
-    def dori(i: int, j: int) -> float:
-        a, b = O[i], O[j]
-        d = abs(a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3])
-        return 2.0 * math.acos(min(d, 1.0))
-
-    out = [0]
-    tau = 0
-    max_p = max_o = 0.0  # max distance over [τ, i)
-    for i in range(1, n - 1):
-        dp, do = dpos(i, tau), dori(i, tau)
-        el = t[i] - t[tau]
-        key = (
-            i in grip
-            or (cp[i] and dp > p.eps4)
-            or (speed[i] < p.eps2 and el > p.eps3 and dp > p.eps4)
-            or (dp >= p.eps5 and el > p.eps6 and max_p < p.eps7)
-            or (co[i] and do > p.eps11)
-            or (aspeed[i] < p.eps9 and el > p.eps10 and do > p.eps11)
-            or (do >= p.eps12 and el > p.eps13 and max_o < p.eps14)
-        )
-        if key:
-            out.append(i)
-            tau = i
-            max_p = max_o = 0.0
-        else:
-            max_p, max_o = max(max_p, dp), max(max_o, do)
-    if n > 1:
-        out.append(n - 1)
-    return np.asarray(out, dtype=np.int64)
-
-
 class KeypointCache:
     """Per-demonstration :class:`KeypointSeries`, computed once and reused for every ε change.
 
@@ -511,9 +404,7 @@ __all__ = [
     "corner_candidates",
     "extract_from_series",
     "extract_keypoints",
-    "extract_keypoints_reference",
     "gripper_events",
     "precompute",
-    "relative_rotvec",
     "rotation_angle",
 ]

@@ -22,6 +22,7 @@ import numpy as np
 import pinocchio as pin
 
 from studio.core.errors import InvalidInput
+from studio.core.rotations import make_sign_continuous, matrix_from_quat_wxyz, quat_angle, quat_wxyz_from_matrix
 from studio.core.types import ARM_JOINTS, ARMS, check_arm, readonly
 
 #: The paper's Table I (Denavit–Hartenberg, standard convention): rows (d, a, alpha) for joints 1..7.
@@ -102,72 +103,6 @@ def _as_array(name: str, value: object, shape: tuple[int, ...]) -> np.ndarray:
     if not np.all(np.isfinite(a)):
         raise InvalidInput(f"The {name} contains missing or invalid values (NaN or infinity).")
     return a
-
-
-def quat_wxyz_from_matrix(R: np.ndarray) -> np.ndarray:
-    """Unit quaternions (…, 4) w, x, y, z from rotation matrices (…, 3, 3); w >= 0 (Shepperd's method).
-
-    All four of Shepperd's candidates are computed element-wise and the best-conditioned one (largest
-    pivot) is selected per row: no gathers, so it is fast on long series.
-    """
-    R = np.asarray(R, dtype=np.float64)
-    shape = R.shape[:-2]
-    R = R.reshape(-1, 3, 3)
-    m00, m01, m02 = R[:, 0, 0], R[:, 0, 1], R[:, 0, 2]
-    m10, m11, m12 = R[:, 1, 0], R[:, 1, 1], R[:, 1, 2]
-    m20, m21, m22 = R[:, 2, 0], R[:, 2, 1], R[:, 2, 2]
-    tr = m00 + m11 + m22
-    cand = np.stack([tr, m00, m11, m22])
-    k = np.argmax(cand, axis=0)
-    r = np.sqrt(np.maximum(1.0 + 2.0 * np.take_along_axis(cand, k[None], 0)[0] - tr, 1e-300))
-    s = 0.5 / r
-    a, b, c = (m21 - m12) * s, (m02 - m20) * s, (m10 - m01) * s  # 4w·(x, y, z) / (4·pivot)
-    d, e, f = (m01 + m10) * s, (m02 + m20) * s, (m12 + m21) * s  # 4xy, 4xz, 4yz / (4·pivot)
-    h = 0.5 * r
-    table = np.stack(
-        [
-            np.stack([h, a, b, c]),  # pivot w
-            np.stack([a, h, d, e]),  # pivot x
-            np.stack([b, d, h, f]),  # pivot y
-            np.stack([c, e, f, h]),  # pivot z
-        ]
-    )  # (4 cases, 4 components, N)
-    q = np.take_along_axis(table, k[None, None, :], 0)[0].T
-    q = q * np.where(q[:, :1] < 0, -1.0, 1.0)
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    return q.reshape(*shape, 4)
-
-
-def matrix_from_quat_wxyz(q: np.ndarray) -> np.ndarray:
-    """Rotation matrices (…, 3, 3) from quaternions (…, 4) w, x, y, z (normalised first)."""
-    q = np.asarray(q, dtype=np.float64)
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    w, x, y, z = np.moveaxis(q, -1, 0)
-    return np.stack(
-        [
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
-        ],
-        -2,
-    )
-
-
-def make_sign_continuous(wxyz: np.ndarray) -> np.ndarray:
-    """Flip quaternions (N, 4) so consecutive ones have a non-negative dot product (q and −q are equal)."""
-    q = np.array(wxyz, dtype=np.float64, copy=True)
-    if len(q) < 2:
-        return q
-    flips = np.einsum("ij,ij->i", q[1:], q[:-1]) < 0
-    sign = np.concatenate([[1.0], np.where(np.cumsum(flips) % 2 == 1, -1.0, 1.0)])
-    return q * sign[:, None]
-
-
-def quat_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Rotation angle (rad) between quaternions ``a`` and ``b`` (…, 4), treating q and −q as equal."""
-    d = np.abs(np.sum(np.asarray(a) * np.asarray(b), axis=-1))
-    d = d / (np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1))
-    return 2.0 * np.arccos(np.clip(d, 0.0, 1.0))
 
 
 def dh_fk(q: np.ndarray, table: np.ndarray = DH_TABLE) -> np.ndarray:

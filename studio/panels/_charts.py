@@ -2,15 +2,12 @@
 
 from __future__ import annotations
 
+import html
 from collections.abc import Sequence
 
 import numpy as np
 
 AXIS_COLORS = ("#d62728", "#2ca02c", "#1f77b4")  # x red, y green, z blue (as the scene's axes)
-
-
-def _esc(s: str) -> str:
-    return s.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
 
 
 def heatmap_svg(m: np.ndarray, *, title: str, size: int = 300, css_class: str = "heatmap") -> str:
@@ -22,7 +19,7 @@ def heatmap_svg(m: np.ndarray, *, title: str, size: int = 300, css_class: str = 
     parts = [
         f'<svg class="{css_class}" data-states="{n}" width="100%" viewBox="0 0 {size} {size + 14}" '
         f'xmlns="http://www.w3.org/2000/svg" style="font-family:sans-serif">',
-        f'<text x="{size / 2}" y="11" font-size="11" text-anchor="middle">{_esc(title)}</text>',
+        f'<text x="{size / 2}" y="11" font-size="11" text-anchor="middle">{html.escape(title)}</text>',
     ]
     top = 14
     for i in range(n):
@@ -48,7 +45,7 @@ def heatmap_svg(m: np.ndarray, *, title: str, size: int = 300, css_class: str = 
 def position_plot_svg(
     t: np.ndarray,
     position: np.ndarray,
-    keypoints: Sequence[int],
+    keypoints: Sequence[int] | np.ndarray,
     *,
     title: str,
     color: tuple[int, int, int],
@@ -60,7 +57,7 @@ def position_plot_svg(
     t = np.asarray(t, dtype=float)
     p = np.asarray(position, dtype=float)
     if len(t) < 2:
-        return f"<div>{_esc(title)}: too short to plot.</div>"
+        return f"<div>{html.escape(title)}: too short to plot.</div>"
     step = max(1, len(t) // max_points)
     sel = np.arange(0, len(t), step)
     left, right, top, bottom = 34, 8, 16, 18
@@ -80,7 +77,7 @@ def position_plot_svg(
     parts = [
         f'<svg class="position-plot" data-keypoints="{len(kp)}" width="100%" viewBox="0 0 {width} {height}" '
         f'xmlns="http://www.w3.org/2000/svg" style="font-family:sans-serif">',
-        f'<text x="{left}" y="11" font-size="10" fill="rgb{color}">{_esc(title)}</text>',
+        f'<text x="{left}" y="11" font-size="10" fill="rgb{color}">{html.escape(title)}</text>',
         f'<rect x="{left}" y="{top}" width="{w}" height="{h}" fill="none" stroke="#bbb" stroke-width="0.5"/>',
         f'<text x="{left - 3}" y="{top + 7}" font-size="8" text-anchor="end">{hi:.2f}</text>',
         f'<text x="{left - 3}" y="{top + h}" font-size="8" text-anchor="end">{lo:.2f}</text>',

@@ -2,18 +2,17 @@
 
 from __future__ import annotations
 
+import html
 import math
 import threading
+from collections.abc import Callable
 from dataclasses import fields
-from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import viser
 
+from studio.controller import Controller, KeypointView, Topic
 from studio.core.types import ARMS, KeypointParams
-
-if TYPE_CHECKING:
-    from studio.app import Studio
 
 #: (field, plain label, unit, min, max, step, hint) — labels say what the threshold does, then the symbol.
 POSITION_SLIDERS: tuple[tuple[str, str, str, float, float, float, str], ...] = (
@@ -121,13 +120,15 @@ def slider_label(name: str, words: str) -> str:
 
 
 class KeypointsPanel:
-    """ε sliders in two groups, k override, reset; redraws key-points and centroids on every change."""
+    """ε sliders in two groups, k override, reset; draws the controller's key-point view whenever it is new."""
 
-    def __init__(self, app: Studio, gui: viser.GuiApi) -> None:
-        self.app = app
-        self.scene = app.server.scene
-        self.sliders: dict[str, viser.GuiSliderHandle] = {}
-        params = app.params()
+    def __init__(self, ctl: Controller, server: viser.ViserServer) -> None:
+        self.ctl = ctl
+        self.server = server
+        self.scene = server.scene
+        gui = server.gui
+        self.sliders: dict[str, viser.GuiSliderHandle[float]] = {}
+        params = ctl.keypoints.params()
         self.counts = gui.add_html(self._counts_html(None))
         for title, group in (("Position (ε1–ε7)", POSITION_SLIDERS), ("Orientation (ε8–ε14)", ORIENTATION_SLIDERS)):
             with gui.add_folder(title, expand_by_default=title.startswith("Position")):
@@ -143,162 +144,130 @@ class KeypointsPanel:
                     )
                     s.on_update(self._make_cb(name))
                     self.sliders[name] = s
+        k = ctl.keypoints.k
         with gui.add_folder("Clusters"):
             self.k_auto = gui.add_checkbox(
                 "Choose the number of clusters automatically",
-                initial_value=app.k_override is None,
+                initial_value=k is None,
                 hint="Untick to set k, the number of k-means clusters (= HMM states), yourself.",
             )
             self.k = gui.add_slider(
-                "Clusters (k)",
-                min=K_MIN,
-                max=K_MAX,
-                step=1,
-                initial_value=_k_shown(app.k_override),
-                disabled=app.k_override is None,
+                "Clusters (k)", min=K_MIN, max=K_MAX, step=1, initial_value=_k_shown(k), disabled=k is None
             )
             self.reset = gui.add_button(
                 "Reset to defaults", icon=viser.Icon.REFRESH, hint="Put every threshold back to its default value."
             )
 
-        self.k_auto.on_update(app.guarded("Could not change the number of clusters")(self._on_k))
-        self.k.on_update(app.guarded("Could not change the number of clusters")(self._on_k))
-        self.reset.on_click(app.guarded("Could not reset the thresholds")(self._on_reset))
+        self.k_auto.on_update(ctl.guarded("Could not change the number of clusters")(self._on_k))
+        self.k.on_update(ctl.guarded("Could not change the number of clusters")(self._on_k))
+        self.reset.on_click(ctl.guarded("Could not reset the thresholds")(self._on_reset))
 
         # Scene: one point cloud per (demo, arm) for key-points, one for the centroids, a pool of labels.
-        self._kp_nodes: dict[str, Any] = {}
-        self._labels: list[Any] = []
-        self._centroid_nodes: dict[str, Any] = {}
-        self.view: Any = None
-        self._pending = threading.Event()
-        self._stop = threading.Event()
-        self._worker = threading.Thread(target=self._loop, name="studio-keypoints", daemon=True)
-        self._worker.start()
-        app.events.on("demos", self.request)
-        app.events.on("session", self._on_session)
-        app.events.on("arms", self.request)
-        self.request()
+        self._kp_nodes: dict[str, viser.PointCloudHandle] = {}
+        self._labels: list[viser.LabelHandle] = []
+        self._centroid_nodes: dict[str, viser.PointCloudHandle] = {}
+        self._closed = False
+        self._draw_lock = threading.Lock()
+        ctl.events.on(Topic.SESSION, self._sync_sliders)
+        ctl.events.on(Topic.KEYPOINTS, self._on_view)
+        if ctl.keypoints.view is not None:  # computed before this panel existed
+            self.draw(ctl.keypoints.view)
+        ctl.keypoints.request()
 
     # -- callbacks ---------------------------------------------------------------------------------------
-    def _make_cb(self, name: str):
-        @self.app.guarded("Could not change the threshold")
+    def _make_cb(self, name: str) -> Callable[[viser.GuiEvent], None]:
         def cb(event: viser.GuiEvent) -> None:
             if event.client is None:
                 return
-            self.app.set_param(name, float(self.sliders[name].value))
-            self.request()
+            self.ctl.keypoints.set_param(name, float(self.sliders[name].value))
 
-        return cb
+        return self.ctl.guarded("Could not change the threshold")(cb)
 
     def _on_k(self, event: viser.GuiEvent) -> None:
         if event.client is None:
             return
         self.k.disabled = bool(self.k_auto.value)
-        self.app.set_k(None if self.k_auto.value else int(self.k.value))
-        self.request()
+        self.ctl.keypoints.set_k(None if self.k_auto.value else int(self.k.value))
 
     def _on_reset(self, event: viser.GuiEvent) -> None:
-        self.app.reset_params()
+        self.ctl.keypoints.reset()
         self._sync_sliders()
-        self.request()
-
-    def _on_session(self) -> None:
-        self._sync_sliders()
-        self.request()
 
     def _sync_sliders(self) -> None:
-        params = self.app.params()
-        with self.app.server.atomic():
+        params, k = self.ctl.keypoints.params(), self.ctl.keypoints.k
+        with self.server.atomic():
             for f in fields(KeypointParams):
                 s = self.sliders[f.name]
                 s.value = min(max(float(getattr(params, f.name)), s.min), s.max)
-            self.k_auto.value = self.app.k_override is None
-            self.k.disabled = self.app.k_override is None
-            if self.app.k_override is not None:
-                self.k.value = _k_shown(self.app.k_override)
+            self.k_auto.value = k is None
+            self.k.disabled = k is None
+            if k is not None:
+                self.k.value = _k_shown(k)
 
-    # -- recompute off the GUI threads; the newest request wins -----------------------------------------
-    def request(self) -> None:
-        self._pending.set()
+    # -- drawing -----------------------------------------------------------------------------------------
+    def _on_view(self) -> None:
+        view = self.ctl.keypoints.view
+        if view is not None:
+            self.draw(view)
 
-    def _loop(self) -> None:
-        while not self._stop.is_set():
-            if not self._pending.wait(timeout=0.5):
+    def draw(self, view: KeypointView) -> None:
+        """Key-points, centroids with their numbers, and the counts, in one atomic update of the scene."""
+        with self._draw_lock:  # one drawing at a time: the scene nodes and the label pool are shared
+            if self._closed:  # the studio is stopping: the server may already be gone
+                return
+            with self.server.atomic():
+                self._draw_keypoints(view)
+                self._draw_centroids(view)
+                self.counts.content = self._counts_html(view)
+
+    def _draw_keypoints(self, view: KeypointView) -> None:
+        seen: set[str] = set()
+        for item in view.demos:
+            key = f"/keypoints/{item.arm}/demo{item.index}"
+            seen.add(key)
+            pts = item.points if len(item.points) else np.zeros((0, 3))
+            node = self._kp_nodes.get(key)
+            if node is not None and len(pts) and len(node.points) == len(pts):
+                node.points = pts.astype(np.float32)
                 continue
-            self._pending.clear()
-            try:
-                self.refresh()
-            except Exception as exc:
-                self.app.report(exc, title="Could not find the key-points")
+            if node is not None:
+                node.remove()
+            self._kp_nodes[key] = self.scene.add_point_cloud(
+                key, points=pts.astype(np.float32), colors=item.color, point_size=0.012, point_shape="circle"
+            )
+        for key in list(self._kp_nodes):
+            if key not in seen:
+                self._kp_nodes.pop(key).remove()
 
-    def refresh(self) -> Any:
-        """Recompute key-points and centroids for the current ε and draw them (returns the view)."""
-        view = self.app.keypoint_view()
-        self.draw(view)
-        for msg in view.messages:  # e.g. too few key-points to form the clusters
-            self.app.notify("Key-points", msg, kind="warning")
-        return view
-
-    def draw(self, view: Any) -> None:
-        if self._stop.is_set():  # the studio is stopping: the server may already be gone
-            return
-        self.view = view
-        scene = self.scene
-        with self.app.server.atomic():
-            seen: set[str] = set()
-            for item in view.demos:
-                key = f"/keypoints/{item.arm}/demo{item.index}"
-                seen.add(key)
-                pts = item.points if len(item.points) else np.zeros((0, 3))
-                node = self._kp_nodes.get(key)
-                if node is not None and len(pts) and len(node.points) == len(pts):
-                    node.points = pts.astype(np.float32)
-                else:
-                    if node is not None:
-                        node.remove()
-                    self._kp_nodes[key] = scene.add_point_cloud(
-                        key,
-                        points=pts.astype(np.float32),
-                        colors=item.color,
-                        point_size=0.012,
-                        point_shape="circle",
-                    )
-            for key in list(self._kp_nodes):
-                if key not in seen:
-                    self._kp_nodes.pop(key).remove()
-            n_labels = 0
-            for arm in ARMS:
-                c = view.centroids.get(arm)
-                key = f"/keypoints/{arm}/centroids"
-                node = self._centroid_nodes.pop(key, None)
-                if node is not None:
-                    node.remove()
-                if c is None or not len(c):
-                    continue
-                self._centroid_nodes[key] = scene.add_point_cloud(
-                    key,
-                    points=c[:, :3].astype(np.float32),
-                    colors=CENTROID_COLOR,
-                    point_size=0.028,
-                    point_shape="circle",
-                )
-                for j, p in enumerate(c[:, :3]):
-                    if n_labels >= len(self._labels):
-                        self._labels.append(
-                            scene.add_label(
-                                f"/keypoints/labels/{n_labels}", str(j), font_size_mode="screen", font_screen_scale=0.7
-                            )
+    def _draw_centroids(self, view: KeypointView) -> None:
+        n_labels = 0
+        for arm in ARMS:
+            c = view.centroids.get(arm)
+            key = f"/keypoints/{arm}/centroids"
+            node = self._centroid_nodes.pop(key, None)
+            if node is not None:
+                node.remove()
+            if c is None or not len(c):
+                continue
+            self._centroid_nodes[key] = self.scene.add_point_cloud(
+                key, points=c[:, :3].astype(np.float32), colors=CENTROID_COLOR, point_size=0.028, point_shape="circle"
+            )
+            for j, p in enumerate(c[:, :3]):
+                if n_labels >= len(self._labels):
+                    self._labels.append(
+                        self.scene.add_label(
+                            f"/keypoints/labels/{n_labels}", str(j), font_size_mode="screen", font_screen_scale=0.7
                         )
-                    lab = self._labels[n_labels]
-                    lab.text = str(j)
-                    lab.position = tuple(float(x) for x in p + np.array([0.0, 0.0, 0.035]))
-                    lab.visible = True
-                    n_labels += 1
-            for lab in self._labels[n_labels:]:
-                lab.visible = False
-            self.counts.content = self._counts_html(view)
+                    )
+                lab = self._labels[n_labels]
+                lab.text = str(j)
+                lab.position = (float(p[0]), float(p[1]), float(p[2]) + 0.035)
+                lab.visible = True
+                n_labels += 1
+        for lab in self._labels[n_labels:]:
+            lab.visible = False
 
-    def _counts_html(self, view: Any) -> str:
+    def _counts_html(self, view: KeypointView | None) -> str:
         if view is None:
             return '<div class="kp-counts" style="font-size:0.85em">Finding key-points…</div>'
         rows = []
@@ -306,7 +275,7 @@ class KeypointsPanel:
             rows.append(
                 f'<div class="kp-count" data-demo="{item.index}" data-arm="{item.arm}" data-count="{item.count}">'
                 f'<span style="display:inline-block;width:10px;height:10px;border-radius:5px;'
-                f'background:rgb{item.color}"></span> {_esc(item.name)} ({item.arm}): '
+                f'background:rgb{item.color}"></span> {html.escape(item.name)} ({item.arm}): '
                 f"<b>{item.count}</b> key-points</div>"
             )
         if not rows:
@@ -317,14 +286,8 @@ class KeypointsPanel:
                 "(large red markers, numbered)</div>"
             )
         for msg in view.messages:
-            rows.append(f'<div class="kp-msg" style="color:#b45309">{_esc(msg)}</div>')
+            rows.append(f'<div class="kp-msg" style="color:#b45309">{html.escape(msg)}</div>')
         return '<div class="kp-counts" style="font-size:0.85em">' + "".join(rows) + "</div>"
 
     def close(self) -> None:
-        self._stop.set()
-        self._pending.set()
-        self._worker.join(timeout=5.0)
-
-
-def _esc(s: str) -> str:
-    return s.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+        self._closed = True

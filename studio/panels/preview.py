@@ -2,29 +2,28 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 import viser
 
+from studio.controller import PREVIEW, Controller, Topic
 from studio.core.types import ARMS
 from studio.panels._charts import downsample_path, segments
 
-if TYPE_CHECKING:
-    from studio.app import Studio
-
 CYAN = (0, 200, 230)
 IK_FAIL = (230, 30, 30)
+NOT_TRAINED = "Train first: the learned path appears here in cyan."
 SPEEDS = {"¼×": 0.25, "½×": 0.5, "1×": 1.0, "2×": 2.0, "4×": 4.0}
 
 
 class PreviewPanel:
-    """Play / Pause / speed / time scrubber over the learned joint trajectory, gripper included."""
+    """Play / Pause / Stop, speed and a time scrubber over the learned joint trajectory, gripper included."""
 
-    def __init__(self, app: Studio, gui: viser.GuiApi) -> None:
-        self.app = app
-        self.scene = app.server.scene
-        self.info = gui.add_markdown("Train first: the learned path appears here in cyan.")
+    def __init__(self, ctl: Controller, server: viser.ViserServer) -> None:
+        self.ctl = ctl
+        self.server = server
+        self.scene = server.scene
+        gui = server.gui
+        self.info = gui.add_markdown(NOT_TRAINED)
         self.controls = gui.add_button_group("Playback", options=("Play", "Pause", "Stop"))
         self.speed = gui.add_dropdown("Speed", options=list(SPEEDS), initial_value="1×")
         self.time = gui.add_slider("Time (s)", min=0.0, max=1.0, step=0.01, initial_value=0.0)
@@ -32,17 +31,17 @@ class PreviewPanel:
         self._nodes: dict[str, viser.SceneNodeHandle] = {}
         self._last_time_sync = 0.0
 
-        self.controls.on_click(app.guarded("Could not play the preview")(self._on_controls))
-        self.speed.on_update(app.guarded("Could not change the speed")(self._on_speed))
-        self.time.on_update(app.guarded("Could not move to that time")(self._on_time))
-        self.show_path.on_update(app.guarded()(self._on_show))
-        app.events.on("skill", self.refresh)
-        app.events.on("session", self.refresh)
+        self.controls.on_click(ctl.guarded("Could not play the preview")(self._on_controls))
+        self.speed.on_update(ctl.guarded("Could not change the speed")(self._on_speed))
+        self.time.on_update(ctl.guarded("Could not move to that time")(self._on_time))
+        self.show_path.on_update(ctl.guarded()(self._on_show))
+        ctl.events.on(Topic.SKILL, self.refresh)
+        ctl.events.on(Topic.SESSION, self.refresh)
         self.refresh()
 
     def refresh(self) -> None:
-        skills = self.app.skills()
-        with self.app.server.atomic():
+        skills = self.ctl.training.skills()
+        with self.server.atomic():
             for n in self._nodes.values():
                 n.remove()
             self._nodes.clear()
@@ -60,7 +59,7 @@ class PreviewPanel:
                     thickness_units="screen",
                     visible=bool(self.show_path.value),
                 )
-                bad = self.app.ik_failures(arm)
+                bad = self.ctl.training.ik_failures(arm)
                 fails += len(bad)
                 if len(bad):
                     self._nodes[f"fail_{arm}"] = self.scene.add_point_cloud(
@@ -71,46 +70,48 @@ class PreviewPanel:
                         point_shape="diamond",
                         visible=bool(self.show_path.value),
                     )
-            duration = self.app.preview_duration()
+            duration = self.ctl.playback.preview_duration()
             self.time.max = round(max(duration, 0.01), 2)
             self.time.value = 0.0
             for h in (self.speed, self.time):
                 h.disabled = not skills
-            if skills:
-                note = (
-                    f" **{fails} points** of the path cannot be reached exactly (red diamonds)."
-                    if fails
-                    else " Every point of the path is reachable."
-                )
-                self.info.content = f"Learned path ({duration:.1f} s) in cyan.{note} Press **Play**."
-            else:
-                self.info.content = "Train first: the learned path appears here in cyan."
+            self.info.content = _info(duration, fails) if skills else NOT_TRAINED
 
     def _on_controls(self, event: viser.GuiEvent) -> None:
+        playback = self.ctl.playback
         if event.target.value == "Play":
-            self.app.preview_play(SPEEDS[self.speed.value])
+            playback.play_preview(SPEEDS[self.speed.value])
         elif event.target.value == "Pause":
-            self.app.preview_pause()
+            playback.pause(PREVIEW)
         else:  # Stop: back to the live robot
-            self.app.preview_stop()
+            playback.stop(PREVIEW)
             self.time.value = 0.0
 
     def _on_speed(self, event: viser.GuiEvent) -> None:
         if event.client is None:
             return
-        self.app.preview_speed(SPEEDS[self.speed.value])
+        self.ctl.playback.set_speed(PREVIEW, SPEEDS[self.speed.value])
 
     def _on_time(self, event: viser.GuiEvent) -> None:
         if event.client is None:
             return
-        self.app.preview_seek(float(self.time.value))
+        self.ctl.playback.seek_preview(float(self.time.value))
 
     def _on_show(self, event: viser.GuiEvent) -> None:
         for n in self._nodes.values():
             n.visible = bool(self.show_path.value)
 
     def tick(self, now: float) -> None:
-        pos = self.app.preview_position()
+        pos = self.ctl.playback.position(PREVIEW)
         if pos is not None and now - self._last_time_sync > 0.1:
             self._last_time_sync = now
             self.time.value = round(min(pos, self.time.max), 2)
+
+
+def _info(duration: float, fails: int) -> str:
+    note = (
+        f" **{fails} points** of the path cannot be reached exactly (red diamonds)."
+        if fails
+        else " Every point of the path is reachable."
+    )
+    return f"Learned path ({duration:.1f} s) in cyan.{note} Press **Play**."

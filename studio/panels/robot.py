@@ -2,17 +2,18 @@
 
 from __future__ import annotations
 
+import html
 import math
-from typing import TYPE_CHECKING, Any
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 import viser
 from viser.extras import ViserUrdf
 
+from studio.controller import Controller, Topic
+from studio.core.arms import arm_columns, gripper_column
 from studio.core.types import ALL_ARM_JOINTS
-
-if TYPE_CHECKING:
-    from studio.app import Studio
 
 #: Finger travel of Baxter's electric gripper (URDF prismatic limit), metres; 100 % open = full travel.
 FINGER_TRAVEL = 0.020833
@@ -30,10 +31,11 @@ def arms_label(arms: tuple[str, ...]) -> str:
 class RobotPanel:
     """Draws the robot and owns the arm selector ("Arms to teach")."""
 
-    def __init__(self, app: Studio, gui: viser.GuiApi) -> None:
-        self.app = app
-        server = app.server
-        self.urdf = ViserUrdf(server, urdf_or_path=app.urdf_path, root_node_name="/robot")
+    def __init__(self, ctl: Controller, server: viser.ViserServer, urdf_path: Path) -> None:
+        self.ctl = ctl
+        self.server = server
+        gui = server.gui
+        self.urdf = ViserUrdf(server, urdf_or_path=urdf_path, root_node_name="/robot")
         names = self.urdf.get_actuated_joint_names()
         # yourdfpy orders joints differently from the backend (head, right, left, grippers): map by name.
         self._arm_idx = np.array([ALL_ARM_JOINTS.index(n) if n in ALL_ARM_JOINTS else -1 for n in names])
@@ -43,9 +45,8 @@ class RobotPanel:
         self.updates = 0  # scene pose updates sent (the benchmark reads it)
         with server.atomic():
             self._fast = _FastPose.build(self.urdf)  # places the fixed joints' frames once
-        _v, _t, q0, grip0 = app.display.get()
+        _v, _t, q0, grip0 = ctl.display.get()
         self.show_pose(q0, grip0)  # and the movable ones: the robot is drawn where it is from the start
-        self._message = ""
         self._status_dirty = True
         self._last_status = 0.0
         self._status_html = ""
@@ -54,30 +55,33 @@ class RobotPanel:
             self.arms = gui.add_dropdown(
                 "Arms to teach",
                 options=list(ARM_CHOICES),
-                initial_value=arms_label(app.selected_arms),
+                initial_value=arms_label(ctl.teaching.selected_arms),
                 hint="Which gripper(s) you guide: the handles, recordings and learning use these arms.",
             )
             self.status = gui.add_html("")
 
-        @self.arms.on_update
-        @app.guarded("Could not switch arms")
-        def _(event: viser.GuiEvent) -> None:
-            if event.client is None:
-                return
-            try:
-                app.set_arms(ARM_CHOICES[self.arms.value])
-            except Exception:
-                self.arms.value = arms_label(app.selected_arms)  # a refused choice does not stay shown
-                raise
+        self.arms.on_update(ctl.guarded("Could not switch arms")(self._on_arms))
+        ctl.events.on(Topic.SESSION, self._on_session)
+        ctl.events.on(Topic.RECORDING, self._on_recording)
+        ctl.events.on(Topic.REACH, self._on_reach)
 
-        app.events.on("session", self._on_session)
-        app.events.on("recording", self._on_recording)
+    def _on_arms(self, event: viser.GuiEvent) -> None:
+        if event.client is None:
+            return
+        try:
+            self.ctl.teaching.set_arms(ARM_CHOICES[self.arms.value])
+        except Exception:
+            self.arms.value = arms_label(self.ctl.teaching.selected_arms)  # a refused choice does not stay shown
+            raise
 
     def _on_session(self) -> None:
-        self.arms.value = arms_label(self.app.selected_arms)
+        self.arms.value = arms_label(self.ctl.teaching.selected_arms)
 
     def _on_recording(self) -> None:
-        self.arms.disabled = self.app.recorder is not None  # the arms of a take cannot change mid-way
+        self.arms.disabled = self.ctl.teaching.recording  # the arms of a take cannot change mid-way
+
+    def _on_reach(self) -> None:
+        self._status_dirty = True  # the "cannot reach" line follows the controller's reach state
 
     def show_pose(self, q: np.ndarray, gripper: np.ndarray) -> None:
         """Move the drawn robot to joints ``q`` (14,) rad and grippers (2,) percent."""
@@ -86,16 +90,12 @@ class RobotPanel:
         cfg[m] = q[self._arm_idx[m]]
         g = self._grip_idx >= 0
         cfg[g] = np.clip(gripper[self._grip_idx[g]], 0.0, 100.0) / 100.0 * FINGER_TRAVEL
-        with self.app.server.atomic():
+        with self.server.atomic():
             if self._fast is not None:
                 self._fast.update(dict(zip(self._names, cfg, strict=True)))
             else:
                 self.urdf.update_cfg(cfg)
         self.updates += 1
-
-    def set_status(self, text: str) -> None:
-        self._message = text
-        self._status_dirty = True
 
     def tick(self, now: float) -> None:
         """Refresh the plain-words robot status (gripper positions and openings) a few times a second."""
@@ -103,24 +103,25 @@ class RobotPanel:
             return
         self._last_status = now
         self._status_dirty = False
-        _v, _t, q, grip = self.app.display.get()
+        ctl = self.ctl
+        _v, _t, q, grip = ctl.display.get()
         lines = []
-        for arm in self.app.selected_arms:
-            pos, _ = self.app.baxter.fk(arm, q[:7] if arm == "left" else q[7:])
-            g = float(grip[0 if arm == "left" else 1])
+        for arm in ctl.teaching.selected_arms:
+            pos, _ = ctl.baxter.fk(arm, q[arm_columns(arm)])
+            g = float(grip[gripper_column(arm)])
             lines.append(
                 f'<div class="gripper-status" data-arm="{arm}" data-x="{pos[0]:.3f}" data-y="{pos[1]:.3f}" '
                 f'data-z="{pos[2]:.3f}" data-open="{g:.0f}">{arm.capitalize()} gripper at '
                 f"x {pos[0]:+.2f} · y {pos[1]:+.2f} · z {pos[2]:+.2f} m, {g:.0f} % open</div>"
             )
-        src = self.app.display_label()
-        html = (
+        src = ctl.playback.label()
+        text = (
             f'<div style="font-size:0.85em"><div class="robot-source">{src}</div>{"".join(lines)}'
-            f'<div class="robot-message">{self._message}</div></div>'
+            f'<div class="robot-message">{html.escape(ctl.teaching.reach_message())}</div></div>'
         )
-        if html != self._status_html:
-            self._status_html = html
-            self.status.content = html
+        if text != self._status_html:
+            self._status_html = text
+            self.status.content = text
 
 
 class _FastPose:

@@ -2,29 +2,29 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import viser
 
-if TYPE_CHECKING:
-    from studio.app import Studio
+from studio.controller import REPLAY, Controller, Topic
+from studio.core.errors import InvalidInput
 
 
 class SessionsPanel:
-    def __init__(self, app: Studio, gui: viser.GuiApi) -> None:
-        self.app = app
+    def __init__(self, ctl: Controller, server: viser.ViserServer) -> None:
+        self.ctl = ctl
+        self.server = server
+        gui = server.gui
         self.current = gui.add_markdown(self._current_text())
         with gui.add_folder("Session"):
-            names = app.session_names()
+            names = ctl.sessions.names()
             self.pick = gui.add_dropdown(
-                "Open session", options=names or [app.session.name], initial_value=app.session.name
+                "Open session", options=names or [ctl.session.name], initial_value=ctl.session.name
             )
             self.name = gui.add_text(
                 "New name", initial_value="", hint="Name for a new session or for a copy of this one."
             )
             self.actions = gui.add_button_group("Session action", options=("Open", "New", "Save", "Duplicate"))
         with gui.add_folder("Replay a demonstration"):
-            self.replay_pick = gui.add_dropdown("Demonstration", options=app.demo_names() or ["(none)"])
+            self.replay_pick = gui.add_dropdown("Demonstration", options=ctl.demos.names() or ["(none)"])
             self.replay_controls = gui.add_button_group("Replay", options=("Play", "Pause", "Stop"))
             self.replay_time = gui.add_slider(
                 "Replay time (s)",
@@ -32,7 +32,7 @@ class SessionsPanel:
                 max=1.0,
                 step=0.01,
                 initial_value=0.0,
-                disabled=app.playback_kind() != "replay",
+                disabled=ctl.playback.kind != REPLAY,
                 hint="Press Play first, then move to any moment of the demonstration.",
             )
         with gui.add_folder("Files"):
@@ -41,50 +41,47 @@ class SessionsPanel:
                 "Upload session (.zip)",
                 icon=viser.Icon.UPLOAD,
                 mime_type=".zip,application/zip",
-                disabled=app.recorder is not None,
+                disabled=ctl.teaching.recording,
                 hint="Add a downloaded session and open it (not while recording or training).",
             )
             self.export = gui.add_button(
                 "Export joint trajectory (Baxter SDK CSV)",
                 icon=viser.Icon.FILE_EXPORT,
-                disabled=not app.skills(),
+                disabled=not ctl.training.skills(),
                 hint="The learned skill as a file the Baxter SDK can play back (train first).",
             )
         self._last_sync = 0.0
 
-        self.actions.on_click(app.guarded("The session action did not work")(self._on_action))
-        self.replay_controls.on_click(app.guarded("Could not replay the demonstration")(self._on_replay))
-        self.replay_time.on_update(app.guarded("Could not move the replay")(self._on_replay_time))
-        self.download.on_click(app.guarded("Could not prepare the download")(self._on_download))
-        self.upload.on_upload(app.guarded("The upload did not work")(self._on_upload))
-        self.export.on_click(app.guarded("Could not export the trajectory")(self._on_export))
-        app.events.on("session", self.refresh)
-        app.events.on("sessions", self.refresh)
-        app.events.on("demos", self.refresh)
+        self.actions.on_click(ctl.guarded("The session action did not work")(self._on_action))
+        self.replay_controls.on_click(ctl.guarded("Could not replay the demonstration")(self._on_replay))
+        self.replay_time.on_update(ctl.guarded("Could not move the replay")(self._on_replay_time))
+        self.download.on_click(ctl.guarded("Could not prepare the download")(self._on_download))
+        self.upload.on_upload(ctl.guarded("The upload did not work")(self._on_upload))
+        self.export.on_click(ctl.guarded("Could not export the trajectory")(self._on_export))
+        for topic in (Topic.SESSION, Topic.SESSIONS, Topic.DEMOS):
+            ctl.events.on(topic, self.refresh)
         # Buttons that cannot act now are disabled (the actions still refuse in plain words if raced).
-        app.events.on("session", self._sync_enabled)
-        app.events.on("skill", self._sync_enabled)
-        app.events.on("recording", self._sync_enabled)
-        app.events.on("training", self._sync_enabled)
-        app.events.on("playback", self._sync_enabled)
+        for topic in (Topic.SESSION, Topic.SKILL, Topic.RECORDING, Topic.TRAINING, Topic.PLAYBACK):
+            ctl.events.on(topic, self._sync_enabled)
 
     def _sync_enabled(self) -> None:
-        with self.app.server.atomic():
-            self.export.disabled = not self.app.skills()
-            self.upload.disabled = self.app.recorder is not None or self.app.training
-            self.replay_time.disabled = self.app.playback_kind() != "replay"
+        ctl = self.ctl
+        with self.server.atomic():
+            self.export.disabled = not ctl.training.skills()
+            self.upload.disabled = ctl.teaching.recording or ctl.training.busy
+            self.replay_time.disabled = ctl.playback.kind != REPLAY
 
     def _current_text(self) -> str:
-        s = self.app.session
+        s = self.ctl.session
         return f"Open session: **{s.name}** · {len(s.recordings)} demonstrations"
 
     def refresh(self) -> None:
-        names = self.app.session_names()
-        demos = self.app.demo_names() or ["(none)"]
-        with self.app.server.atomic():
+        names = self.ctl.sessions.names()
+        demos = self.ctl.demos.names() or ["(none)"]
+        with self.server.atomic():
             self.current.content = self._current_text()
-            self.pick.options = names or [self.app.session.name]
-            self.pick.value = self.app.session.name
+            self.pick.options = names or [self.ctl.session.name]
+            self.pick.value = self.ctl.session.name
             cur = self.replay_pick.value
             self.replay_pick.options = demos
             if cur not in demos:
@@ -92,58 +89,52 @@ class SessionsPanel:
 
     def _on_action(self, event: viser.GuiEvent) -> None:
         action = event.target.value
+        sessions = self.ctl.sessions
         if action == "Open":
-            self.app.open_session(self.pick.value)
+            sessions.open(self.pick.value)
         elif action == "New":
-            self.app.new_session(self.name.value)
+            sessions.new(self.name.value)
         elif action == "Save":
-            self.app.save_session()
+            sessions.save()
         elif action == "Duplicate":
-            self.app.duplicate_session(self.name.value)
+            sessions.duplicate(self.name.value)
 
     def _on_replay(self, event: viser.GuiEvent) -> None:
         action = event.target.value
         if action == "Play":
-            names = self.app.demo_names()
+            names = self.ctl.demos.names()
             if self.replay_pick.value not in names:
-                raise _err("Choose a demonstration to replay first.")
-            dur = self.app.replay_demo(names.index(self.replay_pick.value))
+                raise InvalidInput("Choose a demonstration to replay first.")
+            dur = self.ctl.playback.play_demo(names.index(self.replay_pick.value))
             self.replay_time.max = round(max(dur, 0.01), 2)
         elif action == "Pause":
-            self.app.replay_pause()
+            self.ctl.playback.pause(REPLAY)
         else:
-            self.app.replay_stop()
+            self.ctl.playback.stop(REPLAY)
 
     def _on_replay_time(self, event: viser.GuiEvent) -> None:
         if event.client is None:
             return
-        self.app.replay_seek(float(self.replay_time.value))
+        self.ctl.playback.seek(REPLAY, float(self.replay_time.value))
 
     def _on_download(self, event: viser.GuiEvent) -> None:
-        name, data = self.app.session_zip()
-        target = event.client
-        if target is None:
-            raise _err("Could not find the browser tab to send the file to.")
-        target.send_file_download(name, data, save_immediately=True)
+        name, data = self.ctl.sessions.zip()
+        if event.client is None:
+            raise InvalidInput("Could not find the browser tab to send the file to.")
+        event.client.send_file_download(name, data, save_immediately=True)
 
     def _on_upload(self, event: viser.GuiEvent) -> None:
         f = self.upload.value
-        self.app.import_session_zip(f.name, f.content)
+        self.ctl.sessions.import_zip(f.name, f.content)
 
     def _on_export(self, event: viser.GuiEvent) -> None:
-        name, data = self.app.joint_trajectory_csv()
+        name, data = self.ctl.sessions.trajectory_csv()
         if event.client is None:
-            raise _err("Could not find the browser tab to send the file to.")
+            raise InvalidInput("Could not find the browser tab to send the file to.")
         event.client.send_file_download(name, data, save_immediately=True)
 
     def tick(self, now: float) -> None:
-        pos = self.app.replay_position()
+        pos = self.ctl.playback.position(REPLAY)
         if pos is not None and now - self._last_sync > 0.1:
             self._last_sync = now
             self.replay_time.value = round(min(pos, self.replay_time.max), 2)
-
-
-def _err(msg: str) -> Exception:
-    from studio.core.errors import InvalidInput
-
-    return InvalidInput(msg)

@@ -1,20 +1,17 @@
-"""Teach panel: move the arm (gripper handle with IK, joint sliders, gripper buttons), record demos, manage them."""
+"""Teach panel: move the arm (gripper handle with IK, joint sliders, gripper buttons) and record demos."""
 
 from __future__ import annotations
 
 import math
-import threading
 import time
-from typing import TYPE_CHECKING
+from collections.abc import Callable
 
 import numpy as np
 import viser
 
+from studio.controller import Controller, Topic
+from studio.core.arms import arm_columns
 from studio.core.types import ALL_ARM_JOINTS, ARMS
-from studio.panels._charts import downsample_path, segments
-
-if TYPE_CHECKING:
-    from studio.app import Studio
 
 JOINT_WORDS = {
     "s0": "shoulder turn",
@@ -29,6 +26,8 @@ JOINT_WORDS = {
 USER_HOLD_S = 0.8
 UNREACHABLE_COLOR = (230, 40, 40)
 
+GuiCallback = Callable[[viser.GuiEvent], None]
+
 
 def joint_label(name: str) -> str:
     arm, j = name.split("_")
@@ -36,28 +35,34 @@ def joint_label(name: str) -> str:
 
 
 class TeachPanel:
-    """Gripper handles (IK), joint sliders, gripper buttons, recording controls and the demo list."""
+    """Gripper handles (IK), joint sliders, gripper buttons and the recording controls."""
 
-    def __init__(self, app: Studio, gui: viser.GuiApi) -> None:
-        self.app = app
-        self.scene = app.server.scene
+    def __init__(self, ctl: Controller, server: viser.ViserServer) -> None:
+        self.ctl = ctl
+        self.server = server
+        self.scene = server.scene
+        gui = server.gui
         self._dragging = {arm: False for arm in ARMS}
         self._drag_end = {arm: 0.0 for arm in ARMS}
-        self._ik_lock = {arm: threading.Lock() for arm in ARMS}
         self._slider_touched = 0.0
         self._last_slider_sync = 0.0
         self._last_timer = 0.0
-        self.unreachable = {arm: False for arm in ARMS}
-        self._traces: dict[str, viser.SceneNodeHandle] = {}
         self._last_q: np.ndarray | None = None
         self._drag_end_any = 0.0
+        self._build_handles()
+        self._build_gui(gui)
+        ctl.events.on(Topic.ARMS, self._on_arms)
+        ctl.events.on(Topic.REACH, self._on_reach)
+        ctl.events.on(Topic.RECORDING, self._on_recording_state)
 
-        # -- gripper handles (transform gizmos) -----------------------------------------------------------
+    def _build_handles(self) -> None:
+        """A transform gizmo on each gripper, and a red marker where a handle is out of reach."""
+        ctl = self.ctl
         self.handles: dict[str, viser.TransformControlsHandle] = {}
         self.miss_markers: dict[str, viser.IcosphereHandle] = {}
         self.miss_labels: dict[str, viser.LabelHandle] = {}
         for arm in ARMS:
-            pos, wxyz = app.baxter.fk(arm, app.arm_q(arm))
+            pos, wxyz = ctl.baxter.fk(arm, ctl.teaching.arm_q(arm))
             h = self.scene.add_transform_controls(
                 f"/teach/{arm}_handle",
                 scale=0.22,
@@ -65,7 +70,7 @@ class TeachPanel:
                 position=tuple(pos),
                 wxyz=tuple(wxyz),
                 depth_test=False,
-                visible=arm in app.selected_arms,
+                visible=arm in ctl.teaching.selected_arms,
             )
             self.handles[arm] = h
             self.miss_markers[arm] = self.scene.add_icosphere(
@@ -76,7 +81,8 @@ class TeachPanel:
             )
             h.on_update(self._make_gizmo_cb(arm))
 
-        # -- GUI ------------------------------------------------------------------------------------------
+    def _build_gui(self, gui: viser.GuiApi) -> None:
+        ctl = self.ctl
         with gui.add_folder("Record a demonstration", order=0):
             self.record_btn = gui.add_button(
                 "Record", icon=viser.Icon.PLAYER_RECORD, color="red", hint="Start recording while you guide the arm."
@@ -90,9 +96,7 @@ class TeachPanel:
             self.rec_status = gui.add_markdown("Not recording.")
 
         with gui.add_folder("Grippers", order=1):
-            self.grip_open: dict[str, viser.GuiButtonHandle] = {}
-            self.grip_close: dict[str, viser.GuiButtonHandle] = {}
-            self.grip_width: dict[str, viser.GuiSliderHandle] = {}
+            self.grip_width: dict[str, viser.GuiSliderHandle[float]] = {}
             for arm in ARMS:
                 grp = gui.add_button_group(f"{arm.capitalize()} gripper", options=("Open", "Close"))
                 w = gui.add_slider(
@@ -100,7 +104,7 @@ class TeachPanel:
                     min=0.0,
                     max=100.0,
                     step=1.0,
-                    initial_value=float(app.robot_gripper()[0 if arm == "left" else 1]),
+                    initial_value=ctl.teaching.gripper_width(arm),
                     hint="0 = closed, 100 = fully open.",
                 )
                 self.grip_width[arm] = w
@@ -108,10 +112,10 @@ class TeachPanel:
                 w.on_update(self._make_grip_width_cb(arm))
 
         with gui.add_folder("Joints", order=2, expand_by_default=False):
-            self.sliders: dict[str, viser.GuiSliderHandle] = {}
-            lo = np.concatenate([app.baxter.lower_limits(a) for a in ARMS])
-            hi = np.concatenate([app.baxter.upper_limits(a) for a in ARMS])
-            q = app.robot_q()
+            self.sliders: dict[str, viser.GuiSliderHandle[float]] = {}
+            lo = np.concatenate([ctl.baxter.lower_limits(a) for a in ARMS])
+            hi = np.concatenate([ctl.baxter.upper_limits(a) for a in ARMS])
+            q = ctl.teaching.robot_q()
             for i, name in enumerate(ALL_ARM_JOINTS):
                 s = gui.add_slider(
                     joint_label(name) + " °",
@@ -123,47 +127,27 @@ class TeachPanel:
                 s.on_update(self._make_slider_cb(i))
                 self.sliders[name] = s
 
-        with gui.add_folder("Demonstrations", order=3):
-            self.demo_list = gui.add_html(self._demo_list_html())
-            self.demo_pick = gui.add_dropdown("Demo", options=["(none)"], initial_value="(none)")
-            self.demo_show = gui.add_checkbox("Show in the scene", initial_value=True)
-            self.demo_name = gui.add_text("Name", initial_value="")
-            self.demo_trim = gui.add_multi_slider(
-                "Keep from … to (s)", min=0.0, max=1.0, step=0.01, initial_value=(0.0, 1.0)
-            )
-            self.demo_actions = gui.add_button_group("Demo action", options=("Rename", "Trim", "Delete"))
-
-        self.record_btn.on_click(app.guarded("Could not start recording")(self._on_record))
-        self.stop_btn.on_click(app.guarded("Could not save the recording")(self._on_stop))
-        self.discard_btn.on_click(app.guarded("Could not discard the recording")(self._on_discard))
-        self.demo_pick.on_update(app.guarded()(self._on_pick))
-        self.demo_show.on_update(app.guarded()(self._on_show))
-        self.demo_actions.on_click(app.guarded("Could not change the demonstration")(self._on_demo_action))
-
-        app.events.on("arms", self._on_arms)
-        app.events.on("demos", self.refresh_demos)
-        app.events.on("session", self.refresh_demos)
-        app.events.on("recording", self._on_recording_state)
-        self.refresh_demos()
+        t = ctl.teaching
+        self.record_btn.on_click(ctl.guarded("Could not start recording")(lambda _: t.start_recording()))
+        self.stop_btn.on_click(ctl.guarded("Could not save the recording")(lambda _: t.stop_recording()))
+        self.discard_btn.on_click(ctl.guarded("Could not discard the recording")(lambda _: t.discard_recording()))
 
     # -- gizmo -> IK -> robot ------------------------------------------------------------------------------
-    def _make_gizmo_cb(self, arm: str):
+    def _make_gizmo_cb(self, arm: str) -> Callable[[viser.TransformControlsEvent], None]:
         def cb(event: viser.TransformControlsEvent) -> None:
-            phase = getattr(event, "phase", "update")
+            phase = getattr(event, "phase", "update")  # viser versions before 1.0 send no phase
             if phase == "start":
                 self._dragging[arm] = True
             h = self.handles[arm]
             try:
-                with self._ik_lock[arm]:
-                    res = self.app.move_gripper(arm, np.asarray(h.position), np.asarray(h.wxyz))
-                self._show_reach(arm, res.converged, np.asarray(h.position))
+                self.ctl.teaching.move_gripper(arm, np.asarray(h.position), np.asarray(h.wxyz))
             except Exception as exc:
-                self.app.report(exc, title="Could not move the arm", client=event.client)
+                self.ctl.report(exc, title="Could not move the arm", client=event.client)
             if phase == "end":
                 self._dragging[arm] = False
                 self._drag_end[arm] = self._drag_end_any = time.monotonic()
-                if self.unreachable[arm]:
-                    self.app.notify(
+                if self.ctl.teaching.unreachable(arm):
+                    self.ctl.notify(
                         "Out of reach",
                         f"The {arm} arm cannot put its gripper where you left the handle; it stopped at the "
                         "closest pose it can reach. Drag the handle closer to the robot.",
@@ -173,70 +157,54 @@ class TeachPanel:
 
         return cb
 
-    def _show_reach(self, arm: str, ok: bool, target: np.ndarray) -> None:
-        self.unreachable[arm] = not ok
-        with self.app.server.atomic():
-            self.miss_markers[arm].position = tuple(target)
-            self.miss_markers[arm].visible = not ok
-            self.miss_labels[arm].visible = not ok
-        if not ok:
-            self.app.panels.robot.set_status(
-                f"The {arm} gripper cannot reach the handle's position: the arm stops at the closest pose."
-            )
-        else:
-            self.app.panels.robot.set_status("")
+    def _on_reach(self) -> None:
+        """Show the red "Out of reach" marker where a taught arm's handle cannot be reached."""
+        teaching = self.ctl.teaching
+        with self.server.atomic():
+            for arm in ARMS:
+                r = teaching.reach.get(arm)
+                off = r is None or r.ok or arm not in teaching.selected_arms
+                if r is not None:
+                    self.miss_markers[arm].position = r.target
+                self.miss_markers[arm].visible = not off
+                self.miss_labels[arm].visible = not off
 
     # -- sliders and grippers --------------------------------------------------------------------------
-    def _make_slider_cb(self, i: int):
-        @self.app.guarded("Could not move the joint")
+    def _make_slider_cb(self, i: int) -> GuiCallback:
         def cb(event: viser.GuiEvent) -> None:
             if event.client is None:  # our own sync from the robot state
                 return
             self._slider_touched = time.monotonic()
-            self.app.move_joint(i, math.radians(float(self.sliders[ALL_ARM_JOINTS[i]].value)))
+            self.ctl.teaching.move_joint(i, math.radians(float(self.sliders[ALL_ARM_JOINTS[i]].value)))
 
-        return cb
+        return self.ctl.guarded("Could not move the joint")(cb)
 
-    def _make_grip_button_cb(self, arm: str):
-        @self.app.guarded("Could not move the gripper")
+    def _make_grip_button_cb(self, arm: str) -> GuiCallback:
         def cb(event: viser.GuiEvent) -> None:
             width = 100.0 if event.target.value == "Open" else 0.0
-            self.app.set_gripper(arm, width)
+            self.ctl.teaching.set_gripper(arm, width)
             self.grip_width[arm].value = width
 
-        return cb
+        return self.ctl.guarded("Could not move the gripper")(cb)
 
-    def _make_grip_width_cb(self, arm: str):
-        @self.app.guarded("Could not move the gripper")
+    def _make_grip_width_cb(self, arm: str) -> GuiCallback:
         def cb(event: viser.GuiEvent) -> None:
             if event.client is None:
                 return
-            self.app.set_gripper(arm, float(self.grip_width[arm].value))
+            self.ctl.teaching.set_gripper(arm, float(self.grip_width[arm].value))
 
-        return cb
+        return self.ctl.guarded("Could not move the gripper")(cb)
 
     def _on_arms(self) -> None:
         self._last_q = None  # snap the newly shown handles to the grippers
-        with self.app.server.atomic():
+        with self.server.atomic():
             for arm in ARMS:
-                on = arm in self.app.selected_arms
-                self.handles[arm].visible = on
-                if not on:
-                    self.miss_markers[arm].visible = False
-                    self.miss_labels[arm].visible = False
+                self.handles[arm].visible = arm in self.ctl.teaching.selected_arms
+        self._on_reach()
 
     # -- recording -------------------------------------------------------------------------------------
-    def _on_record(self, event: viser.GuiEvent) -> None:
-        self.app.start_recording()
-
-    def _on_stop(self, event: viser.GuiEvent) -> None:
-        self.app.stop_recording()
-
-    def _on_discard(self, event: viser.GuiEvent) -> None:
-        self.app.discard_recording()
-
     def _on_recording_state(self) -> None:
-        rec = self.app.recorder is not None
+        rec = self.ctl.teaching.recording
         self.record_btn.disabled = rec
         self.stop_btn.disabled = not rec
         self.discard_btn.disabled = not rec
@@ -245,121 +213,32 @@ class TeachPanel:
 
     # -- periodic (pose pump thread) -------------------------------------------------------------------
     def tick(self, now: float) -> None:
-        app = self.app
-        if app.display is app.live:
-            q = app.robot_q()
-            mono = time.monotonic()
-            moved = self._last_q is None or not np.array_equal(q, self._last_q) or mono - self._drag_end_any < 2.0
-            self._last_q = q
-            with app.server.atomic():
-                for arm in app.selected_arms if moved else ():
-                    if self._dragging[arm] or mono - self._drag_end[arm] < USER_HOLD_S:
-                        continue
-                    pos, wxyz = app.baxter.fk(arm, q[:7] if arm == "left" else q[7:])
-                    h = self.handles[arm]
-                    h.position = tuple(pos)
-                    h.wxyz = tuple(wxyz)
+        ctl = self.ctl
+        if ctl.display.is_live:
+            q = ctl.teaching.robot_q()
+            self._follow_robot(q)
             if now - self._last_slider_sync > 0.2 and time.monotonic() - self._slider_touched > USER_HOLD_S:
                 self._last_slider_sync = now
                 deg = np.round(np.degrees(q) * 2.0) / 2.0
                 for i, name in enumerate(ALL_ARM_JOINTS):
                     self.sliders[name].value = float(deg[i])
-        rec = app.recorder
+        rec = ctl.teaching.recorder
         if rec is not None and now - self._last_timer > 0.25:
             self._last_timer = now
             self.rec_status.content = f"**● Recording** {rec.elapsed:5.1f} s · {rec.n_samples:,} samples"
 
-    # -- demo list -------------------------------------------------------------------------------------
-    def _demo_list_html(self) -> str:
-        rows = []
-        for i, (name, color, dur, n, arms, visible) in enumerate(self.app.demo_summaries()):
-            sw = f"background:rgb{color};" if visible else f"border:2px solid rgb{color};"
-            rows.append(
-                f'<div class="demo-row" data-demo="{i}" style="display:flex;gap:6px;align-items:center;'
-                f'font-size:0.85em;margin:2px 0"><span style="display:inline-block;width:12px;height:12px;'
-                f'border-radius:6px;{sw}"></span><b>{_esc(name)}</b>'
-                f"<span>{dur:.1f} s · {n:,} samples · {'/'.join(arms)}{'' if visible else ' · hidden'}</span></div>"
-            )
-        if not rows:
-            return '<div class="demo-row-empty" style="font-size:0.85em">No demonstrations yet: press Record.</div>'
-        return "".join(rows)
-
-    def draw_traces(self) -> None:
-        """Each shown demonstration as a coloured 3-D line of the taught gripper(s)."""
-        app = self.app
-        wanted: dict[str, tuple[np.ndarray, tuple[int, int, int]]] = {}
-        for i, rec in enumerate(app.recordings()):
-            if rec.name in app.hidden_demos:
-                continue
-            for arm in rec.arms:
-                pts = downsample_path(np.asarray(app.demo_of(rec, arm).position))
-                wanted[f"/demos/{i}_{arm}"] = (pts, app.demo_color(i))
-        with app.server.atomic():
-            for key in list(self._traces):
-                self._traces.pop(key).remove()
-            for key, (pts, color) in wanted.items():
-                self._traces[key] = self.scene.add_line_segments(
-                    key, segments(pts), colors=color, thickness=3.0, thickness_units="screen"
-                )
-
-    def refresh_demos(self) -> None:
-        try:
-            self.draw_traces()
-        except Exception as exc:
-            self.app.report(exc, title="Could not draw the demonstrations")
-        names = self.app.demo_names()
-        with self.app.server.atomic():
-            self.demo_list.content = self._demo_list_html()
-            opts = names or ["(none)"]
-            current = self.demo_pick.value
-            self.demo_pick.options = opts
-            if current not in opts:
-                self.demo_pick.value = opts[-1]
-        self._on_pick(None)
-
-    def _selected(self) -> int | None:
-        names = self.app.demo_names()
-        v = self.demo_pick.value
-        return names.index(v) if v in names else None
-
-    def _on_pick(self, event: viser.GuiEvent | None) -> None:
-        i = self._selected()
-        for h in (self.demo_show, self.demo_name, self.demo_trim):
-            h.disabled = i is None
-        if i is None:
+    def _follow_robot(self, q: np.ndarray) -> None:
+        """Keep the handles on the grippers while the robot moves (not while the user drags one)."""
+        mono = time.monotonic()
+        moved = self._last_q is None or not np.array_equal(q, self._last_q) or mono - self._drag_end_any < 2.0
+        self._last_q = q
+        if not moved:
             return
-        dur = max(self.app.demo_duration(i), 0.02)
-        self.demo_name.value = self.app.demo_names()[i]
-        self.demo_show.value = self.app.demo_visible(i)
-        self.demo_trim.max = round(dur + 0.005, 2)
-        self.demo_trim.value = (0.0, round(dur + 0.005, 2))
-
-    def _on_show(self, event: viser.GuiEvent) -> None:
-        if event.client is None:
-            return
-        i = self._selected()
-        if i is not None:
-            self.app.set_demo_visible(i, bool(self.demo_show.value))
-
-    def _on_demo_action(self, event: viser.GuiEvent) -> None:
-        i = self._selected()
-        if i is None:
-            raise _nothing()
-        action = event.target.value
-        if action == "Rename":
-            self.app.rename_demo(i, self.demo_name.value)
-        elif action == "Trim":
-            t0, t1 = self.demo_trim.value
-            self.app.trim_demo(i, float(t0), float(t1))
-        elif action == "Delete":
-            self.app.delete_demo_confirmed(i)  # asks first: a second press deletes
-
-
-def _nothing() -> Exception:
-    from studio.core.errors import InvalidInput
-
-    return InvalidInput("Choose a demonstration in the list first.")
-
-
-def _esc(s: str) -> str:
-    return s.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+        with self.server.atomic():
+            for arm in self.ctl.teaching.selected_arms:
+                if self._dragging[arm] or mono - self._drag_end[arm] < USER_HOLD_S:
+                    continue
+                pos, wxyz = self.ctl.baxter.fk(arm, q[arm_columns(arm)])
+                h = self.handles[arm]
+                h.position = tuple(pos)
+                h.wxyz = tuple(wxyz)

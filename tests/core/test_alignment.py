@@ -15,15 +15,15 @@ from studio.core.errors import InvalidInput
 def test_hand_computed_example():
     # r = [0, 2], t = [1, 1, 3]: H = [[1, 1, 9], [1, 1, 1]];
     # g = [[1, 2, 11], [2, 2, 3]]  ->  distance 3 along (0,0) (0,1) (1,2)
-    g, path = dtw([[0.0], [2.0]], [[1.0], [1.0], [3.0]])
+    g, path = dtw(np.array([[0.0], [2.0]]), np.array([[1.0], [1.0], [3.0]]))
     assert g == 3.0
     assert path.tolist() == [[0, 0], [0, 1], [1, 2]]
-    G = accumulated_cost([[0.0], [2.0]], [[1.0], [1.0], [3.0]])
+    G = accumulated_cost(np.array([[0.0], [2.0]]), np.array([[1.0], [1.0], [3.0]]))
     assert G[1:, 1:].tolist() == [[1.0, 2.0, 11.0], [2.0, 2.0, 3.0]]
 
 
 def test_time_warped_copy_has_zero_distance():
-    g, path = dtw([[0.0], [1.0], [2.0]], [[0.0], [1.0], [1.0], [2.0]])
+    g, path = dtw(np.array([[0.0], [1.0], [2.0]]), np.array([[0.0], [1.0], [1.0], [2.0]]))
     assert g == 0.0
     assert path.tolist() == [[0, 0], [1, 1], [1, 2], [2, 3]]
 
@@ -85,4 +85,4 @@ def test_bad_input():
     with pytest.raises(InvalidInput):
         dtw(np.zeros((2, 3)), np.zeros((3, 2)))
     with pytest.raises(InvalidInput):
-        dtw([[np.nan]], [[1.0]])
+        dtw(np.array([[np.nan]]), np.array([[1.0]]))

@@ -16,11 +16,11 @@ from studio.core.keypoints import (
     KeypointCache,
     corner_candidates,
     extract_keypoints,
-    extract_keypoints_reference,
     gripper_events,
     precompute,
 )
 from studio.core.types import Demo, KeypointParams
+from tests.core.oracles import extract_keypoints_reference
 from tests.core.teacher_demos import demos, plans
 
 DOWN = np.array([0.0, 0.0, 1.0, 0.0])
@@ -220,7 +220,7 @@ def test_cache_reuses_series_and_gives_same_result():
 
 
 def test_too_short_demo_is_refused_in_plain_words():
-    d = Demo([0.0], [[0, 0, 0]], [DOWN], [100.0], name="Demo 4")
+    d = Demo(np.array([0.0]), np.zeros((1, 3)), np.array([DOWN]), np.array([100.0]), name="Demo 4")
     with pytest.raises(NotEnoughData, match="Demo 4"):
         extract_keypoints(d)
     assert issubclass(NotEnoughData, StudioError)
@@ -266,6 +266,6 @@ def test_corner_cache_is_safe_across_threads() -> None:
 def test_thresholds_accept_numpy_numbers() -> None:
     from studio.core.types import KeypointParams
 
-    p = KeypointParams(eps5=np.float32(0.2), eps2=np.float64(0.01))
+    p = KeypointParams(eps5=np.float32(0.2), eps2=np.float64(0.01))  # type: ignore[arg-type]  # on purpose
     assert isinstance(p.eps5, float) and abs(p.eps5 - 0.2) < 1e-6
     assert p.as_dict()["eps2"] == 0.01

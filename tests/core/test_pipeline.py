@@ -95,7 +95,8 @@ def test_joint_trajectory_tracks_the_skill_within_a_millimetre():
     v = np.abs(np.diff(jt.q, axis=0)) / np.diff(jt.t)[:, None]
     assert np.all(v <= b.velocity_limits("left"))
     # starts near the reference demo's joints (seeded from them)
-    assert np.linalg.norm(jt.q[0] - ds[sk.reference].q[0]) < 0.2
+    q_ref = ds[sk.reference].q
+    assert q_ref is not None and np.linalg.norm(jt.q[0] - q_ref[0]) < 0.2
 
 
 def test_skill_carries_what_the_panels_draw():
@@ -120,12 +121,13 @@ def test_to_arrays_round_trip_without_pickle(tmp_path):
     sk = learn_skill(list(demos("stack-cup"))[:2], arm="left")
     arrays = sk.to_arrays()
     assert all(a.dtype != object for a in arrays.values())
-    np.savez(tmp_path / "skill.npz", **arrays)
+    np.savez(tmp_path / "skill.npz", **arrays)  # type: ignore[arg-type]  # numpy stubs: **kwds typed as bool
     with np.load(tmp_path / "skill.npz", allow_pickle=False) as z:
         back = Skill.from_arrays(dict(z))
     assert np.array_equal(back.trajectory.position, sk.trajectory.position)
     assert all(np.array_equal(a, b) for a, b in zip(back.keypoints, sk.keypoints, strict=True))
     assert back.reference == sk.reference and back.params == sk.params and back.arm == "left"
+    assert back.joint_trajectory is not None and sk.joint_trajectory is not None
     assert np.array_equal(back.joint_trajectory.q, sk.joint_trajectory.q)
     with pytest.raises(InvalidInput):
         Skill.from_arrays({k: v for k, v in arrays.items() if k != "centroids"})
@@ -199,7 +201,7 @@ def test_bad_input_is_explained_in_plain_words():
     with pytest.raises(InvalidInput):
         learn_skill([d], spline_through="straight lines")
     with pytest.raises(InvalidInput):
-        learn_skill(d)  # a single Demo instead of a list
+        learn_skill(d)  # type: ignore[arg-type]  # on purpose: a single Demo instead of a list
     with pytest.raises(InvalidInput):
         learn_skill([d], arm="middle")
     assert issubclass(NotEnoughData, StudioError)

@@ -18,9 +18,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from playwright.sync_api import FloatRect
 
 from studio.app import build_app
 from studio.core.kinematics import matrix_from_quat_wxyz
+from studio.robot_backend.simulated import SimulatedBaxter
 from tests.e2e import ui
 from tests.e2e.conftest import ARTIFACTS, free_port
 
@@ -75,7 +77,7 @@ def _set_camera(app, client, view: str) -> None:
     raise AssertionError("the page did not take the camera pose")
 
 
-def _project(client, box: dict, p: np.ndarray) -> tuple[float, float]:
+def _project(client, box: FloatRect, p: np.ndarray) -> tuple[float, float]:
     """Page pixel of world point ``p`` through the page's camera (OpenCV convention, vertical fov)."""
     cam = client.camera
     R = matrix_from_quat_wxyz(np.asarray(cam.wxyz, dtype=float))
@@ -149,7 +151,9 @@ def test_drawn_grippers_cover_their_fk_points(browser, tmp_path) -> None:
             )
             for arm in ("left", "right")
         }
-        baxter = app.baxter
+        baxter = app.controller.baxter
+        backend = app.controller.backend
+        assert isinstance(backend, SimulatedBaxter)
         points = {
             (c, arm): _inside_points(baxter, arm, q[:7] if arm == "left" else q[7:])
             for c, q in CONFIGS.items()
@@ -158,7 +162,7 @@ def test_drawn_grippers_cover_their_fk_points(browser, tmp_path) -> None:
         report: list[str] = []
         failures: list[str] = []
         for c, q in CONFIGS.items():
-            app.backend.teleport(q, np.array([0.0, 0.0]))  # grippers closed (fingertips ~3 cm apart)
+            backend.teleport(q, np.array([0.0, 0.0]))  # grippers closed (fingertips ~3 cm apart)
             for view in VIEWS:
                 _set_camera(app, client, view)
                 ui.dismiss_notifications(page)

@@ -130,7 +130,7 @@ def test_an_oversize_upload_is_refused_in_plain_words(browser, shots, tmp_path, 
         shots(page, "oversize upload refused")
         expect(page.get_by_text("File uploaded successfully")).to_have_count(0)
         expect(page.get_by_role("button", name="Upload session (.zip)")).to_be_enabled()
-        assert app.session_names() == ["fresh"]
+        assert app.controller.sessions.names() == ["fresh"]
         assert not app.server.gui._current_file_upload_states
         page.close()
     finally:

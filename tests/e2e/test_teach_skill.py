@@ -4,11 +4,12 @@ restart the server, open the session and find everything back. Screenshots of ea
 from __future__ import annotations
 
 import math
-import time
+import re
 
 import numpy as np
 import pytest
 from playwright.sync_api import Page, expect
+from playwright.sync_api import TimeoutError as PlaywrightTimeout
 
 from studio.app import CAMERA_FOV_DEG, CAMERA_LOOK_AT, CAMERA_POSITION
 from studio.core.kinematics import Baxter
@@ -24,18 +25,12 @@ VIEW_FOV = math.radians(CAMERA_FOV_DEG)
 
 def gripper_status(page: Page, arm: str = "left") -> dict[str, float]:
     el = page.locator(f'.gripper-status[data-arm="{arm}"]').first
-    return {k: float(el.get_attribute(f"data-{k}")) for k in ("x", "y", "z", "open")}
+    return {k: float(el.get_attribute(f"data-{k}") or "nan") for k in ("x", "y", "z", "open")}
 
 
-def wait_status(page: Page, pred, timeout: float = 15.0, arm: str = "left") -> dict[str, float]:
-    deadline = time.monotonic() + timeout
-    st = gripper_status(page, arm)
-    while time.monotonic() < deadline:
-        st = gripper_status(page, arm)
-        if pred(st):
-            return st
-        time.sleep(0.2)
-    raise AssertionError(f"robot status never matched; last {st}")
+def moved_from(before: dict[str, float], keys: str = "xyz", by: float = 0.02) -> str:
+    """A status expression (see ui.wait_status): the gripper moved more than ``by`` m from ``before``."""
+    return " || ".join(f"Math.abs(s.{k} - {before[k]}) > {by}" for k in keys)
 
 
 def project(p: np.ndarray, width: int = 1280, height: int = 800) -> tuple[float, float]:
@@ -90,9 +85,7 @@ def drag_gizmo(page: Page, q_left: np.ndarray, axis: int = 2, pixels: float = -7
     direction /= np.linalg.norm(direction)
     page.mouse.move(x1, y1)
     page.mouse.down()
-    for k in range(1, 11):
-        page.mouse.move(x1 + direction[0] * pixels * k / 10, y1 + direction[1] * pixels * k / 10)
-        time.sleep(0.05)
+    page.mouse.move(x1 + direction[0] * pixels, y1 + direction[1] * pixels, steps=10)  # a hand, not a jump
     page.mouse.up()
 
 
@@ -102,21 +95,22 @@ def teach_one_demo(page: Page, variant: int) -> None:
     page.get_by_role("button", name="Record").click()
     ui.wait_text(page, "Recording")
     dv = 4.0 * variant
+    # Each step waits until the arm (or gripper) arrived and held still, as a teacher does.
     for label, value in (
         ("Left shoulder lift (s1) °", -40 + dv),
         ("Left elbow bend (e1) °", 100 - dv),
     ):
         ui.set_number(page, label, value)
-    time.sleep(1.5)
+    ui.wait_arm_settled(page)
     ui.click_in_row(page, "Left gripper", "Close")
-    time.sleep(1.2)
+    ui.wait_status(page, "s.open < 1")
     ui.set_number(page, "Left shoulder turn (s0) °", 30 + dv)
-    time.sleep(1.5)
+    ui.wait_arm_settled(page)
     ui.click_in_row(page, "Left gripper", "Open")
-    time.sleep(1.0)
+    ui.wait_status(page, "s.open > 99")
     ui.set_number(page, "Left shoulder turn (s0) °", 0 - dv)
     ui.set_number(page, "Left shoulder lift (s1) °", -55)
-    time.sleep(1.5)
+    ui.wait_arm_settled(page)
     page.get_by_role("button", name="Stop").click()
     ui.wait_text(page, "Not recording")
 
@@ -132,30 +126,31 @@ def test_teach_a_skill_like_a_user(browser, studio_factory, shots, tmp_path) -> 
     ui.open_folder(page, "Joints")
     before = gripper_status(page)
     ui.set_number(page, "Left elbow bend (e1) °", 70)
-    wait_status(page, lambda s: abs(s["x"] - before["x"]) + abs(s["z"] - before["z"]) > 0.05)
+    ui.wait_status(page, f"Math.abs(s.x - {before['x']}) + Math.abs(s.z - {before['z']}) > 0.05")
     shots(page, "moved with a joint slider")
 
     # Move it with the gripper handle (gizmo): mouse drag on the handle's arrow.
     q = np.array([0.08, -1.0, -1.19, math.radians(70), 0.67, 1.03, -0.50])
-    time.sleep(2.0)  # let the arm arrive so the handle is where we aim
+    ui.wait_arm_settled(page)  # the arm arrived, so the handle is where we aim
     settled = gripper_status(page)
-    moved = None
+    moved = False
     for axis in (2, 0, 1):  # the handle's arrows; a miss would orbit the camera instead, so try another
         drag_gizmo(page, q, axis=axis, pixels=-80)
         try:
-            moved = wait_status(page, lambda s: max(abs(s[k] - settled[k]) for k in ("x", "y", "z")) > 0.02, 8.0)
+            ui.wait_status(page, moved_from(settled), timeout=8.0)
+            moved = True
             break
-        except AssertionError:
+        except PlaywrightTimeout:
             continue
-    assert moved is not None, "dragging the gripper handle did not move the arm"
+    assert moved, "dragging the gripper handle did not move the arm"
     shots(page, "moved with the gripper handle")
 
     # Close and open the gripper.
     ui.click_in_row(page, "Left gripper", "Close")
-    wait_status(page, lambda s: s["open"] < 1)
+    ui.wait_status(page, "s.open < 1")
     shots(page, "gripper closed")
     ui.click_in_row(page, "Left gripper", "Open")
-    wait_status(page, lambda s: s["open"] > 99)
+    ui.wait_status(page, "s.open > 99")
 
     # Record three demonstrations.
     for v in range(3):
@@ -169,11 +164,7 @@ def test_teach_a_skill_like_a_user(browser, studio_factory, shots, tmp_path) -> 
     counts0 = ui.keypoint_counts(page)
     shots(page, "key-points default")
     ui.set_number(page, "Travel distance (ε5)", 0.03)
-    deadline = time.monotonic() + 15
-    counts1 = counts0
-    while time.monotonic() < deadline and counts1 == counts0:
-        time.sleep(0.3)
-        counts1 = ui.keypoint_counts(page)
+    counts1 = ui.wait_keypoint_counts_change(page, counts0)
     assert counts1 != counts0, f"key-point counts did not change: {counts0}"
     assert sum(counts1.values()) > sum(counts0.values())
     shots(page, "key-points after moving eps5")
@@ -192,10 +183,10 @@ def test_teach_a_skill_like_a_user(browser, studio_factory, shots, tmp_path) -> 
     start = gripper_status(page)
     ui.click_in_row(page, "Playback", "Play")
     ui.wait_text(page, "learned skill \\(preview\\), playing")
-    time.sleep(2.0)
+    ui.wait_status(page, f"Math.abs(s.x - {start['x']}) + Math.abs(s.y - {start['y']}) > 0.01")
+    time_box = ui.row(page, "Time (s)").locator("input.mantine-NumberInput-input")
+    expect(time_box).not_to_have_value(re.compile(r"^0(\.0*)?$"))
     shots(page, "preview playing")
-    moved = wait_status(page, lambda s: abs(s["x"] - start["x"]) + abs(s["y"] - start["y"]) > 0.01)
-    assert moved
     assert ui.number_value(page, "Time (s)") > 0
 
     # Save, restart the server, open the session and find everything back.

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import re
-import time
 
 from playwright.sync_api import Locator, Page, expect
 
@@ -23,7 +22,8 @@ def wait_ready(page: Page) -> None:
     expect(page.get_by_text("Teaching Studio", exact=True).first).to_be_visible(timeout=30_000)
     expect(page.get_by_role("button", name="Record")).to_be_visible(timeout=30_000)
     page.wait_for_function("() => document.querySelector('canvas') !== null", timeout=30_000)
-    time.sleep(1.5)  # let the streamed meshes arrive and draw
+    # The robot's status arrives after its meshes (viser replays the scene in the order it was built).
+    expect(page.locator(".gripper-status").first).to_be_attached(timeout=30_000)
     dismiss_notifications(page)
 
 
@@ -66,16 +66,16 @@ def click_in_row(page: Page, label: str, button: str) -> None:
 
 
 def tab(page: Page, name: str) -> None:
-    page.get_by_role("tab", name=name).click()
-    time.sleep(0.3)
+    t = page.get_by_role("tab", name=name)
+    t.click()
+    expect(t).to_have_attribute("aria-selected", "true")
 
 
 def open_folder(page: Page, title: str) -> None:
-    """Expand a collapsed folder by its title (no-op when open)."""
+    """Expand a collapsed folder by its title (the controls inside are then found by auto-waiting locators)."""
     head = page.get_by_text(title, exact=True).first
     head.scroll_into_view_if_needed()
     head.click()
-    time.sleep(0.3)
 
 
 def choose(page: Page, label: str, option: str) -> None:
@@ -99,5 +99,61 @@ def keypoint_counts(page: Page) -> dict[str, int]:
     """Key-point count per demo as shown in the Key-points tab (data attributes of the count rows)."""
     out = {}
     for el in page.locator(".kp-count").all():
-        out[f"{el.get_attribute('data-demo')}:{el.get_attribute('data-arm')}"] = int(el.get_attribute("data-count"))
+        key = f"{el.get_attribute('data-demo')}:{el.get_attribute('data-arm')}"
+        out[key] = int(el.get_attribute("data-count") or -1)
     return out
+
+
+def wait_number(page: Page, label: str, value: float, timeout: float = 15.0) -> None:
+    """Wait until the number box of the slider ``label`` shows ``value`` (e.g. a change made in another tab)."""
+    box = row(page, label).locator("input.mantine-NumberInput-input")
+    expect(box).to_have_value(re.compile(rf"^{re.escape(str(value))}0*$"), timeout=timeout * 1000)
+
+
+_SETTLED_JS = """([arm, quietMs]) => {
+    const el = document.querySelector(`.gripper-status[data-arm="${arm}"]`);
+    if (!el) return false;
+    const v = ["x", "y", "z", "open"].map(k => el.dataset[k]).join(",");
+    const now = performance.now();
+    const key = "__settled_" + arm;
+    const st = window[key];
+    if (!st || st.v !== v) { window[key] = {v, since: now}; return false; }
+    return now - st.since >= quietMs;
+}"""
+
+
+def wait_arm_settled(page: Page, arm: str = "left", quiet_s: float = 0.6, timeout: float = 20.0) -> None:
+    """Wait until the robot's status (gripper position and opening) has not changed for ``quiet_s`` seconds:
+    the arm arrived where it was sent, as a teacher waits before the next step."""
+    page.evaluate("arm => { delete window['__settled_' + arm]; }", arm)
+    page.wait_for_function(_SETTLED_JS, arg=[arm, quiet_s * 1000], polling=100, timeout=timeout * 1000)
+
+
+_STATUS_JS = """([arm, expr]) => {
+    const el = document.querySelector(`.gripper-status[data-arm="${arm}"]`);
+    if (!el) return false;
+    const s = Object.fromEntries(["x", "y", "z", "open"].map(k => [k, parseFloat(el.dataset[k])]));
+    return Function("s", "return (" + expr + ");")(s);
+}"""
+
+
+def wait_status(page: Page, expr: str, arm: str = "left", timeout: float = 15.0) -> None:
+    """Wait until the JavaScript expression ``expr`` over the robot status ``s`` (s.x, s.y, s.z in m, s.open in
+    percent) holds, e.g. ``"s.open < 1"``."""
+    page.wait_for_function(_STATUS_JS, arg=[arm, expr], polling=100, timeout=timeout * 1000)
+
+
+_COUNTS_JS = """before => {
+    const now = {};
+    for (const el of document.querySelectorAll(".kp-count")) {
+        now[el.dataset.demo + ":" + el.dataset.arm] = parseInt(el.dataset.count);
+    }
+    const keys = Object.keys(now);
+    return keys.length > 0 && (keys.length !== Object.keys(before).length || keys.some(k => now[k] !== before[k]));
+}"""
+
+
+def wait_keypoint_counts_change(page: Page, before: dict[str, int], timeout: float = 15.0) -> dict[str, int]:
+    """Wait until the key-point counts shown differ from ``before``; returns the new counts."""
+    page.wait_for_function(_COUNTS_JS, arg=before, polling=100, timeout=timeout * 1000)
+    return keypoint_counts(page)

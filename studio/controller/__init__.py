@@ -1,0 +1,171 @@
+"""The studio's controller: its state and every action, over the core, the robot backend and the storage.
+
+It knows nothing of viser (:class:`studio.app.Studio` has one and adds the server, scene and panels), so it
+runs and is tested without a browser. One module per concern:
+
+    events.py     Topic, Events: what changed, for the views to redraw
+    context.py    Context (open session, lock, events, notifications, work thread), Notifier, LogNotifier
+    pose.py       PoseSource, Display: which robot pose the scene draws
+    teaching.py   Teaching: arms, moving the live robot (IK), reach, recording
+    demos.py      Demos, DemoSummary: the demonstrations, their cache and edits
+    learning.py   KeypointTuning (ε, k, the live key-point view), Training (train, skills)
+    playback.py   Player, Playback: preview of the skill and replay of a demo, one mechanism
+    sessions.py   SessionActions: open, new, save, duplicate, zip, CSV; switching sessions
+
+Threads: the backend's thread delivers joint states (only the newest is kept); one *work* thread runs heavy
+jobs (training) one at a time; one *key-point* thread recomputes the key-point view (newest request wins);
+GUI callbacks call the actions from viser's thread pool; shared state is guarded by ``ctx.lock``.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from typing import ParamSpec, TypeVar
+
+import numpy as np
+
+from studio.controller.context import Context, Kind, LogNotifier, Notifier
+from studio.controller.demos import PALETTE, Demos, DemoSummary
+from studio.controller.events import Events, Topic
+from studio.controller.learning import KeypointItem, KeypointTuning, KeypointView, Training, UsedDemo
+from studio.controller.playback import PREVIEW, REPLAY, Playback, PlaybackKind, Player
+from studio.controller.pose import Display, PoseSource
+from studio.controller.sessions import RECOVERED, SessionActions, open_or_create
+from studio.controller.teaching import Reach, Teaching
+from studio.core.kinematics import Baxter
+from studio.robot_backend.base import RobotBackend
+from studio.storage import Session, SessionStore
+
+log = logging.getLogger(__name__)
+P = ParamSpec("P")
+R = TypeVar("R")
+
+
+class Controller:
+    """The studio without its GUI: a thin composition of the parts, each an attribute a panel uses.
+
+    Attributes:
+        teaching, demos, keypoints, training, playback, sessions: the parts (see the module docstring).
+        display: the pose the scene draws; events: the topics to subscribe to; baxter: the kinematic model.
+
+    Start it with :meth:`start` (robot streaming, key-point thread) and stop it with :meth:`shutdown`.
+    """
+
+    def __init__(
+        self,
+        *,
+        store: SessionStore,
+        session: str,
+        backend: RobotBackend,
+        baxter: Baxter | None = None,
+        notifier: Notifier | None = None,
+    ) -> None:
+        baxter = baxter if baxter is not None else Baxter.load()
+        self.ctx = Context(store, open_or_create(store, session), baxter, notifier or LogNotifier())
+        self.display = Display()
+        self.demos = Demos(self.ctx)
+        self.teaching = Teaching(self.ctx, backend, self.display, self.demos)
+        self.playback = Player(self.ctx, self.display, self._robot_pose)
+        arms = self._arms
+        self.keypoints = KeypointTuning(self.ctx, self.demos, arms)
+        self.training = Training(self.ctx, self.demos, self.keypoints, arms, self.playback)
+        self.sessions = SessionActions(
+            self.ctx, self.display, self.teaching, self.demos, self.keypoints, self.training, self.playback
+        )
+
+    def _arms(self) -> tuple[str, ...]:
+        return self.teaching.selected_arms
+
+    def _robot_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.teaching.robot_q(), self.teaching.robot_gripper()
+
+    # -- shared things -------------------------------------------------------------------------------------
+    @property
+    def session(self) -> Session:
+        """The open session (switch it with ``sessions.open`` / ``new`` / ``duplicate``)."""
+        return self.ctx.session
+
+    @property
+    def store(self) -> SessionStore:
+        return self.ctx.store
+
+    @property
+    def baxter(self) -> Baxter:
+        return self.ctx.baxter
+
+    @property
+    def backend(self) -> RobotBackend:
+        return self.teaching.backend
+
+    @property
+    def events(self) -> Events:
+        return self.ctx.events
+
+    @property
+    def notifier(self) -> Notifier:
+        return self.ctx.notifier
+
+    @notifier.setter
+    def notifier(self, notifier: Notifier) -> None:
+        self.ctx.notifier = notifier
+
+    def notify(self, title: str, body: str, *, kind: Kind = "error", client: object | None = None) -> None:
+        self.ctx.notify(title, body, kind=kind, client=client)
+
+    def report(self, exc: BaseException, *, title: str = "That did not work", client: object | None = None) -> None:
+        self.ctx.report(exc, title=title, client=client)
+
+    def guarded(self, title: str = "That did not work") -> Callable[[Callable[P, R]], Callable[P, R | None]]:
+        """Decorator for GUI callbacks: any failure becomes a notification; the studio keeps running."""
+        return self.ctx.guarded(title)
+
+    # -- lifecycle -----------------------------------------------------------------------------------------
+    def start(self) -> None:
+        """Follow the robot (start streaming) and start the key-point thread."""
+        self.teaching.start_robot()
+        self.keypoints.start()
+
+    def close(self) -> None:
+        """Keep a running take and unsaved thresholds (failures are logged), and stop the key-point thread."""
+        self.teaching.save_running_recording()
+        try:
+            self.keypoints.persist()
+        except Exception:
+            log.exception("saving the key-point settings at shutdown")
+        self.keypoints.close()
+
+    def shutdown(self) -> None:
+        """Stop following the robot, stop it, unload playback and drop queued work."""
+        self.playback.unload()
+        self.teaching.stop_robot()
+        self.ctx.shutdown()
+
+
+__all__ = [
+    "PALETTE",
+    "PREVIEW",
+    "RECOVERED",
+    "REPLAY",
+    "Context",
+    "Controller",
+    "DemoSummary",
+    "Demos",
+    "Display",
+    "Events",
+    "KeypointItem",
+    "KeypointTuning",
+    "KeypointView",
+    "LogNotifier",
+    "Notifier",
+    "Playback",
+    "PlaybackKind",
+    "Player",
+    "PoseSource",
+    "Reach",
+    "SessionActions",
+    "Teaching",
+    "Topic",
+    "Training",
+    "UsedDemo",
+]

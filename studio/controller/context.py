@@ -1,0 +1,125 @@
+"""What every part of the controller shares: the open session, one lock, the events, notifications, and one
+work thread for heavy jobs. Failures anywhere become plain-words notifications; the studio keeps running."""
+
+from __future__ import annotations
+
+import functools
+import logging
+import threading
+from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
+from typing import Literal, ParamSpec, Protocol, TypeVar
+
+from studio.controller.events import Events, Topic
+from studio.core.errors import StudioError
+from studio.core.kinematics import Baxter
+from studio.storage import Session, SessionStore
+
+log = logging.getLogger(__name__)
+
+P = ParamSpec("P")
+R = TypeVar("R")
+Kind = Literal["error", "warning", "info", "success"]
+
+
+class Notifier(Protocol):
+    """Tells the person something in plain words (the app shows it in the browser tabs).
+
+    ``client`` is the tab to tell (an opaque handle from the GUI event), or None for every tab.
+    """
+
+    def notify(self, title: str, body: str, *, kind: Kind = "error", client: object | None = None) -> None: ...
+
+
+class LogNotifier:
+    """Notifications without a GUI: logged (tests and headless use)."""
+
+    def notify(self, title: str, body: str, *, kind: Kind = "error", client: object | None = None) -> None:
+        if kind in ("error", "warning"):
+            log.warning("%s: %s", title, body)
+        else:
+            log.info("%s: %s", title, body)
+
+
+class Context:
+    """Shared by the parts of the :class:`~studio.controller.Controller`.
+
+    Attributes:
+        store: the sessions on disk; ``session`` is the open one (switched only by the session actions).
+        baxter: the kinematic model (FK/IK).
+        notifier: where notifications go (replaceable, e.g. by a test that records them).
+        events: the topics the views subscribe to.
+        lock: guards the state the parts share (session switches, the recorder, training).
+    """
+
+    def __init__(self, store: SessionStore, session: Session, baxter: Baxter, notifier: Notifier) -> None:
+        self.store = store
+        self.session = session
+        self.baxter = baxter
+        self.notifier = notifier
+        self.events = Events()
+        self.lock = threading.RLock()
+        self._work = ThreadPoolExecutor(max_workers=1, thread_name_prefix="studio-work")
+
+    def notify(self, title: str, body: str, *, kind: Kind = "error", client: object | None = None) -> None:
+        self.notifier.notify(title, body, kind=kind, client=client)
+
+    def emit(self, topic: Topic) -> None:
+        self.events.emit(topic)
+
+    def report(self, exc: BaseException, *, title: str = "That did not work", client: object | None = None) -> None:
+        """A failure as a notification: a :class:`StudioError`'s own words, anything else logged with its
+        traceback and told in general words."""
+        if isinstance(exc, StudioError):
+            self.notify(title, str(exc), client=client)
+            return
+        log.error("%s", title, exc_info=exc)
+        self.notify(
+            title,
+            f"Something unexpected went wrong ({type(exc).__name__}: {exc}). Your work is kept; you can try again.",
+            client=client,
+        )
+
+    def guarded(self, title: str = "That did not work") -> Callable[[Callable[P, R]], Callable[P, R | None]]:
+        """Decorator for GUI callbacks: any failure becomes a notification (to the tab of the event, when the
+        first argument is a GUI event with a ``client``); the studio keeps running."""
+
+        def deco(fn: Callable[P, R]) -> Callable[P, R | None]:
+            @functools.wraps(fn)
+            def wrapper(*args: P.args, **kwargs: P.kwargs) -> R | None:
+                try:
+                    return fn(*args, **kwargs)
+                except Exception as exc:
+                    client = getattr(args[0], "client", None) if args else None  # viser's GuiEvent
+                    self.report(exc, title=title, client=client)
+                    return None
+
+            return wrapper
+
+        return deco
+
+    def submit(
+        self,
+        job: Callable[[], R],
+        *,
+        done: Callable[[R], None] | None = None,
+        title: str = "That did not work",
+    ) -> Future[R | None]:
+        """Run ``job`` on the work thread (one job at a time); ``done(result)`` runs there too. A failure is a
+        notification and the future's result is None."""
+
+        def run() -> R | None:
+            try:
+                result = job()
+                if done is not None:
+                    done(result)
+                return result
+            except Exception as exc:
+                self.report(exc, title=title)
+                return None
+
+        return self._work.submit(run)
+
+    def shutdown(self) -> None:
+        """Drop queued work (a running job finishes on its own)."""
+        self._work.shutdown(wait=False, cancel_futures=True)

@@ -1,0 +1,164 @@
+"""The session's demonstrations as the studio shows them: colours, visibility, the 8-D Demo per arm (FK once,
+cached), and the edits (hide, rename, trim, delete with a second press to confirm)."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+from studio.controller.context import Context
+from studio.controller.events import Topic
+from studio.core.errors import StudioError
+from studio.core.types import Demo, Recording
+
+#: Demo colours (RGB), distinct on the light background and never red (red marks the cluster centroids).
+PALETTE: tuple[tuple[int, int, int], ...] = (
+    (31, 119, 180),
+    (44, 160, 44),
+    (255, 127, 14),
+    (148, 103, 189),
+    (140, 86, 75),
+    (227, 119, 194),
+    (127, 127, 127),
+    (188, 189, 34),
+    (23, 190, 207),
+    (57, 59, 121),
+)
+
+
+@dataclass(frozen=True)
+class DemoSummary:
+    """One row of the demo list."""
+
+    index: int
+    name: str
+    color: tuple[int, int, int]
+    duration: float
+    samples: int
+    arms: tuple[str, ...]
+    visible: bool
+
+
+class Demos:
+    """The open session's demonstrations; every edit is saved at once and announced as :attr:`Topic.DEMOS`."""
+
+    #: Seconds within which a second Delete press confirms the first.
+    DELETE_CONFIRM_S = 5.0
+
+    def __init__(self, ctx: Context) -> None:
+        self.ctx = ctx
+        self._cache: dict[tuple[int, str], tuple[Recording, Demo]] = {}
+        self._delete_pending: tuple[str, float] | None = None  # (demo name, time of the first Delete press)
+
+    # -- reading -------------------------------------------------------------------------------------------
+    def recordings(self) -> list[Recording]:
+        return list(self.ctx.session.recordings)
+
+    def names(self) -> list[str]:
+        return [r.name for r in self.recordings()]
+
+    @property
+    def hidden(self) -> set[str]:
+        """Names of the hidden demonstrations (saved with the session)."""
+        return self.ctx.session.hidden_demos
+
+    @staticmethod
+    def color(i: int) -> tuple[int, int, int]:
+        return PALETTE[i % len(PALETTE)]
+
+    def visible(self, i: int) -> bool:
+        names = self.names()
+        return 0 <= i < len(names) and names[i] not in self.hidden
+
+    def duration(self, i: int) -> float:
+        return float(self.recordings()[i].duration)
+
+    def summaries(self) -> list[DemoSummary]:
+        hidden = self.hidden
+        return [
+            DemoSummary(i, r.name, self.color(i), float(r.duration), len(r), tuple(r.arms), r.name not in hidden)
+            for i, r in enumerate(self.recordings())
+        ]
+
+    def demo(self, i: int, arm: str) -> Demo:
+        """The 8-D Demo of recording ``i`` for ``arm`` (FK once, cached)."""
+        return self.demo_of(self.recordings()[i], arm)
+
+    def demo_of(self, rec: Recording, arm: str) -> Demo:
+        """The 8-D Demo of recording object ``rec`` for ``arm`` (FK once, cached)."""
+        from studio.core.pipeline import demo_from_recording
+
+        key = (id(rec), arm)
+        hit = self._cache.get(key)
+        if hit is not None and hit[0] is rec:  # the same object, not a new one that reused a freed id
+            return hit[1]
+        d = demo_from_recording(rec, arm, baxter=self.ctx.baxter)
+        self._cache[key] = (rec, d)
+        return d
+
+    def for_arm(self, arm: str) -> list[tuple[int, Demo]]:
+        """(index, Demo) of every shown recording that taught ``arm`` (what learning uses)."""
+        hidden = self.hidden
+        return [
+            (i, self.demo_of(r, arm))
+            for i, r in enumerate(self.recordings())  # one list: a demo deleted meanwhile cannot shift rows
+            if arm in r.arms and r.name not in hidden
+        ]
+
+    # -- edits ---------------------------------------------------------------------------------------------
+    def set_visible(self, i: int, visible: bool) -> None:
+        with self.ctx.lock:
+            self.ctx.session.set_demo_hidden(i, not visible)
+        self.changed()
+
+    def rename(self, i: int, name: str) -> None:
+        name = name.strip()
+        if not name:
+            raise StudioError("Give the demonstration a name (it cannot be empty).")
+        names = self.names()
+        if name in names and names[i] != name:
+            raise StudioError(f'There is already a demonstration called "{name}"; choose another name.')
+        with self.ctx.lock:
+            self.ctx.session.rename_demo(i, name)  # a hidden demo stays hidden under its new name
+        self.changed()
+
+    def trim(self, i: int, t0: float, t1: float) -> None:
+        with self.ctx.lock:
+            self.ctx.session.trim_demo(i, t0, t1)
+        self.changed()
+
+    def delete(self, i: int) -> None:
+        with self.ctx.lock:
+            self.ctx.session.delete_demo(i)
+        self.changed()
+
+    def delete_confirmed(self, i: int, *, now: float | None = None) -> bool:
+        """The Delete button: the first press asks, a second press on the same demo within
+        :attr:`DELETE_CONFIRM_S` deletes it for good. Returns True when the demo was deleted."""
+        now = time.monotonic() if now is None else now
+        name = self.names()[i]
+        pending = self._delete_pending
+        if pending is not None and pending[0] == name and now - pending[1] <= self.DELETE_CONFIRM_S:
+            self._delete_pending = None
+            self.delete(i)
+            self.ctx.notify("Demonstration deleted", f'"{name}" was deleted.', kind="success")
+            return True
+        self._delete_pending = (name, now)
+        self.ctx.notify(
+            "Delete for good?",
+            f'Press Delete again within {self.DELETE_CONFIRM_S:.0f} seconds to delete "{name}" from disk. '
+            "To keep it but leave it out of learning, untick \"Show in the scene\" instead.",
+            kind="warning",
+        )
+        return False
+
+    def changed(self) -> None:
+        """The set of demonstrations changed: drop stale caches and tell the views."""
+        live = {id(r) for r in self.recordings()}
+        self._cache = {k: v for k, v in self._cache.items() if k[0] in live}
+        self.ctx.emit(Topic.DEMOS)
+
+    def clear(self) -> None:
+        """Forget everything cached (another session was opened)."""
+        self._cache = {}
+        self._delete_pending = None

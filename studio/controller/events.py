@@ -1,0 +1,70 @@
+"""Typed topics the views subscribe to: the controller says *what* changed, each panel redraws its part.
+
+Callbacks run on the thread that emitted (a GUI callback, the work thread, or the key-point worker); a
+failing callback is logged and never stops the others.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Callable
+from enum import StrEnum
+
+log = logging.getLogger(__name__)
+
+
+class Topic(StrEnum):
+    """What changed. Every emit of a topic says only that; subscribers read the new state from the controller."""
+
+    #: The taught arm(s) changed (``teaching.selected_arms``).
+    ARMS = "arms"
+    #: Demonstrations were added, renamed, trimmed, hidden, shown or deleted (``demos``).
+    DEMOS = "demos"
+    #: Another session is open (everything may have changed).
+    SESSION = "session"
+    #: The list of sessions on disk changed (``sessions.names()``).
+    SESSIONS = "sessions"
+    #: A recording started or stopped (``teaching.recording``).
+    RECORDING = "recording"
+    #: Whether an arm can reach where its handle was dragged changed (``teaching.reach``).
+    REACH = "reach"
+    #: A new key-point view is ready (``learning.view``).
+    KEYPOINTS = "keypoints"
+    #: Training started or finished (``learning.training``).
+    TRAINING = "training"
+    #: New skills were learned (``learning.skills()``).
+    SKILL = "skill"
+    #: A preview or replay was loaded or unloaded (``playback.kind``).
+    PLAYBACK = "playback"
+
+
+class Events:
+    """A small observer list per topic."""
+
+    def __init__(self) -> None:
+        self._subs: dict[Topic, list[Callable[[], None]]] = {}
+        self._lock = threading.Lock()
+
+    def on(self, topic: Topic, fn: Callable[[], None]) -> Callable[[], None]:
+        """Call ``fn()`` after every emit of ``topic``; returns a function that unsubscribes it."""
+        topic = Topic(topic)
+        with self._lock:
+            self._subs.setdefault(topic, []).append(fn)
+
+        def off() -> None:
+            with self._lock:
+                subs = self._subs.get(topic, [])
+                if fn in subs:
+                    subs.remove(fn)
+
+        return off
+
+    def emit(self, topic: Topic) -> None:
+        with self._lock:
+            subs = list(self._subs.get(Topic(topic), ()))
+        for fn in subs:
+            try:
+                fn()
+            except Exception:  # a broken view must not break the others
+                log.exception("view update for %s failed", topic)

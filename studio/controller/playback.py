@@ -1,0 +1,210 @@
+"""Playing a recording on the drawn robot: the learned skill (preview) or a recorded demonstration (replay).
+
+One :class:`Player` does both; the only difference is where the recording comes from (the skills' joint
+trajectories, sampled as the CSV export samples them, or a demonstration of the session). At most one
+playback is loaded; the scene follows it while it is shown (:class:`~studio.controller.pose.Display`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Literal
+
+import numpy as np
+
+from studio.controller.context import Context
+from studio.controller.events import Topic
+from studio.controller.pose import Display, PoseSource
+from studio.core import sampling
+from studio.core.errors import NotEnoughData, StudioError
+from studio.core.types import Recording
+from studio.robot_backend.base import JointStateBatch
+from studio.robot_backend.replay import ReplayBackend
+
+PlaybackKind = Literal["preview", "replay"]
+PREVIEW: PlaybackKind = "preview"
+REPLAY: PlaybackKind = "replay"
+#: Samples per second of the preview recording.
+PREVIEW_RATE_HZ = 100.0
+
+
+class Playback:
+    """A recording streamed by a :class:`ReplayBackend` into a :class:`PoseSource` the scene can show."""
+
+    def __init__(self, kind: PlaybackKind, recording: Recording, key: object, speed: float = 1.0) -> None:
+        self.kind = kind
+        self.recording = recording
+        self.key = key
+        self.backend = ReplayBackend(recording, speed=speed)
+        self.source = PoseSource()
+        st = self.backend.state()
+        self.source.set(st.t, st.q, st.gripper)
+        self._unsub = self.backend.subscribe(self._on_batch)
+
+    def _on_batch(self, batch: JointStateBatch) -> None:
+        if len(batch):
+            self.source.set(float(batch.t[-1]), batch.q[-1], batch.gripper[-1])
+
+    @property
+    def position(self) -> float:
+        return self.backend.position
+
+    @property
+    def playing(self) -> bool:
+        return self.backend.running
+
+    @property
+    def finished(self) -> bool:
+        return self.backend.finished
+
+    def play(self) -> None:
+        self.backend.start()
+
+    def pause(self) -> None:
+        self.backend.stop()
+
+    def set_speed(self, speed: float) -> None:
+        self.backend.speed = float(speed)
+
+    def seek(self, t: float) -> None:
+        self.backend.seek(t)
+        i = int(np.clip(np.searchsorted(self.recording.t, t), 0, len(self.recording) - 1))
+        self.source.set(float(self.recording.t[i]), self.recording.q[i], self.recording.gripper[i])
+
+    def close(self) -> None:
+        self._unsub()
+        self.backend.stop()
+
+
+class Player:
+    """Loads, plays, pauses, seeks and unloads the one playback; every action names the kind it is for.
+
+    Args:
+        robot_pose: the live robot's joints (14,) and grippers (2,): the arms without a skill hold them in
+            the preview.
+    """
+
+    def __init__(self, ctx: Context, display: Display, robot_pose: Callable[[], tuple[np.ndarray, np.ndarray]]) -> None:
+        self.ctx = ctx
+        self.display = display
+        self.robot_pose = robot_pose
+        self._loaded: Playback | None = None
+
+    # -- state -----------------------------------------------------------------------------------------------
+    @property
+    def kind(self) -> PlaybackKind | None:
+        """The loaded playback ("preview" or "replay", playing or paused), or None when the scene is live."""
+        pb = self._loaded
+        return pb.kind if pb is not None else None
+
+    @property
+    def loaded(self) -> Playback | None:
+        return self._loaded
+
+    def _get(self, kind: PlaybackKind) -> Playback | None:
+        pb = self._loaded
+        return pb if pb is not None and pb.kind == kind else None
+
+    def position(self, kind: PlaybackKind) -> float | None:
+        """Seconds into the ``kind`` playback while it plays (None when paused, finished or not loaded)."""
+        pb = self._get(kind)
+        return pb.position if pb is not None and pb.playing else None
+
+    def label(self) -> str:
+        """What the drawn robot shows, in plain words."""
+        pb = self._loaded
+        if self.display.is_live or pb is None:
+            return "Showing the robot live."
+        what = "the learned skill (preview)" if pb.kind == PREVIEW else f'demonstration "{pb.recording.name}"'
+        state = "playing" if pb.playing else "paused"
+        return f"Showing {what}, {state}."
+
+    # -- actions ---------------------------------------------------------------------------------------------
+    def play(self, kind: PlaybackKind, key: object, make: Callable[[], Recording], speed: float = 1.0) -> Playback:
+        """Play (resume when the ``kind`` playback of ``key`` is loaded, from the start once it finished)."""
+        pb = self._get(kind)
+        if pb is not None and pb.key is key:
+            if pb.finished:
+                pb.seek(0.0)
+            pb.set_speed(speed)
+            self.display.show(pb.source)
+            pb.play()
+            return pb
+        pb = self._load(kind, key, make(), speed)
+        pb.play()
+        return pb
+
+    def pause(self, kind: PlaybackKind) -> None:
+        pb = self._get(kind)
+        if pb is not None:
+            pb.pause()
+
+    def set_speed(self, kind: PlaybackKind, speed: float) -> None:
+        pb = self._get(kind)
+        if pb is not None:
+            pb.set_speed(speed)
+
+    def seek(
+        self, kind: PlaybackKind, t: float, key: object = None, make: Callable[[], Recording] | None = None
+    ) -> None:
+        """Show the moment ``t`` s; loads the playback paused when ``make`` is given and it is not loaded."""
+        pb = self._get(kind)
+        if pb is None:
+            if make is None:
+                raise StudioError("Press Play first to choose a demonstration to replay.")
+            pb = self._load(kind, key, make(), 1.0)
+        pb.seek(t)
+        self.display.show(pb.source)
+
+    def stop(self, kind: PlaybackKind) -> None:
+        """Unload the ``kind`` playback (if loaded) and show the live robot."""
+        if self._get(kind) is not None:
+            self.unload()
+        self.display.show_live()
+
+    def unload_preview(self) -> None:
+        """A new skill was learned: unload the preview of the old one (the scene goes live if it showed it)."""
+        if self._get(PREVIEW) is not None:
+            self.unload()
+            self.display.show_live()
+
+    def unload(self) -> None:
+        """Unload whatever is loaded (the scene keeps the current source until told otherwise)."""
+        pb, self._loaded = self._loaded, None
+        if pb is not None:
+            pb.close()
+            self.ctx.emit(Topic.PLAYBACK)
+
+    def _load(self, kind: PlaybackKind, key: object, recording: Recording, speed: float) -> Playback:
+        self.unload()
+        pb = Playback(kind, recording, key, speed)
+        self._loaded = pb
+        self.display.show(pb.source)
+        self.ctx.emit(Topic.PLAYBACK)
+        return pb
+
+    # -- the two sources ---------------------------------------------------------------------------------------
+    def preview_duration(self) -> float:
+        return sampling.duration(self.ctx.session.skills)
+
+    def preview_recording(self) -> Recording:
+        """The learned joint trajectories of all arms as one Recording (arms without a skill hold still)."""
+        skills = sampling.executable(self.ctx.session.skills)
+        if not skills:
+            raise NotEnoughData("There is no learned skill to preview yet: press Train first.")
+        t_end = sampling.duration(skills)
+        t = np.linspace(0.0, max(t_end, 0.01), max(2, int(t_end * PREVIEW_RATE_HZ) + 1))
+        q, g = sampling.sample_joints(skills, t, *self.robot_pose())
+        return Recording(t=t, q=q, gripper=g, arms=tuple(skills), name="learned skill")
+
+    def play_preview(self, speed: float = 1.0) -> None:
+        self.play(PREVIEW, PREVIEW, self.preview_recording, speed)
+
+    def seek_preview(self, t: float) -> None:
+        self.seek(PREVIEW, t, PREVIEW, self.preview_recording)
+
+    def play_demo(self, i: int, speed: float = 1.0) -> float:
+        """Replay recorded demonstration ``i`` on the (drawn) robot; returns its duration."""
+        rec = self.ctx.session.recordings[i]
+        self.play(REPLAY, rec, lambda: rec, speed)
+        return float(rec.duration)

@@ -1,0 +1,160 @@
+"""Session actions: open, new, save, duplicate, download and upload a session, export the learned trajectory;
+and switching the whole controller to another session (never while recording or training)."""
+
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+
+from studio.controller.context import Context
+from studio.controller.demos import Demos
+from studio.controller.events import Topic
+from studio.controller.learning import KeypointTuning, Training
+from studio.controller.playback import Player
+from studio.controller.pose import Display
+from studio.controller.teaching import Teaching
+from studio.core.errors import InvalidInput, StudioError
+from studio.storage import Session, SessionStore, check_session_name
+
+#: Title of the note told once after a crash recovery (damaged files are told to every new tab).
+RECOVERED = "Recovered recordings"
+
+
+def open_or_create(store: SessionStore, name: str) -> Session:
+    """Open session ``name``, or create it when there is none of that name (a damaged one is an error)."""
+    try:
+        return store.open(name)
+    except StudioError:
+        if name in store.list_sessions():
+            raise
+        return store.create(name)
+
+
+def session_notes(session: Session) -> list[tuple[str, str]]:
+    """(title, body) warnings from opening ``session``: crash recovery, damaged files."""
+    notes = [(RECOVERED, session.recovery_message)] if session.recovery_message else []
+    return notes + [("Part of the session could not be read", p) for p in session.problems]
+
+
+class SessionActions:
+    """The Sessions panel's actions; each refuses in plain words while a recording or training runs."""
+
+    def __init__(
+        self,
+        ctx: Context,
+        display: Display,
+        teaching: Teaching,
+        demos: Demos,
+        keypoints: KeypointTuning,
+        training: Training,
+        player: Player,
+    ) -> None:
+        self.ctx = ctx
+        self.display = display
+        self.teaching = teaching
+        self.demos = demos
+        self.keypoints = keypoints
+        self.training = training
+        self.player = player
+        self._startup_notes = session_notes(ctx.session)
+
+    @property
+    def current(self) -> Session:
+        return self.ctx.session
+
+    def names(self) -> list[str]:
+        return self.ctx.store.list_sessions()
+
+    # -- notes from opening --------------------------------------------------------------------------------
+    def startup_notes(self) -> list[tuple[str, str]]:
+        """(title, body) warnings from opening the session (crash recovery, damaged files), for a new tab."""
+        return list(self._startup_notes)
+
+    def startup_notes_shown(self) -> None:
+        """A tab got the notes: a recovery is told once, damaged files to every new tab."""
+        self._startup_notes = [n for n in self._startup_notes if n[0] != RECOVERED]
+
+    # -- actions -------------------------------------------------------------------------------------------
+    def _check_can_switch(self, doing: str) -> None:
+        """Refuse, in plain words, to change the open session while recording or training."""
+        if self.teaching.recording:
+            raise StudioError(f"Stop the recording before {doing}.")
+        if self.training.busy:
+            raise StudioError(f"Wait for the training to finish before {doing}.")
+
+    def open(self, name: str) -> None:
+        self._check_can_switch("opening another session")
+        session = self.ctx.store.open(name)
+        self.switch(session)
+        self._startup_notes = session_notes(session)
+        for title, body in self._startup_notes:
+            self.ctx.notify(title, body, kind="warning")
+        self.startup_notes_shown()  # told to every open tab
+
+    def new(self, name: str) -> None:
+        self._check_can_switch("starting a new session")
+        name = check_session_name(_typed_name(name))
+        session = self.ctx.store.create(name, arms=self.teaching.selected_arms)
+        self.switch(session)
+        self.ctx.emit(Topic.SESSIONS)
+
+    def save(self) -> None:
+        self.keypoints.persist()
+        self.ctx.store.save(self.ctx.session)
+        self.ctx.notify("Saved", f'Session "{self.ctx.session.name}" is saved.', kind="success")
+
+    def duplicate(self, new_name: str) -> None:
+        self._check_can_switch("copying the session")
+        new_name = check_session_name(_typed_name(new_name))
+        if self.ctx.store.path_of(new_name).exists():  # checked before "Saved" is shown
+            raise InvalidInput(f'A session called "{new_name}" already exists; choose another name.')
+        self.save()
+        copy = self.ctx.store.duplicate(self.ctx.session.name, new_name)
+        self.switch(copy)
+        self.ctx.emit(Topic.SESSIONS)
+
+    def zip(self) -> tuple[str, bytes]:
+        """(file name, bytes) of the open session as a zip archive, saved first."""
+        self.keypoints.persist()
+        self.ctx.store.save(self.ctx.session)
+        return f"{self.ctx.session.name}.zip", self.ctx.store.export_zip(self.ctx.session.name)
+
+    def import_zip(self, filename: str, data: bytes) -> str:
+        """Add an uploaded session archive (validated first: a bad file changes nothing) and open it."""
+        self._check_can_switch("uploading a session")  # checked first so that a refused upload adds nothing
+        name = self.ctx.store.import_zip(data, archive=filename)
+        self.ctx.emit(Topic.SESSIONS)
+        self.open(name)
+        self.ctx.notify("Session uploaded", f'"{filename}" was added as session "{name}" and opened.', kind="success")
+        return name
+
+    def trajectory_csv(self) -> tuple[str, bytes]:
+        """(file name, bytes) of the learned joint trajectory as a Baxter SDK CSV."""
+        from studio.csv_io import export_joint_trajectory_csv
+
+        with tempfile.TemporaryDirectory() as d:
+            path = Path(d) / f"{self.ctx.session.name}-trajectory.csv"
+            export_joint_trajectory_csv(self.ctx.session.skills, path)
+            return path.name, path.read_bytes()
+
+    def switch(self, session: Session) -> None:
+        """Make ``session`` the open one: every part takes it up, then the views redraw (:attr:`Topic.SESSION`)."""
+        if self.training.busy and session is not self.ctx.session:  # a raced click (the actions check first)
+            raise StudioError("Wait for the training to finish before changing the session.")
+        self.keypoints.persist()  # unsaved ε values belong to the session being left
+        self.player.unload()
+        with self.ctx.lock:
+            self.ctx.session = session
+            self.keypoints.on_session(session)
+            self.demos.clear()
+            self.teaching.on_session(session)
+        self.display.show_live()
+        self.ctx.emit(Topic.SESSION)
+
+
+def _typed_name(name: str | None) -> str:
+    """A name typed in "New name", stripped; empty gets plain words instead of a format message."""
+    name = (name or "").strip()
+    if not name:
+        raise InvalidInput("Type a name in 'New name' first.")
+    return name

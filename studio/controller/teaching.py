@@ -1,0 +1,240 @@
+"""Teaching: which arm(s) are taught, moving the live robot (gripper handle by IK, joints, grippers), whether
+the handle is within reach, and recording demonstrations into the open session."""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from studio.controller.context import Context
+from studio.controller.demos import Demos
+from studio.controller.events import Topic
+from studio.controller.pose import Display
+from studio.core.arms import arm_columns, arm_of_joint, gripper_column, normalize_arms
+from studio.core.errors import InvalidInput, StudioError
+from studio.core.kinematics import IkResult
+from studio.core.types import ARMS
+from studio.recorder import Recorder
+from studio.robot_backend.base import JointStateBatch, RobotBackend
+from studio.storage import Session
+
+log = logging.getLogger(__name__)
+
+@dataclass(frozen=True)
+class Reach:
+    """Whether an arm reached where its handle was dragged (``target``: the handle's position, m)."""
+
+    ok: bool
+    target: tuple[float, float, float]
+
+
+class Teaching:
+    """The live robot and the recorder. Only one recording runs at a time, across all tabs."""
+
+    def __init__(self, ctx: Context, backend: RobotBackend, display: Display, demos: Demos) -> None:
+        self.ctx = ctx
+        self.backend = backend
+        self.display = display
+        self.demos = demos
+        self.selected_arms: tuple[str, ...] = _session_arms(ctx.session)
+        self.reach: dict[str, Reach] = {}
+        self._targets: dict[str, np.ndarray] = {}
+        self._ik_lock = {arm: threading.Lock() for arm in ARMS}
+        self._recorder: Recorder | None = None
+        self._unsubscribe: Callable[[], None] | None = None
+
+    # -- the live robot ------------------------------------------------------------------------------------
+    def start_robot(self) -> None:
+        """Follow the backend's joint states and start it streaming."""
+        self._unsubscribe = self.backend.subscribe(self._on_batch)
+        self.backend.start()
+        st = self.backend.state()
+        self.display.live.set(st.t, st.q, st.gripper)
+
+    def stop_robot(self) -> None:
+        """Stop following the robot and stop it."""
+        unsub, self._unsubscribe = self._unsubscribe, None
+        if unsub is not None:
+            try:
+                unsub()
+            except Exception:  # the backend may already be gone at shutdown
+                pass
+        self.backend.stop()
+
+    def _on_batch(self, batch: JointStateBatch) -> None:
+        # Runs on the backend's thread at up to 1 kHz: keep only the newest sample.
+        if len(batch):
+            self.display.live.set(float(batch.t[-1]), batch.q[-1], batch.gripper[-1])
+
+    def robot_q(self) -> np.ndarray:
+        """(14,) latest joint angles of the live robot, radians (order ALL_ARM_JOINTS)."""
+        return self.display.live.get()[2].copy()
+
+    def robot_gripper(self) -> np.ndarray:
+        """(2,) latest gripper openings of the live robot, percent."""
+        return self.display.live.get()[3].copy()
+
+    def arm_q(self, arm: str) -> np.ndarray:
+        return self.robot_q()[arm_columns(arm)]
+
+    # -- arms ----------------------------------------------------------------------------------------------
+    def set_arms(self, arms: tuple[str, ...]) -> None:
+        """Choose the taught arm(s): "left", "right" or both (remembered with the session)."""
+        try:
+            arms = normalize_arms(arms)
+        except InvalidInput:
+            raise StudioError("Choose at least one arm to teach.") from None
+        with self.ctx.lock:
+            if self._recorder is not None and arms != self.selected_arms:
+                raise StudioError("Stop the recording before changing the arms to teach.")
+            self.selected_arms = arms
+            if tuple(self.ctx.session.arms) != arms:
+                self.ctx.session.set_arms(arms)
+        self.ctx.emit(Topic.ARMS)
+
+    def on_session(self, session: Session) -> None:
+        """Another session is open: teach its arms."""
+        self.selected_arms = _session_arms(session)
+
+    # -- moving the robot ----------------------------------------------------------------------------------
+    def move_gripper(self, arm: str, position: np.ndarray, wxyz: np.ndarray) -> IkResult:
+        """IK to the handle's pose from the arm's current joints, then command the robot.
+
+        An unreachable target still moves the arm to the closest pose found; :attr:`reach` says so
+        (:attr:`Topic.REACH`). Returns the IK result.
+        """
+        self.display.show_live()
+        with self._ik_lock[arm]:  # one solve per arm at a time (a drag sends many updates)
+            res = self.ctx.baxter.ik(arm, position, wxyz, self._target_arm(arm), max_iterations=60)
+            self.command_arm(arm, np.asarray(res.q))
+        p = np.asarray(position, dtype=float)
+        self._set_reach(arm, Reach(bool(res.converged), (float(p[0]), float(p[1]), float(p[2]))))
+        return res
+
+    def _set_reach(self, arm: str, reach: Reach) -> None:
+        old = self.reach.get(arm)
+        self.reach[arm] = reach
+        if old is None or old != reach:
+            self.ctx.emit(Topic.REACH)
+
+    def unreachable(self, arm: str) -> bool:
+        r = self.reach.get(arm)
+        return r is not None and not r.ok
+
+    def reach_message(self) -> str:
+        """Plain words about the last handle target an arm could not reach ("" when all were reached)."""
+        for arm in ARMS:
+            if arm in self.selected_arms and self.unreachable(arm):
+                return f"The {arm} gripper cannot reach the handle's position: the arm stops at the closest pose."
+        return ""
+
+    def _target_arm(self, arm: str) -> np.ndarray:
+        with self.ctx.lock:
+            t = self._targets.get(arm)
+        return np.array(t) if t is not None else self.arm_q(arm)
+
+    def command_arm(self, arm: str, q: np.ndarray) -> None:
+        with self.ctx.lock:
+            self._targets[arm] = np.array(q, dtype=np.float64)
+        self.backend.command_joints(arm, q)
+
+    def move_joint(self, index: int, value: float) -> None:
+        """Move one of the 14 joints (order ALL_ARM_JOINTS) to ``value`` radians, the others held."""
+        self.display.show_live()
+        arm = arm_of_joint(index)
+        q = self._target_arm(arm)
+        q[index % 7] = value
+        self.command_arm(arm, q)
+
+    def set_gripper(self, arm: str, width: float) -> None:
+        """Gripper opening in percent (0 = closed, 100 = open)."""
+        self.display.show_live()
+        self.backend.command_gripper(arm, float(width))
+
+    def gripper_width(self, arm: str) -> float:
+        return float(self.robot_gripper()[gripper_column(arm)])
+
+    # -- recording -----------------------------------------------------------------------------------------
+    @property
+    def recorder(self) -> Recorder | None:
+        """The running recorder (read its ``elapsed``, ``n_samples``, ``arms``), or None."""
+        return self._recorder
+
+    @property
+    def recording(self) -> bool:
+        return self._recorder is not None
+
+    def start_recording(self) -> None:
+        """Start recording the taught arm(s); only one recording runs at a time (across all tabs)."""
+        with self.ctx.lock:
+            if self._recorder is not None:
+                raise StudioError("A recording is already running (maybe in another tab). Stop it first.")
+            self.display.show_live()
+            session = self.ctx.session
+            rec = Recorder(self.backend, session.recording_dir, self.selected_arms, name=self._next_demo_name())
+            rec.start()
+            self._recorder = rec
+        self.ctx.emit(Topic.RECORDING)
+
+    def _next_demo_name(self) -> str:
+        names = set(self.demos.names())
+        i = len(names) + 1
+        while f"demo {i}" in names:
+            i += 1
+        return f"demo {i}"
+
+    def stop_recording(self) -> None:
+        """Stop, save the demonstration into the session (on disk at once) and draw it."""
+        with self.ctx.lock:
+            rec = self._recorder
+            if rec is None:
+                raise StudioError("Nothing is being recorded.")
+            self._recorder = None
+            try:
+                recording = rec.stop()
+                try:
+                    self.ctx.session.add_recording(recording)
+                except InvalidInput:
+                    # One sample is not a demonstration: nothing to keep. Any other take the session refuses
+                    # stays on disk; the next open sets it aside by name (crash recovery), never lost.
+                    if len(recording) < 2:
+                        rec.discard()
+                    raise
+                rec.discard()
+            finally:
+                self.ctx.emit(Topic.RECORDING)
+        for msg in rec.messages:
+            self.ctx.notify("Recording", msg, kind="warning")
+        self.demos.changed()
+        self.ctx.notify(
+            "Demonstration saved",
+            f"{recording.name}: {recording.duration:.1f} s, {len(recording):,} samples.",
+            kind="success",
+        )
+
+    def discard_recording(self) -> None:
+        with self.ctx.lock:
+            rec, self._recorder = self._recorder, None
+        if rec is not None:
+            rec.discard()
+        self.ctx.emit(Topic.RECORDING)
+
+    def save_running_recording(self) -> None:
+        """Keep a take that is still running (when the studio stops); failures are logged."""
+        if self._recorder is None:
+            return
+        try:
+            self.stop_recording()
+        except Exception:
+            log.exception("saving the running recording at shutdown")
+
+
+def _session_arms(session: Session) -> tuple[str, ...]:
+    try:
+        return normalize_arms(tuple(session.arms))
+    except InvalidInput:
+        return ("left",)

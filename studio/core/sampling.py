@@ -1,0 +1,61 @@
+"""Learned skills' joint trajectories sampled on one time grid: what Preview plays and the CSV export writes.
+
+Both arms share the grid; an arm without a skill holds its rest pose, and an arm whose skill ends earlier
+holds its last sample. The gripper is the one that goes with the joint trajectory (``JointTrajectory.gripper``,
+on the same, possibly time-stretched, times) or, for skills saved without it, the Cartesian trajectory's.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from studio.core.arms import arm_columns, gripper_column
+from studio.core.types import Skill
+
+
+def executable(skills: Mapping[str, Skill]) -> dict[str, Skill]:
+    """The skills that have a joint trajectory (IK was run), by arm."""
+    return {a: s for a, s in skills.items() if s.joint_trajectory is not None}
+
+
+def duration(skills: Mapping[str, Skill]) -> float:
+    """Seconds until the longest joint trajectory ends (0 without any)."""
+    ends = [float(jt.t[-1] - jt.t[0]) for s in skills.values() if (jt := s.joint_trajectory) is not None]
+    return max(ends, default=0.0)
+
+
+def _interp(t_src: np.ndarray, values: np.ndarray, t_new: np.ndarray) -> np.ndarray:
+    """Linear interpolation of (M,) or (M, d) ``values`` at ``t_new``, holding the last value after the end."""
+    t_new = np.minimum(t_new, t_src[-1])
+    values = np.asarray(values, dtype=np.float64)
+    if values.ndim == 1:
+        return np.interp(t_new, t_src, values)
+    return np.column_stack([np.interp(t_new, t_src, values[:, j]) for j in range(values.shape[1])])
+
+
+def sample_joints(
+    skills: Mapping[str, Skill], t: np.ndarray, rest_q: np.ndarray, rest_gripper: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Joints (N, 14) rad and grippers (N, 2) percent of ``skills`` at times ``t`` (N,) s from their start.
+
+    Args:
+        skills: arm -> Skill; those without a joint trajectory are ignored (that arm rests).
+        rest_q: (14,) joints of the arms without a skill; rest_gripper: (2,) their grippers, percent.
+    """
+    t = np.asarray(t, dtype=np.float64)
+    q = np.tile(np.asarray(rest_q, dtype=np.float64), (len(t), 1))
+    g = np.tile(np.asarray(rest_gripper, dtype=np.float64), (len(t), 1))
+    for arm, sk in executable(skills).items():
+        jt = sk.joint_trajectory
+        assert jt is not None
+        ts = np.asarray(jt.t, dtype=np.float64) - float(jt.t[0])
+        q[:, arm_columns(arm)] = _interp(ts, jt.q, t)
+        if jt.gripper is not None:
+            gt, gv = ts, np.asarray(jt.gripper)
+        else:
+            tr = sk.trajectory
+            gt, gv = np.asarray(tr.t, dtype=np.float64) - float(tr.t[0]), np.asarray(tr.gripper)
+        g[:, gripper_column(arm)] = _interp(gt, gv, t)
+    return q, np.clip(g, 0.0, 100.0)

@@ -1,0 +1,126 @@
+"""Demonstrations panel (in the Teach tab): the list of demos with their colours, their traces in the scene,
+and the edits (show/hide, rename, trim, delete with a second press)."""
+
+from __future__ import annotations
+
+import html
+
+import numpy as np
+import viser
+
+from studio.controller import Controller, Topic
+from studio.core.errors import InvalidInput
+from studio.panels._charts import downsample_path, segments
+
+
+class DemosPanel:
+    """The demo list, a picker with the edit controls, and one coloured 3-D line per shown demo and arm."""
+
+    def __init__(self, ctl: Controller, server: viser.ViserServer) -> None:
+        self.ctl = ctl
+        self.server = server
+        self.scene = server.scene
+        gui = server.gui
+        self._traces: dict[str, viser.SceneNodeHandle] = {}
+        with gui.add_folder("Demonstrations", order=3):
+            self.demo_list = gui.add_html(self._demo_list_html())
+            self.demo_pick = gui.add_dropdown("Demo", options=["(none)"], initial_value="(none)")
+            self.demo_show = gui.add_checkbox("Show in the scene", initial_value=True)
+            self.demo_name = gui.add_text("Name", initial_value="")
+            self.demo_trim = gui.add_multi_slider(
+                "Keep from … to (s)", min=0.0, max=1.0, step=0.01, initial_value=(0.0, 1.0)
+            )
+            self.demo_actions = gui.add_button_group("Demo action", options=("Rename", "Trim", "Delete"))
+        self.demo_pick.on_update(ctl.guarded()(self._on_pick))
+        self.demo_show.on_update(ctl.guarded()(self._on_show))
+        self.demo_actions.on_click(ctl.guarded("Could not change the demonstration")(self._on_demo_action))
+        ctl.events.on(Topic.DEMOS, self.refresh_demos)
+        ctl.events.on(Topic.SESSION, self.refresh_demos)
+        self.refresh_demos()
+
+    def _demo_list_html(self) -> str:
+        rows = []
+        for d in self.ctl.demos.summaries():
+            sw = f"background:rgb{d.color};" if d.visible else f"border:2px solid rgb{d.color};"
+            rows.append(
+                f'<div class="demo-row" data-demo="{d.index}" style="display:flex;gap:6px;align-items:center;'
+                f'font-size:0.85em;margin:2px 0"><span style="display:inline-block;width:12px;height:12px;'
+                f'border-radius:6px;{sw}"></span><b>{html.escape(d.name)}</b>'
+                f"<span>{d.duration:.1f} s · {d.samples:,} samples · {'/'.join(d.arms)}"
+                f"{'' if d.visible else ' · hidden'}</span></div>"
+            )
+        if not rows:
+            return '<div class="demo-row-empty" style="font-size:0.85em">No demonstrations yet: press Record.</div>'
+        return "".join(rows)
+
+    def draw_traces(self) -> None:
+        """Each shown demonstration as a coloured 3-D line of the taught gripper(s)."""
+        demos = self.ctl.demos
+        wanted: dict[str, tuple[np.ndarray, tuple[int, int, int]]] = {}
+        for i, rec in enumerate(demos.recordings()):
+            if rec.name in demos.hidden:
+                continue
+            for arm in rec.arms:
+                pts = downsample_path(np.asarray(demos.demo_of(rec, arm).position))
+                wanted[f"/demos/{i}_{arm}"] = (pts, demos.color(i))
+        with self.server.atomic():
+            for key in list(self._traces):
+                self._traces.pop(key).remove()
+            for key, (pts, color) in wanted.items():
+                self._traces[key] = self.scene.add_line_segments(
+                    key, segments(pts), colors=color, thickness=3.0, thickness_units="screen"
+                )
+
+    def refresh_demos(self) -> None:
+        try:
+            self.draw_traces()
+        except Exception as exc:
+            self.ctl.report(exc, title="Could not draw the demonstrations")
+        names = self.ctl.demos.names()
+        with self.server.atomic():
+            self.demo_list.content = self._demo_list_html()
+            opts = names or ["(none)"]
+            current = self.demo_pick.value
+            self.demo_pick.options = opts
+            if current not in opts:
+                self.demo_pick.value = opts[-1]
+        self._on_pick(None)
+
+    def _selected(self) -> int | None:
+        names = self.ctl.demos.names()
+        v = self.demo_pick.value
+        return names.index(v) if v in names else None
+
+    def _on_pick(self, event: viser.GuiEvent | None) -> None:
+        i = self._selected()
+        for h in (self.demo_show, self.demo_name, self.demo_trim):
+            h.disabled = i is None
+        if i is None:
+            return
+        demos = self.ctl.demos
+        dur = max(demos.duration(i), 0.02)
+        self.demo_name.value = demos.names()[i]
+        self.demo_show.value = demos.visible(i)
+        self.demo_trim.max = round(dur + 0.005, 2)
+        self.demo_trim.value = (0.0, round(dur + 0.005, 2))
+
+    def _on_show(self, event: viser.GuiEvent) -> None:
+        if event.client is None:
+            return
+        i = self._selected()
+        if i is not None:
+            self.ctl.demos.set_visible(i, bool(self.demo_show.value))
+
+    def _on_demo_action(self, event: viser.GuiEvent) -> None:
+        i = self._selected()
+        if i is None:
+            raise InvalidInput("Choose a demonstration in the list first.")
+        action = event.target.value
+        demos = self.ctl.demos
+        if action == "Rename":
+            demos.rename(i, self.demo_name.value)
+        elif action == "Trim":
+            t0, t1 = self.demo_trim.value
+            demos.trim(i, float(t0), float(t1))
+        elif action == "Delete":
+            demos.delete_confirmed(i)  # asks first: a second press deletes

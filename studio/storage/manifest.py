@@ -1,0 +1,332 @@
+"""``session.json``: the session's manifest as frozen dataclasses, validated when read from JSON.
+
+Versioning and extending (read before adding anything to the format):
+
+* ``version`` is :data:`~studio.storage.format.FORMAT_VERSION`. A studio refuses, in plain words, a
+  manifest written by a newer one (a higher version) and reads every older one.
+* **Adding an optional field** (the usual case): add it to the dataclass with a default, read it in
+  ``from_json`` with that default when it is absent (older files), write it in ``to_json``. No version change:
+  an older studio ignores keys it does not know. ``n_clusters``, ``hidden`` and ``skills_stale`` were added
+  this way.
+* **A change an older studio would misread** (a field changing meaning, data moving between files): bump
+  ``FORMAT_VERSION`` and register ``UPGRADES[old_version]``, a function turning the raw JSON of version
+  ``old_version`` into ``old_version + 1``; :meth:`Manifest.from_json` applies them in order before validating,
+  so the validation below only ever sees the current version.
+
+Loading never writes: an upgraded manifest is written in the new version the next time the session changes.
+"""
+
+from __future__ import annotations
+
+import json
+import numbers
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from studio.core.errors import InvalidInput
+from studio.core.types import ARMS, KeypointParams
+from studio.storage.format import (
+    DEMO_FILE_RE,
+    FORMAT,
+    FORMAT_VERSION,
+    MANIFEST,
+    MAX_DEMOS,
+    MAX_MANIFEST_BYTES,
+    MAX_SAMPLES,
+    PRECISIONS,
+    SKILL_DIR,
+    SKILL_FILE_RE,
+    check_demo_name,
+    check_n_clusters,
+    damaged,
+)
+
+#: Upgrades of older manifests: ``UPGRADES[v]`` turns the raw JSON of version ``v`` into version ``v + 1``.
+UPGRADES: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {}
+
+
+@dataclass(frozen=True)
+class DemoEntry:
+    """One demonstration as the manifest lists it (its arrays are in ``file``)."""
+
+    file: str
+    name: str
+    arms: tuple[str, ...]
+    samples: int
+    duration: float
+    #: Hidden by the teacher: drawn faintly and left out of learning (optional, default False).
+    hidden: bool = False
+
+    def to_json(self) -> dict[str, object]:
+        return {
+            "file": self.file,
+            "name": self.name,
+            "arms": list(self.arms),
+            "samples": self.samples,
+            "duration": round(self.duration, 6),
+            "hidden": self.hidden,
+        }
+
+
+@dataclass(frozen=True)
+class SkillEntry:
+    """One learned skill as the manifest lists it: its file, when and from what it was learned."""
+
+    file: str
+    #: When it was learned (UTC, ISO 8601).
+    learned: str = ""
+    #: The ε thresholds it was learned with (KeypointParams field -> value).
+    params: Mapping[str, float] = field(default_factory=dict)
+    #: Names of the demonstrations it was learned from, in the skill's order.
+    demos: tuple[str, ...] = ()
+
+    @staticmethod
+    def for_arm(arm: str, learned: str, params: KeypointParams, demos: tuple[str, ...]) -> SkillEntry:
+        return SkillEntry(file=f"{SKILL_DIR}/{arm}.npz", learned=learned, params=params.as_dict(), demos=demos)
+
+    def to_json(self) -> dict[str, object]:
+        return {"file": self.file, "learned": self.learned, "params": dict(self.params), "demos": list(self.demos)}
+
+
+@dataclass(frozen=True)
+class Manifest:
+    """Everything ``session.json`` holds. Build one with :meth:`from_json` (validates) or directly (writes)."""
+
+    name: str
+    arms: tuple[str, ...]
+    created: str
+    notes: str
+    params: KeypointParams
+    demos: tuple[DemoEntry, ...] = ()
+    skills: Mapping[str, SkillEntry] = field(default_factory=dict)
+    #: k chosen by hand (None: automatic).
+    n_clusters: int | None = None
+    precision: str = "float64"
+    #: Number of the next demo file (demos/d<next_id>.npz); never reused within a session.
+    next_id: int = 1
+    #: The demonstrations changed since the skills were learned.
+    skills_stale: bool = False
+    modified: str = ""
+    robot: str = "baxter"
+    version: int = FORMAT_VERSION
+
+    # -- writing ----------------------------------------------------------------------------------------------
+    def to_json(self) -> dict[str, object]:
+        return {
+            "format": FORMAT,
+            "version": FORMAT_VERSION,
+            "name": self.name,
+            "robot": self.robot,
+            "arms": list(self.arms),
+            "created": self.created,
+            "modified": self.modified,
+            "notes": self.notes,
+            "params": self.params.as_dict(),
+            "n_clusters": self.n_clusters,
+            "precision": self.precision,
+            "next_id": self.next_id,
+            "demos": [d.to_json() for d in self.demos],
+            "skills": {arm: s.to_json() for arm, s in self.skills.items()},
+            "skills_stale": self.skills_stale,
+        }
+
+    def to_bytes(self) -> bytes:
+        return json.dumps(self.to_json(), indent=2, ensure_ascii=False).encode("utf-8") + b"\n"
+
+    # -- reading ----------------------------------------------------------------------------------------------
+    @classmethod
+    def read(cls, path: Path, session: str) -> Manifest:
+        """Read and validate the manifest file ``path`` of session ``session`` (never writes)."""
+        if not path.exists():
+            raise damaged(session, MANIFEST, "is missing (this folder is not a Teaching Studio session)")
+        try:
+            size = path.stat().st_size
+            if size > MAX_MANIFEST_BYTES:
+                raise damaged(session, MANIFEST, f"is absurdly large ({size} bytes)")
+            raw = path.read_bytes()
+        except OSError as exc:
+            raise damaged(session, MANIFEST, f"cannot be read ({exc.strerror})") from exc
+        return cls.from_json(raw, session)
+
+    @classmethod
+    def from_json(cls, raw: bytes, session: str) -> Manifest:
+        """Validate the bytes of a manifest; every problem is a :class:`SessionFormatError` in plain words."""
+        m = _Reader(_decode(raw, session), session)
+        version = m.version()
+        for v in range(version, FORMAT_VERSION):
+            m = _Reader(UPGRADES[v](m.raw), session)
+        # Checked in this order, so that the first problem of a manifest is the one reported.
+        arms = m.arms()
+        name: str = m.need("name", str)
+        created: str = m.need("created", str)
+        notes: str = m.need("notes", str)
+        robot = m.robot()
+        params = m.params()
+        n_clusters = m.n_clusters()
+        precision = m.precision()
+        demos = m.demos()
+        max_id = max((_file_id(d.file) for d in demos), default=0)
+        nid = m.raw.get("next_id", max_id + 1)
+        if not isinstance(nid, int) or isinstance(nid, bool) or nid < 1:
+            raise m.bad('has an invalid "next_id"')
+        return cls(
+            name=name,
+            arms=arms,
+            created=created,
+            notes=notes,
+            params=params,
+            demos=demos,
+            skills=m.skills(),
+            n_clusters=n_clusters,
+            precision=precision,
+            next_id=max(nid, max_id + 1),
+            skills_stale=bool(m.raw.get("skills_stale", False)),
+            modified=str(m.raw.get("modified", "")),
+            robot=robot,
+            version=version,
+        )
+
+
+def _file_id(rel: str) -> int:
+    match = DEMO_FILE_RE.match(rel)
+    return int(match.group(1)) if match else 0
+
+
+def _decode(raw: bytes, session: str) -> dict[str, Any]:
+    try:
+        m = json.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise damaged(session, MANIFEST, "is not readable text") from exc
+    except json.JSONDecodeError as exc:
+        cut = not raw.rstrip().endswith(b"}") or exc.pos >= len(raw.rstrip()) - 1
+        problem = "it ends early" if cut else f"unreadable near line {exc.lineno}"
+        raise damaged(session, MANIFEST, f"is damaged ({problem})") from exc
+    if not isinstance(m, dict) or m.get("format") != FORMAT:
+        raise damaged(session, MANIFEST, "is not a Teaching Studio session description")
+    return m
+
+
+class _Reader:
+    """Validates one field of the raw JSON at a time, each problem worded for the person."""
+
+    def __init__(self, raw: dict[str, Any], session: str) -> None:
+        self.raw = raw
+        self.session = session
+
+    def bad(self, problem: str) -> Exception:
+        return damaged(self.session, MANIFEST, problem)
+
+    def need(self, key: str, typ: type) -> Any:
+        val = self.raw.get(key)
+        if not isinstance(val, typ) or (isinstance(val, bool) and typ is not bool):
+            raise self.bad(f'has a missing or invalid "{key}"')
+        return val
+
+    def version(self) -> int:
+        v = self.raw.get("version")
+        if not isinstance(v, int) or isinstance(v, bool):
+            raise self.bad("has no valid format version")
+        if v > FORMAT_VERSION:
+            raise self.bad(
+                f"was written by a newer Teaching Studio (format {v}; this one reads format {FORMAT_VERSION})"
+            )
+        if v < 1:
+            raise self.bad(f"has an unknown format version {v}")
+        return v
+
+    def arms(self) -> tuple[str, ...]:
+        arms = self.need("arms", list)
+        if not arms or any(a not in ARMS for a in arms) or len(set(arms)) != len(arms):
+            raise self.bad('has invalid "arms" (must be "left" and/or "right")')
+        return tuple(arms)
+
+    def robot(self) -> str:
+        robot: str = self.need("robot", str)
+        if robot != "baxter":
+            raise self.bad(f'is for a robot this studio does not know ("{robot}")')
+        return robot
+
+    def params(self) -> KeypointParams:
+        try:
+            return KeypointParams.from_dict(self.need("params", dict))
+        except (InvalidInput, TypeError, ValueError) as exc:
+            raise self.bad(f"has invalid key-point thresholds ({exc})") from exc
+
+    def n_clusters(self) -> int | None:
+        try:
+            return check_n_clusters(self.raw.get("n_clusters"))
+        except InvalidInput as exc:
+            raise self.bad(f'has an invalid "n_clusters" ({exc})') from exc
+
+    def precision(self) -> str:
+        prec = self.raw.get("precision", "float64")
+        if prec not in PRECISIONS:
+            raise self.bad(f'has an unknown "precision" {prec!r}')
+        return str(prec)
+
+    def demos(self) -> tuple[DemoEntry, ...]:
+        demos = self.need("demos", list)
+        if len(demos) > MAX_DEMOS:
+            raise self.bad(f"lists an absurd number of demonstrations ({len(demos)})")
+        out: list[DemoEntry] = []
+        seen: set[str] = set()
+        for i, d in enumerate(demos):
+            entry = self._demo(i, d)
+            if entry.file in seen:
+                raise self.bad(f"lists the file {entry.file} twice")
+            seen.add(entry.file)
+            out.append(entry)
+        return tuple(out)
+
+    def _demo(self, i: int, d: object) -> DemoEntry:
+        if not isinstance(d, dict):
+            raise self.bad(f"has an invalid entry for demonstration {i + 1}")
+        f = d.get("file")
+        if not isinstance(f, str) or not DEMO_FILE_RE.match(f):
+            raise self.bad(f"names an unsafe or invalid file for demonstration {i + 1}: {f!r}")
+        try:
+            name = check_demo_name(d.get("name"))
+        except InvalidInput as exc:
+            raise self.bad(f"has an invalid name for demonstration {i + 1}") from exc
+        da = d.get("arms")
+        if not isinstance(da, list) or not da or any(a not in ARMS for a in da):
+            raise self.bad(f"has invalid taught arms for demonstration {i + 1}")
+        s = d.get("samples")
+        if not isinstance(s, int) or isinstance(s, bool) or not 0 < s <= MAX_SAMPLES:
+            raise self.bad(f"has an invalid sample count for demonstration {i + 1}")
+        hidden = d.get("hidden", False)
+        if not isinstance(hidden, bool):
+            raise self.bad(f'has an invalid "hidden" mark for demonstration {i + 1}')
+        dur = d.get("duration", 0.0)
+        duration = float(dur) if isinstance(dur, numbers.Real) and not isinstance(dur, bool) else 0.0
+        return DemoEntry(file=f, name=name, arms=tuple(da), samples=s, duration=duration, hidden=hidden)
+
+    def skills(self) -> dict[str, SkillEntry]:
+        skills = self.raw.get("skills", {})
+        if not isinstance(skills, dict):
+            raise self.bad('has invalid "skills"')
+        out: dict[str, SkillEntry] = {}
+        for arm, s in skills.items():
+            if arm not in ARMS or not isinstance(s, dict) or not isinstance(s.get("file"), str):
+                raise self.bad(f"has an invalid skill entry {arm!r}")
+            if not SKILL_FILE_RE.match(s["file"]) or s["file"] != f"{SKILL_DIR}/{arm}.npz":
+                raise self.bad(f"names an unsafe or invalid skill file: {s['file']!r}")
+            out[arm] = _skill_entry(s)
+        return out
+
+
+def _skill_entry(s: Mapping[str, object]) -> SkillEntry:
+    """The optional parts of a skill entry are informative: what is malformed is left out, not refused."""
+    learned, params, demos = s.get("learned"), s.get("params"), s.get("demos")
+    return SkillEntry(
+        file=str(s["file"]),
+        learned=learned if isinstance(learned, str) else "",
+        params={
+            str(k): float(v)
+            for k, v in (params.items() if isinstance(params, dict) else ())
+            if isinstance(v, numbers.Real) and not isinstance(v, bool)
+        },
+        demos=tuple(str(n) for n in demos) if isinstance(demos, list) else (),
+    )

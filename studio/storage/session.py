@@ -1,0 +1,386 @@
+"""An open session: its demonstrations, parameters and learned skills, bound to its folder.
+
+Every mutating method writes to disk at once (atomically) and leaves the other files untouched: a demo whose
+content changes (trim) gets a new file, the manifest is switched to it atomically, then the old file is
+removed, so a crash at any moment leaves a loadable session. Loading validates everything and never writes.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import threading
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Concatenate, ParamSpec, TypeVar
+
+import numpy as np
+
+from studio.core.arms import normalize_arms
+from studio.core.errors import InvalidInput, SessionFormatError
+from studio.core.types import ARMS, KeypointParams, Recording, Skill
+from studio.storage.atomic import atomic_write_bytes, atomic_write_npz
+from studio.storage.format import (
+    DEMO_DIR,
+    MANIFEST,
+    MAX_DEMOS,
+    MAX_NOTES_CHARS,
+    MAX_SAMPLES,
+    PRECISIONS,
+    RECORDING_DIR,
+    SKILL_DIR,
+    check_demo_name,
+    check_n_clusters,
+    now,
+    skipped_note,
+)
+from studio.storage.idle import idle_bounds
+from studio.storage.manifest import DemoEntry, Manifest, SkillEntry
+from studio.storage.npz import load_demo, load_skill
+
+P = ParamSpec("P")
+R = TypeVar("R")
+
+
+def _locked(fn: Callable[Concatenate[Session, P], R]) -> Callable[Concatenate[Session, P], R]:
+    """Serialise a Session mutator (GUI callbacks and the recorder may call from different threads)."""
+
+    @functools.wraps(fn)
+    def wrapper(self: Session, /, *args: P.args, **kwargs: P.kwargs) -> R:
+        with self._lock:
+            return fn(self, *args, **kwargs)
+
+    return wrapper
+
+
+@dataclass
+class Session:
+    """An open session. Attributes are for reading; change them through the methods.
+
+    Attributes:
+        name, path: the session's name and folder.
+        arms: the taught arm(s).
+        params: the ε thresholds last used; n_clusters: k chosen by hand (None: automatic).
+        recordings: the demonstrations, in order; hidden_demos: names of those hidden from learning.
+        skills: arm -> learned :class:`Skill`; skill_info: arm -> what it was learned from and when.
+        skills_stale: the demonstrations changed since the skills were learned.
+        problems, recovery_message: plain-words notes from loading (skipped damaged files, crash recovery).
+    """
+
+    name: str
+    path: Path
+    arms: tuple[str, ...] = ("left",)
+    created: str = field(default_factory=now)
+    notes: str = ""
+    params: KeypointParams = field(default_factory=KeypointParams)
+    n_clusters: int | None = None
+    recordings: list[Recording] = field(default_factory=list)
+    hidden_demos: set[str] = field(default_factory=set)
+    skills: dict[str, Skill] = field(default_factory=dict)
+    precision: str = "float64"
+    skills_stale: bool = False
+    skill_info: dict[str, SkillEntry] = field(default_factory=dict)
+    problems: list[str] = field(default_factory=list)
+    recovery_message: str = ""
+    _files: list[str] = field(default_factory=list, repr=False)
+    _next_id: int = field(default=1, repr=False)
+    _lock: threading.RLock = field(default_factory=threading.RLock, repr=False, compare=False)
+
+    # -- reading ------------------------------------------------------------------------------------------
+    @property
+    def demo_names(self) -> list[str]:
+        return [r.name for r in self.recordings]
+
+    @property
+    def demo_files(self) -> list[str]:
+        """Relative paths of the demo files, in demo order."""
+        return list(self._files)
+
+    @property
+    def recording_dir(self) -> Path:
+        """Folder for the recorder's crash-safe files of this session."""
+        return self.path / RECORDING_DIR
+
+    def __len__(self) -> int:
+        return len(self.recordings)
+
+    # -- demos --------------------------------------------------------------------------------------------
+    def _check_index(self, i: int) -> int:
+        if not isinstance(i, (int, np.integer)) or not 0 <= int(i) < len(self.recordings):
+            raise InvalidInput(f"There is no demonstration number {i}; the session has {len(self.recordings)}.")
+        return int(i)
+
+    def _write_demo(self, rec: Recording) -> str:
+        rel = f"{DEMO_DIR}/d{self._next_id:04d}.npz"
+        self._next_id += 1
+        dt = PRECISIONS[self.precision]
+        atomic_write_npz(
+            self.path / rel,
+            {"t": rec.t, "q": rec.q.astype(dt, copy=False), "gripper": rec.gripper.astype(dt, copy=False)},
+        )
+        return rel
+
+    def _mark_stale(self) -> None:
+        self.skills_stale = bool(self.skills) or self.skills_stale
+
+    @_locked
+    def add_recording(self, rec: Recording, name: str | None = None) -> int:
+        """Add a demonstration (saved at once); returns its index. Names are made unique ("demo (2)")."""
+        if not isinstance(rec, Recording):
+            raise InvalidInput("Only recordings can be added to a session.")
+        if len(rec) < 2:
+            raise InvalidInput("A demonstration needs at least two samples.")
+        if len(rec) > MAX_SAMPLES:
+            raise InvalidInput(
+                f"This demonstration is too long to keep ({rec.duration / 3600:.1f} hours); "
+                f"the limit is {MAX_SAMPLES // 3_600_000} hours. Trim it first."
+            )
+        if len(self.recordings) >= MAX_DEMOS:
+            raise InvalidInput(f"A session holds at most {MAX_DEMOS} demonstrations.")
+        nm = unique_name(check_demo_name(name if name is not None else rec.name), set(self.demo_names))
+        rec = Recording(t=rec.t, q=rec.q, gripper=rec.gripper, arms=rec.arms, name=nm)
+        rel = self._write_demo(rec)
+        self.recordings.append(as_stored(self.precision, rec))
+        self._files.append(rel)
+        self._mark_stale()
+        self._write_manifest()
+        return len(self.recordings) - 1
+
+    @_locked
+    def rename_demo(self, i: int, name: str) -> None:
+        """Rename demonstration ``i`` (only the manifest changes)."""
+        i = self._check_index(i)
+        nm = check_demo_name(name)
+        if nm != self.recordings[i].name and nm in self.demo_names:
+            raise InvalidInput(f'Another demonstration is already called "{nm}".')
+        r = self.recordings[i]
+        self.recordings[i] = Recording(t=r.t, q=r.q, gripper=r.gripper, arms=r.arms, name=nm)
+        if r.name in self.hidden_demos:
+            self.hidden_demos = (self.hidden_demos - {r.name}) | {nm}
+        self._write_manifest()
+
+    @_locked
+    def set_demo_hidden(self, i: int, hidden: bool) -> None:
+        """Hide demonstration ``i`` from learning (kept on disk and in the list), or show it again."""
+        name = self.recordings[self._check_index(i)].name
+        self.hidden_demos = (self.hidden_demos | {name}) if hidden else (self.hidden_demos - {name})
+        self._write_manifest()
+
+    @_locked
+    def delete_demo(self, i: int) -> None:
+        """Delete demonstration ``i``: the manifest stops listing it first, then its file is removed."""
+        i = self._check_index(i)
+        rel = self._files.pop(i)
+        self.hidden_demos = self.hidden_demos - {self.recordings.pop(i).name}
+        self._mark_stale()
+        self._write_manifest()
+        with contextlib.suppress(FileNotFoundError):
+            (self.path / rel).unlink()
+
+    @_locked
+    def trim_demo(self, i: int, t0: float, t1: float) -> None:
+        """Keep only the samples of demonstration ``i`` with t0 ≤ t ≤ t1 (seconds); times restart at 0."""
+        i = self._check_index(i)
+        r = self.recordings[i]
+        if not (np.isfinite(t0) and np.isfinite(t1)) or t1 <= t0:
+            raise InvalidInput("To trim, choose a start time before the end time.")
+        keep = (r.t >= t0 - 1e-9) & (r.t <= t1 + 1e-9)
+        if np.count_nonzero(keep) < 2:
+            raise InvalidInput("Trimming would leave fewer than two samples; choose a wider range.")
+        new = Recording(t=r.t[keep] - r.t[keep][0], q=r.q[keep], gripper=r.gripper[keep], arms=r.arms, name=r.name)
+        rel = self._write_demo(new)
+        old = self._files[i]
+        self._files[i] = rel
+        self.recordings[i] = as_stored(self.precision, new)
+        self._mark_stale()
+        self._write_manifest()
+        with contextlib.suppress(FileNotFoundError):
+            (self.path / old).unlink()
+
+    @_locked
+    def trim_idle(
+        self, i: int, *, threshold: float = 0.01, gripper_threshold: float = 1.0, margin: float = 0.2
+    ) -> tuple[float, float]:
+        """Cut the idle start and end of demonstration ``i`` (see :func:`idle_bounds`); returns (t0, t1) used."""
+        i = self._check_index(i)
+        r = self.recordings[i]
+        t0, t1 = idle_bounds(r, threshold=threshold, gripper_threshold=gripper_threshold, margin=margin)
+        if t0 > r.t[0] + 1e-9 or t1 < r.t[-1] - 1e-9:
+            self.trim_demo(i, t0, t1)
+        return t0, t1
+
+    # -- parameters, notes, skills ------------------------------------------------------------------------
+    @_locked
+    def set_params(self, params: KeypointParams) -> None:
+        if not isinstance(params, KeypointParams):
+            raise InvalidInput("Key-point thresholds must be a KeypointParams.")
+        self.params = params
+        self._write_manifest()
+
+    @_locked
+    def set_n_clusters(self, k: int | None) -> None:
+        """Remember k, the number of clusters chosen by hand (None: choose it automatically)."""
+        self.n_clusters = check_n_clusters(k)
+        self._write_manifest()
+
+    @_locked
+    def set_notes(self, notes: str) -> None:
+        if not isinstance(notes, str) or len(notes) > MAX_NOTES_CHARS:
+            raise InvalidInput("Notes must be text of at most 100,000 characters.")
+        self.notes = notes
+        self._write_manifest()
+
+    @_locked
+    def set_arms(self, arms: Iterable[str]) -> None:
+        self.arms = normalize_arms(tuple(arms))
+        self._write_manifest()
+
+    @_locked
+    def set_skills(
+        self,
+        skills: Mapping[str, Skill],
+        params: KeypointParams | None = None,
+        demos: Iterable[str] | Mapping[str, Iterable[str]] | None = None,
+    ) -> None:
+        """Save learned skills (arm -> Skill), replacing the previous ones.
+
+        Args:
+            params: the thresholds they were learned with (also become the session's parameters).
+            demos: names of the demonstrations they were learned from: one list for every arm, or a mapping
+                arm -> names (default: all of the session's).
+        """
+        for arm in skills:
+            if arm not in ARMS:
+                raise InvalidInput(f'Unknown arm "{arm}" for a skill.')
+        if isinstance(demos, Mapping):
+            per_arm = {arm: tuple(demos.get(arm, self.demo_names)) for arm in skills}
+        else:
+            names = tuple(demos) if demos is not None else tuple(self.demo_names)
+            per_arm = {arm: names for arm in skills}
+        for arm, sk in skills.items():
+            atomic_write_npz(self.path / SKILL_DIR / f"{arm}.npz", dict(sk.to_arrays()))
+        old = set(self.skills) - set(skills)
+        if params is not None:
+            self.params = params
+        self.skills = dict(skills)
+        learned = now()
+        self.skill_info = {arm: SkillEntry.for_arm(arm, learned, self.params, per_arm[arm]) for arm in skills}
+        self.skills_stale = False
+        self._write_manifest()
+        for arm in old:
+            with contextlib.suppress(FileNotFoundError):
+                (self.path / SKILL_DIR / f"{arm}.npz").unlink()
+
+    # -- manifest -----------------------------------------------------------------------------------------
+    def manifest(self) -> Manifest:
+        """The manifest describing the session as it is now."""
+        return Manifest(
+            name=self.name,
+            arms=self.arms,
+            created=self.created,
+            modified=now(),
+            notes=self.notes,
+            params=self.params,
+            n_clusters=self.n_clusters,
+            precision=self.precision,
+            next_id=self._next_id,
+            demos=tuple(
+                DemoEntry(
+                    file=f,
+                    name=r.name,
+                    arms=r.arms,
+                    samples=len(r),
+                    duration=r.duration,
+                    hidden=r.name in self.hidden_demos,
+                )
+                for f, r in zip(self._files, self.recordings, strict=True)
+            ),
+            skills=dict(self.skill_info),
+            skills_stale=self.skills_stale,
+        )
+
+    def _write_manifest(self) -> None:
+        atomic_write_bytes(self.path / MANIFEST, self.manifest().to_bytes())
+
+
+
+def unique_name(name: str, taken: set[str]) -> str:
+    """``name``, or ``name (2)``, ``name (3)``… whichever is not ``taken``, within the 100-character limit."""
+    if name not in taken:
+        return name
+    i = 2
+    while True:
+        suffix = f" ({i})"
+        # Cut the base so that name and suffix stay within the 100-character limit reload enforces.
+        candidate = f"{name[: 100 - len(suffix)].rstrip()}{suffix}"
+        if candidate not in taken:
+            return check_demo_name(candidate)
+        i += 1
+
+
+def as_stored(precision: str, rec: Recording) -> Recording:
+    """The recording as it will load back (float32 precision rounds the joints)."""
+    if precision == "float64":
+        return rec
+    dt = PRECISIONS[precision]
+    return Recording(
+        t=rec.t,
+        q=rec.q.astype(dt).astype(np.float64),
+        gripper=rec.gripper.astype(dt).astype(np.float64),
+        arms=rec.arms,
+        name=rec.name,
+    )
+
+
+def load_session(path: Path, *, skip_damaged: bool = False) -> Session:
+    """Load and validate the session in folder ``path`` (never writes).
+
+    Args:
+        skip_damaged: load what is valid and list the damaged demo/skill files in ``problems`` instead of
+            raising (the manifest itself must be valid).
+
+    Raises:
+        SessionFormatError: a file is missing, damaged, of another version, or hostile.
+    """
+    path = Path(path)
+    name = path.name
+    m = Manifest.read(path / MANIFEST, name)
+    s = Session(
+        name=name,
+        path=path,
+        arms=m.arms,
+        created=m.created,
+        notes=m.notes,
+        params=m.params,
+        n_clusters=m.n_clusters,
+        precision=m.precision,
+        skills_stale=m.skills_stale,
+    )
+    s._next_id = m.next_id
+
+    def skip_or_raise(exc: SessionFormatError) -> None:
+        if not skip_damaged:
+            raise exc
+        s.problems.append(skipped_note(exc))
+
+    for entry in m.demos:
+        try:
+            rec = load_demo(path / entry.file, name, entry)
+        except SessionFormatError as exc:
+            skip_or_raise(exc)
+            continue
+        s.recordings.append(rec)
+        s._files.append(entry.file)
+        if entry.hidden:
+            s.hidden_demos.add(rec.name)
+    for arm, info in m.skills.items():
+        try:
+            s.skills[arm] = load_skill(path / info.file, name, info.file)
+        except SessionFormatError as exc:
+            skip_or_raise(exc)
+            continue
+        s.skill_info[arm] = info
+    if len(s.recordings) != len(m.demos):
+        s.skills_stale = bool(s.skills) or s.skills_stale
+    return s

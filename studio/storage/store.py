@@ -1,0 +1,190 @@
+"""The session store: every session under one folder; create, open (with crash recovery), save, copy, delete.
+
+Crash recovery is orchestrated here: opening a session adds back the recordings a crash interrupted
+(read by :mod:`studio.recorder`, which knows nothing of sessions), so the recorder and the storage never
+import each other. Zip export and import are in :mod:`studio.storage.archive`.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import uuid
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+from studio.core.arms import normalize_arms
+from studio.core.errors import InvalidInput, SessionFormatError
+from studio.core.types import KeypointParams
+from studio.recorder import pending_recordings, recover_recordings
+from studio.storage import archive as _archive
+from studio.storage.atomic import atomic_write_npz
+from studio.storage.format import (
+    DEFAULT_ROOT,
+    DEMO_DIR,
+    MANIFEST,
+    NAME_RE,
+    PRECISIONS,
+    RECORDING_DIR,
+    check_session_name,
+    now,
+)
+from studio.storage.manifest import Manifest
+from studio.storage.session import Session, load_session
+
+
+@dataclass(frozen=True)
+class SessionSummary:
+    """What the session picker shows, read from the manifest only."""
+
+    name: str
+    demos: int
+    arms: tuple[str, ...]
+    created: str
+    notes: str
+    skills: tuple[str, ...]
+
+
+class SessionStore:
+    """All sessions under ``root`` (default: :data:`~studio.storage.format.DEFAULT_ROOT`)."""
+
+    def __init__(self, root: str | os.PathLike[str] | None = None) -> None:
+        self.root = Path(root) if root is not None else DEFAULT_ROOT
+
+    def path_of(self, name: str) -> Path:
+        return self.root / check_session_name(name)
+
+    def exists(self, name: str) -> bool:
+        return (self.path_of(name) / MANIFEST).is_file()
+
+    def list_sessions(self) -> list[str]:
+        """Names of the sessions (folders with a manifest), sorted."""
+        if not self.root.is_dir():
+            return []
+        return [
+            p.name
+            for p in sorted(self.root.iterdir())
+            if p.is_dir() and not p.is_symlink() and NAME_RE.match(p.name) and (p / MANIFEST).is_file()
+        ]
+
+    def summaries(self) -> list[SessionSummary]:
+        """One summary per session whose manifest is valid (damaged ones are left out)."""
+        out = []
+        for n in self.list_sessions():
+            try:
+                m = Manifest.read(self.root / n / MANIFEST, n)
+            except SessionFormatError:
+                continue
+            out.append(SessionSummary(n, len(m.demos), m.arms, m.created, m.notes, tuple(m.skills)))
+        return out
+
+    def pending_recoveries(self) -> list[str]:
+        """Sessions that hold recordings interrupted by a crash (recovered when the session is opened)."""
+        return [n for n in self.list_sessions() if pending_recordings(self.root / n / RECORDING_DIR)]
+
+    def create(
+        self,
+        name: str,
+        *,
+        arms: Iterable[str] = ("left",),
+        notes: str = "",
+        params: KeypointParams | None = None,
+        precision: str = "float64",
+    ) -> Session:
+        """Create an empty session (error if one of that name exists)."""
+        path = self.path_of(name)
+        if path.exists():
+            raise InvalidInput(f'A session called "{name}" already exists; choose another name.')
+        if precision not in PRECISIONS:
+            raise InvalidInput(f"Precision must be one of {', '.join(PRECISIONS)}.")
+        a = normalize_arms(tuple(arms))
+        path.mkdir(parents=True)
+        s = Session(name=name, path=path, arms=a, notes=notes, params=params or KeypointParams(), precision=precision)
+        s._write_manifest()
+        return s
+
+    def open(self, name: str, *, recover: bool = True, skip_damaged: bool = False) -> Session:
+        """Load a session; with ``recover``, recordings interrupted by a crash are added back first.
+
+        The recovery message (if any) is in ``session.recovery_message``.
+        """
+        path = self.path_of(name)
+        if not path.is_dir():
+            raise SessionFormatError(f'There is no session called "{name}" in {self.root}.')
+        s = load_session(path, skip_damaged=skip_damaged)
+        if recover and (path / RECORDING_DIR).is_dir():
+            _, s.recovery_message = recover_recordings(path / RECORDING_DIR, add=s.add_recording)
+        return s
+
+    def save(self, session: Session) -> None:
+        """Write the whole session (manifest and any missing demo files) to its folder atomically."""
+        with session._lock:
+            session.path.mkdir(parents=True, exist_ok=True)
+            dt = PRECISIONS[session.precision]
+            for i, r in enumerate(session.recordings):
+                if i < len(session._files) and (session.path / session._files[i]).exists():
+                    continue
+                rel = f"{DEMO_DIR}/d{session._next_id:04d}.npz"
+                session._next_id += 1
+                atomic_write_npz(session.path / rel, {"t": r.t, "q": r.q.astype(dt), "gripper": r.gripper.astype(dt)})
+                if i < len(session._files):
+                    session._files[i] = rel
+                else:
+                    session._files.append(rel)
+            session._write_manifest()
+
+    def delete(self, name: str) -> None:
+        """Delete a session folder and everything in it."""
+        path = self.path_of(name)
+        if not (path / MANIFEST).is_file():
+            raise InvalidInput(f'There is no session called "{name}".')
+        shutil.rmtree(path)
+
+    def free_name(self, name: str) -> str:
+        """``name``, or ``name (2)``, ``name (3)``… whichever no session uses yet."""
+        if not self.path_of(name).exists():
+            return name
+        i = 2
+        while True:
+            cand = f"{name[:58]} ({i})"
+            if not self.path_of(cand).exists():
+                return cand
+            i += 1
+
+    def duplicate(self, name: str, new_name: str) -> Session:
+        """Copy a session (not its in-progress recordings) under a new name; returns the copy."""
+        src = self.path_of(name)
+        dst = self.path_of(new_name)
+        if dst.exists():
+            raise InvalidInput(f'A session called "{new_name}" already exists; choose another name.')
+        load_session(src)  # only valid sessions are copied
+        tmp = self.root / f".tmp-copy-{uuid.uuid4().hex[:8]}"
+        try:
+            shutil.copytree(src, tmp, ignore=shutil.ignore_patterns(RECORDING_DIR, ".tmp-*"))
+            s = load_session(tmp)
+            s.name = new_name
+            s.created = now()
+            s._write_manifest()
+            os.rename(tmp, dst)
+        finally:
+            if tmp.exists():
+                shutil.rmtree(tmp, ignore_errors=True)
+        return load_session(dst)
+
+    def export_zip(self, name: str) -> bytes:
+        """The session as a zip archive (manifest, demos, skills) for download or sharing."""
+        return _archive.export_zip(load_session(self.path_of(name)))  # only export what loads
+
+    def import_zip(self, data: bytes, name: str | None = None, *, archive: str | None = None) -> str:
+        """Add a session from a zip made by :meth:`export_zip`; returns its (possibly renamed) name.
+
+        The archive is checked (safe member names, sizes), unpacked into a temporary folder, loaded with full
+        validation, and only then moved into place; on any problem nothing is added. ``archive`` is the
+        uploaded file's name, used in messages.
+        """
+
+        def final_name(top: str) -> str:
+            return self.free_name(check_session_name(name or top))
+
+        return _archive.import_zip(self.root, data, final_name, archive=archive)

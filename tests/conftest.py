@@ -1,0 +1,86 @@
+"""Shared test helpers: one free port, one wait, the example session copied per test, a notifier that
+records, and one headless Chromium for the browser tests (Debian's, never ``playwright install``)."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import socket
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import pytest
+
+from studio.controller import Kind, Notifier
+
+if TYPE_CHECKING:
+    from playwright.sync_api import Browser
+
+ROOT = Path(__file__).resolve().parent.parent
+CHROMIUM = os.environ.get("STUDIO_CHROMIUM", "/usr/bin/chromium")
+CHROMIUM_ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
+
+
+def free_port() -> int:
+    """A TCP port on 127.0.0.1 that nothing listens on right now."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def wait_for(pred: Callable[[], bool], timeout: float = 10.0) -> bool:
+    """Poll ``pred`` until it holds (True) or ``timeout`` seconds passed (its last value)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if pred():
+            return True
+        time.sleep(0.05)
+    return bool(pred())
+
+
+class RecordingNotifier:
+    """A notifier that keeps every notification as (kind, title, body), then passes it on (if given one)."""
+
+    def __init__(self, then: Notifier | None = None) -> None:
+        self.notes: list[tuple[str, str, str]] = []
+        self.then = then
+
+    def notify(self, title: str, body: str, *, kind: Kind = "error", client: object | None = None) -> None:
+        self.notes.append((kind, title, body))
+        if self.then is not None:
+            self.then.notify(title, body, kind=kind, client=client)
+
+    def titles(self) -> list[str]:
+        return [title for _, title, _ in self.notes]
+
+
+@pytest.fixture
+def sessions(tmp_path: Path) -> Path:
+    """A sessions folder holding a copy of the "stack-cup" example."""
+    d = tmp_path / "sessions"
+    d.mkdir()
+    shutil.copytree(ROOT / "sessions" / "stack-cup", d / "stack-cup")
+    return d
+
+
+@pytest.fixture(scope="session")
+def browser() -> Iterator[Browser]:
+    """One headless Debian Chromium for the whole run (pages are opened and closed by each test)."""
+    if not Path(CHROMIUM).exists():
+        pytest.skip(f"Debian chromium not found at {CHROMIUM} (apt-get install chromium)")
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
+        yield b
+        b.close()

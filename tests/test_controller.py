@@ -1,0 +1,283 @@
+"""The studio's controller without a browser or a viser server: teaching, recording, demos, key-points,
+training, preview, replay and sessions, on a copy of the example session with a simulated Baxter."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from studio.controller import PREVIEW, REPLAY, Controller, Topic
+from studio.core.errors import NotEnoughData, SessionFormatError, StudioError
+from studio.robot_backend.simulated import SimulatedBaxter
+from studio.storage import SessionStore
+from tests.conftest import RecordingNotifier, wait_for
+
+
+@pytest.fixture
+def ctl(sessions: Path) -> Iterator[Controller]:
+    c = Controller(
+        store=SessionStore(sessions), session="stack-cup", backend=SimulatedBaxter(), notifier=RecordingNotifier()
+    )
+    c.start()
+    yield c
+    c.close()
+    c.shutdown()
+
+
+def notes(ctl: Controller) -> list[tuple[str, str, str]]:
+    notifier = ctl.notifier
+    assert isinstance(notifier, RecordingNotifier)
+    return notifier.notes
+
+
+def test_opens_the_session_and_follows_the_robot(ctl: Controller) -> None:
+    assert ctl.session.name == "stack-cup"
+    assert len(ctl.demos.names()) == 3
+    q = ctl.teaching.arm_q("left")
+    q[3] += 0.2
+    ctl.teaching.command_arm("left", q)
+    assert wait_for(lambda: abs(ctl.teaching.arm_q("left")[3] - q[3]) < 1e-3)
+
+
+def test_gizmo_ik_reachable_and_unreachable(ctl: Controller) -> None:
+    arm = "left"
+    seen: list[str] = []
+    ctl.events.on(Topic.REACH, lambda: seen.append(ctl.teaching.reach_message()))
+    pos, wxyz = ctl.baxter.fk(arm, ctl.teaching.arm_q(arm))
+    res = ctl.teaching.move_gripper(arm, pos + np.array([0.0, 0.0, 0.05]), wxyz)
+    assert res.converged and not ctl.teaching.unreachable(arm) and ctl.teaching.reach_message() == ""
+    far = ctl.teaching.move_gripper(arm, pos + np.array([3.0, 0.0, 0.0]), wxyz)
+    assert not far.converged and ctl.teaching.unreachable(arm)
+    assert ctl.teaching.reach[arm].target == pytest.approx(tuple(pos + np.array([3.0, 0.0, 0.0])))
+    assert "cannot reach" in ctl.teaching.reach_message() and "cannot reach" in seen[-1]
+
+
+def test_record_stop_saves_to_disk_one_recording_at_a_time(ctl: Controller, sessions: Path) -> None:
+    teaching = ctl.teaching
+    teaching.start_recording()
+    with pytest.raises(StudioError, match="already running"):
+        teaching.start_recording()
+    teaching.move_joint(0, float(teaching.robot_q()[0] + 0.2))
+    teaching.set_gripper("left", 0.0)
+    assert wait_for(lambda: teaching.recorder is not None and teaching.recorder.n_samples > 600)
+    teaching.stop_recording()
+    assert teaching.recorder is None and not teaching.recording
+    assert len(ctl.demos.names()) == 4
+    again = SessionStore(sessions).open("stack-cup")
+    assert len(again.recordings) == 4 and len(again.recordings[-1]) > 600
+    teaching.start_recording()
+    teaching.discard_recording()
+    assert len(ctl.demos.names()) == 4
+
+
+def test_demo_list_hide_rename_trim_delete(ctl: Controller) -> None:
+    demos = ctl.demos
+    demos.set_visible(0, False)
+    assert [i for i, _ in demos.for_arm("left")] == [1, 2]
+    assert [d.visible for d in demos.summaries()] == [False, True, True]
+    demos.set_visible(0, True)
+    demos.rename(1, "slow one")
+    assert demos.names()[1] == "slow one"
+    with pytest.raises(StudioError):
+        demos.rename(0, "slow one")
+    d0 = demos.duration(2)
+    demos.trim(2, 1.0, d0 - 1.0)
+    assert demos.duration(2) == pytest.approx(d0 - 2.0, abs=0.01)
+    demos.delete(0)
+    assert demos.names() == ["slow one", "demo 3"]
+
+
+def test_keypoints_follow_the_thresholds_and_k(ctl: Controller) -> None:
+    kp = ctl.keypoints
+    v0 = kp.compute()
+    c0 = [d.count for d in v0.demos]
+    assert len(c0) == 3 and min(c0) > 2 and v0.k["left"] >= 2
+    kp.set_param("eps5", 0.03)
+    v1 = kp.compute()
+    assert sum(d.count for d in v1.demos) > sum(c0)
+    kp.set_k(5)
+    assert kp.compute().k["left"] == 5
+    kp.reset()
+    assert [d.count for d in kp.compute().demos] == c0
+
+
+def test_the_keypoint_thread_serves_the_newest_request(ctl: Controller) -> None:
+    views: list[int] = []
+
+    def drawn() -> None:
+        view = ctl.keypoints.view
+        assert view is not None
+        views.append(sum(d.count for d in view.demos))
+
+    ctl.events.on(Topic.KEYPOINTS, drawn)
+    ctl.keypoints.set_param("eps5", 0.03)
+    assert wait_for(lambda: bool(views) and views[-1] == sum(d.count for d in ctl.keypoints.compute().demos), 30)
+
+
+def test_train_preview_replay_export(ctl: Controller) -> None:
+    ctl.training.train().result(timeout=120)
+    assert not ctl.training.busy
+    skill = ctl.training.skills()["left"]
+    assert skill.joint_trajectory is not None
+    assert [u.name for u in ctl.training.skill_demos("left")] == ["demo 1", "demo 2", "demo 3"]
+    playback = ctl.playback
+    assert playback.preview_duration() > 1.0
+
+    playback.play_preview(speed=4.0)
+    assert wait_for(lambda: (playback.position(PREVIEW) or 0.0) > 0.5)
+    assert "preview" in playback.label()
+    playback.pause(PREVIEW)
+    playback.seek_preview(1.0)
+    assert not ctl.display.is_live
+
+    playback.play_demo(1)
+    assert wait_for(lambda: (playback.position(REPLAY) or 0.0) > 0.2)
+    playback.seek(REPLAY, 3.0)
+    playback.stop(REPLAY)
+    assert ctl.display.is_live
+
+    name, data = ctl.sessions.trajectory_csv()
+    assert name.endswith(".csv") and data.startswith(b"time,left_s0")
+    zname, zdata = ctl.sessions.zip()
+    assert zname == "stack-cup.zip" and zdata[:2] == b"PK"
+
+
+def test_replay_seek_needs_play_first(ctl: Controller) -> None:
+    with pytest.raises(StudioError, match="Press Play first"):
+        ctl.playback.seek(REPLAY, 1.0)
+    assert ctl.playback.kind is None
+
+
+def test_training_needs_two_demos_in_plain_words(ctl: Controller) -> None:
+    ctl.sessions.new("only-one")
+    with pytest.raises(NotEnoughData, match="at least two"):
+        ctl.training.train()
+    assert not ctl.training.busy
+
+
+def test_corrupt_upload_changes_nothing(ctl: Controller, sessions: Path) -> None:
+    before = sorted(p.name for p in sessions.iterdir())
+    with pytest.raises(SessionFormatError):
+        ctl.sessions.import_zip("bad.zip", b"PK\x03\x04 not a zip at all")
+    assert sorted(p.name for p in sessions.iterdir()) == before
+    assert ctl.session.name == "stack-cup"
+
+
+def test_upload_of_a_downloaded_session_opens_it(ctl: Controller) -> None:
+    _, data = ctl.sessions.zip()
+    name = ctl.sessions.import_zip("stack-cup.zip", data)
+    assert name != "stack-cup" and ctl.session.name == name
+    assert len(ctl.demos.names()) == 3
+
+
+def test_new_open_duplicate(ctl: Controller) -> None:
+    ctl.sessions.new("lesson two")
+    assert ctl.session.name == "lesson two" and ctl.demos.names() == []
+    ctl.sessions.open("stack-cup")
+    ctl.sessions.duplicate("stack-cup copy")
+    assert ctl.session.name == "stack-cup copy" and len(ctl.demos.names()) == 3
+    assert set(ctl.sessions.names()) >= {"stack-cup", "lesson two", "stack-cup copy"}
+
+
+def test_too_many_clusters_is_a_plain_notification(ctl: Controller) -> None:
+    ctl.keypoints.set_k(500)
+    view = ctl.keypoints.refresh()
+    assert view.messages and "left" not in view.k
+    assert any(kind == "warning" and title == "Key-points" for kind, title, _ in notes(ctl))
+    ctl.keypoints.set_k(None)
+    assert ctl.keypoints.refresh().k["left"] >= 2
+
+
+def test_eps_changed_during_training_is_kept(ctl: Controller, sessions: Path) -> None:
+    trained_eps5 = ctl.keypoints.params().eps5
+    fut = ctl.training.train()
+    ctl.keypoints.set_param("eps5", 0.33)
+    ctl.keypoints.persist()
+    fut.result(timeout=120)
+    assert ctl.keypoints.params().eps5 == 0.33 and ctl.session.params.eps5 == 0.33
+    again = SessionStore(sessions).open("stack-cup")
+    assert again.params.eps5 == 0.33
+    assert again.skill_info["left"].params["eps5"] == trained_eps5  # the skill remembers what it used
+
+
+def test_retraining_unloads_the_old_preview(ctl: Controller) -> None:
+    ctl.training.train().result(timeout=120)
+    ctl.playback.play_preview(speed=4.0)
+    ctl.playback.pause(PREVIEW)
+    ctl.demos.set_visible(0, False)
+    ctl.training.train().result(timeout=120)
+    assert ctl.playback.kind is None and ctl.display.is_live
+    ctl.playback.play_preview()
+    loaded = ctl.playback.loaded
+    assert loaded is not None
+    assert loaded.recording.duration == pytest.approx(ctl.playback.preview_duration(), abs=0.02)
+    ctl.playback.stop(PREVIEW)
+    assert ctl.playback.kind is None and ctl.display.is_live
+
+
+def test_duplicate_is_refused_while_recording_and_checks_the_name_first(ctl: Controller) -> None:
+    ctl.teaching.start_recording()
+    with pytest.raises(StudioError, match="Stop the recording"):
+        ctl.sessions.duplicate("copy")
+    ctl.teaching.discard_recording()
+    assert "copy" not in ctl.sessions.names() and ctl.session.name == "stack-cup"
+    ctl.sessions.new("taken")
+    ctl.sessions.open("stack-cup")
+    with pytest.raises(StudioError, match="already exists"):
+        ctl.sessions.duplicate("taken")
+    assert not any(title == "Saved" for _, title, _ in notes(ctl))
+    for action in (ctl.sessions.new, ctl.sessions.duplicate):
+        with pytest.raises(StudioError, match="Type a name in 'New name' first"):
+            action("  ")
+    assert ctl.session.name == "stack-cup"
+
+
+def test_arms_cannot_change_while_recording(ctl: Controller) -> None:
+    ctl.teaching.start_recording()
+    with pytest.raises(StudioError, match="Stop the recording before changing the arms to teach"):
+        ctl.teaching.set_arms(("right",))
+    recorder = ctl.teaching.recorder
+    assert ctl.teaching.selected_arms == ("left",) and recorder is not None and recorder.arms == ("left",)
+    ctl.teaching.discard_recording()
+    ctl.teaching.set_arms(("right",))
+    assert ctl.teaching.selected_arms == ("right",) and ctl.session.arms == ("right",)
+    with pytest.raises(StudioError, match="at least one arm"):
+        ctl.teaching.set_arms(())
+
+
+def test_demos_are_read_from_one_list(ctl: Controller, monkeypatch: pytest.MonkeyPatch) -> None:
+    recs = list(ctl.session.recordings)
+    calls = iter([recs] + [recs[1:]] * 100)  # the first demo is deleted right after the list was read
+    monkeypatch.setattr(ctl.demos, "recordings", lambda: list(next(calls)))
+    assert [d.name for _, d in ctl.demos.for_arm("left")] == [r.name for r in recs]
+
+
+def test_delete_asks_for_a_second_press(ctl: Controller) -> None:
+    demos = ctl.demos
+    names = demos.names()
+    assert demos.delete_confirmed(0, now=100.0) is False  # first press only asks
+    assert demos.names() == names
+    assert any(kind == "warning" and "Press Delete again" in body for kind, _, body in notes(ctl))
+    assert demos.delete_confirmed(0, now=100.0 + demos.DELETE_CONFIRM_S + 1) is False  # too late: asks again
+    assert demos.names() == names
+    assert demos.delete_confirmed(1, now=107.0) is False  # another demo: asks for that one
+    assert demos.delete_confirmed(1, now=108.0) is True
+    assert demos.names() == [names[0], names[2]]
+
+
+def test_events_reach_every_view_even_after_a_broken_one(ctl: Controller) -> None:
+    seen: list[str] = []
+
+    def broken() -> None:
+        raise RuntimeError("a view that fails")
+
+    ctl.events.on(Topic.DEMOS, broken)
+    off = ctl.events.on(Topic.DEMOS, lambda: seen.append("demos"))
+    ctl.demos.set_visible(0, False)
+    assert seen == ["demos"]
+    off()
+    ctl.demos.set_visible(0, True)
+    assert seen == ["demos"]
