@@ -189,8 +189,10 @@ def shape_demo(spec: ShapeSpec, seed: int, *, rate_hz: float = 1000.0, name: str
     # tremor (8–12 Hz, per axis) and sensor noise
     for k in range(3):
         f = rng.uniform(8.0, 12.0)
-        pos[:, k] += TREMOR_M * np.sin(2 * math.pi * f * t + rng.uniform(0, 2 * math.pi)) * (
-            1.0 + 0.3 * np.sin(2 * math.pi * 0.7 * t)
+        pos[:, k] += (
+            TREMOR_M
+            * np.sin(2 * math.pi * f * t + rng.uniform(0, 2 * math.pi))
+            * (1.0 + 0.3 * np.sin(2 * math.pi * 0.7 * t))
         )
     pos += rng.normal(0.0, SENSOR_NOISE_M, pos.shape)
     # orientation: pointing forward, a slow wobble of a couple of degrees
@@ -210,9 +212,7 @@ def shape_demos(spec: ShapeSpec, n_demos: int = 3, *, first_seed: int = 0, rate_
     """``n_demos`` demonstrations of ``spec`` (seeds ``first_seed`` …), named "demo 1", "demo 2", … (cached)."""
     if n_demos < 1:
         raise InvalidInput("Ask for at least one demonstration.")
-    return tuple(
-        shape_demo(spec, first_seed + i, rate_hz=rate_hz, name=f"demo {i + 1}") for i in range(int(n_demos))
-    )
+    return tuple(shape_demo(spec, first_seed + i, rate_hz=rate_hz, name=f"demo {i + 1}") for i in range(int(n_demos)))
 
 
 def shape_corners(spec: ShapeSpec, seed: int = 0) -> np.ndarray:
