@@ -2,8 +2,9 @@
 
 Key-points are the paper's 8-D vectors x, y, z, qw, qx, qy, qz, gripper. Raw units would let the gripper
 (0–100 %) swamp metres and quaternion units, so each group is divided by a physical scale first
-(:class:`FeatureScale`): by default 5 cm of position, 0.1 quaternion units (≈ 0.2 rad of rotation) and
-25 % of gripper opening weigh the same. Quaternions are put in one hemisphere (q and −q are the same
+(:class:`FeatureScale`): by default 5 cm of position (a quarter of the demos' size for smaller gestures,
+:meth:`FeatureScale.for_demos`), 0.1 quaternion units (≈ 0.2 rad of rotation) and 25 % of gripper opening
+weigh the same. Quaternions are put in one hemisphere (q and −q are the same
 orientation) before averaging. k defaults to the mean number of key-points per demonstration (the paper's
 choice). Clusters are numbered by the mean normalised time (0 at a demo's start, 1 at its end) of their
 members, so cluster i comes before cluster i + 1 in a typical demonstration: the left–right HMM's states
@@ -45,6 +46,15 @@ class FeatureScale:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and v > 0 and np.isfinite(v)):
                 raise InvalidInput(f"Feature scale {name} must be a positive number (got {v!r}).")
+
+    @classmethod
+    def for_demos(cls, demos: Sequence[Demo]) -> FeatureScale:
+        """The scale for these demonstrations: 5 cm of position, or a quarter of their size (median largest
+        side of the bounding box) when that is smaller, at least 2 mm — a 3 cm gesture's key-points would
+        otherwise all look alike next to the orientation's and the gripper's units."""
+        sizes = [float(np.max(np.ptp(d.position, axis=0))) for d in demos if len(d)]
+        size = float(np.median(sizes)) if sizes else 0.2
+        return cls(position=float(min(0.05, max(0.002, size / 4.0))))
 
     @property
     def divisors(self) -> np.ndarray:
@@ -197,7 +207,7 @@ def cluster(
         NotEnoughData: no key-points, or more clusters than distinct key-points.
         InvalidInput: k below 1.
     """
-    scale = scale or FeatureScale()
+    scale = scale or FeatureScale.for_demos(demos)
     X, _, u = keypoint_features(demos, keypoints)
     m = X.shape[0]
     if m == 0:

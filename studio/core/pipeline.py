@@ -24,7 +24,10 @@ cluster can mix key-points from different parts of the task that Viterbi keeps a
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import weakref
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -32,11 +35,14 @@ from studio.core import alignment, hmm
 from studio.core.clustering import FeatureScale, align_hemisphere, cluster, default_n_clusters
 from studio.core.errors import InvalidInput, NotEnoughData
 from studio.core.generalize import SMOOTHING, generalize, joint_trajectory
-from studio.core.keypoints import KeypointCache, extract_keypoints
-from studio.core.kinematics import Baxter
+from studio.core.keypoints import KeypointCache
+from studio.core.kinematics import Baxter, make_sign_continuous
 from studio.core.types import ARMS, Demo, KeypointParams, Recording, Skill, check_arm
 
 SPLINE_THROUGH = ("state-means", "centroids")
+#: Generalisation modes: "piecewise" (default) and "paper" (see the module docstring).
+GENERALIZATIONS = ("piecewise", "paper")
+DEFAULT_GENERALIZATION = "piecewise"
 
 
 def demo_from_recording(rec: Recording, arm: str, baxter: Baxter | None = None) -> Demo:
@@ -77,53 +83,72 @@ def _scaled(X: np.ndarray, scale: FeatureScale, ref_quat: np.ndarray) -> np.ndar
     return X / scale.divisors
 
 
-def learn_skill(
-    demos: Sequence[Demo],
-    params: KeypointParams | None = None,
-    *,
-    n_clusters: int | None = None,
-    seed: int = 0,
-    arm: str | None = None,
-    baxter: Baxter | None = None,
-    spline_through: str = "state-means",
-    smoothing: float = SMOOTHING,
-    scale: FeatureScale | None = None,
-    keypoints: Sequence[np.ndarray] | None = None,
-    cache: KeypointCache | None = None,
-) -> Skill:
-    """Learn a skill from demonstrations (paper § Task Learning).
+class AlignmentCache:
+    """DTW time maps between demonstrations, reused while only the thresholds change.
 
-    Args:
-        demos: one or more demonstrations of the same task by the same arm.
-        params: key-point thresholds (default ``KeypointParams()``).
-        n_clusters: k (default: the mean number of key-points per demonstration).
-        seed: seed for k-means and hmmlearn.
-        arm: if given, also solve IK for ``skill.joint_trajectory``, seeded by the reference demo's joints.
-        baxter: the robot model (default :meth:`Baxter.load`).
-        spline_through: "state-means" (default) or "centroids" (see module docstring).
-        smoothing: spline smoothing (see :mod:`studio.core.generalize`).
-        scale: feature scaling for clustering and DTW.
-        keypoints: precomputed key-point indices per demo (e.g. from the slider's cache).
-        cache: a :class:`KeypointCache` to reuse derived series.
-
-    Returns:
-        The :class:`Skill`.
-
-    Raises:
-        NotEnoughData: no demos, a demo with fewer than 2 key-points, more clusters than key-points.
-        InvalidInput: malformed input (NaN, mismatched lengths are rejected when the Demo is built).
-        IkFailed: with ``arm``, the skill's start is out of reach.
+    The alignment of a demo to the reference depends on the two demos, the common DTW rate and the feature
+    scale, not on ε: a slider move (or the auto-tune) that keeps the same reference re-uses it. Entries are
+    held with weak references to the demos (a deleted demo's maps go with it) and at most :attr:`size` are
+    kept. Safe to share between threads (a race only computes one map twice).
     """
-    demos = _validate(demos)
-    params = params or KeypointParams()
-    scale = scale or FeatureScale()
-    if spline_through not in SPLINE_THROUGH:
-        raise InvalidInput(f'spline_through must be one of {", ".join(SPLINE_THROUGH)} (got "{spline_through}").')
-    if arm is not None:
-        check_arm(arm)
+
+    def __init__(self, size: int = 64) -> None:
+        self.size = size
+        self._maps: dict[tuple, tuple[weakref.ref, weakref.ref, np.ndarray]] = {}
+
+    def get(self, ref: Demo, demo: Demo, key: tuple, compute) -> np.ndarray:
+        k = (id(ref), id(demo), *key)
+        hit = self._maps.get(k)
+        if hit is not None and hit[0]() is ref and hit[1]() is demo:
+            return hit[2]
+        value = compute()
+        if len(self._maps) >= self.size:
+            try:
+                self._maps.pop(next(iter(self._maps)), None)
+            except (StopIteration, RuntimeError):
+                pass
+        self._maps[k] = (weakref.ref(ref), weakref.ref(demo), value)
+        return value
+
+
+_SERIES_CACHE = KeypointCache()
+_ALIGN_CACHE = AlignmentCache()
+
+
+@dataclass(frozen=True, eq=False)
+class _Model:
+    """Everything between the key-points and the generalized path (one learn_skill or preview)."""
+
+    kps: list[np.ndarray]
+    k: int
+    cl: Any
+    model: Any
+    ref: int
+    aligned: list[np.ndarray]  # key-point times of each demo on the reference's time line (from its start)
+    own: list[np.ndarray]  # key-point times of each demo on its own time line (from its start)
+    inverse: list[Callable[[np.ndarray], np.ndarray]]  # reference time (from its start) -> demo time (from its start)
+    pairs: np.ndarray  # (P, 2) (state, cluster) of the path points, in the reference's order
+    times: np.ndarray  # (P,) path point times
+    points: np.ndarray  # (P, 8)
+    weights: np.ndarray  # (P,)
+
+
+def _fit(
+    demos: list[Demo],
+    params: KeypointParams,
+    *,
+    n_clusters: int | None,
+    seed: int,
+    scale: FeatureScale,
+    spline_through: str,
+    keypoints: Sequence[np.ndarray] | None,
+    cache: KeypointCache | None,
+    align_cache: AlignmentCache | None,
+) -> _Model:
     # 1. key-points
     if keypoints is None:
-        kps = [cache.extract(d, params) if cache else extract_keypoints(d, params) for d in demos]
+        kc = cache or _SERIES_CACHE
+        kps = [kc.extract(d, params) for d in demos]
     else:
         if len(keypoints) != len(demos):
             raise InvalidInput("There must be one list of key-points per demonstration.")
@@ -146,33 +171,39 @@ def learn_skill(
     # 3. HMM
     model = hmm.train(cl.labels, k, seed=seed)
     ref = model.reference
-    # 4. DTW of every demo against the reference on a common coarse grid
-    rate = alignment.common_rate([d.duration for d in demos])
     ref_demo = demos[ref]
-    ref_quat = cl.features[0, 3:7] if cl.features.shape[0] else np.array([1.0, 0, 0, 0])
+    # 4. DTW of every demo against the reference on a common grid (maps cached: they do not depend on ε)
+    rate = alignment.common_rate([d.duration for d in demos])
+    ref_quat = np.asarray(ref_demo.orientation[0], dtype=np.float64)
     grids = [alignment.time_grid(d.t[0], d.t[-1], rate) for d in demos]
-    series = [
-        _scaled(alignment.resample(d.t, d.features, g), scale, ref_quat) for d, g in zip(demos, grids, strict=True)
-    ]
+    key = (round(rate, 9), *np.round(scale.divisors, 12).tolist())
+    ac = align_cache or _ALIGN_CACHE
+
+    def series(i: int) -> np.ndarray:
+        return _scaled(alignment.resample(demos[i].t, demos[i].features, grids[i]), scale, ref_quat)
+
     aligned: list[np.ndarray] = []
+    inverse: list[Callable[[np.ndarray], np.ndarray]] = []
     for i, d in enumerate(demos):
         tk = d.t[kps[i]]
         if i == ref:
             aligned.append(tk - ref_demo.t[0])
+            inverse.append(lambda tau: np.asarray(tau, dtype=np.float64))
             continue
-        _, path = alignment.dtw(series[ref], series[i])
-        mapped = alignment.time_map(path, grids[ref], grids[i])
+
+        def compute(i: int = i) -> np.ndarray:
+            _, path = alignment.dtw(series(ref), series(i))
+            return alignment.time_map(path, grids[ref], grids[i])
+
+        mapped = ac.get(ref_demo, d, key, compute)
         aligned.append(np.interp(tk, grids[i], mapped) - ref_demo.t[0])
+        g0, m0 = grids[i] - d.t[0], mapped - ref_demo.t[0]
+        inverse.append(lambda tau, m0=m0, g0=g0: alignment.inverse_time_map(m0, g0, tau))
     # 5. timed path points
     times_all = np.concatenate(aligned)
     labels_all = np.concatenate(cl.labels)
     states_all = np.concatenate(model.paths)
     X = cl.features
-    centroid_times = np.full(k, np.nan)
-    for c in range(k):
-        m = labels_all == c
-        if m.any():
-            centroid_times[c] = times_all[m].mean()
     # The reference's key-points in order, as (state, cluster) pairs; consecutive repeats are one point.
     ref_pairs = np.column_stack([model.states, cl.labels[ref]])
     keep = np.concatenate([[True], np.any(ref_pairs[1:] != ref_pairs[:-1], axis=1)])
@@ -189,45 +220,209 @@ def learn_skill(
         pts.append(p)
         tms.append(times_all[m].mean())
         wts.append(float(m.sum()))
-    path_states = pairs[:, 0]
+    return _Model(
+        kps=kps,
+        k=k,
+        cl=cl,
+        model=model,
+        ref=ref,
+        aligned=aligned,
+        own=[d.t[kp] - d.t[0] for d, kp in zip(demos, kps, strict=True)],
+        inverse=inverse,
+        pairs=pairs,
+        times=np.array(tms),
+        points=np.array(pts),
+        weights=np.array(wts),
+    )
+
+
+def _landmarks(fm: _Model, d: int) -> tuple[np.ndarray, np.ndarray]:
+    """Matching times (reference time, demo d's time, both from their starts) of the reference's key-points
+    and demo d's key-points with the same (Viterbi state, k-means cluster), strictly increasing in both."""
+    ref = fm.ref
+    st_r, lab_r = fm.model.paths[ref], fm.cl.labels[ref]
+    st_d, lab_d = fm.model.paths[d], fm.cl.labels[d]
+    t_ref = fm.aligned[ref]
+    t_al = fm.aligned[d]  # demo d's key-points on the reference time line
+    out_r, out_d = [0.0], [0.0]
+    for i in range(len(st_r)):
+        m = np.flatnonzero((st_d == st_r[i]) & (lab_d == lab_r[i]))
+        if m.size == 0:
+            continue
+        j = int(m[np.argmin(np.abs(t_al[m] - t_ref[i]))])
+        tr, td = float(t_ref[i]), float(fm.own[d][j])
+        if tr > out_r[-1] and td > out_d[-1]:
+            out_r.append(tr)
+            out_d.append(td)
+    return np.array(out_r), np.array(out_d)
+
+
+def _piecewise_mean(demos: list[Demo], fm: _Model, t: np.ndarray, cache: KeypointCache) -> np.ndarray:
+    """(len(t), 7) position and orientation: at each reference time, the mean of the demos at the matching
+    time. Matching times are piecewise: exact at the key-points the demo shares with the reference (same
+    Viterbi state and cluster), the DTW alignment between them rescaled to meet those landmarks."""
+    ref_q = np.asarray(demos[fm.ref].orientation[0], dtype=np.float64)
+    acc = np.zeros((t.shape[0], 7))
+    for d, demo in enumerate(demos):
+        ser = cache.series(demo)
+        td_all = np.asarray(demo.t) - demo.t[0]
+        if d == fm.ref:
+            w = np.clip(t, 0.0, td_all[-1])
+        else:
+            lr, ld = _landmarks(fm, d)
+            T_ref, T_d = demos[fm.ref].duration, float(td_all[-1])
+            if lr[-1] < T_ref and ld[-1] < T_d:
+                lr, ld = np.append(lr, T_ref), np.append(ld, T_d)
+            dtw_w = fm.inverse[d](t)
+            at_land = fm.inverse[d](lr)
+            seg = np.clip(np.searchsorted(lr, t, side="right") - 1, 0, len(lr) - 2)
+            a0, a1 = at_land[seg], at_land[seg + 1]
+            span = a1 - a0
+            frac_dtw = np.where(span > 1e-9, (dtw_w - a0) / np.where(span > 1e-9, span, 1.0), np.nan)
+            frac_lin = (t - lr[seg]) / np.maximum(lr[seg + 1] - lr[seg], 1e-12)
+            frac = np.clip(np.where(np.isfinite(frac_dtw), frac_dtw, frac_lin), 0.0, 1.0)
+            w = ld[seg] + frac * (ld[seg + 1] - ld[seg])
+        pos = np.column_stack([np.interp(w, td_all, ser.position[:, k]) for k in range(3)])
+        q = np.column_stack([np.interp(w, td_all, ser.orientation[:, k]) for k in range(4)])
+        q *= np.where(q @ ref_q < 0, -1.0, 1.0)[:, None]
+        acc[:, :3] += pos
+        acc[:, 3:] += q
+    acc /= len(demos)
+    acc[:, 3:] /= np.linalg.norm(acc[:, 3:], axis=1, keepdims=True)
+    return acc
+
+
+def _trajectory(
+    demos: list[Demo],
+    fm: _Model,
+    *,
+    generalization: str,
+    smoothing: float,
+    cache: KeypointCache,
+    rate_hz: float | None = None,
+) -> Demo:
+    ref_demo = demos[fm.ref]
     dt = float(np.median(np.diff(ref_demo.t)))
     traj = generalize(
-        np.array(tms),
-        np.array(pts),
-        weights=np.array(wts),
+        fm.times,
+        fm.points,
+        weights=fm.weights,
         t_start=0.0,
         t_end=ref_demo.duration,
-        rate_hz=1.0 / dt,
+        rate_hz=rate_hz or 1.0 / dt,
         smoothing=smoothing,
         name="learned skill",
     )
+    if generalization == "paper":
+        return traj
+    pose = _piecewise_mean(demos, fm, np.asarray(traj.t), cache)
+    return Demo(traj.t, pose[:, :3], make_sign_continuous(pose[:, 3:]), traj.gripper, name="learned skill")
+
+
+def learn_skill(
+    demos: Sequence[Demo],
+    params: KeypointParams | None = None,
+    *,
+    n_clusters: int | None = None,
+    seed: int = 0,
+    arm: str | None = None,
+    baxter: Baxter | None = None,
+    spline_through: str = "state-means",
+    generalization: str = DEFAULT_GENERALIZATION,
+    smoothing: float = SMOOTHING,
+    scale: FeatureScale | None = None,
+    keypoints: Sequence[np.ndarray] | None = None,
+    cache: KeypointCache | None = None,
+    align_cache: AlignmentCache | None = None,
+) -> Skill:
+    """Learn a skill from demonstrations (paper § Task Learning).
+
+    Args:
+        demos: one or more demonstrations of the same task by the same arm.
+        params: key-point thresholds (default: automatic for these demos, :func:`studio.core.thresholds.auto_params`).
+        n_clusters: k (default: the mean number of key-points per demonstration).
+        seed: seed for k-means and hmmlearn.
+        arm: if given, also solve IK for ``skill.joint_trajectory``, seeded by the reference demo's joints.
+        baxter: the robot model (default :meth:`Baxter.load`).
+        spline_through: paper mode's path points, "state-means" (default) or "centroids" (module docstring).
+        generalization: "piecewise" (default) or "paper" (module docstring).
+        smoothing: spline smoothing (see :mod:`studio.core.generalize`).
+        scale: feature scaling for clustering and DTW (default :meth:`FeatureScale.for_demos`).
+        keypoints: precomputed key-point indices per demo (e.g. from the slider's cache).
+        cache: a :class:`KeypointCache` to reuse derived series.
+        align_cache: an :class:`AlignmentCache` to reuse DTW maps (default: a process-wide one).
+
+    Returns:
+        The :class:`Skill`.
+
+    Raises:
+        NotEnoughData: no demos, a demo with fewer than 2 key-points, more clusters than key-points.
+        InvalidInput: malformed input (NaN, mismatched lengths are rejected when the Demo is built).
+        IkFailed: with ``arm``, the skill's start is out of reach.
+    """
+    demos = _validate(demos)
+    if params is None:
+        from studio.core.thresholds import auto_params
+
+        params = auto_params(demos)
+    scale = scale or FeatureScale.for_demos(demos)
+    if spline_through not in SPLINE_THROUGH:
+        raise InvalidInput(f'spline_through must be one of {", ".join(SPLINE_THROUGH)} (got "{spline_through}").')
+    if generalization not in GENERALIZATIONS:
+        raise InvalidInput(f'generalization must be one of {", ".join(GENERALIZATIONS)} (got "{generalization}").')
+    if arm is not None:
+        check_arm(arm)
+    kc = cache or _SERIES_CACHE
+    fm = _fit(
+        demos,
+        params,
+        n_clusters=n_clusters,
+        seed=seed,
+        scale=scale,
+        spline_through=spline_through,
+        keypoints=keypoints,
+        cache=kc,
+        align_cache=align_cache,
+    )
+    traj = _trajectory(demos, fm, generalization=generalization, smoothing=smoothing, cache=kc)
+    ref_demo = demos[fm.ref]
     jt = None
     if arm is not None:
         seed_q = ref_demo.q[0] if ref_demo.q is not None else (baxter or Baxter.load()).neutral(arm)
         jt = joint_trajectory(traj, arm, seed_q, baxter)
-    order = np.argsort(tms, kind="stable")
+    k = fm.k
+    labels_all = np.concatenate(fm.cl.labels)
+    times_all = np.concatenate(fm.aligned)
+    centroid_times = np.full(k, np.nan)
+    for c in range(k):
+        m = labels_all == c
+        if m.any():
+            centroid_times[c] = times_all[m].mean()
+    order = np.argsort(fm.times, kind="stable")
+    model = fm.model
     return Skill(
         trajectory=traj,
-        keypoints=kps,
-        labels=list(cl.labels),
-        centroids=cl.centroids,
+        keypoints=fm.kps,
+        labels=list(fm.cl.labels),
+        centroids=fm.cl.centroids,
         centroid_times=centroid_times,
         states=model.states,
         paths=list(model.paths),
-        reference=ref,
+        reference=fm.ref,
         zero_points=model.zero_points,
         startprob=model.startprob,
         transmat=model.transmat,
         emissionprob=model.emissionprob,
         loglik=model.loglik,
-        path_times=np.array(tms)[order],
-        path_points=np.array(pts)[order],
-        path_states=path_states[order],
+        path_times=fm.times[order],
+        path_points=fm.points[order],
+        path_states=fm.pairs[:, 0][order],
         joint_trajectory=jt,
         arm=arm,
         params=params,
         spline_through=spline_through,
         demo_names=tuple(d.name for d in demos),
+        generalization=generalization,
     )
 
 
@@ -265,4 +460,12 @@ def learn_arms(
     return out
 
 
-__all__ = ["SPLINE_THROUGH", "demo_from_recording", "learn_arms", "learn_skill"]
+__all__ = [
+    "DEFAULT_GENERALIZATION",
+    "GENERALIZATIONS",
+    "SPLINE_THROUGH",
+    "AlignmentCache",
+    "demo_from_recording",
+    "learn_arms",
+    "learn_skill",
+]
