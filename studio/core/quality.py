@@ -7,10 +7,14 @@ Fidelity (:func:`fidelity`):
 
 * curves are compared by shape, not by timing: each series is smoothed over 50 ms (tremor and sensor noise)
   and resampled to :data:`N_POINTS` points evenly spaced along its path;
-* **normalised DTW** of two curves: the mean Euclidean distance between matched points along the optimal DTW
-  alignment (dtaidistance's C warping path); **G/R** = mean normalised DTW of the learned path to each demo
-  ÷ the demos' mean pairwise normalised DTW. A path central to the demonstrations is closer to each of them
-  than they are to each other (G/R < 1; for n demos that differ only by noise, ≈ √(1/2 − 1/(2n)) … ≈ 0.6);
+* **normalised DTW** of two curves: the paper's DTW cost g (Σ of squared distances along the optimal
+  alignment, dtaidistance's C warping path) ÷ the alignment's length, i.e. the mean *squared* distance of
+  matched points (m²); **G/R** = mean normalised DTW of the learned path to each demo ÷ the demos' mean
+  pairwise normalised DTW. A path central to the demonstrations is closer to each of them than they are to
+  each other: for n demos that differ by independent noise, their exact mean has G/R = (n − 1)/(2n)
+  (0.33 for 3, 0.43 for 7). The figures in metres (:attr:`Fidelity.distance`, "within 4 mm on average")
+  are root-mean-square distances, √g; :attr:`Fidelity.rms_ratio` = √(G/R) is the same ratio in those terms
+  (0.58 and 0.65 for that exact mean);
 * **discrete Fréchet distance** (the leash length; numpy, one anti-diagonal at a time) to each demo, averaged;
   **F/B1** = that ÷ the same for B1, the time-normalised mean of the demos (each resampled over 0…1 of its
   own duration and averaged sample by sample): the simplest generalisation there is, the bar to clear.
@@ -42,8 +46,9 @@ from studio.core.types import Demo, Skill
 N_POINTS = 600
 #: Low-pass applied before any comparison, seconds (tremor and sensor noise are not the path).
 SMOOTH_S = 0.05
-#: A bend is a sharp corner when the path turns by more than this (radians) within :func:`corner_stride`.
-CORNER_TURN = math.radians(80.0)
+#: A bend is a sharp corner when the path turns by more than this (radians) within :func:`corner_stride`
+#: (on the shape suite this keeps the zigzag's corners and none of the waves' crests or the loops' bottoms).
+CORNER_TURN = math.radians(100.0)
 
 
 # -- curves ------------------------------------------------------------------------------------------------------
@@ -83,13 +88,15 @@ def curve(demo: Demo, n: int = N_POINTS) -> np.ndarray:
 
 
 def ndtw(a: np.ndarray, b: np.ndarray) -> float:
-    """Normalised DTW of two curves (M, 3), (N, 3): mean distance between the points DTW matches, metres."""
+    """Normalised DTW of two curves (M, 3), (N, 3): the paper's DTW cost g (sum of squared distances along the
+    optimal alignment) ÷ the alignment's length — the mean squared distance between matched points, m²."""
     from dtaidistance import dtw as dtai
 
     a = np.ascontiguousarray(a, dtype=np.float64)
     b = np.ascontiguousarray(b, dtype=np.float64)
     path = np.asarray(dtai.warping_path_fast(a, b), dtype=np.int64)
-    return float(np.mean(np.linalg.norm(a[path[:, 0]] - b[path[:, 1]], axis=1)))
+    diff = a[path[:, 0]] - b[path[:, 1]]
+    return float(np.einsum("ij,ij->", diff, diff) / path.shape[0])
 
 
 def frechet(a: np.ndarray, b: np.ndarray) -> float:
@@ -144,18 +151,20 @@ class Fidelity:
     """How close a path is to the demonstrations.
 
     Attributes:
-        distance: mean normalised DTW of the path to each demo, m (the "within … on average" figure).
-        spread: the demos' mean pairwise normalised DTW, m (R).
-        g_over_r: distance ÷ spread.
+        distance: root of the mean normalised DTW of the path to the demos, m (the "within … on average" figure).
+        spread: root of the demos' mean pairwise normalised DTW (R), m.
+        g_over_r: G/R, mean normalised DTW to the demos ÷ the demos' mean pairwise normalised DTW.
+        rms_ratio: √(G/R) = distance ÷ spread.
         frechet: mean discrete Fréchet distance of the path to each demo, m.
         frechet_b1: the same for B1 (time-normalised mean of the demos), m.
         f_over_b1: frechet ÷ frechet_b1.
-        per_demo: normalised DTW to each demo, m.
+        per_demo: root of the normalised DTW to each demo, m.
     """
 
     distance: float
     spread: float
     g_over_r: float
+    rms_ratio: float
     frechet: float
     frechet_b1: float
     f_over_b1: float
@@ -167,10 +176,10 @@ class HeldOut:
     """Leave-one-demo-out: a skill learned without demo i, measured on demo i.
 
     Attributes:
-        distance: mean over folds of the normalised DTW to the left-out demo, m.
-        g_over_r: distance ÷ the demos' mean pairwise normalised DTW.
+        distance: root of the mean over folds of the normalised DTW to the left-out demo, m.
+        g_over_r: that mean ÷ the demos' mean pairwise normalised DTW (G/R held out).
         frechet: mean over folds of the Fréchet distance to the left-out demo, m.
-        per_demo: the distance of each fold, m (NaN where learning failed).
+        per_demo: the root normalised DTW of each fold, m (NaN where learning failed).
         failed: folds where learning failed (their demo indices).
     """
 
@@ -223,7 +232,7 @@ class Outlier:
         index: position in the demo list.
         name: its name.
         ratio: its mean distance to the others ÷ the others' mean distance to each other (or NaN).
-        distance: its mean normalised DTW to the others, m.
+        distance: its root-mean-square DTW distance to the others, m.
         reason: "shape" (far from the others) or "likelihood" (the HMM finds it much less likely).
     """
 
@@ -294,7 +303,7 @@ class QualityReport:
 
 
 def spread(curves: Sequence[np.ndarray]) -> tuple[float, np.ndarray]:
-    """R, the mean pairwise normalised DTW of curves, and the (D, D) matrix of them (0 on the diagonal)."""
+    """R, the mean pairwise normalised DTW of curves (m²), and the (D, D) matrix of them (0 on the diagonal)."""
     n = len(curves)
     M = np.zeros((n, n))
     for i in range(n):
@@ -320,8 +329,8 @@ def fidelity(
     """
     if not demo_curves:
         raise NotEnoughData("There are no demonstrations to compare the skill with.")
-    per = tuple(ndtw(path, c) for c in demo_curves)
-    dist = float(np.mean(per))
+    per = [ndtw(path, c) for c in demo_curves]
+    g = float(np.mean(per))
     if r is None:
         r = spread(demo_curves)[0]
     fr = float(np.mean([frechet(path, c) for c in demo_curves]))
@@ -332,13 +341,14 @@ def fidelity(
             bc = arc_resample(b1, len(path))
             b1_frechet = float(np.mean([frechet(bc, c) for c in demo_curves]))
     return Fidelity(
-        distance=dist,
-        spread=float(r),
-        g_over_r=dist / r if r and r > 0 else float("nan"),
+        distance=math.sqrt(g),
+        spread=math.sqrt(r) if r >= 0 else float("nan"),
+        g_over_r=g / r if r and r > 0 else float("nan"),
+        rms_ratio=math.sqrt(g / r) if r and r > 0 else float("nan"),
         frechet=fr,
         frechet_b1=float(b1_frechet),
         f_over_b1=fr / b1_frechet if b1_frechet and b1_frechet > 0 else float("nan"),
-        per_demo=per,
+        per_demo=tuple(math.sqrt(x) for x in per),
     )
 
 
@@ -380,19 +390,19 @@ def held_out(
         per.append(ndtw(c, curves[i]))
         fr.append(frechet(c, curves[i]))
     ok = [p for p in per if math.isfinite(p)]
-    dist = float(np.mean(ok)) if ok else float("inf")
+    g = float(np.mean(ok)) if ok else float("inf")
     return HeldOut(
-        distance=dist,
-        g_over_r=dist / r if r > 0 else float("nan"),
+        distance=math.sqrt(g),
+        g_over_r=g / r if r > 0 else float("nan"),
         frechet=float(np.mean(fr)) if fr else float("inf"),
-        per_demo=tuple(per),
+        per_demo=tuple(math.sqrt(p) if math.isfinite(p) else p for p in per),
         failed=tuple(failed),
     )
 
 
 def corner_stride(size: float) -> float:
-    """Arc length (m) over which a bend is measured for the corner measure: a twelfth of the size."""
-    return max(size / 12.0, 1e-4)
+    """Arc length (m) over which a bend is measured for the corner measure: a twentieth of the size."""
+    return max(size / 20.0, 1e-4)
 
 
 def find_corners(demo: Demo, size: float) -> list[tuple[int, float]]:
@@ -547,7 +557,7 @@ def outliers(
 ) -> tuple[Outlier, ...]:
     """Demos the others do not explain.
 
-    Shape: with ≥ 3 demos, demo i is an outlier when its mean normalised DTW to the others is more than 2.5×
+    Shape: with ≥ 3 demos, demo i is an outlier when its mean RMS DTW distance to the others is more than 2.5×
     the others' mean distance to each other and more than max(4 mm, 10 % of the size).
     Likelihood: the trained HMM's log-likelihood per key-point of demo i is more than 3 nats below the median.
     """
@@ -555,6 +565,7 @@ def outliers(
     out: list[Outlier] = []
     if n < 3:
         return ()
+    matrix = np.sqrt(np.asarray(matrix, dtype=float))  # root-mean-square distances, m
     size = extent(demos) if size is None else size
     floor = max(0.004, 0.10 * size)
     for i in range(n):

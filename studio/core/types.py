@@ -320,7 +320,7 @@ class Skill:
         spline_through: "state-means" or "centroids" (the points paper mode's spline goes through).
         demo_names: names of the input demos.
         generalization: how the trajectory was made: "paper" (the spline through the timed states) or
-            "piecewise" (the demos averaged between their DTW-aligned states); skills saved before the
+            "aligned-mean" (the demos averaged along their DTW alignment to the reference); skills saved before the
             mode existed were paper mode.
     """
 
