@@ -674,6 +674,135 @@ def assess(
     )
 
 
+# -- the verdict -------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """The skill's quality in plain words.
+
+    Attributes:
+        level: "good", "fair" or "poor".
+        lines: the headline first ("Good: …", "Fair: …" or "Poor: …"), then one line per thing to look at.
+    """
+
+    level: str
+    lines: tuple[str, ...]
+
+    @property
+    def text(self) -> str:
+        return "\n".join(self.lines)
+
+
+def length_words(metres: float) -> str:
+    """A distance as a person says it: "4 mm", "2.5 cm", "1.2 m"."""
+    m = abs(float(metres))
+    if m < 0.0095:
+        return f"{m * 1000:.0f} mm" if m >= 0.00095 else f"{max(m * 1000, 0.1):.1f} mm"
+    if m < 1.0:
+        cm = m * 100
+        return f"{cm:.0f} cm" if cm >= 9.95 else f"{cm:.1f} cm".replace(".0 cm", " cm")
+    return f"{m:.1f} m"
+
+
+#: Verdict limits (see :func:`verdict`).
+GOOD_G_OVER_R = 0.6
+GOOD_F_OVER_B1 = 1.25
+POOR_G_OVER_R = 1.0
+POOR_F_OVER_B1 = 2.0
+
+
+def _tolerance(size: float, share: float, floor: float) -> float:
+    return max(floor, share * size)
+
+
+def verdict(report: QualityReport) -> Verdict:
+    """Word a :class:`QualityReport` for the teacher (GUI-free; the Train panel and ``studio learn`` show it).
+
+    The path is *close* when G/R ≤ 0.6 (or the RMS distance is within 1.5 mm / 1 % of the size) and F/B1 ≤ 1.25
+    (or the Fréchet distance is within 3 mm / 2 % of the size); *poor* when G/R > 1 and F/B1 > 2. A shared
+    corner is *cut* when the path passes farther than max(3 mm, 3 % of the size) from it; start and end count
+    from max(2 mm, 1 % of the size), a grasp or release from 1 cm, execution when IK tracks less than 98 % of
+    the samples or strays more than 5 mm. The headline is "Good" only if nothing else needs a line.
+    """
+    r = report
+    f = r.fidelity
+    size = r.size
+    notes: list[str] = []
+    close = (f.g_over_r <= GOOD_G_OVER_R or f.distance <= _tolerance(size, 0.01, 0.0015)) and (
+        not math.isfinite(f.f_over_b1) or f.f_over_b1 <= GOOD_F_OVER_B1 or f.frechet <= _tolerance(size, 0.02, 0.003)
+    )
+    poor = f.g_over_r > POOR_G_OVER_R and (not math.isfinite(f.f_over_b1) or f.f_over_b1 > POOR_F_OVER_B1)
+    cut = [c for c in r.corners if c.error > _tolerance(size, 0.03, 0.003)]
+    worst_corner = max(cut, key=lambda c: c.error) if cut else None
+    tol_end = _tolerance(size, 0.01, 0.002)
+    if r.start_error > tol_end:
+        notes.append(f"It starts {length_words(r.start_error)} away from where your demonstrations start.")
+    if r.end_error > tol_end:
+        notes.append(f"It ends {length_words(r.end_error)} away from where your demonstrations end.")
+    if r.gripper_mismatch:
+        notes.append(r.gripper_mismatch)
+    past = {"close": "closed", "open": "opened"}
+    verb = {"close": "closes", "open": "opens"}
+    for g in r.gripper:
+        if not math.isfinite(g.error):
+            notes.append(
+                f"It never {verb[g.action][:-1]}s the gripper where you {past[g.action]} it — press Suggest, or move "
+                "Detail towards more key-points."
+            )
+        elif g.error > 0.01:
+            notes.append(
+                f"It {verb[g.action]} the gripper {length_words(g.error)} away from where you {past[g.action]} it "
+                f"(at {g.time:.1f} s) — press Suggest, or move Detail towards more key-points."
+            )
+    ex = r.execution
+    if ex is not None and (ex.tracked < 0.98 or ex.max_error > 0.005):
+        notes.append(
+            f"The robot cannot follow {100 * (1 - ex.tracked):.0f} % of it (up to {length_words(ex.max_error)} off "
+            f"at {ex.worst_time:.1f} s) — teach it closer to the robot, with the gripper in a direction the arm "
+            "can hold."
+        )
+    if ex is not None and r.demo_durations and ex.duration > 1.2 * max(r.demo_durations) + 0.2:
+        notes.append(
+            f"The robot needs {ex.duration:.1f} s for it (your demonstrations took "
+            f"{min(r.demo_durations):.1f}–{max(r.demo_durations):.1f} s): its joints cannot move that fast."
+        )
+    h = r.held_out
+    if h is not None and math.isfinite(h.g_over_r) and h.g_over_r > 1.0 and h.distance > _tolerance(size, 0.01, 0.002):
+        notes.append(
+            f"Learned without one of your demonstrations, it misses that one by {length_words(h.distance)} on "
+            "average: record one or two more demonstrations."
+        )
+    for o in r.outliers:
+        notes.append(f"{o.name} differs a lot from the others — re-record or hide it.")
+    d = length_words(f.distance)
+    if poor:
+        head = (
+            f"Poor: the skill strays from your demonstrations ({d} on average) — press Suggest, or move Detail "
+            "towards more key-points."
+        )
+        level = "poor"
+    elif worst_corner is not None:
+        head = (
+            f"Fair: it cuts the corner at {worst_corner.time:.1f} s by {length_words(worst_corner.error)} — press "
+            "Suggest, or lower Corner sharpness."
+        )
+        level = "fair"
+    elif not close:
+        head = (
+            f"Fair: the skill stays within {d} of your demonstrations on average, but they are closer to each other "
+            "than that — press Suggest, or move Detail towards more key-points."
+        )
+        level = "fair"
+    elif notes:
+        head = f"Fair: the skill follows your demonstrations closely (within {d} on average), but:"
+        level = "fair"
+    else:
+        head = f"Good: the skill follows your demonstrations closely (within {d} on average)."
+        level = "good"
+    return Verdict(level, (head, *notes))
+
+
 __all__ = [
     "N_POINTS",
     "Corner",
@@ -683,6 +812,7 @@ __all__ = [
     "HeldOut",
     "Outlier",
     "QualityReport",
+    "Verdict",
     "arc_resample",
     "assess",
     "corner_checks",
@@ -694,10 +824,12 @@ __all__ = [
     "frechet",
     "gripper_checks",
     "held_out",
+    "length_words",
     "mean_squared_jerk",
     "ndtw",
     "outliers",
     "shared_corners",
     "spread",
     "time_normalised_mean",
+    "verdict",
 ]
