@@ -420,6 +420,140 @@ def learn_skill(
     )
 
 
+def learn_path(
+    demos: Sequence[Demo],
+    params: KeypointParams | None = None,
+    *,
+    n_clusters: int | None = None,
+    seed: int = 0,
+    generalization: str = DEFAULT_GENERALIZATION,
+    rate_hz: float = 50.0,
+    cache: KeypointCache | None = None,
+    align_cache: AlignmentCache | None = None,
+) -> Demo:
+    """The generalized trajectory only, sampled at ``rate_hz`` (no IK, no :class:`Skill`): what the auto-tune
+    scores and the live preview draws. Same stages and results as :func:`learn_skill` at a lower rate."""
+    demos = _validate(demos)
+    if params is None:
+        from studio.core.thresholds import auto_params
+
+        params = auto_params(demos)
+    if generalization not in GENERALIZATIONS:
+        raise InvalidInput(f'generalization must be one of {", ".join(GENERALIZATIONS)} (got "{generalization}").')
+    kc = cache or _SERIES_CACHE
+    fm = _fit(
+        demos,
+        params,
+        n_clusters=n_clusters,
+        seed=seed,
+        scale=FeatureScale.for_demos(demos),
+        spline_through="state-means",
+        keypoints=None,
+        cache=kc,
+        align_cache=align_cache,
+        dtw_features="paper" if generalization == "paper" else "shape",
+    )
+    return _trajectory(demos, fm, generalization=generalization, smoothing=SMOOTHING, cache=kc, rate_hz=rate_hz)
+
+
+@dataclass(frozen=True, eq=False)
+class PreviewPath:
+    """The learned path while a slider moves (thin and dashed in the browser) and its fidelity figure.
+
+    Attributes:
+        t: (M,) seconds on the reference demo's time line.
+        position: (M, 3) metres.
+        keypoints: the key-point indices per demo for these thresholds.
+        n_clusters: k used.
+        g_over_r: in-sample fidelity G/R against the shown demos (NaN with one demo).
+        distance: root-mean-square distance to the demos, m (the "within … on average" figure).
+        message: plain words when no path could be made (too few key-points, …), else "".
+    """
+
+    t: np.ndarray
+    position: np.ndarray
+    keypoints: list[np.ndarray]
+    n_clusters: int
+    g_over_r: float
+    distance: float
+    message: str = ""
+
+
+class _DemoCurves:
+    """The demos' comparison curves and spread, computed once per set of demos (the slider moves ε only)."""
+
+    def __init__(self) -> None:
+        self._key: tuple = ()
+        self._refs: tuple = ()
+        self._value: tuple[list[np.ndarray], float] | None = None
+
+    def get(self, demos: Sequence[Demo]) -> tuple[list[np.ndarray], float]:
+        from studio.core import quality
+
+        key = tuple(id(d) for d in demos)
+        if (
+            self._value is not None
+            and key == self._key
+            and all(r() is d for r, d in zip(self._refs, demos, strict=True))
+        ):
+            return self._value
+        curves = [quality.curve(d, 300) for d in demos]
+        r = quality.spread(curves)[0] if len(curves) > 1 else float("nan")
+        self._key, self._refs, self._value = key, tuple(weakref.ref(d) for d in demos), (curves, r)
+        return self._value
+
+
+_PREVIEW_CURVES = _DemoCurves()
+
+
+def preview_path(
+    demos: Sequence[Demo],
+    params: KeypointParams,
+    *,
+    n_clusters: int | None = None,
+    generalization: str = DEFAULT_GENERALIZATION,
+    cache: KeypointCache | None = None,
+    align_cache: AlignmentCache | None = None,
+    rate_hz: float = 50.0,
+) -> PreviewPath:
+    """Re-extract key-points, re-cluster, re-train the HMM and regenerate the path for the live preview.
+
+    Budget: ≤ 150 ms for 3 demos × 30,000 samples with warm caches (pass the slider's :class:`KeypointCache`;
+    DTW maps are cached across calls since they do not depend on ε); see bench/bench_quality.py. Never raises
+    for thresholds that find too few key-points: the message says what to do instead.
+    """
+    from studio.core import quality
+    from studio.core.errors import StudioError
+
+    demos = _validate(demos)
+    kc = cache or _SERIES_CACHE
+    kps = [kc.extract(d, params) for d in demos]
+    try:
+        traj = learn_path(
+            demos,
+            params,
+            n_clusters=n_clusters,
+            generalization=generalization,
+            rate_hz=rate_hz,
+            cache=kc,
+            align_cache=align_cache,
+        )
+    except StudioError as exc:
+        return PreviewPath(np.zeros(0), np.zeros((0, 3)), kps, 0, float("nan"), float("nan"), str(exc))
+    curves, r = _PREVIEW_CURVES.get(demos)
+    c = quality.curve(traj, 300)
+    g = float(np.mean([quality.ndtw(c, x) for x in curves]))
+    k = default_n_clusters(kps) if n_clusters is None else int(n_clusters)
+    return PreviewPath(
+        t=np.asarray(traj.t),
+        position=np.asarray(traj.position),
+        keypoints=kps,
+        n_clusters=k,
+        g_over_r=g / r if r and r > 0 else float("nan"),
+        distance=float(np.sqrt(g)),
+    )
+
+
 def learn_arms(
     recordings: Sequence[Recording],
     params: KeypointParams | None = None,
@@ -459,7 +593,10 @@ __all__ = [
     "GENERALIZATIONS",
     "SPLINE_THROUGH",
     "AlignmentCache",
+    "PreviewPath",
     "demo_from_recording",
     "learn_arms",
+    "learn_path",
     "learn_skill",
+    "preview_path",
 ]
