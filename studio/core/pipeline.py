@@ -52,6 +52,7 @@ from studio.core.errors import InvalidInput, NotEnoughData
 from studio.core.generalize import SMOOTHING, generalize, joint_trajectory
 from studio.core.keypoints import KeypointCache
 from studio.core.kinematics import Baxter, make_sign_continuous
+from studio.core.thresholds import ThresholdSettings
 from studio.core.types import ARMS, Demo, KeypointParams, Recording, Skill, check_arm
 
 SPLINE_THROUGH = ("state-means", "centroids")
@@ -556,7 +557,7 @@ def preview_path(
 
 def learn_arms(
     recordings: Sequence[Recording],
-    params: KeypointParams | None = None,
+    params: KeypointParams | ThresholdSettings | None = None,
     *,
     arms: Sequence[str] | None = None,
     n_clusters: int | None = None,
@@ -567,6 +568,8 @@ def learn_arms(
 
     Args:
         recordings: the session's recordings.
+        params: fixed thresholds, or :class:`~studio.core.thresholds.ThresholdSettings` resolved for each
+            arm's demonstrations (default: automatic).
         arms: the arms to learn (default: every arm taught in at least one recording).
 
     Returns:
@@ -584,7 +587,8 @@ def learn_arms(
         demos = [demo_from_recording(r, arm, b) for r in recordings if arm in r.arms]
         if not demos:
             raise NotEnoughData(f"No demonstration teaches the {arm} arm.")
-        out[arm] = learn_skill(demos, params, n_clusters=n_clusters, seed=seed, arm=arm, baxter=b)
+        p = params.resolve(demos) if isinstance(params, ThresholdSettings) else params
+        out[arm] = learn_skill(demos, p, n_clusters=n_clusters, seed=seed, arm=arm, baxter=b)
     return out
 
 
