@@ -12,11 +12,13 @@ Search: the current settings ("before"), then Detail −2, −1, 0, 1, 2 with th
 best and k × 0.75 and × 1.3 at the best (about 10 candidates × 3 folds). A candidate must be better by 2 % to
 displace one with less detail (fewer key-points generalise better when the figures tie).
 
-Speed: candidates are evaluated in :data:`WORKERS` worker processes (a persistent "forkserver" pool with the
-pipeline preloaded — as with any multiprocessing start method other than fork, a script that calls
-:func:`suggest` needs the ``if __name__ == "__main__":`` guard; threads do not help here: measured in the same
-run, 16 learns took 5.9 s serially and 6.2 s on two threads, since hmmlearn and the key-point scan hold the
-GIL), one candidate per task
+Speed: "before" is scored in this process first, which derives the demos' series and DTW maps; the other
+candidates are then evaluated in :data:`WORKERS` worker processes **forked** for the search, which inherit all
+of that (no demo is pickled, nothing is computed twice). Threads do not help here: measured in the same run,
+16 learns took 5.9 s serially and 6.2 s on two threads, since hmmlearn and the key-point scan hold the GIL. A
+persistent "forkserver" pool was tried first: each worker had to receive the demos and derive their series and
+DTW maps again, and the first search took 4.2 s against 2.6 s in one process (bench_quality.py, load 3–5).
+One candidate per task
 so the progress callback moves and a cancel returns at once. Each worker keeps the demos and their derived
 series and DTW maps between batches of the same search. Budget ≤ 5 s for 3 demos × 30,000 samples; figures
 in bench/README.md (bench/bench_quality.py).
@@ -30,7 +32,6 @@ Usage (GUI: on a work thread, then apply ``result.settings`` and ``result.n_clus
 
 from __future__ import annotations
 
-import atexit
 import hashlib
 import math
 import multiprocessing
@@ -194,40 +195,25 @@ def _evaluate(
 
 # -- the pool ----------------------------------------------------------------------------------------------------
 
-_POOL: ProcessPoolExecutor | None = None
-_POOL_LOCK = threading.Lock()
+
+def _evaluate_inherited(token: str, folds: list[int], cands: list[Candidate]) -> list[Score]:
+    """In a forked worker: the search's demos, series and DTW maps were inherited from the parent."""
+    st = _STATE[token]
+    return [_score(c, st, folds) for c in cands]
 
 
-def _pool(workers: int) -> ProcessPoolExecutor:
-    global _POOL
-    with _POOL_LOCK:
-        if _POOL is None or getattr(_POOL, "_max_workers", 0) != workers:
-            if _POOL is not None:
-                _POOL.shutdown(wait=False, cancel_futures=True)
-            ctx = multiprocessing.get_context("forkserver")
-            ctx.set_forkserver_preload(["studio.core.pipeline", "studio.core.quality", "studio.core.autotune"])
-            _POOL = ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
-        return _POOL
-
-
-def shutdown() -> None:
-    """Stop the worker processes (they start again on the next :func:`suggest`)."""
-    global _POOL
-    with _POOL_LOCK:
-        if _POOL is not None:
-            _POOL.shutdown(wait=True, cancel_futures=True)
-            _POOL = None
+def _fork_pool(workers: int) -> ProcessPoolExecutor:
+    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("fork"))
 
 
 def warm_up(workers: int = WORKERS) -> None:
-    """Start the worker processes ahead of the first Suggest (takes a few seconds: they import the pipeline)."""
-    if workers > 1:
-        pool = _pool(workers)
-        for f in [pool.submit(os.getpid) for _ in range(workers)]:
-            f.result()
+    """Load the learning pipeline ahead of the first Suggest (the workers are forked from this process)."""
+    from studio.core import pipeline, quality  # noqa: F401
 
 
-atexit.register(shutdown)
+def shutdown() -> None:
+    """Forget the last search's demos and derived data (workers live only during a search)."""
+    _STATE.clear()
 
 
 # -- the search --------------------------------------------------------------------------------------------------
@@ -302,7 +288,8 @@ def suggest(
         before_c = Candidate(settings.detail, fixed=tuple(settings.resolve(stats).as_dict().items()), k=n_clusters)
     folds = _folds(len(demos))
     token = f"{_fingerprint(demos)}-{generalization}"
-    pool = _pool(workers) if workers > 1 else None
+    pool = None
+    st = _state(token, demos, generalization)
     done_count = 0
     planned = 1 + len(COARSE_DETAIL) + 2 + len(K_FACTORS)
     cancelled = False
@@ -324,9 +311,7 @@ def suggest(
                 done_count += 1
                 report(msg)
             return out
-        futs: dict[Future, int] = {
-            pool.submit(_evaluate, token, demos, generalization, folds, [c]): i for i, c in enumerate(cands)
-        }
+        futs: dict[Future, int] = {pool.submit(_evaluate_inherited, token, folds, [c]): i for i, c in enumerate(cands)}
         res: list[Score | None] = [None] * len(cands)
         pending = set(futs)
         while pending:
@@ -343,7 +328,22 @@ def suggest(
         return [r for r in res if r is not None]
 
     report("Measuring the current thresholds")
-    first = run([before_c, *[Candidate(d) for d in COARSE_DETAIL]], "Trying fewer and more key-points")
+    # "Before" is scored here: it derives the demos' series and DTW maps, which the forked workers then inherit.
+    first = None
+    if cancel is not None and cancel.is_set():
+        cancelled = True
+    else:
+        before0 = _score(before_c, st, folds)
+        done_count += 1
+        if workers > 1:
+            pool = _fork_pool(workers)
+        try:
+            coarse = run([Candidate(d) for d in COARSE_DETAIL], "Trying fewer and more key-points")
+        except BaseException:
+            if pool is not None:
+                pool.shutdown(wait=False, cancel_futures=True)
+            raise
+        first = None if coarse is None else [before0, *coarse]
     best_c, best = before_c, Score(math.inf, math.inf, math.nan, math.nan)
     before = best
     complete = False
@@ -372,6 +372,8 @@ def suggest(
                             if _better(s, c, best, best_c):
                                 best_c, best = c, s
                         complete = True
+    if pool is not None:
+        pool.shutdown(wait=False, cancel_futures=True)
     if cancelled:  # keep what the teacher has
         settings = current if isinstance(current, ThresholdSettings) else ThresholdSettings()
         params = _params(before_c, stats)
