@@ -39,6 +39,7 @@ Generalisation ("generalization", recorded in ``Skill.generalization``):
 
 from __future__ import annotations
 
+import functools
 import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -155,6 +156,10 @@ class _Model:
     weights: np.ndarray  # (P,)
 
 
+def _inverse(mapped: np.ndarray, grid: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    return alignment.inverse_time_map(mapped, grid, tau)
+
+
 def _fit(
     demos: list[Demo],
     params: KeypointParams,
@@ -229,7 +234,7 @@ def _fit(
         mapped = ac.get(ref_demo, d, key, compute)
         aligned.append(np.interp(tk, grids[i], mapped) - ref_demo.t[0])
         g0, m0 = grids[i] - d.t[0], mapped - ref_demo.t[0]
-        inverse.append(lambda tau, m0=m0, g0=g0: alignment.inverse_time_map(m0, g0, tau))
+        inverse.append(functools.partial(_inverse, m0, g0))
     # 5. timed path points
     times_all = np.concatenate(aligned)
     labels_all = np.concatenate(cl.labels)

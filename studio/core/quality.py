@@ -467,6 +467,10 @@ def shared_corners(demos: Sequence[Demo], size: float | None = None) -> list[tup
     return out
 
 
+def _xyz(p: np.ndarray) -> tuple[float, float, float]:
+    return (float(p[0]), float(p[1]), float(p[2]))
+
+
 def _gripper_actions(demo: Demo) -> list[tuple[str, np.ndarray, float]]:
     from studio.core.keypoints import gripper_events
 
@@ -509,11 +513,11 @@ def gripper_checks(traj: Demo, demos: Sequence[Demo]) -> tuple[tuple[GripperChec
             j = same[k]
             checks.append(
                 GripperCheck(
-                    action, tuple(pos), float(traj.t[j] - traj.t[0]), float(np.linalg.norm(traj.position[j] - pos))
+                    action, _xyz(pos), float(traj.t[j] - traj.t[0]), float(np.linalg.norm(traj.position[j] - pos))
                 )
             )
         else:
-            checks.append(GripperCheck(action, tuple(pos), float("nan"), float("inf")))
+            checks.append(GripperCheck(action, _xyz(pos), float("nan"), float("inf")))
     return tuple(checks), mismatch
 
 
@@ -524,7 +528,7 @@ def corner_checks(traj: Demo, demos: Sequence[Demo], size: float) -> tuple[Corne
     for pos, turn in shared_corners(demos, size):
         d = np.linalg.norm(p - pos, axis=1)
         i = int(np.argmin(d))
-        out.append(Corner(tuple(float(x) for x in pos), float(traj.t[i] - traj.t[0]), float(d[i]), turn))
+        out.append(Corner(_xyz(pos), float(traj.t[i] - traj.t[0]), float(d[i]), turn))
     return tuple(out)
 
 
@@ -646,6 +650,7 @@ def assess(
     jd = [x for x in jd if math.isfinite(x) and x > 0]
     js = mean_squared_jerk(traj)
     smooth = js / float(np.median(jd)) if jd and math.isfinite(js) else float("nan")
+    ll: np.ndarray | None
     if isinstance(skill, Skill):
         ll = skill.loglik if loglik is None else loglik
         lengths = [len(k) for k in skill.keypoints]
