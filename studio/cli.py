@@ -51,6 +51,11 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument(
         "--arm", choices=["left", "right", "both"], default=None, help="arm(s) to learn (default: as taught)"
     )
+    s.add_argument(
+        "--auto",
+        action="store_true",
+        help="first suggest thresholds and k (searched for the best fit to a demonstration left out), then learn",
+    )
 
     s = sub.add_parser("import-csv", parents=[common], help="import Baxter SDK joint-recorder CSV files as demos")
     s.add_argument("files", nargs="+", type=Path, help="CSV files written by the Baxter SDK joint recorder")

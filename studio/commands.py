@@ -25,6 +25,8 @@ from studio.core.types import Recording, Skill
 from studio.storage import DEFAULT_ROOT, Session, SessionStore
 
 if TYPE_CHECKING:
+    from studio.core.autotune import TuneResult
+    from studio.core.types import Demo
     from studio.teacher import TeacherPlan
 
 #: The example sessions: task -> (seeds of the three demonstrations, taught arm, notes).
@@ -57,7 +59,11 @@ def _arms(value: str | None, default: Sequence[str]) -> tuple[str, ...]:
 
 # -- learn ----------------------------------------------------------------------------------------------------
 def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
-    """Learn a session's skill headless, save it into the session and print a short report."""
+    """Learn a session's skill headless, save it into the session and print a short report and the verdict.
+
+    Thresholds still at the old fixed defaults are automatic (they follow the demonstrations); with ``--auto``
+    Suggest runs first for each arm and its thresholds and k are used (and saved, for a single arm).
+    """
     out = out or sys.stdout
     store = SessionStore(_sessions_dir(args))
     session = store.open(args.session)
@@ -71,15 +77,86 @@ def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
             "two (the paper uses three) before learning."
         )
     arms = _arms(getattr(args, "arm", None), session.arms)
-    from studio.core.pipeline import learn_arms
+    from studio.core import pipeline
+    from studio.core.thresholds import ThresholdSettings
 
+    # The session stores plain values; those still at the old fixed defaults are automatic (follow the demos).
+    settings = ThresholdSettings.from_params(session.params)
+    k = session.n_clusters
     t0 = time.perf_counter()
-    skills = learn_arms(session.recordings, params=session.params, arms=arms, n_clusters=session.n_clusters, seed=0)
+    tuned: dict[str, TuneResult] = {}
+    if getattr(args, "auto", False):
+        from studio.core import autotune
+
+        for arm in arms:
+            demos_arm = [pipeline.demo_from_recording(r, arm) for r in session.recordings if arm in r.arms]
+            if len(demos_arm) < 2:
+                continue
+            res = autotune.suggest(demos_arm, current=settings, n_clusters=k)
+            tuned[arm] = res
+            print(
+                f"{arm.capitalize()} arm — suggested thresholds (Detail {res.settings.detail:+.1f}, "
+                f"k = {res.n_clusters or 'mean key-points per demonstration'}) in {res.seconds:.1f} s. {res.summary}",
+                file=out,
+            )
+    if tuned:
+        skills: dict[str, Skill] = {}
+        for arm in arms:
+            r = tuned.get(arm)
+            skills.update(
+                pipeline.learn_arms(
+                    session.recordings,
+                    params=r.params if r is not None else settings,
+                    arms=(arm,),
+                    n_clusters=r.n_clusters if r is not None else k,
+                    seed=0,
+                )
+            )
+    else:
+        skills = pipeline.learn_arms(session.recordings, params=settings, arms=arms, n_clusters=k, seed=0)
     elapsed = time.perf_counter() - t0
     demos = {arm: list(skill.demo_names) for arm, skill in skills.items()}
-    session.set_skills(skills, params=session.params, demos=demos)
+    if len(tuned) == 1 and len(arms) == 1:
+        # Suggest applied: its values and k become the session's (kept as the teacher's from now on)
+        only = next(iter(tuned.values()))
+        session.set_skills(skills, params=only.params, demos=demos)
+        session.set_n_clusters(only.n_clusters)
+    else:
+        session.set_skills(skills, params=session.params, demos=demos)
     print(report(session, skills, elapsed), file=out)
+    for arm, skill in skills.items():
+        lines = verdict_lines(session, arm, skill)
+        if lines:
+            print(f"\nHow good is the {arm} arm's skill?", file=out)
+            for line in lines:
+                print(f"  {line}", file=out)
     return 0
+
+
+def verdict_lines(session: Session, arm: str, skill: Skill | None) -> list[str]:
+    """The quality verdict of one arm's skill in plain words (empty for something that is not a learned skill)."""
+    from studio.core import quality
+    from studio.core.pipeline import demo_from_recording, learn_path
+
+    if not isinstance(skill, Skill):
+        return []
+    recs = {r.name: r for r in session.recordings}
+    demos = [demo_from_recording(recs[n], arm) for n in skill.demo_names if n in recs]
+    if len(demos) != len(skill.demo_names):
+        return []
+    held = None
+    if len(demos) >= 2:
+        k = skill.n_clusters if session.n_clusters is not None else None
+
+        def learn(dd: list[Demo]) -> Demo:
+            kk = None if k is None else min(k, sum(len(x) for x in skill.keypoints))
+            return learn_path(dd, skill.params, n_clusters=kk, generalization=skill.generalization)
+
+        try:
+            held = quality.held_out(demos, learn, folds=list(range(min(len(demos), 3))))
+        except StudioError:
+            held = None
+    return list(quality.verdict(quality.assess(skill, demos, held_out_result=held)).lines)
 
 
 def _fmt(x: float, spec: str = ".3g") -> str:
@@ -301,4 +378,14 @@ def make_examples(args: argparse.Namespace, out: TextIO | None = None) -> int:
     return 0
 
 
-__all__ = ["EXAMPLES", "build_example", "export_csv", "import_csv", "learn", "make_examples", "record_plan", "report"]
+__all__ = [
+    "EXAMPLES",
+    "build_example",
+    "export_csv",
+    "import_csv",
+    "learn",
+    "make_examples",
+    "record_plan",
+    "report",
+    "verdict_lines",
+]

@@ -107,6 +107,8 @@ def test_learn_saves_the_skill_and_prints_a_report(tmp_path: Path, capsys: pytes
     assert main(["learn", "learn me", "--sessions-dir", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "k = " in out and "reference" in out and "key-points" in out and "log-likelihood" in out
+    assert "How good is the left arm's skill?" in out
+    assert "Good: the skill follows your demonstrations closely (within " in out
     loaded = store.open("learn me")
     assert set(loaded.skills) == {"left"} and not loaded.skills_stale
     csv = tmp_path / "skill.csv"
@@ -157,3 +159,21 @@ def test_learn_uses_the_sessions_k_and_remembers_each_arms_demos(
     assert calls == [{"n_clusters": 4}]
     info = json.loads((s.path / "session.json").read_text())["skills"]  # the fake skill files do not load back
     assert info["left"]["demos"] == ["l1", "l2", "b"] and info["right"]["demos"] == ["r1", "b"]
+
+
+def test_learn_auto_suggests_thresholds_first_and_keeps_them(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    from studio.core.types import KeypointParams
+
+    store = SessionStore(tmp_path)
+    src = SessionStore(DEFAULT_ROOT).open("stack-cup", recover=False)
+    s = store.create("auto", precision="float32")
+    for r in src.recordings[:3]:
+        s.add_recording(r)
+    s.set_params(KeypointParams(eps5=0.4, eps7=0.4))  # a teacher's far too coarse travel distance
+    assert main(["learn", "auto", "--auto", "--sessions-dir", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "Left arm — suggested thresholds (Detail " in out and "misses it by" in out
+    assert "How good is the left arm's skill?" in out
+    loaded = store.open("auto")
+    assert loaded.params.eps5 < 0.2  # the suggestion was applied and saved
+    assert loaded.skills["left"].params == loaded.params

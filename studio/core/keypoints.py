@@ -19,9 +19,10 @@ Robustness to 1 kHz sensor noise (the paper's per-sample differences are dominat
 
 * poses are smoothed by a 50 ms moving average (quaternions made sign-continuous first, renormalised);
 * speeds are central differences over ±20 ms of the smoothed signal;
-* the corner angle uses neighbours at an **arc-length stride** (3 cm of path, 0.08 rad of rotation) on
-  the smoothed path instead of the adjacent samples, so the angle measures the path's shape rather than
-  the noise and does not depend on how fast the arm moved; a run of consecutive samples below the
+* the corner angle uses neighbours at an **arc-length stride** (3 cm of path — a fifteenth of the demo's
+  size for gestures smaller than 45 cm, at least 1 mm —, 0.08 rad of rotation) on the smoothed path
+  instead of the adjacent samples, so the angle measures the path's shape rather than the noise and does
+  not depend on how fast the arm moved; a run of consecutive samples below the
   threshold is one corner, at its sharpest sample;
 * a corner must also be more than ε4 (ε11) from the last key-point, like a pause: an arm that stops at a
   corner then yields one key-point, not a pause key-point and a corner key-point a few ms apart.
@@ -57,6 +58,8 @@ SMOOTHING_S = 0.05
 SPEED_HALF_WINDOW_S = 0.02
 #: Arc-length stride of the corner test's neighbours: metres of path, radians of rotation.
 CORNER_STRIDE_M = 0.03
+#: ... but a fifteenth of the demo's size for small gestures (:func:`corner_stride`), never below this.
+CORNER_STRIDE_MIN_M = 0.001
 CORNER_STRIDE_RAD = 0.08
 #: Gripper motion detection: speed above this (percent per second) is motion ...
 GRIPPER_SPEED = 20.0
@@ -185,6 +188,14 @@ def gripper_events(t: np.ndarray, gripper: np.ndarray) -> np.ndarray:
     return np.unique(np.asarray(out, dtype=np.int64))
 
 
+def corner_stride(position: np.ndarray) -> float:
+    """Arc-length stride (m) of the position corner test for one demo: :data:`CORNER_STRIDE_M`, or a fifteenth
+    of the demo's size (largest side of its bounding box) when that is smaller, but at least
+    :data:`CORNER_STRIDE_MIN_M` (a 3 cm stride would span the whole of a 3 cm gesture)."""
+    size = float(np.max(np.ptp(position, axis=0))) if len(position) else 0.0
+    return float(min(CORNER_STRIDE_M, max(CORNER_STRIDE_MIN_M, size / 15.0)))
+
+
 def precompute(demo: Demo) -> KeypointSeries:
     """Derive the ε-independent series of one demonstration (smoothing, speeds, corner angles, gripper).
 
@@ -210,7 +221,7 @@ def precompute(demo: Demo) -> KeypointSeries:
     ang_speed = rotation_angle(ori[hi], ori[lo]) / span
 
     arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pos, axis=0), axis=1))])
-    p, q, ok = _stride_neighbours(arc, CORNER_STRIDE_M)
+    p, q, ok = _stride_neighbours(arc, corner_stride(pos))
     corner = np.where(ok, _angle_between(pos[p] - pos, pos[q] - pos), math.pi)
 
     arc_o = np.concatenate([[0.0], np.cumsum(rotation_angle(ori[1:], ori[:-1]))])
@@ -398,10 +409,12 @@ class KeypointCache:
 
 __all__ = [
     "CORNER_STRIDE_M",
+    "CORNER_STRIDE_MIN_M",
     "CORNER_STRIDE_RAD",
     "KeypointCache",
     "KeypointSeries",
     "corner_candidates",
+    "corner_stride",
     "extract_from_series",
     "extract_keypoints",
     "gripper_events",

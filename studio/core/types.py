@@ -317,8 +317,11 @@ class Skill:
         joint_trajectory: IK of the trajectory for ``arm`` (None when no arm was given).
         arm: the arm the skill was learned for, or None.
         params: the key-point thresholds used.
-        spline_through: "state-means" or "centroids".
+        spline_through: "state-means" or "centroids" (the points paper mode's spline goes through).
         demo_names: names of the input demos.
+        generalization: how the trajectory was made: "paper" (the spline through the timed states) or
+            "aligned-mean" (the demos averaged along their DTW alignment to the reference); skills saved before the
+            mode existed were paper mode.
     """
 
     trajectory: Demo
@@ -342,6 +345,7 @@ class Skill:
     params: KeypointParams = KeypointParams()
     spline_through: str = "state-means"
     demo_names: tuple[str, ...] = ()
+    generalization: str = "paper"
 
     def __post_init__(self) -> None:
         for name in (
@@ -391,6 +395,7 @@ class Skill:
             "params": np.array([getattr(self.params, f.name) for f in fields(KeypointParams)]),
             "spline_through": np.array(self.spline_through),
             "demo_names": np.array(list(self.demo_names), dtype=str),
+            "generalization": np.array(self.generalization),
         }
         _pack_list(d, "keypoints", self.keypoints, np.int64)
         _pack_list(d, "labels", self.labels, np.int64)
@@ -456,6 +461,7 @@ class Skill:
                 params=params,
                 spline_through=str(d["spline_through"]),
                 demo_names=tuple(str(x) for x in np.asarray(d["demo_names"]).reshape(-1)),
+                generalization=str(d["generalization"]) if "generalization" in d else "paper",
             )
         except KeyError as exc:
             raise InvalidInput(f"The saved skill is incomplete: {exc.args[0]} is missing.") from exc

@@ -114,7 +114,7 @@ def test_skill_carries_what_the_panels_draw():
     assert sk.trajectory.duration == pytest.approx(ds[sk.reference].duration, abs=0.002)
     assert np.median(np.diff(sk.trajectory.t)) == pytest.approx(0.001)
     for d, kp in zip(ds, sk.keypoints, strict=True):
-        assert np.array_equal(kp, extract_keypoints(d))
+        assert np.array_equal(kp, extract_keypoints(d, sk.params))  # the automatic thresholds it used
 
 
 def test_to_arrays_round_trip_without_pickle(tmp_path):
@@ -221,6 +221,24 @@ def test_a_keypoint_cache_gives_the_same_skill():
 
 def test_different_thresholds_change_the_skill():
     ds = list(demos("stack-cup"))
-    a = learn_skill(ds)
+    a = learn_skill(ds, KeypointParams())
     b = learn_skill(ds, KeypointParams(eps5=0.06, eps7=0.06))
     assert sum(map(len, b.keypoints)) > sum(map(len, a.keypoints))
+    assert a.params == KeypointParams() and b.params.eps5 == 0.06
+
+
+def test_default_thresholds_follow_the_demonstrations():
+    # without thresholds, learn_skill uses the automatic ones for these demos (studio.core.thresholds)
+    from studio.core.thresholds import auto_params
+
+    ds = list(demos("stack-cup"))
+    sk = learn_skill(ds)
+    assert sk.params == auto_params(ds) and sk.generalization == "aligned-mean"
+
+
+def test_older_skill_files_load_as_paper_mode(tmp_path):
+    sk = learn_skill(list(demos("stack-cup"))[:2], generalization="paper")
+    arrays = {k: v for k, v in sk.to_arrays().items() if k != "generalization"}  # as saved before the field
+    back = Skill.from_arrays(arrays)
+    assert back.generalization == "paper" and np.array_equal(back.trajectory.position, sk.trajectory.position)
+    assert Skill.from_arrays(learn_skill(list(demos("stack-cup"))[:2]).to_arrays()).generalization == "aligned-mean"

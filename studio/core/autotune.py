@@ -1,0 +1,416 @@
+"""Suggest thresholds: search the key-point thresholds and k for the best held-out fidelity (GUI-free).
+
+What is searched: the Detail control (:mod:`studio.core.thresholds`: one number that moves the coupled
+thresholds ε2–ε7 and ε10–ε14 together, in real units that follow the demonstrations) and k, the number of
+clusters (a factor on the paper's default, the mean number of key-points per demo). A candidate is scored by
+**held-out fidelity**: for each fold, the skill's path is learned from all demonstrations but one
+(:func:`studio.core.pipeline.learn_path`, 50 Hz) and compared with the one left out (normalised DTW, the
+paper's squared cost); the score is the mean over folds ÷ the demos' mean pairwise normalised DTW (G/R held
+out, lower is better). With more than :data:`MAX_FOLDS` demos, that many evenly spread demos are left out.
+
+Search: the current settings ("before"), then Detail −2, −1, 0, 1, 2 with the default k, then ±0.5 around the
+best and k × 0.75 and × 1.3 at the best (about 10 candidates × 3 folds). A candidate must be better by 2 % to
+displace one with less detail (fewer key-points generalise better when the figures tie).
+
+Speed: "before" is scored in this process first, which derives the demos' series and DTW maps; the other
+candidates are then evaluated in :data:`WORKERS` worker processes **forked** for the search, which inherit all
+of that (no demo is pickled, nothing is computed twice). Threads do not help here: measured in the same run,
+16 learns took 5.9 s serially and 6.2 s on two threads, since hmmlearn and the key-point scan hold the GIL. A
+persistent "forkserver" pool was tried first: each worker had to receive the demos and derive their series and
+DTW maps again, and the first search took 4.2 s against 2.6 s in one process (bench_quality.py, load 3–5).
+One candidate per task
+so the progress callback moves and a cancel returns at once. Each worker keeps the demos and their derived
+series and DTW maps between batches of the same search. Budget ≤ 5 s for 3 demos × 30,000 samples; figures
+in bench/README.md (bench/bench_quality.py).
+
+Usage (GUI: on a work thread, then apply ``result.settings`` and ``result.n_clusters`` as one undoable change)::
+
+    cancel = threading.Event()
+    result = suggest(demos, current=settings, progress=lambda f, msg: ..., cancel=cancel)
+    if not result.cancelled: apply(result.settings, result.n_clusters); show(result.summary)
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import multiprocessing
+import os
+import threading
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from dataclasses import dataclass
+
+import numpy as np
+
+from studio.core.errors import NotEnoughData, StudioError
+from studio.core.thresholds import DemoStats, ThresholdSettings, auto_params
+from studio.core.types import Demo, KeypointParams
+
+#: Worker processes (both cores of the target machine).
+WORKERS = max(1, min(2, os.cpu_count() or 1))
+#: At most this many demos are left out in turn.
+MAX_FOLDS = 3
+#: Coarse Detail values tried first.
+COARSE_DETAIL = (-2.0, -1.0, 0.0, 1.0, 2.0)
+#: k factors tried at the best Detail.
+K_FACTORS = (0.75, 1.3)
+#: Relative improvement needed to prefer more detail or a different k.
+MARGIN = 0.02
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One point of the search: Detail, a factor on the default k (1 = the paper's k), or fixed values.
+
+    ``fixed`` holds thresholds to use as they are (the teacher's current ones for "before"); ``k`` a fixed k.
+    """
+
+    detail: float
+    k_factor: float = 1.0
+    fixed: tuple[tuple[str, float], ...] = ()
+    k: int | None = None
+
+
+@dataclass(frozen=True)
+class Score:
+    """Held-out figures of one candidate.
+
+    Attributes:
+        g_over_r: held-out G/R (lower is better; inf when learning failed).
+        distance: root-mean-square distance to the left-out demos, m.
+        keypoints: mean key-points per demo with these thresholds.
+        k: clusters used (mean over folds).
+    """
+
+    g_over_r: float
+    distance: float
+    keypoints: float
+    k: float
+
+
+@dataclass(frozen=True)
+class TuneResult:
+    """What Suggest found.
+
+    Attributes:
+        settings: the suggested :class:`ThresholdSettings` (Detail; every threshold automatic).
+        params: the same as the fourteen values in real units for these demos.
+        n_clusters: the suggested k, or None for the paper's default (mean key-points per demo).
+        before, after: held-out figures of the current settings and of the suggestion.
+        evaluated: candidates scored.
+        seconds: wall time.
+        cancelled: the search was cancelled (``settings`` is then the best found so far, or the current one).
+        complete: every planned candidate was scored (False when cancelled or out of time).
+    """
+
+    settings: ThresholdSettings
+    params: KeypointParams
+    n_clusters: int | None
+    before: Score
+    after: Score
+    evaluated: int
+    seconds: float
+    cancelled: bool
+    complete: bool
+
+    @property
+    def summary(self) -> str:
+        """Before/after in plain words, for the teacher."""
+        from studio.core.quality import length_words
+
+        b, a = self.before, self.after
+        if not math.isfinite(b.distance):
+            return (
+                "Suggested: learned without each demonstration in turn, the skill misses it by "
+                f"{length_words(a.distance)} on average."
+            )
+        return (
+            f"Learned without each demonstration in turn, the skill misses it by {length_words(a.distance)} on "
+            f"average with the suggestion, {length_words(b.distance)} with the current thresholds "
+            f"({a.keypoints:.0f} key-points per demonstration instead of {b.keypoints:.0f})."
+        )
+
+
+# -- the work (runs in the worker processes, or in-process with workers=1) -------------------------------------
+
+_STATE: dict[str, tuple] = {}
+
+
+def _state(token: str, demos: list[Demo], generalization: str) -> tuple:
+    from studio.core import quality
+    from studio.core.keypoints import KeypointCache
+    from studio.core.pipeline import AlignmentCache
+
+    st = _STATE.get(token)
+    if st is None:
+        _STATE.clear()  # one search at a time per worker: drop the previous search's demos
+        curves = [quality.curve(d, 300) for d in demos]
+        r = quality.spread(curves)[0]
+        st = _STATE[token] = (demos, KeypointCache(), AlignmentCache(), curves, r, DemoStats.of(demos), generalization)
+    return st
+
+
+def _params(c: Candidate, stats: DemoStats) -> KeypointParams:
+    if c.fixed:
+        return KeypointParams(**dict(c.fixed))
+    return auto_params(stats, c.detail)
+
+
+def _score(c: Candidate, st: tuple, folds: Sequence[int]) -> Score:
+    from studio.core import quality
+    from studio.core.clustering import default_n_clusters
+    from studio.core.pipeline import learn_path
+
+    demos, kc, ac, curves, r, stats, generalization = st
+    params = _params(c, stats)
+    kps_all = [kc.extract(d, params) for d in demos]
+    msd, ks = [], []
+    for i in folds:
+        train = [d for j, d in enumerate(demos) if j != i]
+        kps = [k for j, k in enumerate(kps_all) if j != i]
+        if c.k is not None:
+            k = min(c.k, sum(len(x) for x in kps))
+        else:
+            k = max(2, round(c.k_factor * default_n_clusters(kps)))
+        try:
+            tr = learn_path(train, params, n_clusters=k, generalization=generalization, cache=kc, align_cache=ac)
+        except StudioError:
+            return Score(math.inf, math.inf, float(np.mean([len(x) for x in kps_all])), float(k))
+        msd.append(quality.ndtw(quality.curve(tr, 300), curves[i]))
+        ks.append(k)
+    g = float(np.mean(msd))
+    return Score(
+        g / r if r > 0 else math.inf, math.sqrt(g), float(np.mean([len(x) for x in kps_all])), float(np.mean(ks))
+    )
+
+
+def _evaluate(
+    token: str, demos: list[Demo], generalization: str, folds: list[int], cands: list[Candidate]
+) -> list[Score]:
+    st = _state(token, demos, generalization)
+    return [_score(c, st, folds) for c in cands]
+
+
+# -- the pool ----------------------------------------------------------------------------------------------------
+
+
+def _evaluate_inherited(token: str, folds: list[int], cands: list[Candidate]) -> list[Score]:
+    """In a forked worker: the search's demos, series and DTW maps were inherited from the parent."""
+    st = _STATE[token]
+    return [_score(c, st, folds) for c in cands]
+
+
+def _fork_pool(workers: int) -> ProcessPoolExecutor:
+    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("fork"))
+
+
+def warm_up(workers: int = WORKERS) -> None:
+    """Load the learning pipeline ahead of the first Suggest (the workers are forked from this process)."""
+    from studio.core import pipeline, quality  # noqa: F401
+
+
+def shutdown() -> None:
+    """Forget the last search's demos and derived data (workers live only during a search)."""
+    _STATE.clear()
+
+
+# -- the search --------------------------------------------------------------------------------------------------
+
+
+def _fingerprint(demos: Sequence[Demo]) -> str:
+    """A cheap content key of the demos: a worker that already holds them (a second Suggest on the same demos)
+    keeps their derived series and DTW maps."""
+    h = hashlib.blake2b(digest_size=12)
+    for d in demos:
+        h.update(np.asarray([len(d), d.t[0], d.t[-1]], dtype=np.float64).tobytes())
+        h.update(np.ascontiguousarray(d.position[:: max(1, len(d) // 512)]).tobytes())
+        h.update(d.name.encode())
+    return h.hexdigest()
+
+
+def _folds(n: int) -> list[int]:
+    if n <= MAX_FOLDS:
+        return list(range(n))
+    return sorted({round(x) for x in np.linspace(0, n - 1, MAX_FOLDS)})
+
+
+def _better(a: Score, ca: Candidate, b: Score, cb: Candidate) -> bool:
+    """Is (a, ca) better than the incumbent (b, cb)? More detail or another k must win by MARGIN."""
+    if not math.isfinite(b.g_over_r):
+        return math.isfinite(a.g_over_r)
+    simpler = ca.detail < cb.detail or (ca.detail == cb.detail and ca.k_factor == 1.0 and cb.k_factor != 1.0)
+    need = 1.0 if simpler else 1.0 - MARGIN
+    return a.g_over_r < b.g_over_r * need
+
+
+def suggest(
+    demos: Sequence[Demo],
+    *,
+    current: ThresholdSettings | KeypointParams | None = None,
+    n_clusters: int | None = None,
+    generalization: str | None = None,
+    progress: Callable[[float, str], None] | None = None,
+    cancel: threading.Event | None = None,
+    workers: int = WORKERS,
+    budget_s: float = 5.0,
+) -> TuneResult:
+    """Search Detail and k for the best held-out fidelity (module docstring).
+
+    Args:
+        demos: the shown demonstrations (at least two).
+        current: the thresholds in use (settings or plain values), scored as "before"; default automatic.
+        n_clusters: the k in use (None = the paper's default).
+        generalization: the mode to tune for (default: the pipeline's default).
+        progress: called with (fraction 0…1, plain-words step) as candidates finish, from this thread.
+        cancel: set it to stop; :func:`suggest` then returns within about 50 ms with ``cancelled=True``.
+        workers: processes to use (1 = in this process, no pool).
+        budget_s: stop starting new rounds after this many seconds (the result says ``complete=False``).
+
+    Raises:
+        NotEnoughData: fewer than two demonstrations.
+    """
+    from studio.core.pipeline import DEFAULT_GENERALIZATION, _validate
+
+    t0 = time.perf_counter()
+    demos = _validate(demos)
+    if len(demos) < 2:
+        raise NotEnoughData(
+            "Suggest compares the skill with a demonstration it did not learn from: record at least two."
+        )
+    generalization = generalization or DEFAULT_GENERALIZATION
+    stats = DemoStats.of(demos)
+    if isinstance(current, KeypointParams):
+        before_c = Candidate(0.0, fixed=tuple(current.as_dict().items()), k=n_clusters)
+    else:
+        settings = current or ThresholdSettings()
+        before_c = Candidate(settings.detail, fixed=tuple(settings.resolve(stats).as_dict().items()), k=n_clusters)
+    folds = _folds(len(demos))
+    token = f"{_fingerprint(demos)}-{generalization}"
+    pool = None
+    st = _state(token, demos, generalization)
+    done_count = 0
+    planned = 1 + len(COARSE_DETAIL) + 2 + len(K_FACTORS)
+    cancelled = False
+
+    def report(msg: str) -> None:
+        if progress is not None:
+            progress(min(1.0, done_count / planned), msg)
+
+    def run(cands: list[Candidate], msg: str) -> list[Score] | None:
+        """Score candidates (in batches across the workers); None if cancelled."""
+        nonlocal done_count, cancelled
+        if pool is None:
+            out = []
+            for c in cands:
+                if cancel is not None and cancel.is_set():
+                    cancelled = True
+                    return None
+                out.extend(_evaluate(token, demos, generalization, folds, [c]))
+                done_count += 1
+                report(msg)
+            return out
+        futs: dict[Future, int] = {pool.submit(_evaluate_inherited, token, folds, [c]): i for i, c in enumerate(cands)}
+        res: list[Score | None] = [None] * len(cands)
+        pending = set(futs)
+        while pending:
+            done, pending = wait(pending, timeout=0.05, return_when=FIRST_COMPLETED)
+            for f in done:
+                res[futs[f]] = f.result()[0]
+                done_count += 1
+                report(msg)
+            if cancel is not None and cancel.is_set():
+                for f in pending:
+                    f.cancel()
+                cancelled = True
+                return None
+        return [r for r in res if r is not None]
+
+    report("Measuring the current thresholds")
+    # "Before" is scored here: it derives the demos' series and DTW maps, which the forked workers then inherit.
+    first = None
+    if cancel is not None and cancel.is_set():
+        cancelled = True
+    else:
+        before0 = _score(before_c, st, folds)
+        done_count += 1
+        if workers > 1:
+            pool = _fork_pool(workers)
+        try:
+            coarse = run([Candidate(d) for d in COARSE_DETAIL], "Trying fewer and more key-points")
+        except BaseException:
+            if pool is not None:
+                pool.shutdown(wait=False, cancel_futures=True)
+            raise
+        first = None if coarse is None else [before0, *coarse]
+    best_c, best = before_c, Score(math.inf, math.inf, math.nan, math.nan)
+    before = best
+    complete = False
+    evaluated = 0
+    if first is not None:
+        before = first[0]
+        evaluated = len(first)
+        best_c, best = Candidate(0.0), first[3]  # Detail 0 is the incumbent, then the others challenge it
+        for c, s in zip([Candidate(d) for d in COARSE_DETAIL], first[1:], strict=True):
+            if _better(s, c, best, best_c):
+                best_c, best = c, s
+        if time.perf_counter() - t0 < budget_s:
+            fine = [Candidate(best_c.detail - 0.5), Candidate(best_c.detail + 0.5)]
+            second = run(fine, "Refining")
+            if second is not None:
+                evaluated += len(second)
+                for c, s in zip(fine, second, strict=True):
+                    if _better(s, c, best, best_c):
+                        best_c, best = c, s
+                if time.perf_counter() - t0 < budget_s:
+                    ks = [Candidate(best_c.detail, f) for f in K_FACTORS]
+                    third = run(ks, "Trying other numbers of clusters")
+                    if third is not None:
+                        evaluated += len(third)
+                        for c, s in zip(ks, third, strict=True):
+                            if _better(s, c, best, best_c):
+                                best_c, best = c, s
+                        complete = True
+    if pool is not None:
+        pool.shutdown(wait=False, cancel_futures=True)
+    if cancelled:  # keep what the teacher has
+        settings = current if isinstance(current, ThresholdSettings) else ThresholdSettings()
+        params = _params(before_c, stats)
+        k = n_clusters
+    else:
+        settings = ThresholdSettings(detail=best_c.detail)
+        params = auto_params(stats, best_c.detail)
+        k = None
+        if best_c.k_factor != 1.0:
+            from studio.core.clustering import default_n_clusters
+            from studio.core.keypoints import KeypointCache
+
+            kc = KeypointCache()
+            k = max(2, round(best_c.k_factor * default_n_clusters([kc.extract(d, params) for d in demos])))
+    if progress is not None and not cancelled:
+        progress(1.0, "Done")
+    return TuneResult(
+        settings=settings,
+        params=params,
+        n_clusters=k,
+        before=before,
+        after=best,
+        evaluated=evaluated,
+        seconds=time.perf_counter() - t0,
+        cancelled=cancelled,
+        complete=complete and not cancelled,
+    )
+
+
+__all__ = [
+    "COARSE_DETAIL",
+    "K_FACTORS",
+    "WORKERS",
+    "Candidate",
+    "Score",
+    "TuneResult",
+    "shutdown",
+    "suggest",
+    "warm_up",
+]

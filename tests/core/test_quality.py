@@ -1,0 +1,246 @@
+"""Quality measures and the plain-words verdict, on generated human-like demonstrations (studio/shapes.py) and the
+scripted teacher's tasks. Every wording of the verdict is produced here from real (generated) demonstrations
+through the real pipeline."""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+import pytest
+
+from studio.core import quality as Q
+from studio.core.errors import InvalidInput, NotEnoughData
+from studio.core.pipeline import learn_skill
+from studio.core.thresholds import auto_params
+from studio.core.types import Demo
+from studio.shapes import ShapeSpec, joint_angles, shape_corners, shape_demo, shape_demos
+from tests.core.teacher_demos import demos as task_demos
+
+
+@functools.lru_cache(maxsize=8)
+def zigzag() -> list[Demo]:
+    return list(shape_demos(ShapeSpec("zigzag", 0.15, 2.0), 3))
+
+
+# -- measures ----------------------------------------------------------------------------------------------------
+
+
+def test_frechet_hand_computed():
+    # a = (0,0) (1,0) (2,0); b = (0,1) (2,1): the leash must cover (1,0)–(0,1) or (1,0)–(2,1): √2
+    a = np.array([[0.0, 0], [1, 0], [2, 0]])
+    b = np.array([[0.0, 1], [2, 1]])
+    assert Q.frechet(a, b) == pytest.approx(math.sqrt(2))
+    assert Q.frechet(a, a) == 0.0
+    # Fréchet is never below the largest of the end-point distances
+    assert Q.frechet(a, b + np.array([0, 3])) == pytest.approx(math.sqrt(1 + 16))
+    with pytest.raises(InvalidInput):
+        Q.frechet(np.zeros((0, 2)), b)
+
+
+def test_frechet_matches_a_double_loop():
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        a, b = rng.normal(size=(rng.integers(1, 9), 3)), rng.normal(size=(rng.integers(1, 9), 3))
+        F = np.full((len(a), len(b)), np.inf)
+        for i in range(len(a)):
+            for j in range(len(b)):
+                d = np.linalg.norm(a[i] - b[j])
+                prev = (
+                    0.0
+                    if i == j == 0
+                    else min(
+                        F[i - 1, j] if i else np.inf,
+                        F[i, j - 1] if j else np.inf,
+                        F[i - 1, j - 1] if i and j else np.inf,
+                    )
+                )
+                F[i, j] = max(d, prev)
+        assert Q.frechet(a, b) == pytest.approx(F[-1, -1])
+
+
+def test_normalised_dtw_is_the_mean_squared_distance_of_matched_points():
+    a = Q.arc_resample(np.array([[0.0, 0, 0], [1, 0, 0]]), 11)
+    assert Q.ndtw(a, a) == 0.0
+    assert Q.ndtw(a, a + np.array([0, 0.5, 0])) == pytest.approx(0.25)
+
+
+def test_time_normalised_mean_of_offset_copies_has_g_over_r_near_a_third():
+    base = shape_demo(ShapeSpec("circle", 0.15, 2.0), 0)
+    offs = [np.array([0, 0.01, 0]), np.array([0, -0.004, 0.008]), np.array([0, -0.006, -0.008])]
+    ds = [Demo(base.t, base.position + o, base.orientation, base.gripper, name=f"d{i}") for i, o in enumerate(offs)]
+    curves = [Q.curve(d) for d in ds]
+    b1 = Demo(base.t, Q.time_normalised_mean(ds, len(base)), base.orientation, base.gripper)
+    f = Q.fidelity(Q.curve(b1), curves, b1=Q.time_normalised_mean(ds))
+    # the exact mean of three demos: G/R = (n − 1)/(2n) = 1/3 for offsets in general position
+    assert f.g_over_r == pytest.approx(1 / 3, abs=0.03)
+    assert f.f_over_b1 == pytest.approx(1.0, abs=0.02)
+    assert f.rms_ratio == pytest.approx(math.sqrt(f.g_over_r))
+
+
+def test_shared_corners_are_the_zigzags_corners():
+    ds = zigzag()
+    found = Q.shared_corners(ds)
+    truth = np.mean([shape_corners(ShapeSpec("zigzag", 0.15, 2.0), s) for s in range(3)], axis=0)
+    assert len(found) == 3
+    for (pos, turn), t in zip(found, truth, strict=True):
+        assert np.linalg.norm(pos - t) < 0.006 and turn > math.radians(100)
+    assert Q.shared_corners(list(shape_demos(ShapeSpec("circle", 0.15, 2.0), 3))) == []
+
+
+def test_gripper_events_of_the_tasks_are_checked():
+    ds = list(task_demos("pick-place"))
+    sk = learn_skill(ds)
+    r = Q.assess(sk, ds)
+    assert [g.action for g in r.gripper] == ["close", "open", "close", "open"]
+    assert all(g.error < 0.01 for g in r.gripper) and r.gripper_mismatch == ""
+    assert r.start_error < 0.002 and r.end_error < 0.002
+
+
+def test_held_out_and_outlier_figures():
+    ds = zigzag()
+    h = Q.held_out(ds, lambda dd: learn_skill(dd).trajectory)
+    assert len(h.per_demo) == 3 and not h.failed and 0 < h.g_over_r < 1.0
+    with pytest.raises(NotEnoughData):
+        Q.held_out(ds[:1], lambda dd: learn_skill(dd).trajectory)
+    r = Q.assess(learn_skill(ds), ds)
+    assert r.outliers == () and r.n_demos == 3 and r.size == pytest.approx(0.15, rel=0.1)
+
+
+def test_no_outlier_is_named_among_ordinary_demonstrations():
+    for shape in ("circle", "spiral", "handwriting"):
+        ds = list(shape_demos(ShapeSpec(shape, 0.15, 20.0), 7))
+        _, M = Q.spread([Q.curve(d) for d in ds])
+        assert Q.outliers(ds, M) == ()
+
+
+def test_length_words():
+    assert [Q.length_words(x) for x in (0.0004, 0.004, 0.0096, 0.0123, 0.03, 0.25, 1.23)] == [
+        "0.4 mm",
+        "4 mm",
+        "1 cm",
+        "1.2 cm",
+        "3 cm",
+        "25 cm",
+        "1.2 m",
+    ]
+
+
+# -- every wording of the verdict, from generated demonstrations ------------------------------------------------
+
+
+def test_good():
+    ds = zigzag()
+    v = Q.verdict(Q.assess(learn_skill(ds), ds))
+    assert v.level == "good"
+    assert len(v.lines) == 1
+    assert v.lines[0].startswith("Good: the skill follows your demonstrations closely (within ")
+    assert v.lines[0].endswith(" mm on average).")
+
+
+def test_fair_cuts_the_corner_and_lowering_corner_sharpness_helps():
+    ds = zigzag()
+    params = auto_params(ds, -3.0)  # few key-points, paper mode: the spline cuts the zigzag's corners
+    r = Q.assess(learn_skill(ds, params, generalization="paper"), ds)
+    v = Q.verdict(r)
+    assert v.level == "fair"
+    head = v.lines[0]
+    assert head.startswith("Fair: it cuts the corner at ") and " s by " in head
+    assert head.endswith(" cm — press Suggest, or lower Corner sharpness.")
+    worst = max(c.error for c in r.corners)
+    # the advice works: a lower corner sharpness (every bend counts) makes the corners key-points
+    from dataclasses import replace
+
+    r2 = Q.assess(learn_skill(ds, replace(params, eps1=math.pi + 0.3, eps4=0.0), generalization="paper"), ds)
+    assert max(c.error for c in r2.corners) < worst / 2
+
+
+def test_fair_not_as_close_as_the_demos_are_to_each_other():
+    ds = list(task_demos("pick-place"))
+    v = Q.verdict(Q.assess(learn_skill(ds, auto_params(ds, -1.0), generalization="paper"), ds))
+    assert v.lines[0].startswith("Fair: the skill stays within ")
+    assert v.lines[0].endswith(
+        " of your demonstrations on average, but they are closer to each other than that — press Suggest, or move "
+        "Detail towards more key-points."
+    )
+
+
+def test_poor():
+    ds = list(shape_demos(ShapeSpec("circle", 0.03, 2.0), 3))
+    from studio.core.types import KeypointParams
+
+    v = Q.verdict(Q.assess(learn_skill(ds, KeypointParams(), generalization="paper"), ds))  # the old fixed values
+    assert v.level == "poor"
+    assert v.lines[0].startswith("Poor: the skill strays from your demonstrations (")
+    assert v.lines[0].endswith(" on average) — press Suggest, or move Detail towards more key-points.")
+
+
+def test_outlier_demo_is_named():
+    ds = [
+        *shape_demos(ShapeSpec("circle", 0.15, 2.0), 3),
+        shape_demo(ShapeSpec("figure-eight", 0.15, 2.0), 9, name="demo 4"),
+    ]
+    r = Q.assess(learn_skill(ds), ds)
+    assert [o.name for o in r.outliers] == ["demo 4"]
+    v = Q.verdict(r)
+    assert v.level == "fair"
+    assert "demo 4 differs a lot from the others — re-record or hide it." in v.lines
+
+
+def test_start_and_end_away_from_the_demonstrations():
+    ds = list(shape_demos(ShapeSpec("handwriting", 0.6, 2.0), 3))
+    v = Q.verdict(Q.assess(learn_skill(ds, generalization="paper"), ds))
+    assert v.lines[0].startswith("Fair: the skill follows your demonstrations closely (within ")
+    assert v.lines[0].endswith(" on average), but:")
+    assert any(
+        line.startswith("It starts ") and line.endswith(" away from where your demonstrations start.")
+        for line in v.lines
+    )
+    assert any(
+        line.startswith("It ends ") and line.endswith(" away from where your demonstrations end.") for line in v.lines
+    )
+
+
+def test_grasp_and_release_away_from_the_demonstrated_poses():
+    ds = list(task_demos("pick-place"))
+    v = Q.verdict(Q.assess(learn_skill(ds, generalization="paper", smoothing=0.5), ds))  # an over-smoothed spline
+    lines = [line for line in v.lines if line.startswith("It closes the gripper ")]
+    assert lines and " away from where you closed it (at " in lines[0]
+    assert lines[0].endswith(" s) — press Suggest, or move Detail towards more key-points.")
+    assert any(line.startswith("It opens the gripper ") and "away from where you opened it" in line for line in v.lines)
+
+
+def test_demonstrations_that_use_the_gripper_differently():
+    ds = [*task_demos("pick-place")[:2], task_demos("stack-cup")[0]]
+    v = Q.verdict(Q.assess(learn_skill(ds), ds))
+    assert "Your demonstrations do not use the gripper the same way (not the same closes and opens)." in v.lines
+
+
+def test_held_out_misses_the_left_out_demo():
+    ds = zigzag()
+    params = auto_params(ds, -3.0)
+    h = Q.held_out(ds, lambda dd: learn_skill(dd, params, generalization="paper").trajectory)
+    v = Q.verdict(Q.assess(learn_skill(ds, params, generalization="paper"), ds, held_out_result=h))
+    assert any(
+        line.startswith("Learned without one of your demonstrations, it misses that one by ")
+        and line.endswith(" on average: record one or two more demonstrations.")
+        for line in v.lines
+    )
+
+
+@pytest.mark.slow
+def test_execution_the_robot_cannot_follow_and_needs_longer():
+    # a 60 cm circle drawn in 2 s: IK along it gets trapped at a joint limit and the joints are too fast
+    raw = shape_demos(ShapeSpec("circle", 0.6, 2.0), 2, rate_hz=250.0)
+    ds = [Demo(d.t, d.position, d.orientation, d.gripper, q=joint_angles(d, "left"), name=d.name) for d in raw]
+    r = Q.assess(learn_skill(ds, arm="left"), ds)
+    assert r.execution is not None and r.execution.tracked < 0.98
+    v = Q.verdict(r)
+    follow = [line for line in v.lines if line.startswith("The robot cannot follow ")]
+    assert follow and follow[0].endswith(
+        " — teach it closer to the robot, with the gripper in a direction the arm can hold."
+    )
+    assert any(
+        line.startswith("The robot needs ") and line.endswith("its joints cannot move that fast.") for line in v.lines
+    )

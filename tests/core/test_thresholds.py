@@ -1,0 +1,124 @@
+"""Automatic thresholds that follow the demonstrations, the Detail control, teacher-set values, Suggest (auto-tune)
+and the live preview path."""
+
+from __future__ import annotations
+
+import itertools
+import math
+import threading
+
+import numpy as np
+import pytest
+
+from studio.core import autotune
+from studio.core.errors import InvalidInput, NotEnoughData
+from studio.core.keypoints import KeypointCache
+from studio.core.pipeline import preview_path
+from studio.core.thresholds import DemoStats, ThresholdSettings, auto_params
+from studio.core.types import KeypointParams
+from studio.shapes import ShapeSpec, shape_demos
+from tests.core.teacher_demos import demos as task_demos
+
+
+def _kps(demos, params):
+    cache = KeypointCache()
+    return [len(cache.extract(d, params)) for d in demos]
+
+
+@pytest.mark.parametrize("shape", ["circle", "zigzag", "handwriting"])
+def test_a_small_gesture_and_a_large_reach_both_get_enough_keypoints(shape):
+    for size, dur in ((0.03, 2.0), (0.6, 20.0)):
+        ds = list(shape_demos(ShapeSpec(shape, size, dur), 3))
+        n = _kps(ds, auto_params(ds))
+        assert all(15 <= k <= 45 for k in n), (size, dur, n)
+    # the old fixed values found almost nothing on a 3 cm gesture
+    ds = list(shape_demos(ShapeSpec(shape, 0.03, 2.0), 3))
+    assert max(_kps(ds, KeypointParams())) <= 6
+
+
+def test_automatic_values_are_real_units_that_scale_with_the_demos():
+    small = DemoStats.of(list(shape_demos(ShapeSpec("circle", 0.03, 2.0), 3)))
+    big = DemoStats.of(list(shape_demos(ShapeSpec("circle", 0.6, 2.0), 3)))
+    assert big.size / small.size == pytest.approx(20, rel=0.15)
+    ps, pb = auto_params(small), auto_params(big)
+    assert pb.eps5 / ps.eps5 == pytest.approx(big.path_length / small.path_length, rel=0.01)
+    assert ps.eps7 == 2 * ps.eps5 and ps.eps4 == ps.eps5 / 2 and ps.eps3 == ps.eps6
+    assert ps.eps1 == KeypointParams().eps1  # an angle needs no scale
+    # a slow demo of the same shape waits longer between key-points
+    slow = auto_params(list(shape_demos(ShapeSpec("circle", 0.03, 20.0), 3)))
+    assert slow.eps6 > ps.eps6
+
+
+def test_detail_moves_the_coupled_thresholds_together():
+    ds = list(shape_demos(ShapeSpec("spiral", 0.15, 2.0), 3))
+    counts = [np.mean(_kps(ds, auto_params(ds, d))) for d in (-2, -1, 0, 1, 2)]
+    assert all(a < b for a, b in itertools.pairwise(counts))
+    lo, hi = auto_params(ds, -1), auto_params(ds, 1)
+    assert lo.eps5 > hi.eps5 and lo.eps7 > hi.eps7 and lo.eps4 > hi.eps4
+    assert auto_params(ds, 99) == auto_params(ds, 3)  # clipped to the control's range
+
+
+def test_the_teachers_own_value_is_kept():
+    ds = list(shape_demos(ShapeSpec("circle", 0.15, 2.0), 3))
+    s = ThresholdSettings().set("eps5", 0.05)
+    assert s.resolve(ds).eps5 == 0.05 and not s.is_auto("eps5") and s.is_auto("eps6")
+    # Detail moves the automatic ones only
+    assert s.with_detail(2).resolve(ds).eps5 == 0.05
+    assert s.with_detail(2).resolve(ds).eps6 != s.resolve(ds).eps6
+    assert s.auto("eps5").resolve(ds).eps5 == auto_params(ds).eps5
+    # saved and read back; and a session saved with fixed values only
+    back = ThresholdSettings.from_dict(s.with_detail(1.5).as_dict())
+    assert back == s.with_detail(1.5) and back.as_dict() == {"detail": 1.5, "teacher": {"eps5": 0.05}}
+    legacy = ThresholdSettings.from_params(KeypointParams(eps2=0.02))
+    assert legacy.teacher == {"eps2": 0.02} and legacy.detail == 0.0
+    with pytest.raises(InvalidInput):
+        ThresholdSettings(teacher={"eps99": 1.0})
+    with pytest.raises(InvalidInput):
+        ThresholdSettings().set("eps5", -1.0)
+    with pytest.raises(InvalidInput):
+        ThresholdSettings.from_dict({"detail": "lots"})
+
+
+def test_suggest_reports_progress_and_before_after_figures():
+    ds = list(shape_demos(ShapeSpec("zigzag", 0.15, 2.0), 3))
+    seen: list[tuple[float, str]] = []
+    # start from thresholds that cut the corners in paper mode: Suggest must find better ones
+    bad = auto_params(ds, -3.0)
+    r = autotune.suggest(ds, current=bad, generalization="paper", workers=1, progress=lambda f, m: seen.append((f, m)))
+    assert r.complete and not r.cancelled and r.evaluated == 10
+    assert r.after.g_over_r < 0.5 * r.before.g_over_r
+    assert r.params == r.settings.resolve(ds) and r.settings.teacher == {}
+    fr = [f for f, _ in seen]
+    assert fr == sorted(fr) and fr[-1] == 1.0 and seen[-1][1] == "Done"
+    assert "misses it by" in r.summary
+
+
+def test_suggest_uses_worker_processes_and_cancels_at_once():
+    ds = list(shape_demos(ShapeSpec("circle", 0.15, 2.0), 3))
+    a = autotune.suggest(ds, workers=1)
+    b = autotune.suggest(ds, workers=2)
+    assert (a.settings, a.n_clusters, a.after.g_over_r) == (b.settings, b.n_clusters, pytest.approx(b.after.g_over_r))
+    cancel = threading.Event()
+    cancel.set()
+    c = autotune.suggest(ds, workers=2, cancel=cancel, current=ThresholdSettings(1.0))
+    assert c.cancelled and not c.complete and c.settings == ThresholdSettings(1.0)
+    autotune.shutdown()
+
+
+def test_suggest_needs_two_demonstrations():
+    with pytest.raises(NotEnoughData, match="at least two"):
+        autotune.suggest(list(shape_demos(ShapeSpec("circle", 0.15, 2.0), 1)), workers=1)
+
+
+def test_preview_path_follows_the_sliders():
+    ds = list(task_demos("stack-cup"))
+    cache = KeypointCache()
+    p = preview_path(ds, auto_params(ds), cache=cache)
+    assert p.message == "" and p.position.shape == (p.t.shape[0], 3) and p.t[1] - p.t[0] == pytest.approx(0.02)
+    assert 0 < p.g_over_r < 0.6 and p.distance < 0.03
+    assert [len(k) for k in p.keypoints] == [len(cache.extract(d, auto_params(ds))) for d in ds]
+    # thresholds that find no key-points explain themselves instead of raising
+    none = preview_path(
+        ds, KeypointParams(eps5=5.0, eps7=5.0, eps4=5.0, eps12=2.0, eps14=2.0, eps11=1.5), n_clusters=500
+    )
+    assert none.message and none.position.shape == (0, 3) and math.isnan(none.g_over_r)
