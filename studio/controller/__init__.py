@@ -33,6 +33,7 @@ from studio.controller.playback import PREVIEW, REPLAY, Playback, PlaybackKind, 
 from studio.controller.pose import Display, PoseSource
 from studio.controller.sessions import RECOVERED, SessionActions, open_or_create
 from studio.controller.teaching import Reach, Teaching
+from studio.controller.view import Layer, Step, View
 from studio.core.kinematics import Baxter
 from studio.robot_backend.base import RobotBackend
 from studio.storage import Session, SessionStore
@@ -64,6 +65,7 @@ class Controller:
         baxter = baxter if baxter is not None else Baxter.load()
         self.ctx = Context(store, open_or_create(store, session), baxter, notifier or LogNotifier())
         self.display = Display()
+        self.view = View(self.ctx.events)
         self.demos = Demos(self.ctx)
         self.teaching = Teaching(self.ctx, backend, self.display, self.demos)
         self.playback = Player(self.ctx, self.display, self._robot_pose)
@@ -156,6 +158,7 @@ __all__ = [
     "KeypointItem",
     "KeypointTuning",
     "KeypointView",
+    "Layer",
     "LogNotifier",
     "Notifier",
     "Playback",
@@ -164,8 +167,10 @@ __all__ = [
     "PoseSource",
     "Reach",
     "SessionActions",
+    "Step",
     "Teaching",
     "Topic",
     "Training",
     "UsedDemo",
+    "View",
 ]

@@ -37,6 +37,8 @@ class Topic(StrEnum):
     SKILL = "skill"
     #: A preview or replay was loaded or unloaded (``playback.kind``).
     PLAYBACK = "playback"
+    #: The step or the shown scene layers changed (``view.step``, ``view.shown(layer)``).
+    VIEW = "view"
 
 
 class Events:
