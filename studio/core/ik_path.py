@@ -72,6 +72,8 @@ JUMP_RAD = 0.6
 #: Joint change between two knots that counts as a posture jump: BREAK_RAD + BREAK_RAD_PER_M × path length.
 BREAK_RAD = 0.05
 BREAK_RAD_PER_M = 20.0
+#: Shortest stretch (s of skill time) worth following on its own between two stretches out of reach or jumps.
+MIN_PIECE_S = 0.1
 #: Elbow swivel change (rad) beyond which a restart solution is on the other side.
 ELBOW_SIDE_RAD = math.pi / 2
 #: Inside a stretch out of reach, restarts are tried after this much skill time (s), doubling each time.
@@ -154,7 +156,10 @@ class PathSolution:
                 if start is not None:
                     out.append((self.s[start:j], self.q[start:j]))
                 start = j if (j < self.q.shape[0] and keep[j]) else None
-        return out
+        # A sliver (a few reached knots in another posture at the edge of a stretch out of reach) is not worth
+        # two posture changes: the robot goes straight past it.
+        long = [p for p in out if p[0][-1] - p[0][0] >= MIN_PIECE_S]
+        return long or out[:1]
 
     def spline(self) -> Callable[[np.ndarray], np.ndarray]:
         """Joints as a function of the skill time: a C² cubic spline per piece, held constant across breaks."""

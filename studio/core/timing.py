@@ -50,8 +50,10 @@ LIMIT_MARGIN = 0.97
 #: Time (s) added on each side of a stretch that needs slowing down, so toppra has room to slow and resume.
 WINDOW_PAD_S = 0.5
 #: Largest number of toppra grid points in one window; grid spacing is 10 ms below that.
-MAX_GRID = 800
+MAX_GRID = 1500
 GRID_STEP_S = 0.01
+#: Largest deviation (rad) of the joint path from straight chords between grid points.
+GRID_TOLERANCE_RAD = 2e-5
 #: A joint speed (rad/s) below which the path counts as at rest at its ends.
 REST_SPEED = 1e-3
 
@@ -133,6 +135,21 @@ class _Segment:
         return 2.0 * ds / max(self.v0 + self.v1, 1e-9)
 
 
+def _grid(spl: CubicSpline, a: float, b: float, refine: float) -> np.ndarray:
+    """toppra grid points on [a, b]: every :data:`GRID_STEP_S`, denser where the joint path bends.
+
+    As toppra's own ``propose_gridpoints`` does, the spacing Δ keeps the path's deviation from its chords,
+    ½ |q''| Δ², below :data:`GRID_TOLERANCE_RAD` (near a singularity joints turn fast for little gripper
+    motion, and the limits must hold between grid points too); computed here vectorised, not by bisection.
+    """
+    fine = np.linspace(a, b, max(3, math.ceil((b - a) * 2000) + 1))
+    curv = np.max(np.abs(spl(fine, 2)), axis=1)
+    density = np.maximum(1.0 / GRID_STEP_S, np.sqrt(curv / (2.0 * GRID_TOLERANCE_RAD))) / refine
+    cum = np.concatenate([[0.0], np.cumsum(0.5 * (density[1:] + density[:-1]) * np.diff(fine))])
+    n = int(min(MAX_GRID / refine, max(2.0, math.ceil(cum[-1])))) + 1
+    return np.unique(np.concatenate([[a], np.interp(np.linspace(0, cum[-1], n), cum, fine), [b]]))
+
+
 def _window_segments(
     piece: int,
     spl: CubicSpline,
@@ -143,17 +160,11 @@ def _window_segments(
     vlim: np.ndarray,
     alim: np.ndarray,
     pace: float,
-    knots: np.ndarray,
     refine: float,
 ) -> list[_Segment] | None:
     """toppra on s in [a, b] with ṡ(a) = v_start, ṡ(b) = v_end; None when infeasible."""
     _, algo, constraint, _ = _toppra()
-    n = int(min(MAX_GRID, max(3, math.ceil((b - a) / (GRID_STEP_S * refine)) + 1)))
-    # the spline's own knots too: its second derivative changes there, which a coarse grid would miss
-    inner = knots[(knots > a) & (knots < b)]
-    if inner.shape[0] > MAX_GRID:
-        inner = inner[:: math.ceil(inner.shape[0] / MAX_GRID)]
-    grid = np.unique(np.concatenate([np.linspace(a, b, n), inner]))
+    grid = _grid(spl, a, b, refine)
     n = grid.shape[0]
     path = _SubPath(spl, a, b)
     cons = [
@@ -238,7 +249,7 @@ def _piece_segments(
                 segs.append(_Segment(piece, cursor, a, pace, pace))
             va = 0.0 if (rest_start and a <= ss[0]) else pace
             vb = 0.0 if (rest_end and b >= ss[-1]) else pace
-            w = _window_segments(piece, spl, a, b, va, vb, vlim, alim, pace, s, refine)
+            w = _window_segments(piece, spl, a, b, va, vb, vlim, alim, pace, refine)
             if w is None:
                 failed = True
                 break

@@ -87,7 +87,9 @@ def test_joint_trajectory_tracks_within_a_millimetre_and_respects_limits():
     assert np.all(jt.q >= b.lower_limits("left")) and np.all(jt.q <= b.upper_limits("left"))
     v = np.abs(np.diff(jt.q, axis=0)) * 500
     a = np.abs(np.diff(jt.q, 2, axis=0)) * 500**2
-    assert np.all(v <= b.velocity_limits("left") * (1 + 1e-9)) and np.all(a <= b.acceleration_limits("left") * (1 + 1e-9))
+    assert np.all(v <= b.velocity_limits("left") * (1 + 1e-9)) and np.all(
+        a <= b.acceleration_limits("left") * (1 + 1e-9)
+    )
 
 
 def test_joint_trajectory_slows_down_when_too_fast():
@@ -103,5 +105,7 @@ def test_joint_trajectory_slows_down_when_too_fast():
     assert 0.9 < jt.t[-1] - jt.t[0] < 1.3
     v = np.abs(np.diff(jt.q, axis=0)) * 500
     a = np.abs(np.diff(jt.q, 2, axis=0)) * 500**2
-    assert np.all(v <= b.velocity_limits("left") * (1 + 1e-9)) and np.all(a <= b.acceleration_limits("left") * (1 + 1e-9))
+    assert np.all(v <= b.velocity_limits("left") * (1 + 1e-9)) and np.all(
+        a <= b.acceleration_limits("left") * (1 + 1e-9)
+    )
     assert jt.position_error.max() < 1e-3
