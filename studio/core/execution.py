@@ -38,7 +38,7 @@ START_ORIENTATION_RAD = 0.1
 #: The approach to the skill's start moves at this fraction of the joint limits.
 APPROACH_SPEED = 0.3
 #: Arms closer than this (rad, every joint) to the skill's start need no approach.
-AT_START_RAD = 1e-3
+AT_START_RAD = 1e-9
 
 
 def _pose_at(trajectory: Demo, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
