@@ -166,12 +166,26 @@ def _resample(t_src: np.ndarray, values: np.ndarray, t_new: np.ndarray) -> np.nd
     return np.column_stack([np.interp(t_new, t_src, values[:, j]) for j in range(values.shape[1])])
 
 
+def _resample_joints(t_src: np.ndarray, q: np.ndarray, t_new: np.ndarray) -> np.ndarray:
+    """Joint samples at ``t_new`` (held after the end): the samples themselves when the times coincide,
+    else a C² cubic spline through them, so the velocities and accelerations the timing kept within the
+    limits stay within them (a straight line between rows would bend sharply at every sample)."""
+    m = t_src.shape[0]
+    if m <= len(t_new) and np.allclose(t_new[:m], t_src, rtol=0.0, atol=1e-9):
+        return np.vstack([q, np.tile(q[-1], (len(t_new) - m, 1))])
+    if m < 2:
+        return np.tile(q[0], (len(t_new), 1))
+    from scipy.interpolate import CubicSpline
+
+    return CubicSpline(t_src, q, axis=0)(np.minimum(t_new, t_src[-1]))
+
+
 def export_joint_trajectory_csv(
     skills: Mapping[str, Any],
     path: str | os.PathLike[str],
     *,
     rest: np.ndarray | None = None,
-    rate_hz: float = 100.0,
+    rate_hz: float | None = None,
     rest_gripper: tuple[float, float] = (100.0, 100.0),
 ) -> int:
     """Write learned skills' joint trajectories as a CSV the Baxter SDK playback example can run.
@@ -182,15 +196,20 @@ def export_joint_trajectory_csv(
     times, so the file starts at t = 0. An arm without a skill holds ``rest`` (the
     Baxter untuck pose by default) with its gripper at ``rest_gripper``.
 
+    The learned joint trajectories are timed within Baxter's joint velocity and acceleration limits at
+    their own rate (1 kHz, the paper's rate); by default the file keeps exactly those samples, so the
+    playback sees the same limits. At another rate the rows are sampled from a C² cubic spline through them.
+
     Args:
-        rate_hz: rows per second in the file (the SDK's recorder default is 100; its playback interpolates).
+        rate_hz: rows per second in the file (default: the joint trajectories' own rate; the SDK's recorder
+            writes 100 and its playback interpolates any rate).
 
     Returns:
         The number of rows written.
     """
     if not skills:
         raise NotEnoughData("There is no learned skill to export yet; learn the skill first.")
-    if not (rate_hz > 0 and math.isfinite(rate_hz)):
+    if rate_hz is not None and not (rate_hz > 0 and math.isfinite(rate_hz)):
         raise InvalidInput("The export rate must be a positive number of rows per second.")
     trajs = {}
     for arm, sk in skills.items():
@@ -201,6 +220,8 @@ def export_joint_trajectory_csv(
                 f"The {arm} arm's skill has no joint trajectory (inverse kinematics was not run); learn it again."
             )
         trajs[arm] = (np.asarray(jt.t, dtype=np.float64), np.asarray(jt.q, dtype=np.float64), sk)
+    if rate_hz is None:
+        rate_hz = max((1.0 / float(np.median(np.diff(tt))) if len(tt) > 1 else 100.0) for tt, _, _ in trajs.values())
     t_end = max(float(tt[-1] - tt[0]) for tt, _, _ in trajs.values())
     n = math.floor(t_end * rate_hz + 1e-9) + 1
     t = np.arange(n) / rate_hz
@@ -214,7 +235,7 @@ def export_joint_trajectory_csv(
     for arm, (tt, qq, sk) in trajs.items():
         ts = tt - tt[0]
         cols = slice(0, 7) if arm == "left" else slice(7, 14)
-        q[:, cols] = _resample(ts, qq, np.minimum(t, ts[-1]))
+        q[:, cols] = _resample_joints(ts, qq, t)
         jg = getattr(sk.joint_trajectory, "gripper", None)
         if jg is not None:  # the gripper command that goes with the joint trajectory, same times
             gt, gv = ts, np.asarray(jg, dtype=np.float64)
