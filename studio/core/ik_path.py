@@ -217,10 +217,14 @@ def rotation_angle(Ra: np.ndarray, Rb: np.ndarray) -> np.ndarray:
     return 2.0 * np.arcsin(np.clip(d / (2.0 * math.sqrt(2.0)), 0.0, 1.0))
 
 
-def _log3_batch(R: np.ndarray) -> np.ndarray:
-    """Rotation vectors (N, 3) of rotation matrices (N, 3, 3) (angles below π − 1e-3)."""
-    v = np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], axis=1)
-    c = np.clip((R[:, 0, 0] + R[:, 1, 1] + R[:, 2, 2] - 1.0) * 0.5, -1.0, 1.0)
+def _rotation_error_batch(Rt: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """Rotation vectors (N, 3) of Rt · Rᵀ for rotation matrices (N, 3, 3) (angles below π − 1e-3).
+
+    The skew part of Rt · Rᵀ = Σ_k rt_k r_kᵀ is Σ_k r_k × rt_k (columns k), and its trace Σ Rt ∘ R: no
+    batched 3 × 3 products, which numpy runs slowly on small matrices.
+    """
+    v = np.cross(R[:, :, 0], Rt[:, :, 0]) + np.cross(R[:, :, 1], Rt[:, :, 1]) + np.cross(R[:, :, 2], Rt[:, :, 2])
+    c = np.clip((np.einsum("nij,nij->n", Rt, R) - 1.0) * 0.5, -1.0, 1.0)
     th = np.arccos(c)
     sn = np.sin(th)
     small = sn < 1e-6
@@ -505,7 +509,7 @@ class _PathSolver:
         for _ in range(iterations):
             rot, pos, J = self.b.pose_jacobian_batch(self.arm, Q[active])
             ep = P[active] - pos
-            er = _log3_batch(Rt[active] @ np.transpose(rot, (0, 2, 1)))
+            er = _rotation_error_batch(Rt[active], rot)
             done = (np.linalg.norm(ep, axis=1) <= SOLVE_POSITION_M) & (
                 np.linalg.norm(er, axis=1) <= SOLVE_ORIENTATION_RAD
             )
@@ -533,19 +537,23 @@ class _PathSolver:
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Add knots where the spline strays from the path, and locate where reachable stretches end.
 
-        Between two reached knots, a knot is added mid-way where the spline strays (solved in one batch).
-        Between a reached and an unreached knot, the mid-way sample is solved from the reached side, so
-        the edge of a reachable stretch is found to the sample by bisection.
+        Between two reached knots, a knot is added mid-way where the spline strays (all new knots solved in
+        one batch). Between a reached and an unreached knot, the mid-way sample is solved from the reached
+        side, so the edge of a reachable stretch is found to the sample by bisection. Only intervals not yet
+        checked are checked again, plus one final check of all of them.
         """
         t = self.t
+        verified = np.zeros(max(idx.shape[0] - 1, 0), dtype=bool)
+        final_pass = False
         for _ in range(rounds):
             if idx.shape[0] < 2:
                 break
             jump = np.max(np.abs(np.diff(Q, axis=0)), axis=1) > BREAK_RAD + BREAK_RAD_PER_M * np.diff(self.arc[idx])
             gap = (np.diff(idx) > 1) & ~jump
-            both = ok[:-1] & ok[1:] & gap
+            both = ok[:-1] & ok[1:] & gap & ~verified
             edge = (ok[:-1] != ok[1:]) & (np.diff(idx) > 1)
             new_parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+            split = np.zeros(verified.shape[0], dtype=bool)
             if both.any():
                 spl = CubicSpline(t[idx], Q, axis=0)
                 # check samples: ~1 in 4 of each interval's interior samples, at least 3 per interval
@@ -557,7 +565,10 @@ class _PathSolver:
                 chk = np.clip((idx[rep] + frac * (idx[rep + 1] - idx[rep])).astype(np.int64), 0, t.shape[0] - 1)
                 perr, oerr = self.pose_errors(chk, np.clip(spl(t[chk]), self.lo, self.hi))
                 bad_seg = np.unique(rep[(perr > REFINE_POSITION_M) | (oerr > REFINE_ORIENTATION_RAD)])
+                verified[segs] = True
                 if bad_seg.shape[0]:
+                    verified[bad_seg] = False
+                    split[bad_seg] = True
                     new = (idx[bad_seg] + idx[bad_seg + 1]) // 2
                     Qn, conv = self.batch_solve(new, spl(t[new]))
                     for k in np.flatnonzero(~conv):  # rare: solve from the left knot instead
@@ -567,13 +578,21 @@ class _PathSolver:
                 a = j if ok[j] else j + 1  # the reached end
                 i_new = (int(idx[j]) + int(idx[j + 1])) // 2
                 qn, _, _, good = self.advance(Q[a], int(idx[a]), i_new)
+                split[j] = True
                 new_parts.append((np.array([i_new]), qn[None, :], np.array([good])))
             if not new_parts:
-                break
+                if final_pass or not verified.any():
+                    break
+                final_pass = True  # inserted knots nudge the spline nearby: check every interval once more
+                verified[:] = False
+                continue
+            final_pass = False
             new = np.concatenate([p[0] for p in new_parts])
             Qn = np.concatenate([p[1] for p in new_parts])
             conv = np.concatenate([p[2] for p in new_parts])
             npe, noe = self.pose_errors(new, Qn)
+            # interval flags: a split interval becomes two unchecked ones
+            ver_new = np.zeros(new.shape[0], dtype=bool)
             idx = np.concatenate([idx, new])
             order = np.argsort(idx, kind="stable")
             idx = idx[order]
@@ -581,6 +600,9 @@ class _PathSolver:
             ok = np.concatenate([ok, conv & (npe <= ACCEPT_POSITION_M) & (noe <= ACCEPT_ORIENTATION_RAD)])[order]
             pe = np.concatenate([pe, npe])[order]
             oe = np.concatenate([oe, noe])[order]
+            # each interval is identified by its left knot: old knots keep their flag unless split
+            left_flag = np.concatenate([np.append(verified & ~split, False), ver_new])[order]
+            verified = left_flag[:-1]
         return idx, Q, ok, pe, oe
 
 
