@@ -236,14 +236,16 @@ def exposure_warning(host: str, port: int) -> str | None:
     )
 
 
-def serve(host: str, port: int, session: str | None, sessions_dir: Path | str, meshes: str = "auto") -> None:
+def serve(
+    host: str, port: int, session: str | None, sessions_dir: Path | str, meshes: str = "auto", backend=None
+) -> None:
     """Start the studio and block until Ctrl+C or SIGTERM (the ``studio serve`` command)."""
     import signal
 
     warning = exposure_warning(host, port)
     if warning:
         print(warning, file=sys.stderr, flush=True)
-    app = build_app(host, port, session, sessions_dir, meshes)
+    app = build_app(host, port, session, sessions_dir, meshes, backend=backend)
     stop = threading.Event()
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, lambda *_: stop.set())
