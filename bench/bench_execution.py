@@ -12,7 +12,8 @@
      * the same with the key postures' Cartesian poses only (seeded from the neutral pose).
    Per trajectory: the share of the skill's samples the joint trajectory executes within 1 mm and 0.01 rad;
    of the samples missed, a subsample (up to 40 per trajectory) is checked for reachability by random
-   restarts (60 seeds × 150 damped least-squares iterations), so the figure is "tracked / reachable".
+   restarts (60 seeds × 150 damped least-squares iterations; reached = within 1 mm and 0.01 rad, the same bar),
+   so the figure is "tracked / reachable".
    Duration: where the taught pace is within the limits (every sample of the joint path at ṡ = 1, by finite
    differences at 1 kHz), the joint trajectory's duration minus the skill's, minus the time to get from
    rest to the path's speed at its two ends (|q̇|/a at the start and end).
@@ -171,7 +172,7 @@ def reachable_share(b: Baxter, tr: Demo, missed: np.ndarray, rng: np.random.Gene
     for i in pick:
         for _ in range(60):
             _, p, o = S.solve(int(i), b.random_configuration("left", rng), 150, pull="mid")
-            if p <= ACCEPT_POSITION_M / 10 and o <= ACCEPT_ORIENTATION_RAD / 10:
+            if p <= ACCEPT_POSITION_M and o <= ACCEPT_ORIENTATION_RAD:
                 hits += 1
                 break
     return hits / pick.shape[0]
@@ -180,11 +181,11 @@ def reachable_share(b: Baxter, tr: Demo, missed: np.ndarray, rng: np.random.Gene
 def pace_excess(b: Baxter, tr: Demo, jt: JointTrajectory) -> float | None:
     """Duration beyond the skill's and the ramps from/to rest, when the taught pace is within the limits."""
     s = jt.skill_time
-    if s is None:
+    if s is None or jt.converged.mean() < 1.0:  # a stretch out of reach: the timing is not the pace's alone
         return None
-    # the joint path at the skill's samples (ṡ = 1)
-    j = np.clip(np.searchsorted(s, tr.t), 0, len(jt) - 1)
-    q = jt.q[j]
+    # the joint path as a function of the skill time, at the skill's samples (ṡ = 1)
+    keep = np.concatenate([[True], np.diff(s) > 1e-12])
+    q = np.column_stack([np.interp(tr.t, s[keep], jt.q[keep, j]) for j in range(7)])
     dt = float(np.median(np.diff(tr.t)))
     v = np.abs(np.diff(q, axis=0)) / dt
     a = np.abs(np.diff(q, 2, axis=0)) / dt**2
