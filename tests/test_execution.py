@@ -112,7 +112,7 @@ def test_execution_is_recorded_like_a_demonstration_and_compared_with_the_plan(s
     assert report.offset == pytest.approx(started - 0.25, abs=0.01)
     given = compare_execution(plan, recording, start_time=started - 0.25)
     assert given.completed == pytest.approx(1.0, abs=1e-3)
-    assert given.max_position_error < 3e-3  # sensor noise only
+    assert given.max_position_error < 3e-3 and given.max_path_error < 3e-3  # sensor noise only
     assert given.joint_error.max() < 2e-3
     assert "ran 100% of the plan" in given.summary()
 
@@ -229,3 +229,40 @@ def test_refusals_are_plain() -> None:
     rec = Recording(np.arange(5) / 1000.0, np.zeros((5, 14)), np.full((5, 2), 50.0), ("left",), "d")
     with pytest.raises(StudioError, match="replayed"):
         ReplayBackend(rec).execute(ok)
+
+
+def test_both_arms_run_together_and_a_partial_run_is_reported(tmp_path: Path) -> None:
+    from studio.core.pipeline import learn_arms
+    from studio.teacher import recording_from_plan, teach
+
+    recs = [recording_from_plan(teach("stack-cup", s, arm="both")) for s in (0, 1)]
+    skills = learn_arms(recs)
+    jts = {a: s.joint_trajectory for a, s in skills.items()}
+    sim = SimulatedBaxter()
+    st = sim.state()
+    plan = plan_execution(jts, st.q, st.gripper)
+    assert plan.arms == ("left", "right")
+    k = round(plan.skill_start * plan.rate_hz)
+    np.testing.assert_allclose(plan.q[k, :7], jts["left"].q[0], atol=1e-9)
+    np.testing.assert_allclose(plan.q[k, 7:], jts["right"].q[0], atol=1e-9)
+    # the shorter skill ends first and its arm holds its last pose until the other finishes
+    np.testing.assert_allclose(plan.q[-1, :7], jts["left"].q[-1], atol=1e-9)
+    np.testing.assert_allclose(plan.q[-1, 7:], jts["right"].q[-1], atol=1e-9)
+    v, a = _limits()
+    assert limit_ratio(plan.q, plan.rate_hz, v, a) <= 1.0
+    # run 40 % of it, stop, and compare the recording with the plan
+    rec = Recorder(sim, tmp_path, arms="both", name="run")
+    rec.start()
+    sim.execute(plan)
+    sim.step(int(0.4 * len(plan)))
+    sim.stop_motion()
+    sim.step(3000)
+    recording = rec.stop()
+    rec.discard()
+    report = compare_execution(plan, recording, start_time=0.0)
+    assert set(report.position_error) == {"left", "right"}
+    assert 0.4 < report.completed < 0.6
+    # it stopped along the path (within the acceleration limits): close to the planned path all along, while
+    # the same-time error grows once the plan goes on without the robot
+    assert report.max_path_error < 5e-3 and report.max_position_error > 0.05
+    assert "The robot ran" in report.summary()

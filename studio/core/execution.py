@@ -280,19 +280,28 @@ def plan_execution(
 class TrackingReport:
     """How closely an execution followed its plan, over the plan's time line.
 
+    Two errors: ``position_error`` compares with where the plan was *at the same time* (it includes any lag,
+    and grows after a stop, when the plan goes on and the robot does not); ``path_error`` compares with the
+    nearest planned posture (by joints), i.e. how far the gripper left the planned *path*.
+
     Attributes:
-        t: (K,) plan time (s) of each compared sample.
-        joint_error: (K,) largest joint angle difference (rad) among the executing arms' joints.
-        position_error: {arm: (K,)} distance (m) between executed and planned gripper positions.
-        planned_position, executed_position: {arm: (K, 3)} gripper positions (m), for drawing.
-        gripper_error: (K,) largest gripper opening difference (percent).
+        t: (K,) plan time (s) of each compared sample (recording time − ``offset``).
+        plan_time: (K,) the plan time whose posture each sample is closest to (progress along the plan).
+        joint_error: (K,) largest joint angle difference (rad) among the executing arms' joints, same time.
+        position_error: {arm: (K,)} distance (m) between executed and planned gripper positions, same time.
+        path_error: {arm: (K,)} distance (m) from the executed gripper position to the planned one at
+            ``plan_time``.
+        planned_position, executed_position: {arm: (K, 3)} gripper positions (m) at the same time, for drawing.
+        gripper_error: (K,) largest gripper opening difference (percent), same time.
         offset: seconds added to the plan's times to line them up with the recording's.
-        completed: fraction of the plan the recording covers (0..1).
+        completed: fraction of the plan executed (furthest ``plan_time`` reached / duration, 0..1).
     """
 
     t: np.ndarray
+    plan_time: np.ndarray
     joint_error: np.ndarray
     position_error: dict[str, np.ndarray]
+    path_error: dict[str, np.ndarray]
     planned_position: dict[str, np.ndarray]
     executed_position: dict[str, np.ndarray]
     gripper_error: np.ndarray
@@ -304,8 +313,12 @@ class TrackingReport:
         return max((float(e.max()) for e in self.position_error.values() if e.size), default=0.0)
 
     @property
-    def rms_position_error(self) -> float:
-        vals = [e for e in self.position_error.values() if e.size]
+    def max_path_error(self) -> float:
+        return max((float(e.max()) for e in self.path_error.values() if e.size), default=0.0)
+
+    @property
+    def rms_path_error(self) -> float:
+        vals = [e for e in self.path_error.values() if e.size]
         return float(np.sqrt(np.mean(np.concatenate(vals) ** 2))) if vals else 0.0
 
     def summary(self) -> str:
@@ -313,8 +326,8 @@ class TrackingReport:
         pct = round(self.completed * 100)
         return (
             f"The robot ran {pct}% of the plan; its gripper stayed within "
-            f"{self.max_position_error * 1000:.1f} mm of the planned path "
-            f"({self.rms_position_error * 1000:.1f} mm on average)."
+            f"{self.max_path_error * 1000:.1f} mm of the planned path "
+            f"({self.rms_path_error * 1000:.1f} mm on average)."
         )
 
 
@@ -380,20 +393,28 @@ def compare_execution(
     pq = np.column_stack([np.interp(tp, plan.t, plan.q[:, j]) for j in range(14)])
     pg = np.column_stack([np.interp(tp, plan.t, plan.gripper[:, j]) for j in range(2)])
     jerr = np.max(np.abs(pq[:, cols] - rq_in[:, cols]), axis=1)
-    perr, ppos, epos = {}, {}, {}
+    # progress along the plan: the nearest planned posture (joints of the executing arms), searched in a tree
+    from scipy.spatial import cKDTree
+
+    _, near = cKDTree(plan.q[:, cols]).query(rq_in[:, cols])
+    perr, path_err, ppos, epos = {}, {}, {}, {}
     for a in plan.arms:
         c = slice(0, 7) if a == "left" else slice(7, 14)
         _, p_plan = b.rotations_batch(a, pq[:, c])
         _, p_exec = b.rotations_batch(a, rq_in[:, c])
+        _, p_near = b.rotations_batch(a, plan.q[near, c])
         perr[a], ppos[a], epos[a] = np.linalg.norm(p_exec - p_plan, axis=1), p_plan, p_exec
+        path_err[a] = np.linalg.norm(p_exec - p_near, axis=1)
     gi = [0 if a == "left" else 1 for a in plan.arms] or [0, 1]
     gerr = np.max(np.abs(pg[:, gi] - rg_in[:, gi]), axis=1)
-    covered = float(min(tp[-1], plan.t[-1]) - max(tp[0], plan.t[0]))
-    completed = covered / plan.duration if plan.duration > 0 else 1.0
+    plan_time = plan.t[near]
+    completed = float(plan_time.max() - plan.t[0]) / plan.duration if plan.duration > 0 else 1.0
     return TrackingReport(
         t=tp,
+        plan_time=plan_time,
         joint_error=jerr,
         position_error=perr,
+        path_error=path_err,
         planned_position=ppos,
         executed_position=epos,
         gripper_error=gerr,
