@@ -11,7 +11,7 @@ This module solves the path as one problem:
    demonstration's first joints), Baxter's untuck pose, mid-range, and random seeds drawn with a fixed seed.
    A solution within :data:`SEED_POSTURE_RAD` of the given seed is the taught posture and is used first;
    the others are ranked by their distance from the joint limits.
-2. **Continuation along knots** (:func:`solve_path`). Knots every ~3 cm / ~0.15 rad / 0.5 s along the
+2. **Continuation along knots** (:func:`solve_path`). Knots every ~6 cm / ~0.3 rad / 1 s along the
    path; each is solved by damped least squares from the previous knot's joints, with a null-space term
    that pushes joints out of the outer 10 % of their range (it does not move the gripper, so the taught
    posture is kept elsewhere). A knot that does not converge is approached in smaller steps (bisection
@@ -62,8 +62,8 @@ SOLVE_ORIENTATION_RAD = 2e-4
 REFINE_POSITION_M = 1e-4
 REFINE_ORIENTATION_RAD = 1e-3
 #: Knot spacing: path length (m; rotation counts ROTATION_WEIGHT_M per radian) or time (s), whichever first.
-KNOT_ARC_M = 0.03
-KNOT_MAX_DT_S = 0.5
+KNOT_ARC_M = 0.06
+KNOT_MAX_DT_S = 1.0
 ROTATION_WEIGHT_M = 0.2
 #: A start solution this close (max joint difference, rad) to the given seed is the taught posture.
 SEED_POSTURE_RAD = 0.3
@@ -559,7 +559,7 @@ class _PathSolver:
                 # check samples: ~1 in 4 of each interval's interior samples, at least 3 per interval
                 segs = np.flatnonzero(both)
                 lens = idx[segs + 1] - idx[segs]
-                m = np.clip(lens // 4, 3, None)
+                m = np.clip(lens // 8, 3, None)
                 rep = np.repeat(segs, m)
                 frac = (np.arange(rep.shape[0]) - np.repeat(np.cumsum(m) - m, m) + 0.5) / np.repeat(m, m)
                 chk = np.clip((idx[rep] + frac * (idx[rep + 1] - idx[rep])).astype(np.int64), 0, t.shape[0] - 1)
