@@ -24,7 +24,9 @@ from studio.core.ik_path import (
     ACCEPT_ORIENTATION_RAD,
     ACCEPT_POSITION_M,
     Feasibility,
+    _PathSolver,
     feasibility,
+    pose_reachable,
     rotation_angle,
     solve_path,
 )
@@ -123,13 +125,15 @@ def joint_trajectory(
     return JointTrajectory(t[0] + tm_t, tm_q, perr, oerr, conv, arm, g, skill_time=tm_s)
 
 
-def skill_feasibility(jt: JointTrajectory, trajectory: Demo | None = None) -> Feasibility:
+def skill_feasibility(jt: JointTrajectory, trajectory: Demo | None = None, baxter: Baxter | None = None) -> Feasibility:
     """Where the robot cannot follow the skill, on the skill's time line, in plain words.
 
     Args:
         jt: the skill's joint trajectory (from :func:`joint_trajectory`).
         trajectory: the Cartesian skill; when given, the spans' ``i_start`` / ``i_end`` index its samples
-            (to draw those stretches of the path in red); otherwise they index ``jt``.
+            (to draw those stretches of the path in red), and each span is probed (a few multi-start IK
+            solves) to tell a stretch out of reach from one where the arm only has to change posture.
+            Otherwise they index ``jt``.
 
     Returns:
         A :class:`~studio.core.ik_path.Feasibility` (``ok``, ``spans``, ``message``).
@@ -144,7 +148,9 @@ def skill_feasibility(jt: JointTrajectory, trajectory: Demo | None = None) -> Fe
     oe = np.zeros(len(trajectory))
     np.maximum.at(pe, k, jt.position_error)
     np.maximum.at(oe, k, jt.orientation_error)
-    return feasibility(tt, pe, oe, jt.arm)
+    b = baxter or Baxter.load()
+    solver = _PathSolver(b, jt.arm, tt, trajectory.position, matrix_from_quat_wxyz(trajectory.orientation))
+    return feasibility(tt, pe, oe, jt.arm, reachable=lambda i: pose_reachable(solver, i))
 
 
 # -- the plan a robot executes ---------------------------------------------------------------------------

@@ -188,6 +188,8 @@ class UnreachableSpan:
         i_start, i_end: first and last sample index into the Cartesian trajectory (inclusive; for drawing).
         position_error: largest distance (m) between the closest reachable pose and the skill there.
         orientation_error: largest turn (rad) the gripper would still need there.
+        reason: "reach" (too far), "turn" (an orientation the wrist cannot hold) or "posture" (each pose is
+            reachable, but not by one continuous motion: the arm has to change its posture there).
     """
 
     t_start: float
@@ -196,6 +198,7 @@ class UnreachableSpan:
     i_end: int
     position_error: float
     orientation_error: float
+    reason: str = "reach"
 
 
 @dataclass(frozen=True)
@@ -716,6 +719,7 @@ def feasibility(
     arm: str,
     *,
     min_gap_s: float = 0.05,
+    reachable: Callable[[int], bool] | None = None,
 ) -> Feasibility:
     """Unreachable time spans of a skill and one plain sentence about them.
 
@@ -724,6 +728,8 @@ def feasibility(
         position_error, orientation_error: (N,) how far the closest reachable pose is from the skill.
         arm: "left" or "right" (named in the message).
         min_gap_s: spans closer than this are reported as one.
+        reachable: optional test "can the arm reach sample i at all" (e.g. by restarts); a span whose
+            probed samples are all reachable is a change of posture, not a stretch out of reach.
 
     Returns:
         A :class:`Feasibility`; ``ok`` when every sample is within 1 mm and 0.01 rad.
@@ -738,15 +744,25 @@ def feasibility(
     edges = np.diff(np.concatenate([[0], bad.astype(np.int8), [0]]))
     starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1
     runs: list[list[int]] = []
-    for a, z in zip(starts, ends, strict=True):
-        if runs and t[a] - t[runs[-1][1]] <= min_gap_s:
-            runs[-1][1] = int(z)
+    for sa, sz in zip(starts.tolist(), ends.tolist(), strict=True):
+        if runs and t[sa] - t[runs[-1][1]] <= min_gap_s:
+            runs[-1][1] = sz
         else:
-            runs.append([int(a), int(z)])
-    spans = tuple(
-        UnreachableSpan(float(t[a]), float(t[z]), a, z, float(pe[a : z + 1].max()), float(oe[a : z + 1].max()))
-        for a, z in runs
-    )
+            runs.append([sa, sz])
+    spans = []
+    for ra, rz in runs:
+        a, z = int(ra), int(rz)
+        p_max, o_max = float(pe[a : z + 1].max()), float(oe[a : z + 1].max())
+        reason = "reach" if p_max > ACCEPT_POSITION_M else "turn"
+        if reachable is not None:
+            probes = {a + (z - a) // 4, (a + z) // 2, z - (z - a) // 4}
+            if all(reachable(i) for i in sorted(probes)):
+                reason = "posture"
+        spans.append(UnreachableSpan(float(t[a]), float(t[z]), a, z, p_max, o_max, reason))
+    return Feasibility(arm, tuple(spans), _feasibility_message(arm, spans))
+
+
+def _feasibility_message(arm: str, spans: list[UnreachableSpan]) -> str:
     first = spans[0]
     when = (
         f"{_fmt_s(first.t_start)} s"
@@ -754,23 +770,40 @@ def feasibility(
         else f"{_fmt_s(first.t_start)}–{_fmt_s(first.t_end)} s"
     )
     gripper = f"The {arm} gripper"
-    if first.position_error > ACCEPT_POSITION_M:
+    if first.reason == "posture":
+        msg = (
+            f"The {arm} arm has to change its posture during {when} of the skill: it can reach each of those "
+            "poses, but not in one continuous motion, so the gripper leaves the taught path there"
+        )
+        advice = "Teach that part with the arm held the same way throughout."
+    elif first.reason == "reach":
         msg = (
             f"{gripper} cannot reach {when} of the skill: it would need to be "
             f"{_distance_words(first.position_error)} farther than the arm reaches"
         )
         if first.orientation_error > ACCEPT_ORIENTATION_RAD:
             msg += f" and turned {math.degrees(first.orientation_error):.0f}° further"
+        advice = "Teach that part closer to the robot, or with the gripper in a direction the arm can hold."
     else:
         msg = (
             f"{gripper} cannot turn as taught during {when} of the skill: it would need to turn "
             f"{math.degrees(first.orientation_error):.0f}° further than the wrist allows"
         )
+        advice = "Teach that part with the gripper in a direction the arm can hold."
     if len(spans) > 1:
         more = len(spans) - 1
         msg += f" (and {more} more stretch{'es' if more > 1 else ''} later)"
-    msg += ". Teach that part closer to the robot, or with the gripper in a direction the arm can hold."
-    return Feasibility(arm, spans, msg)
+    return f"{msg}. {advice}"
+
+
+def pose_reachable(solver: _PathSolver, i: int, seeds: int = 8) -> bool:
+    """Whether any posture reaches sample ``i`` within the acceptance bar (multi-start damped least squares)."""
+    cands = [solver.mid, solver.neutral, *solver.b.random_configuration(solver.arm, solver.rng, max(0, seeds - 2))]
+    for q0 in cands:
+        _, p, o = solver.solve(i, q0, 150, pull="mid", tol_p=ACCEPT_POSITION_M / 10, tol_o=ACCEPT_ORIENTATION_RAD / 10)
+        if p <= ACCEPT_POSITION_M and o <= ACCEPT_ORIENTATION_RAD:
+            return True
+    return False
 
 
 __all__ = [
@@ -781,6 +814,7 @@ __all__ = [
     "UnreachableSpan",
     "feasibility",
     "knot_indices",
+    "pose_reachable",
     "rotation_angle",
     "solve_path",
 ]

@@ -206,3 +206,25 @@ def test_bad_input_is_refused_in_plain_words(baxter: Baxter) -> None:
         solve_path(t[::-1], pos, ori, "left", baxter.neutral("left"), baxter)
     with pytest.raises(InvalidInput, match="seed"):
         solve_path(t, pos, ori, "left", np.zeros(6), baxter)
+
+
+@pytest.mark.slow
+def test_a_path_the_wrist_cannot_follow_in_one_posture_is_reported_as_a_posture_change(baxter: Baxter) -> None:
+    """Three full turns of the gripper about its own axis in place: every pose is reachable, but the wrist's
+    roll joints (w0, w2: ±175° each) run out, so the arm must unwind — a change of posture, not a reach."""
+    from studio.core.kinematics import make_sign_continuous, quat_wxyz_from_matrix
+
+    q0 = baxter.neutral("left")
+    p0, o0 = baxter.fk("left", q0)
+    t = np.arange(6001) / 1000.0
+    th = 3 * 2 * np.pi * t / 6.0
+    Rz = np.zeros((t.shape[0], 3, 3))
+    Rz[:, 0, 0], Rz[:, 0, 1], Rz[:, 1, 0], Rz[:, 1, 1], Rz[:, 2, 2] = np.cos(th), -np.sin(th), np.sin(th), np.cos(th), 1
+    ori = make_sign_continuous(quat_wxyz_from_matrix(matrix_from_quat_wxyz(o0)[None] @ Rz))
+    tr = Demo(t, np.tile(p0, (t.shape[0], 1)), ori, np.full(t.shape[0], 100.0), name="spin")
+    jt = joint_trajectory(tr, "left", q0, baxter)
+    f = skill_feasibility(jt, tr, baxter)
+    assert f.spans and all(s.reason == "posture" for s in f.spans)
+    assert f.message.startswith("The left arm has to change its posture during ")
+    assert "it can reach each of those poses" in f.message
+    assert _limits_ok(baxter, jt.q, jt.t)
