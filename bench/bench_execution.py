@@ -1,6 +1,6 @@
 """Benchmark of execution: whole-path IK + timing within the limits, against the tracker it replaced.
 
-    .venv/bin/python bench/bench_execution.py [--quick] [--legacy N]
+    .venv/bin/python bench/bench_execution.py [--quick] [--legacy N] [--only-30s]
 
 1. **200 learned trajectories from perturbed demonstrations**, each solved twice: IK seeded from the reference
    demonstration's first joints (what the studio does) and from Baxter's neutral pose (demos without joint
@@ -200,6 +200,7 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="30 trajectories instead of 200, fewer repetitions")
     ap.add_argument("--legacy", type=int, default=12, help="trajectories the old tracker is run on (each seed)")
+    ap.add_argument("--only-30s", action="store_true", help="only part 2 (the 30 s skill timing)")
     args = ap.parse_args()
     b = Baxter.load()
     rng = np.random.default_rng(12)
@@ -232,6 +233,8 @@ def main() -> None:
             f"old {mo:6.0f} ms   ×{mo / mn:.1f} faster   tracked {jt.converged.mean() * 100:.2f} %"
         )
 
+    if args.only_30s:
+        return
     # 1. the 200 trajectories
     count = 30 if args.quick else 200
     sets = demo_sets(count, rng)
