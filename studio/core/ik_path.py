@@ -362,6 +362,11 @@ class _PathSolver:
     def ok(pe: float, oe: float, scale: float = 1.0) -> bool:
         return pe <= SOLVE_POSITION_M * scale and oe <= SOLVE_ORIENTATION_RAD * scale
 
+    @staticmethod
+    def accept(pe: float, oe: float) -> bool:
+        """Within the acceptance bar (1 mm, 0.01 rad): executed faithfully, even if not solved to 20 µm."""
+        return pe <= ACCEPT_POSITION_M and oe <= ACCEPT_ORIENTATION_RAD
+
     # -- one step along the path -------------------------------------------------------------------------
     def advance(
         self, q: np.ndarray, i0: int, i1: int, depth: int = 0, *, bisect: bool = True
@@ -478,7 +483,7 @@ class _PathSolver:
                             Q[j0:j], pe[j0:j], oe[j0:j] = back
                         else:
                             self.jumps += 1
-            Q[j], pe[j], oe[j], ok[j] = q, p_, o_, good and self.ok(p_, o_, 5.0)
+            Q[j], pe[j], oe[j], ok[j] = q, p_, o_, (good and self.ok(p_, o_, 5.0)) or self.accept(p_, o_)
         # Reachable knots just before a reached stretch, lost going forwards in another posture: go backwards.
         for jr in np.flatnonzero(ok[1:] & ~ok[:-1]) + 1:
             q = Q[jr]
@@ -600,7 +605,9 @@ class _PathSolver:
             order = np.argsort(idx, kind="stable")
             idx = idx[order]
             Q = np.concatenate([Q, Qn])[order]
-            ok = np.concatenate([ok, conv & (npe <= ACCEPT_POSITION_M) & (noe <= ACCEPT_ORIENTATION_RAD)])[order]
+            # a new knot counts as reached when it is within the acceptance bar (near the edge of the
+            # workspace the solver may stop short of 20 µm and still be well within 1 mm)
+            ok = np.concatenate([ok, (npe <= ACCEPT_POSITION_M) & (noe <= ACCEPT_ORIENTATION_RAD)])[order]
             pe = np.concatenate([pe, npe])[order]
             oe = np.concatenate([oe, noe])[order]
             # each interval is identified by its left knot: old knots keep their flag unless split
