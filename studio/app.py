@@ -282,11 +282,12 @@ def serve(
     sessions_dir: Path | str,
     meshes: str = "auto",
     key: str | Literal[False] | None = None,
+    backend: RobotBackend | None = None,
 ) -> None:
     """Start the studio and block until Ctrl+C or SIGTERM (the ``studio serve`` command)."""
     import signal
 
-    app = build_app(host, port, session, sessions_dir, meshes, key=key)
+    app = build_app(host, port, session, sessions_dir, meshes, key=key, backend=backend)
     warning = exposure_warning(host, port)
     if warning:
         print(warning, file=sys.stderr, flush=True)

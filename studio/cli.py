@@ -40,6 +40,12 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--port", type=int, default=8080, help="port to listen on (default 8080)")
     s.add_argument("--session", default="stack-cup", help='session to open (default "stack-cup")')
     s.add_argument(
+        "--robot",
+        metavar="ws://HOST:9090",
+        default=None,
+        help="drive a real Baxter through rosbridge at this address (default: the simulated robot)",
+    )
+    s.add_argument(
         "--meshes",
         choices=["auto", "light", "full"],
         default="auto",
@@ -89,6 +95,11 @@ def _dispatch(args: argparse.Namespace) -> int:
         if args.command == "serve":
             from studio.app import serve
 
+            backend = None
+            if args.robot:
+                from studio.robot_backend.rosbridge import RosbridgeBaxter
+
+                backend = RosbridgeBaxter(args.robot)
             serve(
                 host=args.host,
                 port=args.port,
@@ -96,6 +107,7 @@ def _dispatch(args: argparse.Namespace) -> int:
                 sessions_dir=args.sessions_dir,
                 meshes=args.meshes,
                 key=False if args.no_key else args.key,
+                backend=backend,
             )
             return 0
         from studio import commands

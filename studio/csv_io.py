@@ -177,7 +177,7 @@ def export_joint_trajectory_csv(
     path: str | os.PathLike[str],
     *,
     rest: np.ndarray | None = None,
-    rate_hz: float = 100.0,
+    rate_hz: float | None = None,
     rest_gripper: tuple[float, float] = (100.0, 100.0),
 ) -> int:
     """Write learned skills' joint trajectories as a CSV the Baxter SDK playback example can run.
@@ -187,15 +187,20 @@ def export_joint_trajectory_csv(
     wherever the arms are to the first row, then follows the rows' times, so the file starts at t = 0. An arm
     without a skill holds ``rest`` (the Baxter untuck pose by default) with its gripper at ``rest_gripper``.
 
+    The learned joint trajectories are timed within Baxter's joint velocity and acceleration limits at
+    their own rate (1 kHz, the paper's rate); by default the file keeps exactly those samples, so the
+    playback sees the same limits. At another rate the rows are sampled from a C² cubic spline through them.
+
     Args:
-        rate_hz: rows per second in the file (the SDK's recorder default is 100; its playback interpolates).
+        rate_hz: rows per second in the file (default: the joint trajectories' own rate; the SDK's recorder
+            writes 100 and its playback interpolates any rate).
 
     Returns:
         The number of rows written.
     """
     if not skills:
         raise NotEnoughData("There is no learned skill to export yet; learn the skill first.")
-    if not (rate_hz > 0 and math.isfinite(rate_hz)):
+    if rate_hz is not None and not (rate_hz > 0 and math.isfinite(rate_hz)):
         raise InvalidInput("The export rate must be a positive number of rows per second.")
     for arm, sk in skills.items():
         check_arm(arm)
@@ -203,6 +208,8 @@ def export_joint_trajectory_csv(
             raise NotEnoughData(
                 f"The {arm} arm's skill has no joint trajectory (inverse kinematics was not run); learn it again."
             )
+    if rate_hz is None:
+        rate_hz = sampling.native_rate(skills)
     n = math.floor(sampling.duration(skills) * rate_hz + 1e-9) + 1
     t = np.arange(n) / rate_hz
     if rest is None:

@@ -172,3 +172,28 @@ def test_skill_export_prefers_the_joint_trajectory_gripper(tmp_path: Path) -> No
     back = import_csv(f, arms="right")
     assert back.gripper[0, 1] == 80.0 and back.gripper[-1, 1] == 20.0
     assert np.allclose(back.q[:, :7], Baxter.load().neutral("left"))
+
+
+def test_exported_skills_respect_velocity_and_acceleration_limits_at_1khz(tmp_path: Path) -> None:
+    """Both arms' learned skills, exported as the SDK CSV and read back: every row-to-row velocity and
+    acceleration at 1 kHz is within Baxter's limits (URDF velocity, ACCELERATION_LIMITS)."""
+    from studio.core.pipeline import learn_arms
+    from studio.teacher import recording_from_plan, teach
+
+    b = Baxter.load()
+    recs = [recording_from_plan(teach("pick-place", s, arm="both")) for s in (0, 1)]
+    skills = learn_arms(recs, baxter=b)
+    assert set(skills) == {"left", "right"}
+    f = tmp_path / "both.csv"
+    n = export_joint_trajectory_csv(skills, f)
+    back = import_csv(f, arms="both")
+    assert len(back) == n and np.allclose(np.diff(back.t), 1e-3, atol=2e-9)
+    v = np.abs(np.diff(back.q, axis=0)) / 1e-3
+    a = np.abs(np.diff(back.q, 2, axis=0)) / 1e-6
+    vlim = np.concatenate([b.velocity_limits("left"), b.velocity_limits("right")])
+    alim = np.concatenate([b.acceleration_limits("left"), b.acceleration_limits("right")])
+    # the file rounds angles to 1e-8 rad: ±0.02 rad/s² of rounding noise in a second difference at 1 kHz
+    assert np.all(v <= vlim + 1e-4) and np.all(a <= alim + 0.02)
+    for arm, cols in (("left", slice(0, 7)), ("right", slice(7, 14))):
+        jt = skills[arm].joint_trajectory
+        assert np.allclose(back.q[: len(jt), cols], jt.q, atol=1e-8)

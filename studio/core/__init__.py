@@ -34,6 +34,10 @@ _LAZY = {
     "demo_from_recording": "studio.core.pipeline",
     "learn_arms": "studio.core.pipeline",
     "learn_skill": "studio.core.pipeline",
+    "compare_execution": "studio.core.execution",
+    "joint_trajectory": "studio.core.execution",
+    "plan_execution": "studio.core.execution",
+    "skill_feasibility": "studio.core.execution",
 }
 
 
@@ -64,8 +68,12 @@ __all__ = [
     "SessionFormatError",
     "Skill",
     "StudioError",
+    "compare_execution",
     "demo_from_recording",
     "extract_keypoints",
+    "joint_trajectory",
     "learn_arms",
     "learn_skill",
+    "plan_execution",
+    "skill_feasibility",
 ]

@@ -15,11 +15,8 @@ penalised least squares Σ w (y − f)² + λ ∫ f''²) and sampled at the demo
   which the paper stresses); the step is half-way in time between the last point of one level and the
   first of the next — both are gripper-event key-points at the grasp pose, so the step happens there.
 
-Execution: :func:`joint_trajectory` runs IK along the trajectory at :data:`IK_RATE_HZ`, each solve seeded
-by the previous one, interpolates the joints with a cubic spline to the trajectory's samples (doubling the
-IK rate while the interpolated joints stray more than 0.5 mm from the path), clips them to the joint
-limits, reports the per-sample Cartesian error by forward kinematics and, where a joint would exceed its
-velocity limit, slows the trajectory down locally.
+Execution (:func:`joint_trajectory`, re-exported from :mod:`studio.core.execution`): whole-path IK and
+timing within Baxter's joint velocity and acceleration limits at the taught pace (toppra).
 """
 
 from __future__ import annotations
@@ -27,12 +24,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.interpolate import CubicSpline, make_interp_spline, make_smoothing_spline
-from scipy.ndimage import maximum_filter1d, uniform_filter1d
+from scipy.interpolate import make_interp_spline, make_smoothing_spline
 
-from studio.core.errors import IkFailed, InvalidInput
-from studio.core.kinematics import Baxter, make_sign_continuous
-from studio.core.types import Demo, JointTrajectory
+from studio.core.errors import InvalidInput
+from studio.core.kinematics import make_sign_continuous
+from studio.core.types import Demo
 
 #: Dimensionless smoothing: λ = SMOOTHING · h³ (0 interpolates the points exactly).
 SMOOTHING = 0.005
@@ -42,8 +38,6 @@ END_WEIGHT = 10.0
 GRIPPER_LEVEL_TOL = 10.0
 #: Path points closer in time than this (s) are merged before the fit.
 MIN_SPACING_S = 0.02
-#: IK solves per second along the trajectory (joints are a cubic spline between them).
-IK_RATE_HZ = 50.0
 
 
 def _merge_close(
@@ -149,89 +143,11 @@ def generalize(
     return Demo(t, pose[:, :3], q, g, name=name)
 
 
-def joint_trajectory(
-    trajectory: Demo,
-    arm: str,
-    q_seed: np.ndarray,
-    baxter: Baxter | None = None,
-    *,
-    ik_rate_hz: float = IK_RATE_HZ,
-) -> JointTrajectory:
-    """Joint angles that execute ``trajectory`` with ``arm``: IK seeded by the previous solve.
-
-    Args:
-        trajectory: the generalized trajectory (Cartesian).
-        arm: "left" or "right".
-        q_seed: (7,) joint angles near the trajectory's start (e.g. the reference demo's first sample).
-        ik_rate_hz: IK solves per second; joints are a cubic spline between solves.
-
-    Returns:
-        A :class:`JointTrajectory`; ``t`` equals ``trajectory.t`` unless a joint velocity limit forced a
-        local slow-down, in which case the time line is stretched there and resampled at the same rate.
-
-    Raises:
-        IkFailed: the start pose cannot be reached at all (more than 1 cm or 0.1 rad away).
-    """
-    b = baxter or Baxter.load()
-    n = len(trajectory)
-    t = trajectory.t
-    step = max(1, round((1.0 / ik_rate_hz) / max(float(np.median(np.diff(t))) if n > 1 else 1.0, 1e-9)))
-    knots = np.unique(np.concatenate([np.arange(0, n, step), [n - 1]]))
-    P, O = trajectory.position, trajectory.orientation
-    res = b.ik(
-        arm,
-        P[0],
-        O[0],
-        np.asarray(q_seed, dtype=float),
-        max_iterations=500,
-        position_tolerance=2e-5,
-        orientation_tolerance=2e-4,
-    )
-    if res.position_error > 0.01 or res.orientation_error > 0.1:
-        raise IkFailed(
-            f"The {arm} arm cannot reach the learned skill's start pose "
-            f"({res.position_error * 1000:.0f} mm away, gripper turned "
-            f"{math.degrees(res.orientation_error):.0f}° from the taught direction). "
-            "Teach the task closer to the robot, with the gripper in a direction the arm can hold."
-        )
-    qk = np.empty((knots.shape[0], 7))
-    q = res.q
-    for j, i in enumerate(knots):
-        q = b.ik(arm, P[i], O[i], q, max_iterations=100, position_tolerance=2e-5, orientation_tolerance=2e-4).q
-        qk[j] = q
-    lo, hi = b.lower_limits(arm), b.upper_limits(arm)
-    Q = np.clip(CubicSpline(t[knots], qk, axis=0)(t) if knots.shape[0] > 1 else np.repeat(qk, n, 0), lo, hi)
-    pos, ori = b.fk_batch(arm, Q)
-    perr = np.linalg.norm(pos - P, axis=1)
-    oerr = 2.0 * np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", ori, O)), 0.0, 1.0))
-    if (perr.max() > 5e-4 or oerr.max() > 5e-3) and ik_rate_hz < 400.0 and step > 1:
-        # fast joint motion: the cubic between solves drifts from the path; solve more often
-        return joint_trajectory(trajectory, arm, q_seed, b, ik_rate_hz=ik_rate_hz * 2)
-    conv = (perr <= 1e-3) & (oerr <= 1e-2)
-    # Velocity limits: stretch time where a joint would be too fast.
-    vmax = b.velocity_limits(arm)
-    if n > 2:
-        v = np.abs(np.gradient(Q, t, axis=0)) / vmax
-        ratio = v.max(axis=1)
-        if ratio.max() > 1.0:
-            w = max(1, round(0.2 * n / max(t[-1] - t[0], 1e-9)))
-            stretch = np.maximum(1.0, uniform_filter1d(maximum_filter1d(ratio, 2 * w + 1), w) * 1.05)
-            dt = np.diff(t) * stretch[1:]
-            tn = np.concatenate([[t[0]], t[0] + np.cumsum(dt)])
-            rate = 1.0 / float(np.median(np.diff(t)))
-            grid = t[0] + np.arange(math.floor((tn[-1] - t[0]) * rate) + 1) / rate
-            Q = np.column_stack([np.interp(grid, tn, Q[:, j]) for j in range(7)])
-            perr = np.interp(grid, tn, perr)
-            oerr = np.interp(grid, tn, oerr)
-            conv = np.interp(grid, tn, conv.astype(float)) > 0.5
-            g = np.asarray(trajectory.gripper)[np.clip(np.searchsorted(tn, grid, side="right") - 1, 0, n - 1)]
-            return JointTrajectory(grid, Q, perr, oerr, conv, arm, g)
-    return JointTrajectory(t, Q, perr, oerr, conv, arm, trajectory.gripper)
-
+# Execution (whole-path IK and timing within the limits) lives in studio.core.execution; re-exported here.
+from studio.core.execution import joint_trajectory  # noqa: E402
 
 __all__ = [
     "GRIPPER_LEVEL_TOL",
-    "IK_RATE_HZ",
     "SMOOTHING",
     "generalize",
     "gripper_steps",

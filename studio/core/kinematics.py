@@ -48,6 +48,19 @@ DH_BASE_OFFSET: np.ndarray = readonly([0.055695, 0.0, 0.011038])
 
 EE_FRAME = "{arm}_gripper"
 
+#: Joint acceleration limits (rad/s², joints s0..w2) used to time every trajectory the robot executes.
+#: Rethink publishes none for Baxter: its URDF and the SDK's Hardware Specifications page give position,
+#: velocity and effort limits only, and Baxter's own controllers ramp internally. The published planning
+#: configurations are deliberately slow placeholders — MoveIt's baxter_moveit_config uses 0.5 rad/s²
+#: (moveit_robots) and 1.0 rad/s² (RethinkRobotics/baxter_simulator) for every joint — and would slow down
+#: every demonstration, which the robot itself made under a person's hand. CoppeliaSim's Baxter model
+#: (PyRep ``BaxterLeft``) uses 4 rad/s². We take 4 rad/s² for the shoulder and elbow (s0–e1, URDF speed
+#: 1.5 rad/s reached in 0.375 s) and 8 rad/s² for the lighter wrist (w0–w2, 4 rad/s in 0.5 s). Measured
+#: on the scripted teacher's pick-and-place demonstrations (minimum-jerk human reaching): peaks of
+#: 1.5–2.5 rad/s² at the shoulder and up to 5 rad/s² at e1, so a skill's smoothed path keeps the taught
+#: pace except in its fastest reaches, which are slowed just enough.
+ACCELERATION_LIMITS: np.ndarray = readonly([4.0, 4.0, 4.0, 4.0, 8.0, 8.0, 8.0])
+
 
 def baxter_description_dir() -> Path:
     """Folder ``baxter_description`` installed by the ``example-robot-data`` wheel.
@@ -186,6 +199,54 @@ class _ArmChain:
                 rot[:, r, j] = mix(R[r], E[:3, j])
         return rot, pos
 
+    def pose_jacobian_columns(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Gripper rotation (N, 3, 3), position (N, 3) and the 6×7 Jacobian (N, 6, 7) for joint angles Q (N, 7).
+
+        The Jacobian is expressed in the world-aligned frame at the gripper point (pinocchio's
+        ``LOCAL_WORLD_ALIGNED``): rows vx, vy, vz, wx, wy, wz. Each joint turns about its frame's z axis,
+        so column i is (z_i × (p − o_i), z_i) with o_i, z_i that joint's origin and axis — the same
+        element-wise arithmetic as :meth:`pose_columns`, vectorised over N.
+        """
+        n = Q.shape[0]
+        c, s = np.cos(Q).T.copy(), np.sin(Q).T.copy()
+        B = self.base
+        R: list[list[Any]] = [[np.full(n, B[r, k]) for k in range(3)] for r in range(3)]
+        p: list[Any] = [np.full(n, B[r, 3]) for r in range(3)]
+
+        def mix(row: list[Any], col: np.ndarray) -> Any:
+            out: Any = 0.0
+            for k in range(3):
+                if col[k] != 0.0:
+                    out = out + row[k] * col[k]
+            return out
+
+        origins, axes = [], []
+        for i in range(7):
+            P = self.placements[i]
+            p = [p[r] + mix(R[r], P[:3, 3]) for r in range(3)]
+            A = [[mix(R[r], P[:3, j]) for j in range(3)] for r in range(3)]
+            origins.append(p)
+            axes.append([A[r][2] for r in range(3)])
+            ci, si = c[i], s[i]
+            R = [[ci * A[r][0] + si * A[r][1], ci * A[r][1] - si * A[r][0], A[r][2]] for r in range(3)]
+        E = self.ee
+        pos = np.column_stack([p[r] + mix(R[r], E[:3, 3]) for r in range(3)])
+        rot = np.empty((n, 3, 3))
+        for r in range(3):
+            for j in range(3):
+                rot[:, r, j] = mix(R[r], E[:3, j])
+        J = np.empty((n, 6, 7))
+        for i in range(7):
+            z, o = axes[i], origins[i]
+            dx, dy, dz = pos[:, 0] - o[0], pos[:, 1] - o[1], pos[:, 2] - o[2]
+            J[:, 0, i] = z[1] * dz - z[2] * dy
+            J[:, 1, i] = z[2] * dx - z[0] * dz
+            J[:, 2, i] = z[0] * dy - z[1] * dx
+            J[:, 3, i] = z[0]
+            J[:, 4, i] = z[1]
+            J[:, 5, i] = z[2]
+        return rot, pos, J
+
     def transforms(self, Q: np.ndarray) -> np.ndarray:
         """(N, 4, 4) world transforms of the gripper frame for joint angles Q (N, 7)."""
         rot, pos = self.pose_columns(Q)
@@ -232,6 +293,11 @@ class Baxter:
     def velocity_limits(self, arm: str) -> np.ndarray:
         """(7,) joint velocity limits of ``arm`` in rad/s (URDF)."""
         return self._chains[check_arm(arm)].velocity.copy()
+
+    def acceleration_limits(self, arm: str) -> np.ndarray:
+        """(7,) joint acceleration limits of ``arm`` in rad/s² (see :data:`ACCELERATION_LIMITS`)."""
+        check_arm(arm)
+        return np.array(ACCELERATION_LIMITS, dtype=np.float64)
 
     def neutral(self, arm: str) -> np.ndarray:
         """A comfortable working configuration in front of the robot (the Baxter SDK's "untuck" pose)."""
@@ -282,6 +348,44 @@ class Baxter:
             return np.zeros((0, 3)), np.zeros((0, 4))
         rot, pos = chain.pose_columns(Q)
         return pos, make_sign_continuous(quat_wxyz_from_matrix(rot))
+
+    def pose_jacobian_batch(self, arm: str, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Gripper rotations (N, 3, 3), positions (N, 3) and Jacobians (N, 6, 7) for N configurations.
+
+        The Jacobian maps joint velocities to the gripper's linear and angular velocity in world axes
+        (pinocchio ``LOCAL_WORLD_ALIGNED``). No input checks: the path IK calls it in its inner loop.
+        """
+        return self._chains[check_arm(arm)].pose_jacobian_columns(np.asarray(Q, dtype=np.float64))
+
+    def rotations_batch(self, arm: str, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Gripper rotation matrices (N, 3, 3) and positions (N, 3) for N configurations (no quaternions)."""
+        return self._chains[check_arm(arm)].pose_columns(np.asarray(Q, dtype=np.float64))
+
+    def elbow_swivel(self, arm: str, q: np.ndarray) -> float:
+        """Swivel angle (rad) of the elbow about the shoulder–wrist line; 0 = elbow straight up.
+
+        A 7-joint arm reaches one gripper pose with the elbow anywhere on a circle about the line from
+        the shoulder (s1) to the wrist (w1); this angle says where on that circle it is. Measured from the
+        world's up direction projected onto the circle's plane (from +x when that line is vertical),
+        positive counter-clockwise about the shoulder→wrist direction.
+        """
+        check_arm(arm)
+        model, _ = self._reduced[arm]
+        data = self._reduced_data(arm)
+        pin.forwardKinematics(model, data, np.asarray(q, dtype=np.float64))
+        names = ARM_JOINTS[arm]
+        S = data.oMi[model.getJointId(names[1])].translation
+        E = data.oMi[model.getJointId(names[3])].translation
+        W = data.oMi[model.getJointId(names[5])].translation
+        u = W - S
+        u = u / max(float(np.linalg.norm(u)), 1e-12)
+        v = (E - S) - float(np.dot(E - S, u)) * u
+        ref = np.array([0.0, 0.0, 1.0])
+        if abs(float(np.dot(ref, u))) > 0.95:
+            ref = np.array([1.0, 0.0, 0.0])
+        ref = ref - float(np.dot(ref, u)) * u
+        ref /= np.linalg.norm(ref)
+        return float(math.atan2(float(np.dot(np.cross(ref, v), u)), float(np.dot(ref, v))))
 
     def frame_transform(self, q_full: np.ndarray, frame: str) -> np.ndarray:
         """(4, 4) world transform of any URDF frame for a full pinocchio configuration (nq = 19)."""
@@ -410,6 +514,7 @@ class Baxter:
 
 
 __all__ = [
+    "ACCELERATION_LIMITS",
     "DH_BASE_OFFSET",
     "DH_JOINT_OFFSET",
     "DH_TABLE",

@@ -35,6 +35,31 @@ def _interp(t_src: np.ndarray, values: np.ndarray, t_new: np.ndarray) -> np.ndar
     return np.column_stack([np.interp(t_new, t_src, values[:, j]) for j in range(values.shape[1])])
 
 
+def _joints(t_src: np.ndarray, q: np.ndarray, t_new: np.ndarray) -> np.ndarray:
+    """Joint samples at ``t_new`` (held after the end): the samples themselves when the times coincide, else a
+    C² cubic spline through them, so the velocities and accelerations the timing kept within the limits stay
+    within them (a straight line between rows would bend sharply at every sample)."""
+    q = np.asarray(q, dtype=np.float64)
+    m = t_src.shape[0]
+    if m <= len(t_new) and np.allclose(t_new[:m], t_src, rtol=0.0, atol=1e-9):
+        return np.vstack([q, np.tile(q[-1], (len(t_new) - m, 1))])
+    if m < 2:
+        return np.tile(q[0], (len(t_new), 1))
+    from scipy.interpolate import CubicSpline
+
+    return np.asarray(CubicSpline(t_src, q, axis=0)(np.minimum(t_new, t_src[-1])))
+
+
+def native_rate(skills: Mapping[str, Skill], default: float = 100.0) -> float:
+    """Samples per second of the joint trajectories as timed (the highest when the arms differ)."""
+    rates = [
+        1.0 / float(np.median(np.diff(jt.t)))
+        for s in skills.values()
+        if (jt := s.joint_trajectory) is not None and len(jt.t) > 1
+    ]
+    return max(rates, default=default)
+
+
 def sample_joints(
     skills: Mapping[str, Skill], t: np.ndarray, rest_q: np.ndarray, rest_gripper: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -51,7 +76,7 @@ def sample_joints(
         jt = sk.joint_trajectory
         assert jt is not None
         ts = np.asarray(jt.t, dtype=np.float64) - float(jt.t[0])
-        q[:, arm_columns(arm)] = _interp(ts, jt.q, t)
+        q[:, arm_columns(arm)] = _joints(ts, jt.q, t)
         if jt.gripper is not None:
             gt, gv = ts, np.asarray(jt.gripper)
         else:

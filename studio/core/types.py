@@ -239,6 +239,8 @@ class JointTrajectory:
         converged: (M,) True where the errors are below 1 mm and 0.01 rad.
         arm: "left" or "right".
         gripper: (M,) opening percent to command alongside.
+        skill_time: (M,) the time on the Cartesian skill's own time line that each sample executes (the
+            timing may run slower than taught where the robot's limits require it); None for old files.
     """
 
     t: np.ndarray
@@ -248,6 +250,7 @@ class JointTrajectory:
     converged: np.ndarray
     arm: str
     gripper: np.ndarray | None = None
+    skill_time: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         t = readonly(self.t)
@@ -268,6 +271,12 @@ class JointTrajectory:
                 raise InvalidInput(f"Joint trajectory gripper must have shape ({m},), got {g.shape}.")
             _check_finite("joint trajectory gripper values", g)
             object.__setattr__(self, "gripper", g)
+        if self.skill_time is not None:
+            st = readonly(self.skill_time)
+            if st.shape != (m,):
+                raise InvalidInput(f"Joint trajectory skill times must have shape ({m},), got {st.shape}.")
+            _check_finite("joint trajectory skill times", st)
+            object.__setattr__(self, "skill_time", st)
         # A joint trajectory goes to a robot: no NaN joint and no time running backwards, even from a file.
         _check_finite("joint trajectory time stamps", t)
         _check_finite("joint trajectory joint angles", self.q)
@@ -410,6 +419,8 @@ class Skill:
             d["joint_arm"] = np.array(jt.arm)
             if jt.gripper is not None:
                 d["joint_gripper"] = jt.gripper
+            if jt.skill_time is not None:
+                d["joint_skill_time"] = jt.skill_time
         return d
 
     @classmethod
@@ -435,6 +446,7 @@ class Skill:
                     d["joint_converged"],
                     str(d["joint_arm"]),
                     d["joint_gripper"] if "joint_gripper" in d else None,
+                    d["joint_skill_time"] if "joint_skill_time" in d else None,
                 )
             names = [f.name for f in fields(KeypointParams)]
             params = KeypointParams(**{n: float(v) for n, v in zip(names, np.asarray(d["params"]), strict=True)})

@@ -1,8 +1,21 @@
 """The robot backend interface: what the studio needs from a robot, simulated, replayed or real.
 
-A real-robot backend (e.g. Baxter over ROS) is one new module implementing :class:`RobotBackend`.
-Joint order everywhere is :data:`studio.core.types.ALL_ARM_JOINTS` (left s0..w2, then right s0..w2);
-grippers are percent open, 0 = closed .. 100 = open, columns left, right.
+A real-robot backend is one module implementing :class:`RobotBackend` (``rosbridge.RosbridgeBaxter`` speaks
+to a real Baxter). Joint order everywhere is :data:`studio.core.types.ALL_ARM_JOINTS` (left s0..w2, then right
+s0..w2); grippers are percent open, 0 = closed .. 100 = open, columns left, right.
+
+Executing a skill (what "Run on robot" does)::
+
+    plan = plan_execution({"left": skill.joint_trajectory}, backend.state().q, backend.state().gripper)
+    backend.execute(plan)              # returns at once; the robot streams joint states as it moves
+    backend.progress()                 # ExecutionProgress: state, plan time reached, fraction, message
+    backend.stop_motion()              # controlled stop: slows down along the path to rest
+    backend.emergency_stop()           # halts within one control cycle; refuses motion until cleared
+    backend.clear_emergency_stop()
+
+A plan is followed by the robot's own controller within its limits; its joint states stream to every
+subscriber as during a demonstration, so a :class:`~studio.recorder.Recorder` records the execution and
+:func:`studio.core.execution.compare_execution` compares it with the plan.
 """
 
 from __future__ import annotations
@@ -12,8 +25,12 @@ import logging
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:  # pragma: no cover
+    from studio.core.execution import ExecutionPlan
 
 
 @dataclass(frozen=True)
@@ -42,6 +59,43 @@ class RobotState:
     q: np.ndarray
     gripper: np.ndarray
     moving: bool = False
+
+
+#: Execution states reported by :meth:`RobotBackend.progress`.
+EXECUTION_STATES = ("idle", "running", "stopping", "done", "stopped", "emergency-stopped", "failed")
+
+
+@dataclass(frozen=True)
+class ExecutionProgress:
+    """Where the execution of a plan is.
+
+    Attributes:
+        state: one of :data:`EXECUTION_STATES`: "idle" (nothing executed yet), "running", "stopping" (slowing
+            down after :meth:`RobotBackend.stop_motion`), "done" (the plan's end reached), "stopped",
+            "emergency-stopped", "failed" (the robot refused or lost the connection; see ``message``).
+        t: plan time reached (s).
+        duration: the plan's duration (s).
+        started_at: backend time (s, the joint-state stream's clock) of the plan's t = 0; None before.
+        message: a plain sentence for the teacher.
+    """
+
+    state: str = "idle"
+    t: float = 0.0
+    duration: float = 0.0
+    started_at: float | None = None
+    message: str = "Nothing is running on the robot."
+
+    @property
+    def fraction(self) -> float:
+        """0..1 of the plan executed."""
+        return (
+            min(max(self.t / self.duration, 0.0), 1.0) if self.duration > 0 else (1.0 if self.state == "done" else 0.0)
+        )
+
+    @property
+    def active(self) -> bool:
+        """True while the robot is moving under the plan (running or slowing down to stop)."""
+        return self.state in ("running", "stopping")
 
 
 #: Called from the backend's streaming thread with each new batch; must return quickly.
@@ -114,3 +168,30 @@ class RobotBackend(abc.ABC):
     @abc.abstractmethod
     def state(self) -> RobotState:
         """The latest streamed sample."""
+
+    # -- execution ------------------------------------------------------------------------------------------
+    # Defaults for a backend that cannot move a robot (a replay, a test double): it refuses to execute, so
+    # nothing can be running and the stops have nothing to do. A robot overrides all five.
+    def execute(self, plan: ExecutionPlan) -> None:
+        """Start following ``plan`` (joints and grippers over time) now; returns at once.
+
+        The plan must start where the robot is (``plan_execution`` adds the approach). Raises
+        :class:`~studio.core.errors.StudioError` with a plain message when the robot cannot run it (not
+        streaming, emergency-stopped, another plan running, a replay).
+        """
+        from studio.core.errors import StudioError
+
+        raise StudioError("This robot connection cannot run a skill (it only plays back or records).")
+
+    def stop_motion(self) -> None:  # noqa: B027 - deliberately a no-op default (see above)
+        """Controlled stop: slow down along the plan's path to rest within the limits (idempotent)."""
+
+    def emergency_stop(self) -> None:  # noqa: B027 - deliberately a no-op default (see above)
+        """Halt within one control cycle and refuse motion until :meth:`clear_emergency_stop` (idempotent)."""
+
+    def clear_emergency_stop(self) -> None:  # noqa: B027 - deliberately a no-op default (see above)
+        """Allow motion again after an emergency stop (the robot holds where it stopped)."""
+
+    def progress(self) -> ExecutionProgress:
+        """Where the current (or last) execution is."""
+        return ExecutionProgress()

@@ -13,7 +13,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from studio.core.errors import InvalidInput
+from studio.core.errors import InvalidInput, StudioError
 from studio.core.types import Recording
 from studio.robot_backend._clock import BatchClock
 from studio.robot_backend.base import JointStateBatch, ListenerHub, RobotBackend, RobotState, StateListener
@@ -86,6 +86,14 @@ class ReplayBackend(RobotBackend):
 
     def command_gripper(self, arm: str, width: float) -> None:
         """Ignored: a replay cannot be steered."""
+
+    def execute(self, plan: object) -> None:
+        """Refused: a replay only plays back a recording."""
+        raise StudioError("A demonstration is being replayed: go back to the live robot to run the skill.")
+
+    def emergency_stop(self) -> None:
+        """Pause the replay (it moves nothing, but an emergency stop must stop what is on screen too)."""
+        self.stop()
 
     def state(self) -> RobotState:
         with self._lock:

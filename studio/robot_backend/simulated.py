@@ -14,37 +14,62 @@ Two ways to drive it:
 * **manual steps** — without :meth:`start`, :meth:`step` and :meth:`run_targets` advance simulated time
   synchronously; generation of example sessions uses this to run far faster than real time, deterministic
   by seed.
+
+**Executing a plan** (:meth:`execute`, "Run on robot"): the arms follow the plan's joint targets sample by
+sample with the simulator's own limits — the URDF velocity limits *and* the joint acceleration limits
+(:data:`~studio.core.kinematics.ACCELERATION_LIMITS`) — and the grippers follow theirs at the gripper
+speed; the joint states stream exactly as during a demonstration, so a recorder records the execution. A
+plan that respects the limits is reproduced exactly. :meth:`stop_motion` slows the plan's progress down to
+rest along its path; :meth:`emergency_stop` holds the arms from the first sample after the call (one
+control cycle) and ignores motion commands until :meth:`clear_emergency_stop`.
 """
 
 from __future__ import annotations
 
+import logging
 import math
 import threading
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from studio.core.errors import InvalidInput
+from studio.core.errors import InvalidInput, StudioError
 from studio.core.types import ARMS, check_arm
 from studio.robot_backend._clock import BatchClock
-from studio.robot_backend.base import JointStateBatch, ListenerHub, RobotBackend, RobotState, StateListener
+from studio.robot_backend.base import (
+    ExecutionProgress,
+    JointStateBatch,
+    ListenerHub,
+    RobotBackend,
+    RobotState,
+    StateListener,
+)
+
+if TYPE_CHECKING:  # pragma: no cover
+    from studio.core.execution import ExecutionPlan
 
 #: Gripper travel speed, percent of the full stroke per second (Baxter's electric gripper: ~0.5 s stroke).
 GRIPPER_SPEED = 200.0
 #: Largest batch handed to listeners at once (a long stall is delivered as several batches).
 MAX_BATCH = 1000
+#: A plan must start within this (rad, every joint) of where the arms are.
+PLAN_START_TOLERANCE = 0.01
+
+log = logging.getLogger(__name__)
 
 
-def _limits() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(14,) lower, upper, velocity limits and the neutral pose for both arms, from the URDF."""
+def _limits() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(14,) lower, upper, velocity, acceleration limits and the neutral pose for both arms."""
     from studio.core.kinematics import Baxter
 
     b = Baxter.load()
     lo = np.concatenate([b.lower_limits(a) for a in ARMS])
     hi = np.concatenate([b.upper_limits(a) for a in ARMS])
     v = np.concatenate([b.velocity_limits(a) for a in ARMS])
+    acc = np.concatenate([b.acceleration_limits(a) for a in ARMS])
     q0 = np.concatenate([b.neutral(a) for a in ARMS])
-    return lo, hi, v, q0
+    return lo, hi, v, acc, q0
 
 
 def _ro(a: np.ndarray) -> np.ndarray:
@@ -117,7 +142,7 @@ class SimulatedBaxter(RobotBackend):
             raise InvalidInput(f"The joint-state rate must be a positive number of samples per second, got {rate_hz}.")
         self.rate_hz = float(rate_hz)
         self.dt = 1.0 / self.rate_hz
-        self.lower, self.upper, self.velocity, neutral = _limits()
+        self.lower, self.upper, self.velocity, self.acceleration, neutral = _limits()
         self._qstep = self.velocity * self.dt
         self._gstep = float(gripper_speed) * self.dt
         self.sensor_noise = float(sensor_noise)
@@ -135,6 +160,18 @@ class SimulatedBaxter(RobotBackend):
         self._gt = self._g.copy()
         self._last_q = self._q.copy()
         self._last_g = self._g.copy()
+        self._v = np.zeros(14)  # joint velocity (rad/s) of the latest sample
+        self._last_target: np.ndarray | None = None  # the follower's previous target (its velocity)
+        # execution of a plan (all under self._lock)
+        self._plan_q: np.ndarray | None = None  # (M, 14) targets at this simulator's rate
+        self._plan_g: np.ndarray | None = None  # (M, 2)
+        self._plan_k0 = 0  # sample index of the plan's t = 0
+        self._p = 0.0  # plan progress, in plan samples (advances by self._r a sample)
+        self._r = 1.0  # progress rate: 1 as planned, falling to 0 during a controlled stop
+        self._dr = 0.0
+        self._exec = ExecutionProgress()
+        self._halt_k: int | None = None  # samples from this index on are held (emergency stop)
+        self._estopped = False
         self._clock = BatchClock(self._advance_to, period=period, time_scale=time_scale, name="sim-baxter")
 
     # -- helpers -------------------------------------------------------------------------------------------
@@ -185,6 +222,9 @@ class SimulatedBaxter(RobotBackend):
         cols = self._cols(arm)
         qa = self._check_q(f"{arm} arm joint angles", q, (7,))
         with self._lock:
+            if self._estopped:
+                log.info("emergency-stopped: joint command ignored")
+                return
             self._qt[cols] = np.clip(qa, self.lower[cols], self.upper[cols])
 
     def command_gripper(self, arm: str, width: float) -> None:
@@ -192,6 +232,9 @@ class SimulatedBaxter(RobotBackend):
         i = 0 if check_arm(arm) == "left" else 1
         w = self._check_q(f"{arm} gripper opening", [width], (1,))[0]
         with self._lock:
+            if self._estopped:
+                log.info("emergency-stopped: gripper command ignored")
+                return
             self._gt[i] = min(max(w, 0.0), 100.0)
 
     def state(self) -> RobotState:
@@ -200,8 +243,107 @@ class SimulatedBaxter(RobotBackend):
                 t=max(self._k - 1, 0) * self.dt,
                 q=_ro(self._last_q.copy()),
                 gripper=_ro(self._last_g.copy()),
-                moving=bool(np.any(np.abs(self._qt - self._q) > 1e-9) or np.any(np.abs(self._gt - self._g) > 1e-9)),
+                moving=bool(
+                    self._plan_q is not None
+                    or np.any(np.abs(self._qt - self._q) > 1e-9)
+                    or np.any(np.abs(self._gt - self._g) > 1e-9)
+                ),
             )
+
+    # -- executing a plan ------------------------------------------------------------------------------------
+    def execute(self, plan: ExecutionPlan) -> None:
+        """Follow ``plan`` from the next sample on (see the module docstring); returns at once."""
+        q_plan = np.asarray(plan.q, dtype=np.float64)
+        g_plan = np.asarray(plan.gripper, dtype=np.float64)
+        if q_plan.ndim != 2 or q_plan.shape[1] != 14 or g_plan.shape != (q_plan.shape[0], 2) or not len(q_plan):
+            raise InvalidInput("The plan must give 14 joint targets and 2 gripper targets per sample.")
+        if abs(float(plan.rate_hz) - self.rate_hz) > 1e-9:  # resample onto this simulator's samples
+            t_src = np.asarray(plan.t, dtype=np.float64) - float(plan.t[0])
+            t_new = np.arange(math.floor(t_src[-1] * self.rate_hz + 1e-9) + 1) / self.rate_hz
+            q_plan = np.column_stack([np.interp(t_new, t_src, q_plan[:, j]) for j in range(14)])
+            k = np.clip(np.searchsorted(t_src, t_new + 1e-9, side="right") - 1, 0, len(t_src) - 1)
+            g_plan = g_plan[k]
+        with self._lock:
+            if self._estopped:
+                raise StudioError("The robot is emergency-stopped: release the emergency stop before running a skill.")
+            if self._plan_q is not None:
+                raise StudioError("The robot is already running a skill: stop it first.")
+            off = float(np.max(np.abs(q_plan[0] - self._q)))
+            if off > PLAN_START_TOLERANCE:
+                raise StudioError(
+                    f"The robot moved since the run was planned (by {math.degrees(off):.0f}° at one joint); "
+                    "press Run again to plan from where it is now."
+                )
+            self._plan_q, self._plan_g = q_plan, np.clip(g_plan, 0.0, 100.0)
+            self._plan_k0 = self._k
+            # progress of the latest sample: the first sample produced from now on is the plan's sample 0
+            self._p, self._r, self._dr = -1.0, 1.0, 0.0
+            self._last_target = self._q.copy()
+            duration = (len(q_plan) - 1) * self.dt
+            self._exec = ExecutionProgress(
+                "running", 0.0, duration, self._k * self.dt, "The robot is running the skill."
+            )
+
+    def stop_motion(self) -> None:
+        """Slow the plan down to rest along its path (about 0.1–1.5 s); without a plan, hold still."""
+        with self._lock:
+            if self._plan_q is None:
+                if not self._estopped:
+                    self._qt = self._q.copy()
+                    self._gt = self._g.copy()
+                return
+            if self._exec.state == "stopping":
+                return
+            # time to stop: the current joint speeds at half the acceleration limits (0.05–2 s)
+            t_stop = float(np.clip(np.max(np.abs(self._v) / (0.5 * self.acceleration)), 0.05, 2.0))
+            self._dr = 1.0 / (t_stop * self.rate_hz)
+            self._exec = ExecutionProgress(
+                "stopping", self._exec.t, self._exec.duration, self._exec.started_at, "The robot is stopping."
+            )
+
+    def emergency_stop(self) -> None:
+        """Hold the arms and grippers from the first sample after this call; ignore motion until cleared."""
+        with self._lock:
+            if self._clock.running:
+                k_now = math.floor(self._clock.now() * self.rate_hz + 1e-6) + 1
+                self._halt_k = max(self._k, k_now)
+            else:
+                self._halt_k = self._k
+            self._estopped = True
+            if self._halt_k <= self._k:  # nothing produced yet past the call: apply now
+                self._apply_halt()
+
+    def clear_emergency_stop(self) -> None:
+        """Allow commands and plans again; the arms hold where they stopped."""
+        with self._lock:
+            if self._halt_k is not None and self._halt_k > self._k:
+                self._apply_halt()
+            self._estopped = False
+            self._halt_k = None
+
+    def progress(self) -> ExecutionProgress:
+        with self._lock:
+            return self._exec
+
+    @property
+    def emergency_stopped(self) -> bool:
+        with self._lock:
+            return self._estopped
+
+    def _apply_halt(self) -> None:
+        """Freeze everything at the latest sample (caller holds the lock)."""
+        self._qt = self._q.copy()
+        self._gt = self._g.copy()
+        self._v = np.zeros(14)
+        if self._plan_q is not None or self._exec.active:
+            self._exec = ExecutionProgress(
+                "emergency-stopped",
+                self._exec.t,
+                self._exec.duration,
+                self._exec.started_at,
+                "Emergency stop: the robot halted. Release the emergency stop to move it again.",
+            )
+        self._plan_q = self._plan_g = None
 
     # -- extras -------------------------------------------------------------------------------------------
     @property
@@ -298,12 +440,102 @@ class SimulatedBaxter(RobotBackend):
     def _produce(self, n: int) -> JointStateBatch:
         if n <= 0:
             return JointStateBatch(_ro(np.empty(0)), _ro(np.empty((0, 14))), _ro(np.empty((0, 2))))
+        if self._halt_k is not None and self._k + n > self._halt_k:
+            # an emergency stop falls in this batch: move up to it, hold from it on
+            m = max(0, self._halt_k - self._k)
+            first = self._produce(m) if m else None
+            self._apply_halt()
+            rest = self._emit(np.tile(self._q, (n - m, 1)), np.tile(self._g, (n - m, 1)))
+            if first is None:
+                return rest
+            return JointStateBatch(
+                _ro(np.concatenate([first.t, rest.t])),
+                _ro(np.concatenate([first.q, rest.q])),
+                _ro(np.concatenate([first.gripper, rest.gripper])),
+            )
+        if self._plan_q is not None:
+            return self._produce_plan(n)
         q = rate_limited(self._q, self._qt, self._qstep, n)
         g = rate_limited(self._g, self._gt, np.full(2, self._gstep), n)
         return self._emit(q, g)
 
+    def _produce_plan(self, n: int) -> JointStateBatch:
+        """n samples following the plan with the velocity and acceleration limits (caller holds the lock)."""
+        assert self._plan_q is not None and self._plan_g is not None
+        pq, pg = self._plan_q, self._plan_g
+        last = pq.shape[0] - 1
+        # plan progress of each of the n samples
+        if self._dr == 0.0:
+            prog = self._p + np.arange(1, n + 1, dtype=np.float64)
+            rates = np.ones(n)
+        else:
+            rates = np.maximum(self._r - self._dr * np.arange(1, n + 1), 0.0)
+            prog = self._p + np.cumsum(rates)
+        prog = np.clip(prog, 0.0, last)
+        i0 = np.floor(prog).astype(np.int64)
+        i1 = np.minimum(i0 + 1, last)
+        w = (prog - i0)[:, None]
+        targets = pq[i0] * (1 - w) + pq[i1] * w
+        g_targets = pg[np.round(prog).astype(np.int64)]
+        q = self._follow(targets)
+        g = rate_limited_series(self._g, g_targets, np.full(2, self._gstep))
+        self._p, self._r = float(prog[-1]), float(rates[-1])
+        t_plan = max(self._p, 0.0) * self.dt
+        state, msg = self._exec.state, self._exec.message
+        at_rest = bool(np.max(np.abs(self._v)) < 1e-6) if n else True
+        if self._p >= last and at_rest:
+            state, msg = "done", "The robot finished the skill."
+        elif state == "stopping" and self._r <= 0.0 and at_rest:
+            state, msg = "stopped", f"The robot stopped at {t_plan:.1f} s of {self._exec.duration:.1f} s."
+        self._exec = ExecutionProgress(state, t_plan, self._exec.duration, self._exec.started_at, msg)
+        if state in ("done", "stopped"):
+            self._qt, self._gt = self._q.copy(), g[-1].copy()
+            self._plan_q = self._plan_g = None
+        return self._emit(q, g)
+
+    def _follow(self, targets: np.ndarray) -> np.ndarray:
+        """(n, 14) joint positions following per-sample ``targets`` within the velocity and acceleration limits.
+
+        Each sample reaches its target exactly when the limits allow it from the current position and
+        velocity (so a plan within the limits is reproduced exactly — checked for the whole batch at once);
+        otherwise each joint moves with the target's velocity plus the fastest approach from which it can
+        still brake onto the target (√(2·a·|error|)), as far as the limits allow.
+        """
+        dt = self.dt
+        vmax, amax = self.velocity, self.acceleration
+        steps = np.diff(np.vstack([self._q[None, :], targets]), axis=0) / dt  # velocities to hit each target
+        dv = np.diff(np.vstack([self._v[None, :], steps]), axis=0) / dt
+        if np.all(np.abs(steps) <= vmax * (1 + 1e-9)) and np.all(np.abs(dv) <= amax * (1 + 1e-9)):
+            self._v = steps[-1].copy()
+            self._last_target = targets[-1].copy()
+            return targets.astype(np.float64, copy=True)
+        out = np.empty_like(targets)
+        q, v = self._q.copy(), self._v.copy()
+        prev = self._last_target if self._last_target is not None else q
+        amax_dt = amax * dt
+        for i in range(targets.shape[0]):
+            x = targets[i]
+            need = (x - q) / dt
+            exact = (np.abs(need) <= vmax) & (np.abs(need - v) <= amax_dt)
+            e = x - q
+            v_t = (x - prev) / dt
+            # braking in steps of a·dt from speed u covers u²/(2a) + u·dt/2: the fastest u that still stops
+            brake = np.sqrt((0.5 * amax_dt) ** 2 + 2.0 * amax * np.abs(e)) - 0.5 * amax_dt
+            v_des = v_t + np.sign(e) * np.minimum(brake, np.abs(e) / dt)
+            v_new = np.clip(np.clip(v_des, v - amax_dt, v + amax_dt), -vmax, vmax)
+            v = np.where(exact, need, v_new)
+            q = np.clip(q + v * dt, self.lower, self.upper)
+            out[i] = q
+            prev = x
+        self._v = v
+        self._last_target = prev.copy()
+        return out
+
     def _emit(self, q: np.ndarray, g: np.ndarray) -> JointStateBatch:
         n = q.shape[0]
+        if self._plan_q is None and n:  # outside a plan the velocity is what the last step did
+            prev = q[-2] if n >= 2 else self._q
+            self._v = (q[-1] - prev) / self.dt
         self._q = q[-1].copy()
         self._g = g[-1].copy()
         t = (self._k + np.arange(n, dtype=np.float64)) / self.rate_hz

@@ -94,6 +94,10 @@ def test_joint_trajectory_tracks_the_skill_within_a_millimetre():
     assert np.all(jt.q >= b.lower_limits("left")) and np.all(jt.q <= b.upper_limits("left"))
     v = np.abs(np.diff(jt.q, axis=0)) / np.diff(jt.t)[:, None]
     assert np.all(v <= b.velocity_limits("left"))
+    acc = np.abs(np.diff(jt.q, 2, axis=0)) / np.diff(jt.t)[1:, None] ** 2
+    assert np.all(acc <= b.acceleration_limits("left") * (1 + 1e-9))
+    # the taught pace is within the limits here: the skill keeps its duration (plus the start from rest)
+    assert sk.trajectory.duration <= jt.t[-1] - jt.t[0] <= sk.trajectory.duration + 0.1
     # starts near the reference demo's joints (seeded from them)
     q_ref = ds[sk.reference].q
     assert q_ref is not None and np.linalg.norm(jt.q[0] - q_ref[0]) < 0.2

@@ -1,0 +1,70 @@
+"""Demonstrations for the execution tests: pick-and-place given as Cartesian gripper poses only.
+
+The scripted teacher (studio.teacher) always starts at Baxter's untuck pose, so IK seeded there never meets a
+hard start. These demos visit key postures spread over 40 % of each joint's range around mid-range — wrist
+turned, elbow high or low — and the demonstrations carry no joint angles (``Demo.q`` is None), as from a
+motion-capture or a Cartesian file: learning a skill from them must seed IK from the neutral pose, the case
+issue 12 measured. Every pose is reachable by construction (forward kinematics of the key postures, joined by
+minimum-jerk joint motions); the learned path is their smoothed average and stays reachable (checked by the
+tests with random restarts).
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from studio.core.kinematics import Baxter
+from studio.core.types import Demo
+
+
+def _min_jerk(u: np.ndarray) -> np.ndarray:
+    u = np.clip(u, 0.0, 1.0)
+    return u**3 * (10 - 15 * u + 6 * u * u)
+
+
+def joint_space_pick_place(
+    seed: int, n: int = 3, arm: str = "left", rate: float = 1000.0, spread: float = 0.4, nkeys: int = 5
+) -> list[Demo]:
+    """``n`` demonstrations (with joint angles) of one pick-and-place through ``nkeys`` random key postures."""
+    b = Baxter.load()
+    rng = np.random.default_rng(seed)
+    lo, hi = b.lower_limits(arm), b.upper_limits(arm)
+    mid, half = (lo + hi) / 2, (hi - lo) / 2
+    keys = mid + half * spread * rng.uniform(-1, 1, (nkeys, 7))
+    out = []
+    for d in range(n):
+        kk = keys + rng.normal(0, 0.03, keys.shape)
+        ts, qs, gs = [], [], []
+        t, g = 0.0, 100.0
+        for k in range(nkeys):
+            hold = rng.uniform(0.4, 1.0)
+            tt = np.arange(0, hold, 1 / rate)
+            ts.append(t + tt)
+            qs.append(np.tile(kk[k], (len(tt), 1)))
+            gg = np.full(len(tt), g)
+            if k in (1, 3):  # grasp at the second key posture, release at the fourth
+                new = 30.0 if g > 50 else 100.0
+                gg = g + (new - g) * np.clip((tt - hold * 0.3) / 0.3, 0, 1)
+                g = new
+            gs.append(gg)
+            t += hold
+            if k < nkeys - 1:
+                dur = max(0.8, float(np.abs(kk[k + 1] - kk[k]).max()) / 0.6) * rng.uniform(0.9, 1.2)
+                tt = np.arange(0, dur, 1 / rate)
+                s = _min_jerk(tt / dur)
+                ts.append(t + tt)
+                qs.append(kk[k] + np.outer(s, kk[k + 1] - kk[k]))
+                gs.append(np.full(len(tt), g))
+                t += dur
+        q = np.vstack(qs)
+        pos, ori = b.fk_batch(arm, q)
+        out.append(Demo(np.concatenate(ts), pos, ori, np.concatenate(gs), q, name=f"demo {d + 1}"))
+    return out
+
+
+@lru_cache(maxsize=8)
+def cartesian_pick_place(seed: int = 0) -> tuple[Demo, ...]:
+    """The same demonstrations without their joint angles (Cartesian poses and gripper only)."""
+    return tuple(Demo(d.t, d.position, d.orientation, d.gripper, name=d.name) for d in joint_space_pick_place(seed))
