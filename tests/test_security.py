@@ -322,7 +322,7 @@ def refusals(c: ViserClient) -> list[str]:
 def test_an_oversize_upload_is_refused_before_it_is_buffered(sessions: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     from studio import security
 
-    monkeypatch.setattr(security, "MAX_UPLOAD_BYTES", 8 * MiB)
+    monkeypatch.setattr(security.uploads, "MAX_UPLOAD_BYTES", 8 * MiB)
     a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
     c = ViserClient(f"ws://127.0.0.1:{a.port}/?key={key_of(a)}")
     try:
