@@ -12,8 +12,10 @@ from __future__ import annotations
 
 import math
 import os
+import stat
 from collections.abc import Mapping
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 
@@ -21,7 +23,8 @@ from studio.core import sampling
 from studio.core.arms import normalize_arms
 from studio.core.errors import InvalidInput, NotEnoughData
 from studio.core.types import ALL_ARM_JOINTS, ARM_JOINTS, ARMS, Recording, Skill, check_arm
-from studio.storage.atomic import atomic_write_bytes
+from studio.storage.atomic import atomic_write
+from studio.storage.format import MAX_DURATION_S, MAX_JOINT_RAD, MIN_TIME_STEP_S
 
 #: The SDK's column order.
 CSV_COLUMNS: tuple[str, ...] = (
@@ -33,6 +36,10 @@ CSV_COLUMNS: tuple[str, ...] = (
 )
 #: Largest CSV accepted (bytes): ~4 hours at 1 kHz.
 MAX_CSV_BYTES = 2 * 1024**3
+#: Most rows an export writes: 6 hours at the SDK's 100 rows a second (checked before anything is sampled).
+MAX_EXPORT_ROWS = int(MAX_DURATION_S * 100) + 1
+#: Rows formatted at once when writing a CSV.
+WRITE_CHUNK_ROWS = 20_000
 TIME_DECIMALS = 6
 JOINT_DECIMALS = 8
 GRIPPER_DECIMALS = 4
@@ -71,9 +78,11 @@ def import_csv(
     if len(t) > 1 and np.any(np.diff(t) < 0):
         i = int(np.argmax(np.diff(t) < 0)) + 3
         raise CsvFormatError(f'"{label}" line {i}: the time goes backwards.')
+    lines = np.nonzero(keep)[0] + 2  # the file's line of each kept row (the header is line 1)
     rows = rows[keep]
     if rows.shape[0] < 2:
         raise NotEnoughData(f'"{label}" holds fewer than two samples; there is nothing to learn from.')
+    _check_plausible(rows, col, lines, label)
     q = rows[:, [col[j] for j in ALL_ARM_JOINTS]]
     g = rows[:, [col["left_gripper"], col["right_gripper"]]]
     if np.any(g < -0.5) or np.any(g > 100.5):
@@ -82,12 +91,41 @@ def import_csv(
     return Recording(t=t - t[0], q=q, gripper=np.clip(g, 0.0, 100.0), arms=tuple(arms), name=name or p.stem[:100])
 
 
+def _check_plausible(rows: np.ndarray, col: dict[str, int], lines: np.ndarray, label: str) -> None:
+    """Numbers no robot records (1e-300 s steps, 1e300 rad, a million years) are refused, naming the line: they
+    pass as numbers but make learning overflow or never end."""
+    t = rows[:, col["time"]]
+    step = np.diff(t)
+    if np.any(step < MIN_TIME_STEP_S):
+        i = int(np.argmax(step < MIN_TIME_STEP_S)) + 1
+        raise CsvFormatError(
+            f'"{label}" line {lines[i]}: the time advances by only {step[i - 1]:.3g} s; a robot records at most '
+            f"{1 / MIN_TIME_STEP_S:,.0f} samples a second (the time column is in seconds)."
+        )
+    if t[-1] - t[0] > MAX_DURATION_S:
+        raise CsvFormatError(
+            f'"{label}" lasts {(t[-1] - t[0]) / 3600:,.1f} hours; a demonstration may last at most '
+            f"{MAX_DURATION_S / 3600:.0f} hours (the time column is in seconds)."
+        )
+    joints = [col[j] for j in ALL_ARM_JOINTS]
+    far = np.abs(rows[:, joints]) > MAX_JOINT_RAD
+    if far.any():
+        r, c = np.argwhere(far)[0]
+        raise CsvFormatError(
+            f'"{label}" line {lines[r]}: the joint {ALL_ARM_JOINTS[c]} is at {rows[r, joints[c]]:.3g}, more than a '
+            "full turn; joint angles must be in radians."
+        )
+
+
 def _read_text(p: Path, label: str) -> tuple[str, str]:
     """The header line and the rest of the file (size checked before reading)."""
     try:
-        size = p.stat().st_size
+        st = p.stat()
     except OSError as exc:
         raise CsvFormatError(f'The file "{label}" cannot be opened ({exc.strerror}).') from exc
+    if not stat.S_ISREG(st.st_mode):  # a FIFO or a device would never end
+        raise CsvFormatError(f'"{label}" is not a regular file, so it cannot be a joint recording.')
+    size = st.st_size
     if size > MAX_CSV_BYTES:
         raise CsvFormatError(f'The file "{label}" is too large to be a joint recording ({size / 1e9:.1f} GB).')
     try:
@@ -139,7 +177,7 @@ def _parse_rows(body: str, ncol: int, label: str) -> np.ndarray:
 
 
 def _fmt_rows(t: np.ndarray, q: np.ndarray, g: np.ndarray) -> str:
-    n = t.shape[0]
+    """The rows (no header) of samples t (n,), q (n, 14), g (n, 2) in the SDK's column order."""
     cols = np.column_stack([t, q[:, :7], g[:, 0], q[:, 7:], g[:, 1]])
     fmt = (
         [f"%.{TIME_DECIMALS}f"]
@@ -149,9 +187,15 @@ def _fmt_rows(t: np.ndarray, q: np.ndarray, g: np.ndarray) -> str:
         + [f"%.{GRIPPER_DECIMALS}f"]
     )
     line = ",".join(fmt)
-    out = [",".join(CSV_COLUMNS)]
-    out += [line % tuple(r) for r in cols] if n else []
-    return "\n".join(out) + "\n"
+    return "".join(line % tuple(r) + "\n" for r in cols)
+
+
+def _write_rows(f: BinaryIO, t: np.ndarray, q: np.ndarray, g: np.ndarray) -> None:
+    """Header and rows, formatted and written a chunk at a time (memory stays a few MB whatever the length)."""
+    f.write((",".join(CSV_COLUMNS) + "\n").encode())
+    for s in range(0, t.shape[0], WRITE_CHUNK_ROWS):
+        e = s + WRITE_CHUNK_ROWS
+        f.write(_fmt_rows(t[s:e], q[s:e], g[s:e]).encode())
 
 
 def write_csv(path: str | os.PathLike[str], t: np.ndarray, q: np.ndarray, gripper: np.ndarray) -> None:
@@ -164,7 +208,7 @@ def write_csv(path: str | os.PathLike[str], t: np.ndarray, q: np.ndarray, grippe
         raise InvalidInput(f"Expected t (N,), q (N, 14), gripper (N, 2); got {t.shape}, {q.shape}, {g.shape}.")
     if not (np.all(np.isfinite(t)) and np.all(np.isfinite(q)) and np.all(np.isfinite(g))):
         raise InvalidInput("The trajectory contains missing or invalid values (NaN or infinity); nothing was written.")
-    atomic_write_bytes(Path(path), _fmt_rows(t, q, g).encode())
+    atomic_write(Path(path), lambda f: _write_rows(f, t, q, g))
 
 
 def export_recording_csv(rec: Recording, path: str | os.PathLike[str]) -> None:
@@ -204,6 +248,11 @@ def export_joint_trajectory_csv(
                 f"The {arm} arm's skill has no joint trajectory (inverse kinematics was not run); learn it again."
             )
     n = math.floor(sampling.duration(skills) * rate_hz + 1e-9) + 1
+    if n > MAX_EXPORT_ROWS:
+        raise InvalidInput(
+            f"The learned trajectory would make {n:,} rows at {rate_hz:g} per second; the export makes at most "
+            f"{MAX_EXPORT_ROWS:,} ({MAX_EXPORT_ROWS / 100 / 3600:.0f} hours at 100 per second). Nothing was written."
+        )
     t = np.arange(n) / rate_hz
     if rest is None:
         from studio.core.kinematics import Baxter  # pinocchio: loaded only when a rest pose is needed
