@@ -83,7 +83,7 @@ def test_a_zip_bomb_is_refused_before_it_is_unpacked(store: SessionStore, unpack
 def test_the_manifest_is_checked_before_any_demo_is_unpacked(store: SessionStore, unpacked) -> None:
     bad = manifest("x", [("demos/d0001.npz", 1500)]).replace(b'"baxter"', b'"pr2"')
     data = zip_bytes({"x/session.json": bad, "x/demos/d0001.npz": demo_bytes(60_000)}, compression=zipfile.ZIP_STORED)
-    with pytest.raises(SessionFormatError, match=r'robot this studio does not know.*Nothing was imported'):
+    with pytest.raises(SessionFormatError, match=r"robot this studio does not know.*Nothing was imported"):
         store.import_zip(data, archive="x.zip")
     assert unpacked() <= len(bad), "a demo was unpacked before the manifest was checked"
 
@@ -109,9 +109,7 @@ def test_free_disk_space_is_checked_before_unpacking(
     assert unpacked() - before < 64 * 1024
 
 
-def test_an_upload_that_would_take_gigabytes_of_memory_is_refused_before_loading(
-    store: SessionStore, unpacked
-) -> None:
+def test_an_upload_that_would_take_gigabytes_of_memory_is_refused_before_loading(store: SessionStore, unpacked) -> None:
     """A 3.8 MB archive holding a still robot for 2.5 M samples: 340 MB of arrays once loaded."""
     n = 2_500_000
     npz = io.BytesIO()
