@@ -13,9 +13,10 @@ from __future__ import annotations
 import math
 import os
 import stat
+from array import array
 from collections.abc import Mapping
 from pathlib import Path
-from typing import BinaryIO
+from typing import BinaryIO, TextIO
 
 import numpy as np
 
@@ -38,6 +39,8 @@ CSV_COLUMNS: tuple[str, ...] = (
 MAX_CSV_BYTES = 2 * 1024**3
 #: Most rows an export writes: 6 hours at the SDK's 100 rows a second (checked before anything is sampled).
 MAX_EXPORT_ROWS = int(MAX_DURATION_S * 100) + 1
+#: Longest line read (characters): a row of 17 numbers is about 200.
+MAX_LINE_CHARS = 4096
 #: Rows formatted at once when writing a CSV.
 WRITE_CHUNK_ROWS = 20_000
 TIME_DECIMALS = 6
@@ -68,10 +71,8 @@ def import_csv(
     p = Path(path)
     arms = normalize_arms(arms)
     label = p.name
-    header_line, body = _read_text(p, label)
-    header = _check_header(header_line, label)
+    header, rows = _read_rows(p, label)
     col = {h: i for i, h in enumerate(header)}
-    rows = _parse_rows(body, len(header), label)
     t = rows[:, col["time"]]
     keep = np.concatenate([[True], np.diff(t) > 0]) if len(t) else np.zeros(0, bool)
     # A time stamp that goes backwards (not just repeats) means the file is not one recording.
@@ -117,24 +118,34 @@ def _check_plausible(rows: np.ndarray, col: dict[str, int], lines: np.ndarray, l
         )
 
 
-def _read_text(p: Path, label: str) -> tuple[str, str]:
-    """The header line and the rest of the file (size checked before reading)."""
+def _read_rows(p: Path, label: str) -> tuple[list[str], np.ndarray]:
+    """The header and the (rows, columns) numbers, read a line at a time: the size is checked before reading and
+    memory stays about 8 bytes a number, whatever the file holds (a file of millions of tiny lines is refused at
+    its first bad line, not after splitting all of it)."""
     try:
         st = p.stat()
     except OSError as exc:
         raise CsvFormatError(f'The file "{label}" cannot be opened ({exc.strerror}).') from exc
     if not stat.S_ISREG(st.st_mode):  # a FIFO or a device would never end
         raise CsvFormatError(f'"{label}" is not a regular file, so it cannot be a joint recording.')
-    size = st.st_size
-    if size > MAX_CSV_BYTES:
-        raise CsvFormatError(f'The file "{label}" is too large to be a joint recording ({size / 1e9:.1f} GB).')
+    if st.st_size > MAX_CSV_BYTES:
+        raise CsvFormatError(f'The file "{label}" is too large to be a joint recording ({st.st_size / 1e9:.1f} GB).')
     try:
         with open(p, encoding="utf-8-sig", newline="") as f:
-            return f.readline(), f.read()
+            header = _check_header(_line(f, 1, label), label)
+            return header, _parse_rows(f, len(header), label)
     except UnicodeDecodeError as exc:
         raise CsvFormatError(f'The file "{label}" is not a text (CSV) file.') from exc
     except OSError as exc:
         raise CsvFormatError(f'The file "{label}" cannot be read ({exc.strerror}).') from exc
+
+
+def _line(f: TextIO, number: int, label: str) -> str:
+    """Line ``number`` of ``f`` ("" at the end), at most :data:`MAX_LINE_CHARS` long."""
+    ln = f.readline(MAX_LINE_CHARS + 1)
+    if len(ln) > MAX_LINE_CHARS:
+        raise CsvFormatError(f'"{label}" line {number} is too long to be a row of joint values.')
+    return ln
 
 
 def _check_header(header_line: str, label: str) -> list[str]:
@@ -152,22 +163,28 @@ def _check_header(header_line: str, label: str) -> list[str]:
     return header
 
 
-def _parse_rows(body: str, ncol: int, label: str) -> np.ndarray:
-    """(rows, ncol) numbers; every problem names its line (the header is line 1)."""
-    lines = body.splitlines()
-    while lines and not lines[-1].strip():
-        lines.pop()
-    rows = np.empty((len(lines), ncol))
-    for i, ln in enumerate(lines):
-        parts = ln.split(",")
+def _parse_rows(f: TextIO, ncol: int, label: str) -> np.ndarray:
+    """(rows, ncol) numbers from the lines after the header; every problem names its line (the header is 1)."""
+    flat = array("d")
+    blank = 0  # the first blank line seen: fine at the end of the file, not before a row
+    number = 1
+    while ln := _line(f, number + 1, label):
+        number += 1
+        text = ln.rstrip("\r\n")
+        if not text.strip():
+            blank = blank or number
+            continue
+        if blank:
+            raise CsvFormatError(f'"{label}" line {blank} is empty.')
+        parts = text.split(",")
         if len(parts) != ncol:
-            if not ln.strip():
-                raise CsvFormatError(f'"{label}" line {i + 2} is empty.')
-            raise CsvFormatError(f'"{label}" line {i + 2} has {len(parts)} values, expected {ncol}.')
+            raise CsvFormatError(f'"{label}" line {number} has {len(parts)} values, expected {ncol}.')
         try:
-            rows[i] = [float(x) for x in parts]
+            values = [float(x) for x in parts]
         except ValueError as exc:
-            raise CsvFormatError(f'"{label}" line {i + 2} contains something that is not a number.') from exc
+            raise CsvFormatError(f'"{label}" line {number} contains something that is not a number.') from exc
+        flat.extend(values)
+    rows = np.frombuffer(flat, dtype=np.float64).reshape(-1, ncol).copy() if flat else np.empty((0, ncol))
     bad = ~np.all(np.isfinite(rows), axis=1)
     if bad.any():
         raise CsvFormatError(

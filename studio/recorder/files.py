@@ -176,7 +176,7 @@ def pending_recordings(directory: str | os.PathLike[str]) -> list[Path]:
     d = Path(directory)
     if not d.is_dir():
         return []
-    return sorted(p for p in d.glob(f"*{SUFFIX}") if p.is_file() and not _is_locked(p))
+    return sorted(p for p in d.glob(f"*{SUFFIX}") if p.is_file() and not p.is_symlink() and not _is_locked(p))
 
 
 def recover_recordings(

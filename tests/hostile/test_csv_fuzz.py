@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from studio.core.errors import StudioError
 from studio.csv_io import CSV_COLUMNS, import_csv
 from studio.storage import SessionStore
-from tests.hostile.builders import BASE_Q, assert_plain, studio_cli
+from tests.hostile.builders import BASE_Q, MiB, assert_plain, run_limited, studio_cli
 
 
 def write(path: Path, t: np.ndarray, q: np.ndarray, g: np.ndarray | None = None) -> Path:
@@ -132,3 +132,30 @@ def test_fuzzed_csv_files_are_imported_plausibly_or_refused_in_plain_words(
     assert len(rec) >= 2 and rec.duration <= 6 * 3600
     assert np.all(np.abs(rec.q) <= 2 * np.pi) and np.all(np.diff(rec.t) >= 1e-6)
     SessionStore(tmp_path / uuid.uuid4().hex).create("s").add_recording(rec)  # what imports, a session keeps
+
+
+def test_a_csv_of_tiny_lines_is_refused_at_its_first_bad_line_without_holding_the_file(tmp_path: Path) -> None:
+    """180 MB of "00" lines after a valid header: reading it whole made 3.5 GB of line objects."""
+    p = tmp_path / "lines.csv"
+    with open(p, "wb") as f:
+        f.write((",".join(CSV_COLUMNS) + "\n").encode())
+        f.write(b"00\n" * 60_000_000)
+    code = f"""
+        import sys
+        from studio.core.errors import StudioError
+        from studio.csv_io import import_csv
+        try:
+            import_csv({str(p)!r})
+        except StudioError as exc:
+            print(exc)
+    """
+    proc = run_limited(code, memory=1024 * MiB, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert '"lines.csv" line 2 has 1 values' in proc.stdout
+
+
+def test_one_endless_line_is_refused(tmp_path: Path) -> None:
+    p = tmp_path / "endless.csv"
+    p.write_text(",".join(CSV_COLUMNS) + "\n" + "1," * 2_000_000)
+    with pytest.raises(StudioError, match=r'"endless\.csv" line 2 is too long'):
+        import_csv(p)
