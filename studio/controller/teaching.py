@@ -15,7 +15,7 @@ from studio.controller.demos import Demos
 from studio.controller.events import Topic
 from studio.controller.pose import Display
 from studio.core.arms import arm_columns, arm_of_joint, gripper_column, normalize_arms
-from studio.core.errors import InvalidInput, StudioError
+from studio.core.errors import InvalidInput, StorageError, StudioError
 from studio.core.kinematics import IkResult
 from studio.core.types import ARMS
 from studio.recorder import Recorder
@@ -199,6 +199,9 @@ class Teaching:
                 recording = rec.stop()
                 try:
                     self._session.add_recording(recording)
+                except StorageError as exc:  # the take stays in the recorder's file: recovered at the next open
+                    kept = "The take itself is kept and is added when the session is next opened."
+                    raise StorageError(f"{exc} {kept}") from exc
                 except InvalidInput:
                     # One sample is not a demonstration: nothing to keep. Any other take the session refuses
                     # stays on disk; the next open sets it aside by name (crash recovery), never lost.

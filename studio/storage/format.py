@@ -53,8 +53,8 @@ MAX_NOTES_CHARS = 100_000
 #: memory, for each byte uploaded, beyond a floor that any ordinary session stays under.
 ARCHIVE_DISK_PER_BYTE = 4
 ARCHIVE_DISK_FLOOR = 16 * 1024**2
-ARCHIVE_MEMORY_PER_BYTE = 64
-ARCHIVE_MEMORY_FLOOR = 256 * 1024**2
+ARCHIVE_MEMORY_PER_BYTE = 32
+ARCHIVE_MEMORY_FLOOR = 64 * 1024**2
 #: Disk space left free after any write the studio plans (bytes).
 DISK_RESERVE = 8 * 1024**2
 
@@ -149,7 +149,7 @@ def implausible(t: np.ndarray, q: np.ndarray) -> str | None:
                 f"{1 / MIN_TIME_STEP_S:,.0f} samples a second"
             )
     if q.size:
-        worst = float(np.max(np.abs(q)))
+        worst = max(abs(float(np.max(q))), abs(float(np.min(q))))  # no |q| temporary: q may be 2 GB
         if worst > MAX_JOINT_RAD:
             return f"has a joint angle of {worst:.3g} rad, more than a full turn (joint angles are in radians)"
     return None

@@ -102,6 +102,13 @@ def write_failed(
     return StorageError(f"{subject or chr(34) + name + chr(34)} could not be {doing}: {why}. {fix} {after}")
 
 
+def reworded(exc: StorageError, path: Path, subject: str, doing: str) -> StorageError:
+    """``exc`` (a failed write of one file) told about what the person did: 'The demonstration "demo 4" could
+    not be saved: …' instead of the file's name; ``exc`` itself when it did not come from the disk."""
+    cause = exc.__cause__
+    return write_failed(path, cause, doing=doing, subject=subject) if isinstance(cause, OSError) else exc
+
+
 def check_keepable(rec: Recording, recordings: list[Recording]) -> None:
     """Refuse (:class:`InvalidInput`) a demonstration no robot could make, or one the session cannot hold."""
     problem = implausible(rec.t, rec.q)

@@ -19,7 +19,7 @@ from typing import Concatenate, ParamSpec, TypeVar
 import numpy as np
 
 from studio.core.arms import normalize_arms
-from studio.core.errors import InvalidInput
+from studio.core.errors import InvalidInput, StorageError
 from studio.core.types import ARMS, KeypointParams, Recording, Skill
 from studio.storage.atomic import atomic_write_bytes, atomic_write_npz
 from studio.storage.format import (
@@ -38,7 +38,7 @@ from studio.storage.format import (
 )
 from studio.storage.fs import changing, check_changeable
 from studio.storage.idle import idle_bounds
-from studio.storage.limits import check_keepable
+from studio.storage.limits import check_keepable, reworded
 from studio.storage.manifest import DemoEntry, Manifest, SkillEntry
 
 P = ParamSpec("P")
@@ -154,7 +154,10 @@ class Session:
         check_keepable(rec, self.recordings)
         nm = unique_name(check_demo_name(name if name is not None else rec.name), set(self.demo_names))
         rec = Recording(t=rec.t, q=rec.q, gripper=rec.gripper, arms=rec.arms, name=nm)
-        rel = self._write_demo(rec)
+        try:
+            rel = self._write_demo(rec)
+        except StorageError as exc:
+            raise reworded(exc, self.path, f'The demonstration "{nm}"', "saved") from exc.__cause__
         self.recordings.append(as_stored(self.precision, rec))
         self._files.append(rel)
         self._mark_stale()

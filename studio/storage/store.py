@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from studio.core.arms import normalize_arms
-from studio.core.errors import InvalidInput, SessionFormatError
+from studio.core.errors import InvalidInput, SessionFormatError, StorageError
 from studio.core.types import KeypointParams
 from studio.recorder import pending_recordings, recover_recordings
 from studio.storage import archive as _archive
@@ -30,7 +30,7 @@ from studio.storage.format import (
     now,
 )
 from studio.storage.fs import clean_leftovers
-from studio.storage.limits import check_disk, write_failed
+from studio.storage.limits import check_disk, reworded, write_failed
 from studio.storage.loading import load_session
 from studio.storage.manifest import Manifest
 from studio.storage.session import Session, new_demo_file
@@ -108,8 +108,10 @@ class SessionStore:
         s = Session(name=name, path=path, arms=a, notes=notes, params=params or KeypointParams(), precision=precision)
         try:
             s._write_manifest()
-        except BaseException:
+        except BaseException as exc:
             shutil.rmtree(path, ignore_errors=True)  # no half-made session folder
+            if isinstance(exc, StorageError):
+                raise reworded(exc, path, f'The session "{name}"', "created") from exc.__cause__
             raise
         return s
 

@@ -162,3 +162,30 @@ def test_the_studio_starts_on_a_full_disk(disk: Path, tmp_path: Path) -> None:
         assert len(app.controller.demos.names()) == 3
     finally:
         app.stop()
+
+
+def test_stopping_a_recording_on_a_full_disk_keeps_the_take(disk: Path) -> None:
+    import time
+
+    from studio.controller import Controller
+    from studio.robot_backend.simulated import SimulatedBaxter
+    from tests.conftest import RecordingNotifier
+
+    store = SessionStore(disk / "sessions")
+    store.create("s")
+    ctl = Controller(store=store, session="s", backend=SimulatedBaxter(), notifier=RecordingNotifier())
+    ctl.start()
+    try:
+        ctl.teaching.start_recording()
+        time.sleep(0.8)
+        filler = fill(disk)
+        time.sleep(0.3)
+        with pytest.raises(StudioError, match=r"(?i)no space left.*kept and is added"):
+            ctl.teaching.stop_recording()
+        assert not ctl.teaching.recording and len(ctl.session.recordings) == 0
+    finally:
+        ctl.close()
+        ctl.shutdown()
+    filler.unlink()
+    again = store.open("s")
+    assert len(again.recordings) == 1 and again.recordings[0].duration > 0.5, again.recovery_message
