@@ -32,7 +32,6 @@ import io
 import json
 import os
 import random
-import resource
 import shutil
 import subprocess
 import sys
@@ -258,6 +257,29 @@ def part_skill(args: argparse.Namespace) -> list[dict[str, Any]]:
         jt = sk.joint_trajectory
         assert jt is not None
         p = s.path / "skills" / "left.npz"
+
+        def export(what: str) -> dict[str, Any]:
+            """``studio export-csv`` in its own process; its own peak memory (ru_maxrss)."""
+            argv = ["export-csv", "stack-cup", "--out", str(tmp / "x.csv"), "--sessions-dir", str(tmp)]
+            code = (
+                "import resource, sys\nfrom studio.cli import main\n"
+                f"rc = main({argv!r})\n"
+                "print('MAXRSS', resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, file=sys.stderr)\n"
+                "sys.exit(rc)\n"
+            )
+            t0 = time.perf_counter()
+            proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600, cwd=ROOT)
+            peak = next((int(ln.split()[1]) / 1024 for ln in proc.stderr.splitlines() if ln.startswith("MAXRSS")), -1)
+            said = [ln for ln in proc.stderr.splitlines() if not ln.startswith("MAXRSS")]
+            return {
+                "case": what,
+                "seconds": time.perf_counter() - t0,
+                "exit": proc.returncode,
+                "process_peak_mb": peak,
+                "said": (said[-1] if said else proc.stdout.strip())[-300:],
+            }
+
+        baseline = export("studio export-csv of the learned skill (baseline, same run)")
         with np.load(p) as z:
             arrays = {k: z[k] for k in z.files}
         for k in ("trajectory_t", "joint_t", "centroid_times", "path_times"):
@@ -265,28 +287,12 @@ def part_skill(args: argparse.Namespace) -> list[dict[str, Any]]:
         buf = io.BytesIO()
         np.savez(buf, **arrays)
         p.write_bytes(buf.getvalue())
-        export_cmd = [sys.executable, "-m", "studio", "export-csv", "stack-cup", "--out", str(tmp / "x.csv")]
-        export_cmd += ["--sessions-dir", str(tmp)]
-        t0 = time.perf_counter()
-        proc = subprocess.run(
-            export_cmd,
-            capture_output=True,
-            text=True,
-            timeout=600,
-            cwd=ROOT,
-        )
-        export = {
-            "case": "studio export-csv of a skill stretched ×10⁶",
-            "seconds": time.perf_counter() - t0,
-            "exit": proc.returncode,
-            "peak_mb": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024,
-            "said": proc.stderr.strip()[-300:],
-        }
+        stretched_run = export("studio export-csv of the same skill stretched ×10⁶")
         stretched = type(jt)(**{**jt.__dict__, "t": np.asarray(jt.t) * 1e6})
         fake = type(sk)(**{**sk.__dict__, "joint_trajectory": stretched})
         preview = measured(lambda: sampling.duration({"left": fake}))
         preview["case"] = "the sampling Preview uses, same skill"
-        return [export, preview]
+        return [baseline, stretched_run, preview]
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 
