@@ -25,7 +25,7 @@ from studio.core.arms import normalize_arms
 from studio.core.errors import InvalidInput, NotEnoughData
 from studio.core.types import ALL_ARM_JOINTS, ARM_JOINTS, ARMS, Recording, Skill, check_arm
 from studio.storage.atomic import atomic_write
-from studio.storage.format import MAX_DURATION_S, MAX_JOINT_RAD, MIN_TIME_STEP_S
+from studio.storage.format import MAX_DURATION_S, MAX_JOINT_RAD, implausible
 
 #: The SDK's column order.
 CSV_COLUMNS: tuple[str, ...] = (
@@ -96,18 +96,9 @@ def _check_plausible(rows: np.ndarray, col: dict[str, int], lines: np.ndarray, l
     """Numbers no robot records (1e-300 s steps, 1e300 rad, a million years) are refused, naming the line: they
     pass as numbers but make learning overflow or never end."""
     t = rows[:, col["time"]]
-    step = np.diff(t)
-    if np.any(step < MIN_TIME_STEP_S):
-        i = int(np.argmax(step < MIN_TIME_STEP_S)) + 1
-        raise CsvFormatError(
-            f'"{label}" line {lines[i]}: the time advances by only {step[i - 1]:.3g} s; a robot records at most '
-            f"{1 / MIN_TIME_STEP_S:,.0f} samples a second (the time column is in seconds)."
-        )
-    if t[-1] - t[0] > MAX_DURATION_S:
-        raise CsvFormatError(
-            f'"{label}" lasts {(t[-1] - t[0]) / 3600:,.1f} hours; a demonstration may last at most '
-            f"{MAX_DURATION_S / 3600:.0f} hours (the time column is in seconds)."
-        )
+    problem = implausible(t, np.zeros((0, 14)))
+    if problem is not None:
+        raise CsvFormatError(f'"{label}" {problem}; nothing was imported from it.')
     joints = [col[j] for j in ALL_ARM_JOINTS]
     far = np.abs(rows[:, joints]) > MAX_JOINT_RAD
     if far.any():

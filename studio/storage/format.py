@@ -31,7 +31,7 @@ DEFAULT_ROOT = Path(__file__).resolve().parent.parent.parent / "sessions"
 MAX_SAMPLES = 6 * 3600 * 1000
 #: Longest demonstration or learned trajectory, seconds (whatever the sampling rate; Preview and export too).
 MAX_DURATION_S = MAX_SECONDS
-#: Closest two samples of a demonstration may be, seconds (a 100 kHz stream; robots stream at 1 kHz at most).
+#: Shortest mean (and median) sampling interval, seconds (a 100 kHz stream; robots stream at 1 kHz at most).
 MIN_TIME_STEP_S = 1e-5
 #: Largest joint angle accepted, radians (Baxter's joints turn less than ±3.1 rad; a full turn either way).
 MAX_JOINT_RAD = 2 * math.pi
@@ -137,16 +137,20 @@ def skipped_note(exc: SessionFormatError) -> str:
 
 def implausible(t: np.ndarray, q: np.ndarray) -> str | None:
     """What makes a demonstration's times ``t`` (N,) s or joints ``q`` (N, 14) rad impossible for a robot, in plain
-    words ("lasts 9.3 hours; …"), or None. Such values pass as numbers but make learning overflow or never end."""
+    words ("lasts 9.3 hours; …"), or None. Such values pass as numbers but make learning overflow or never end.
+
+    The sampling interval is judged by its mean and median (what learning divides by), not by the closest two
+    samples: a real stream has jitter, and one pair of samples a microsecond apart harms nothing.
+    """
     if len(t) >= 2:
         duration = float(t[-1] - t[0])
         if duration > MAX_DURATION_S:
             return f"lasts {duration / 3600:,.1f} hours; the limit is {MAX_DURATION_S / 3600:.0f} hours"
-        step = float(np.min(np.diff(t)))
+        step = min(duration / (len(t) - 1), float(np.median(np.diff(t))))
         if step < MIN_TIME_STEP_S:
             return (
-                f"has samples only {step:.3g} s apart; a robot streams at most "
-                f"{1 / MIN_TIME_STEP_S:,.0f} samples a second"
+                f"has its samples {step:.3g} s apart; a robot streams at most {1 / MIN_TIME_STEP_S:,.0f} samples "
+                "a second (times are in seconds)"
             )
     if q.size:
         worst = max(abs(float(np.max(q))), abs(float(np.min(q))))  # no |q| temporary: q may be 2 GB

@@ -39,7 +39,7 @@ def shape(n: int = 300, seed: int = 0) -> np.ndarray:
 
 def test_a_time_step_of_1e_300_is_refused_naming_the_line(tmp_path: Path) -> None:
     p = write(tmp_path / "tiny.csv", np.arange(300) * 1e-300, shape())
-    with pytest.raises(StudioError, match=r'"tiny\.csv" line \d+:.*time'):
+    with pytest.raises(StudioError, match=r'"tiny\.csv" has its samples 1e-300 s apart.*seconds'):
         import_csv(p)
 
 
@@ -130,7 +130,7 @@ def test_fuzzed_csv_files_are_imported_plausibly_or_refused_in_plain_words(
         assert "fuzz.csv" in str(exc)
         return
     assert len(rec) >= 2 and rec.duration <= 6 * 3600
-    assert np.all(np.abs(rec.q) <= 2 * np.pi) and np.all(np.diff(rec.t) >= 1e-6)
+    assert np.all(np.abs(rec.q) <= 2 * np.pi) and np.median(np.diff(rec.t)) >= 1e-5
     SessionStore(tmp_path / uuid.uuid4().hex).create("s").add_recording(rec)  # what imports, a session keeps
 
 
@@ -159,3 +159,11 @@ def test_one_endless_line_is_refused(tmp_path: Path) -> None:
     p.write_text(",".join(CSV_COLUMNS) + "\n" + "1," * 2_000_000)
     with pytest.raises(StudioError, match=r'"endless\.csv" line 2 is too long'):
         import_csv(p)
+
+
+def test_a_real_stream_with_jitter_is_kept(tmp_path: Path) -> None:
+    """Plausibility judges the sampling interval (mean and median), not one pair of samples a microsecond apart."""
+    t = np.arange(300) / 100
+    t[150] = t[149] + 1e-6
+    rec = import_csv(write(tmp_path / "jitter.csv", t, shape()))
+    SessionStore(tmp_path / "s").create("s").add_recording(rec)

@@ -59,6 +59,12 @@ def test_serve_and_learn_say_a_deep_manifest_is_damaged_without_a_traceback(
     proc = studio_cli("learn", "three", "--sessions-dir", str(store.root))
     assert_plain(proc)
     assert "is damaged" in proc.stderr
+    from tests.conftest import free_port
+
+    port = str(free_port())
+    proc = studio_cli("serve", "--session", "three", "--port", port, "--sessions-dir", str(store.root), timeout=120)
+    assert_plain(proc)
+    assert "is damaged" in proc.stderr
 
 
 def test_a_huge_next_id_never_makes_the_session_unopenable(store: SessionStore, three: Session) -> None:
