@@ -259,12 +259,14 @@ def part_skill(args: argparse.Namespace) -> list[dict[str, Any]]:
         p = s.path / "skills" / "left.npz"
 
         def export(what: str) -> dict[str, Any]:
-            """``studio export-csv`` in its own process; its own peak memory (ru_maxrss)."""
+            """``studio export-csv`` in its own process; its own peak memory (VmHWM, kB)."""
             argv = ["export-csv", "stack-cup", "--out", str(tmp / "x.csv"), "--sessions-dir", str(tmp)]
+            # VmHWM of the new process (ru_maxrss would carry this process's peak across fork and exec)
             code = (
-                "import resource, sys\nfrom studio.cli import main\n"
+                "import sys\nfrom studio.cli import main\n"
                 f"rc = main({argv!r})\n"
-                "print('MAXRSS', resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, file=sys.stderr)\n"
+                "hwm = [ln.split()[1] for ln in open('/proc/self/status') if ln.startswith('VmHWM:')][0]\n"
+                "print('MAXRSS', hwm, file=sys.stderr)\n"
                 "sys.exit(rc)\n"
             )
             t0 = time.perf_counter()

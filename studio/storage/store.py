@@ -168,7 +168,8 @@ class SessionStore:
             i += 1
 
     def duplicate(self, name: str, new_name: str) -> Session:
-        """Copy a session (not its in-progress recordings) under a new name; returns the copy."""
+        """Copy a session under a new name; returns the copy. Only its own files are copied (manifest, demos,
+        skills), as regular files: not its in-progress recordings, nor anything else in its folder or behind a link."""
         src = self.path_of(name)
         dst = self.path_of(new_name)
         if dst.exists():
