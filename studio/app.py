@@ -67,7 +67,10 @@ def robot_urdf_path(meshes: str = "auto") -> Path:
 def configure_scene(server: viser.ViserServer) -> None:
     """Theme, initial camera, lights and ground of the shared scene."""
     s = server
-    s.gui.configure_theme(control_width="large", dark_mode=False, show_logo=False, brand_color=(196, 30, 58))
+    # No share button: it would offer to open the studio to the internet through a public relay.
+    s.gui.configure_theme(
+        control_width="large", dark_mode=False, show_logo=False, show_share_button=False, brand_color=(196, 30, 58)
+    )
     s.initial_camera.position = CAMERA_POSITION
     s.initial_camera.look_at = CAMERA_LOOK_AT
     s.initial_camera.fov = math.radians(CAMERA_FOV_DEG)

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import datetime
 import logging
 import os
 import sys
+import tempfile
+import traceback
 from pathlib import Path
 
 from studio.core.errors import StudioError
@@ -22,6 +25,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("--sessions-dir", type=Path, default=DEFAULT_ROOT, help="folder that holds the sessions")
+    common.add_argument(
+        "--verbose", action="store_true", help="show the technical details (traceback) when something unexpected fails"
+    )
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
     s = sub.add_parser("serve", parents=[common], help="start the studio in the browser (the default command)")
@@ -81,12 +87,15 @@ def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     # `studio --sessions-dir D learn X` works like `studio learn X --sessions-dir D`.
     lead: list[str] = []
-    while len(argv) >= 2 and (argv[0] == "--sessions-dir"):
-        lead, argv = [*lead, *argv[:2]], argv[2:]
+    while argv and argv[0] in ("--sessions-dir", "--verbose"):
+        n = 2 if argv[0] == "--sessions-dir" else 1
+        lead, argv = [*lead, *argv[:n]], argv[n:]
     if not (argv and (argv[0] in COMMANDS or argv[0] in ("-h", "--help"))):
         argv = ["serve", *argv]  # `studio` alone, or `studio --port 9000`, starts the studio
     argv = [argv[0], *lead, *argv[1:]]
-    return _dispatch(build_parser().parse_args(argv))
+    args = build_parser().parse_args(argv)
+    args.command_line = " ".join(argv)  # for the error log
+    return _dispatch(args)
 
 
 def _dispatch(args: argparse.Namespace) -> int:
@@ -118,6 +127,49 @@ def _dispatch(args: argparse.Namespace) -> int:
         return 2
     except KeyboardInterrupt:
         return 130
+    except Exception as exc:  # never a traceback for the person: plain words, the details in a file
+        verbose = bool(getattr(args, "verbose", False))
+        print(f"studio: {_unexpected(exc, getattr(args, 'command_line', ''), verbose=verbose)}", file=sys.stderr)
+        return 1
+
+
+def _unexpected(exc: BaseException, command_line: str, *, verbose: bool) -> str:
+    """Plain words for a failure the studio did not expect; the traceback goes to the error log (and, with
+    ``--verbose``, to the terminal)."""
+    details = "".join(traceback.format_exception(exc))
+    if verbose:
+        print(details, file=sys.stderr, end="")
+    where = _log_error(details, command_line)
+    see = f" The details were written to {where}." if where else ""
+    if isinstance(exc, MemoryError):
+        return f"the computer ran out of memory; close other programs and try again.{see}"
+    if isinstance(exc, OSError) and exc.strerror:
+        name = f' "{exc.filename}"' if exc.filename else ""
+        return f"a file{name} could not be used: {exc.strerror}.{see}"
+    return (
+        f"something went wrong that the studio did not expect ({type(exc).__name__}: {exc}).{see} "
+        "Your sessions are kept; please send that file with a note of what you did."
+    )
+
+
+def error_log() -> Path:
+    """The file unexpected failures are written to: ``$XDG_STATE_HOME/teaching-studio/errors.log``."""
+    state = os.environ.get("XDG_STATE_HOME") or str(Path.home() / ".local" / "state")
+    return Path(state) / "teaching-studio" / "errors.log"
+
+
+def _log_error(details: str, command_line: str) -> Path | None:
+    stamp = datetime.datetime.now().isoformat(timespec="seconds")
+    entry = f"--- {stamp}  studio {command_line}\n{details}\n"
+    for path in (error_log(), Path(tempfile.gettempdir()) / "teaching-studio-errors.log"):
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            with open(path, "a", encoding="utf-8") as f:
+                f.write(entry)
+            return path
+        except OSError:
+            continue
+    return None
 
 
 if __name__ == "__main__":  # pragma: no cover

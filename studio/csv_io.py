@@ -12,8 +12,11 @@ from __future__ import annotations
 
 import math
 import os
+import stat
+from array import array
 from collections.abc import Mapping
 from pathlib import Path
+from typing import BinaryIO, TextIO
 
 import numpy as np
 
@@ -21,7 +24,8 @@ from studio.core import sampling
 from studio.core.arms import normalize_arms
 from studio.core.errors import InvalidInput, NotEnoughData
 from studio.core.types import ALL_ARM_JOINTS, ARM_JOINTS, ARMS, Recording, Skill, check_arm
-from studio.storage.atomic import atomic_write_bytes
+from studio.storage.atomic import atomic_write
+from studio.storage.format import MAX_DURATION_S, MAX_JOINT_RAD, implausible
 
 #: The SDK's column order.
 CSV_COLUMNS: tuple[str, ...] = (
@@ -33,6 +37,12 @@ CSV_COLUMNS: tuple[str, ...] = (
 )
 #: Largest CSV accepted (bytes): ~4 hours at 1 kHz.
 MAX_CSV_BYTES = 2 * 1024**3
+#: Most rows an export writes: 6 hours at the SDK's 100 rows a second (checked before anything is sampled).
+MAX_EXPORT_ROWS = int(MAX_DURATION_S * 100) + 1
+#: Longest line read (characters): a row of 17 numbers is about 200.
+MAX_LINE_CHARS = 4096
+#: Rows formatted at once when writing a CSV.
+WRITE_CHUNK_ROWS = 20_000
 TIME_DECIMALS = 6
 JOINT_DECIMALS = 8
 GRIPPER_DECIMALS = 4
@@ -61,19 +71,19 @@ def import_csv(
     p = Path(path)
     arms = normalize_arms(arms)
     label = p.name
-    header_line, body = _read_text(p, label)
-    header = _check_header(header_line, label)
+    header, rows = _read_rows(p, label)
     col = {h: i for i, h in enumerate(header)}
-    rows = _parse_rows(body, len(header), label)
     t = rows[:, col["time"]]
     keep = np.concatenate([[True], np.diff(t) > 0]) if len(t) else np.zeros(0, bool)
     # A time stamp that goes backwards (not just repeats) means the file is not one recording.
     if len(t) > 1 and np.any(np.diff(t) < 0):
         i = int(np.argmax(np.diff(t) < 0)) + 3
         raise CsvFormatError(f'"{label}" line {i}: the time goes backwards.')
+    lines = np.nonzero(keep)[0] + 2  # the file's line of each kept row (the header is line 1)
     rows = rows[keep]
     if rows.shape[0] < 2:
         raise NotEnoughData(f'"{label}" holds fewer than two samples; there is nothing to learn from.')
+    _check_plausible(rows, col, lines, label)
     q = rows[:, [col[j] for j in ALL_ARM_JOINTS]]
     g = rows[:, [col["left_gripper"], col["right_gripper"]]]
     if np.any(g < -0.5) or np.any(g > 100.5):
@@ -82,21 +92,51 @@ def import_csv(
     return Recording(t=t - t[0], q=q, gripper=np.clip(g, 0.0, 100.0), arms=tuple(arms), name=name or p.stem[:100])
 
 
-def _read_text(p: Path, label: str) -> tuple[str, str]:
-    """The header line and the rest of the file (size checked before reading)."""
+def _check_plausible(rows: np.ndarray, col: dict[str, int], lines: np.ndarray, label: str) -> None:
+    """Numbers no robot records (1e-300 s steps, 1e300 rad, a million years) are refused, naming the line: they
+    pass as numbers but make learning overflow or never end."""
+    t = rows[:, col["time"]]
+    problem = implausible(t, np.zeros((0, 14)))
+    if problem is not None:
+        raise CsvFormatError(f'"{label}" {problem}; nothing was imported from it.')
+    joints = [col[j] for j in ALL_ARM_JOINTS]
+    far = np.abs(rows[:, joints]) > MAX_JOINT_RAD
+    if far.any():
+        r, c = np.argwhere(far)[0]
+        raise CsvFormatError(
+            f'"{label}" line {lines[r]}: the joint {ALL_ARM_JOINTS[c]} is at {rows[r, joints[c]]:.3g}, more than a '
+            "full turn; joint angles must be in radians."
+        )
+
+
+def _read_rows(p: Path, label: str) -> tuple[list[str], np.ndarray]:
+    """The header and the (rows, columns) numbers, read a line at a time: the size is checked before reading and
+    memory stays about 8 bytes a number, whatever the file holds (a file of millions of tiny lines is refused at
+    its first bad line, not after splitting all of it)."""
     try:
-        size = p.stat().st_size
+        st = p.stat()
     except OSError as exc:
         raise CsvFormatError(f'The file "{label}" cannot be opened ({exc.strerror}).') from exc
-    if size > MAX_CSV_BYTES:
-        raise CsvFormatError(f'The file "{label}" is too large to be a joint recording ({size / 1e9:.1f} GB).')
+    if not stat.S_ISREG(st.st_mode):  # a FIFO or a device would never end
+        raise CsvFormatError(f'"{label}" is not a regular file, so it cannot be a joint recording.')
+    if st.st_size > MAX_CSV_BYTES:
+        raise CsvFormatError(f'The file "{label}" is too large to be a joint recording ({st.st_size / 1e9:.1f} GB).')
     try:
         with open(p, encoding="utf-8-sig", newline="") as f:
-            return f.readline(), f.read()
+            header = _check_header(_line(f, 1, label), label)
+            return header, _parse_rows(f, len(header), label)
     except UnicodeDecodeError as exc:
         raise CsvFormatError(f'The file "{label}" is not a text (CSV) file.') from exc
     except OSError as exc:
         raise CsvFormatError(f'The file "{label}" cannot be read ({exc.strerror}).') from exc
+
+
+def _line(f: TextIO, number: int, label: str) -> str:
+    """Line ``number`` of ``f`` ("" at the end), at most :data:`MAX_LINE_CHARS` long."""
+    ln = f.readline(MAX_LINE_CHARS + 1)
+    if len(ln) > MAX_LINE_CHARS:
+        raise CsvFormatError(f'"{label}" line {number} is too long to be a row of joint values.')
+    return ln
 
 
 def _check_header(header_line: str, label: str) -> list[str]:
@@ -114,22 +154,28 @@ def _check_header(header_line: str, label: str) -> list[str]:
     return header
 
 
-def _parse_rows(body: str, ncol: int, label: str) -> np.ndarray:
-    """(rows, ncol) numbers; every problem names its line (the header is line 1)."""
-    lines = body.splitlines()
-    while lines and not lines[-1].strip():
-        lines.pop()
-    rows = np.empty((len(lines), ncol))
-    for i, ln in enumerate(lines):
-        parts = ln.split(",")
+def _parse_rows(f: TextIO, ncol: int, label: str) -> np.ndarray:
+    """(rows, ncol) numbers from the lines after the header; every problem names its line (the header is 1)."""
+    flat = array("d")
+    blank = 0  # the first blank line seen: fine at the end of the file, not before a row
+    number = 1
+    while ln := _line(f, number + 1, label):
+        number += 1
+        text = ln.rstrip("\r\n")
+        if not text.strip():
+            blank = blank or number
+            continue
+        if blank:
+            raise CsvFormatError(f'"{label}" line {blank} is empty.')
+        parts = text.split(",")
         if len(parts) != ncol:
-            if not ln.strip():
-                raise CsvFormatError(f'"{label}" line {i + 2} is empty.')
-            raise CsvFormatError(f'"{label}" line {i + 2} has {len(parts)} values, expected {ncol}.')
+            raise CsvFormatError(f'"{label}" line {number} has {len(parts)} values, expected {ncol}.')
         try:
-            rows[i] = [float(x) for x in parts]
+            values = [float(x) for x in parts]
         except ValueError as exc:
-            raise CsvFormatError(f'"{label}" line {i + 2} contains something that is not a number.') from exc
+            raise CsvFormatError(f'"{label}" line {number} contains something that is not a number.') from exc
+        flat.extend(values)
+    rows = np.frombuffer(flat, dtype=np.float64).reshape(-1, ncol).copy() if flat else np.empty((0, ncol))
     bad = ~np.all(np.isfinite(rows), axis=1)
     if bad.any():
         raise CsvFormatError(
@@ -139,7 +185,7 @@ def _parse_rows(body: str, ncol: int, label: str) -> np.ndarray:
 
 
 def _fmt_rows(t: np.ndarray, q: np.ndarray, g: np.ndarray) -> str:
-    n = t.shape[0]
+    """The rows (no header) of samples t (n,), q (n, 14), g (n, 2) in the SDK's column order."""
     cols = np.column_stack([t, q[:, :7], g[:, 0], q[:, 7:], g[:, 1]])
     fmt = (
         [f"%.{TIME_DECIMALS}f"]
@@ -149,9 +195,15 @@ def _fmt_rows(t: np.ndarray, q: np.ndarray, g: np.ndarray) -> str:
         + [f"%.{GRIPPER_DECIMALS}f"]
     )
     line = ",".join(fmt)
-    out = [",".join(CSV_COLUMNS)]
-    out += [line % tuple(r) for r in cols] if n else []
-    return "\n".join(out) + "\n"
+    return "".join(line % tuple(r) + "\n" for r in cols)
+
+
+def _write_rows(f: BinaryIO, t: np.ndarray, q: np.ndarray, g: np.ndarray) -> None:
+    """Header and rows, formatted and written a chunk at a time (memory stays a few MB whatever the length)."""
+    f.write((",".join(CSV_COLUMNS) + "\n").encode())
+    for s in range(0, t.shape[0], WRITE_CHUNK_ROWS):
+        e = s + WRITE_CHUNK_ROWS
+        f.write(_fmt_rows(t[s:e], q[s:e], g[s:e]).encode())
 
 
 def write_csv(path: str | os.PathLike[str], t: np.ndarray, q: np.ndarray, gripper: np.ndarray) -> None:
@@ -164,7 +216,7 @@ def write_csv(path: str | os.PathLike[str], t: np.ndarray, q: np.ndarray, grippe
         raise InvalidInput(f"Expected t (N,), q (N, 14), gripper (N, 2); got {t.shape}, {q.shape}, {g.shape}.")
     if not (np.all(np.isfinite(t)) and np.all(np.isfinite(q)) and np.all(np.isfinite(g))):
         raise InvalidInput("The trajectory contains missing or invalid values (NaN or infinity); nothing was written.")
-    atomic_write_bytes(Path(path), _fmt_rows(t, q, g).encode())
+    atomic_write(Path(path), lambda f: _write_rows(f, t, q, g))
 
 
 def export_recording_csv(rec: Recording, path: str | os.PathLike[str]) -> None:
@@ -211,6 +263,11 @@ def export_joint_trajectory_csv(
     if rate_hz is None:
         rate_hz = sampling.native_rate(skills)
     n = math.floor(sampling.duration(skills) * rate_hz + 1e-9) + 1
+    if n > MAX_EXPORT_ROWS:
+        raise InvalidInput(
+            f"The learned trajectory would make {n:,} rows at {rate_hz:g} per second; the export makes at most "
+            f"{MAX_EXPORT_ROWS:,} ({MAX_EXPORT_ROWS / 100 / 3600:.0f} hours at 100 per second). Nothing was written."
+        )
     t = np.arange(n) / rate_hz
     if rest is None:
         from studio.core.kinematics import Baxter  # pinocchio: loaded only when a rest pose is needed

@@ -322,7 +322,7 @@ def refusals(c: ViserClient) -> list[str]:
 def test_an_oversize_upload_is_refused_before_it_is_buffered(sessions: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     from studio import security
 
-    monkeypatch.setattr(security, "MAX_UPLOAD_BYTES", 8 * MiB)
+    monkeypatch.setattr(security.uploads, "MAX_UPLOAD_BYTES", 8 * MiB)
     a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
     c = ViserClient(f"ws://127.0.0.1:{a.port}/?key={key_of(a)}")
     try:
@@ -389,6 +389,8 @@ def test_an_upload_within_the_limit_still_works(app: Studio) -> None:
         names = app.controller.sessions.names
         assert wait_for(lambda: len(names()) == 2, 30), (names(), c.notifications())
         assert not refusals(c)
+        # viser keeps the last file as the button's value; once imported the studio lets it go
+        assert wait_for(lambda: app.panels.sessions.upload.value.content == b"", 10)
     finally:
         c.close()
 
@@ -463,3 +465,13 @@ def _port_free(port: int) -> bool:
             return True
         except OSError:
             return False
+
+
+def test_the_share_button_is_not_offered(app: Studio) -> None:
+    """viser's Share button would relay the studio to the internet; the page never shows it."""
+    c = ViserClient(f"ws://127.0.0.1:{app.port}/?key={key_of(app)}")
+    try:
+        theme = c.wait_for(lambda ms: [m for m in ms if m["type"] == "ThemeConfigurationMessage"])
+        assert theme and theme[-1]["show_share_button"] is False
+    finally:
+        c.close()

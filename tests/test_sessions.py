@@ -15,7 +15,7 @@ from typing import cast
 import numpy as np
 import pytest
 
-from studio.core.errors import InvalidInput, SessionFormatError
+from studio.core.errors import InvalidInput, SessionFormatError, StorageError
 from studio.core.types import KeypointParams, Recording, Skill
 from studio.storage import (
     FORMAT_VERSION,
@@ -165,7 +165,7 @@ def test_atomic_write_keeps_old_file_when_interrupted(tmp_path: Path, monkeypatc
         raise OSError(28, "No space left on device")
 
     monkeypatch.setattr(os, "replace", boom)
-    with pytest.raises(OSError):
+    with pytest.raises(StorageError, match=r'"x.json" could not be saved: there is no space left on the disk'):
         atomic_write_bytes(f, b"new")
     assert f.read_bytes() == b"old"
     assert [p.name for p in tmp_path.iterdir()] == ["x.json"]  # no temporary file left

@@ -143,7 +143,12 @@ class SessionActions:
             raise StudioError("Wait for the training to finish before changing the session.")
         self.keypoints.persist()  # unsaved ε values belong to the session being left
         self.player.unload()
-        with self.ctx.lock:
+        with self.ctx.lock:  # the recording starts under this lock too: one decision, never a take in between
+            if self.teaching.recording and session is not self.ctx.session:
+                raise StudioError(
+                    "Stop the recording before changing the session: it is being recorded into "
+                    f'"{self.ctx.session.name}".'
+                )
             self.ctx.session = session
             self.keypoints.on_session(session)
             self.demos.clear()

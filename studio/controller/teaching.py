@@ -15,7 +15,7 @@ from studio.controller.demos import Demos
 from studio.controller.events import Topic
 from studio.controller.pose import Display
 from studio.core.arms import arm_columns, arm_of_joint, gripper_column, normalize_arms
-from studio.core.errors import InvalidInput, StudioError
+from studio.core.errors import InvalidInput, StorageError, StudioError
 from studio.core.kinematics import IkResult
 from studio.core.types import ARMS
 from studio.recorder import Recorder
@@ -45,6 +45,7 @@ class Teaching:
         self._targets: dict[str, np.ndarray] = {}
         self._ik_lock = {arm: threading.Lock() for arm in ARMS}
         self._recorder: Recorder | None = None
+        self._session: Session = ctx.session
         self._unsubscribe: Callable[[], None] | None = None
 
     # -- the live robot ------------------------------------------------------------------------------------
@@ -177,7 +178,7 @@ class Teaching:
             session = self.ctx.session
             rec = Recorder(self.backend, session.recording_dir, self.selected_arms, name=self._next_demo_name())
             rec.start()
-            self._recorder = rec
+            self._recorder, self._session = rec, session  # the take is saved where it was started
         self.ctx.emit(Topic.RECORDING)
 
     def _next_demo_name(self) -> str:
@@ -197,7 +198,10 @@ class Teaching:
             try:
                 recording = rec.stop()
                 try:
-                    self.ctx.session.add_recording(recording)
+                    self._session.add_recording(recording)
+                except StorageError as exc:  # the take stays in the recorder's file: recovered at the next open
+                    kept = "The take itself is kept and is added when the session is next opened."
+                    raise StorageError(f"{exc} {kept}") from exc
                 except InvalidInput:
                     # One sample is not a demonstration: nothing to keep. Any other take the session refuses
                     # stays on disk; the next open sets it aside by name (crash recovery), never lost.

@@ -47,3 +47,8 @@ class SessionFormatError(StudioError):
 
 class RecordingError(StudioError):
     """Recording could not start, continue or be saved."""
+
+
+class StorageError(StudioError):
+    """The computer cannot hold what was asked: the disk is full or cannot be written, or a session needs more
+    memory than is free. Nothing was changed."""

@@ -12,7 +12,14 @@ from collections.abc import Mapping
 import numpy as np
 
 from studio.core.arms import arm_columns, gripper_column
+from studio.core.errors import InvalidInput
 from studio.core.types import Skill
+
+#: Longest trajectory sampled, seconds (the session format's limit on a demonstration, too). A skill longer
+#: than this (a hostile file, a time axis stretched ×10⁶) is refused before any grid is allocated.
+MAX_SECONDS = 6 * 3600.0
+#: Most samples one call may ask for: 6 hours at ~185 Hz (about 0.5 GB of joints and grippers).
+MAX_GRID_SAMPLES = 4_000_000
 
 
 def executable(skills: Mapping[str, Skill]) -> dict[str, Skill]:
@@ -21,9 +28,19 @@ def executable(skills: Mapping[str, Skill]) -> dict[str, Skill]:
 
 
 def duration(skills: Mapping[str, Skill]) -> float:
-    """Seconds until the longest joint trajectory ends (0 without any)."""
+    """Seconds until the longest joint trajectory ends (0 without any).
+
+    Raises:
+        InvalidInput: a trajectory lasts longer than :data:`MAX_SECONDS` (or its times are not numbers).
+    """
     ends = [float(jt.t[-1] - jt.t[0]) for s in skills.values() if (jt := s.joint_trajectory) is not None]
-    return max(ends, default=0.0)
+    end = max(ends, default=0.0)
+    if not 0.0 <= end <= MAX_SECONDS:
+        raise InvalidInput(
+            f"The learned trajectory lasts {end / 3600:,.0f} hours, longer than the {MAX_SECONDS / 3600:.0f} hours "
+            "the studio plays or exports; learn the skill again."
+        )
+    return end
 
 
 def _interp(t_src: np.ndarray, values: np.ndarray, t_new: np.ndarray) -> np.ndarray:
@@ -70,6 +87,8 @@ def sample_joints(
         rest_q: (14,) joints of the arms without a skill; rest_gripper: (2,) their grippers, percent.
     """
     t = np.asarray(t, dtype=np.float64)
+    if t.ndim != 1 or len(t) > MAX_GRID_SAMPLES:
+        raise InvalidInput(f"Cannot sample a trajectory at {t.size:,} times; at most {MAX_GRID_SAMPLES:,} at once.")
     q = np.tile(np.asarray(rest_q, dtype=np.float64), (len(t), 1))
     g = np.tile(np.asarray(rest_gripper, dtype=np.float64), (len(t), 1))
     for arm, sk in executable(skills).items():

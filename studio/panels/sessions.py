@@ -125,6 +125,8 @@ class SessionsPanel:
 
     def _on_upload(self, event: viser.GuiEvent) -> None:
         f = self.upload.value
+        # viser keeps the last file as the button's value (up to the 512 MB cap): imported or refused, let it go
+        self.upload._impl.value = type(f)("", b"")
         self.ctl.sessions.import_zip(f.name, f.content)
 
     def _on_export(self, event: viser.GuiEvent) -> None:

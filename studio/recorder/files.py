@@ -24,7 +24,7 @@ from typing import IO, Any
 
 import numpy as np
 
-from studio.core.errors import RecordingError, StudioError
+from studio.core.errors import RecordingError, StorageError, StudioError
 from studio.core.types import ALL_ARM_JOINTS, ARMS, Recording
 
 MAGIC = b"TSREC\n"
@@ -89,7 +89,7 @@ def _read_header(f: IO[bytes], path: Path) -> dict[str, Any]:
         raise RecordingError(f'"{path.name}" is damaged (it ends inside its header).')
     try:
         header = json.loads(hb.decode())
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:  # JSONDecodeError is a ValueError
         raise RecordingError(f'"{path.name}" is damaged (its header cannot be read).') from exc
     if not isinstance(header, dict) or header.get("format") != "teaching-studio-recording":
         raise RecordingError(f'"{path.name}" is not a Teaching Studio recording.')
@@ -176,7 +176,7 @@ def pending_recordings(directory: str | os.PathLike[str]) -> list[Path]:
     d = Path(directory)
     if not d.is_dir():
         return []
-    return sorted(p for p in d.glob(f"*{SUFFIX}") if p.is_file() and not _is_locked(p))
+    return sorted(p for p in d.glob(f"*{SUFFIX}") if p.is_file() and not p.is_symlink() and not _is_locked(p))
 
 
 def recover_recordings(
@@ -200,6 +200,7 @@ def recover_recordings(
     recs: list[Recording] = []
     notes: list[str] = []
     damaged: list[str] = []
+    kept: list[str] = []
     for p in pending_recordings(directory):
         try:
             demo = read_recording_file(p, poses=False)
@@ -226,6 +227,13 @@ def recover_recordings(
         if add is not None:
             try:
                 add(rec)
+            except StorageError as exc:
+                # The disk is full (or read-only) now: the take stays as it is and is added next time.
+                kept.append(
+                    f'The recording "{rec.name}" ({rec.duration:.1f} s) could not be added to the session yet: '
+                    f"{exc} It is kept, and will be added the next time the session opens."
+                )
+                continue
             except StudioError as exc:
                 # Keep the file aside (no longer a pending "*.rec") so the session still opens next time.
                 aside = p.with_name(p.name + ".damaged")
@@ -250,6 +258,8 @@ def recover_recordings(
         )
     if damaged:
         msg = (msg + " " if msg else "") + "Some recording files could not be recovered: " + " ".join(damaged)
+    if kept:
+        msg = (msg + " " if msg else "") + " ".join(kept)
     return recs, msg
 
 

@@ -13,7 +13,10 @@ Modules, one concern each:
     atomic.py    atomic writes (temporary file, fsync, rename) and reproducible .npz writing
     npz.py       reading .npz files safely (headers and byte limits first); demo and skill files
     manifest.py  the manifest as frozen dataclasses (how to version and extend it is written there)
-    session.py   Session: an open session, every change written at once
+    session.py   Session: an open session, every change written at once (all or nothing)
+    loading.py   load_session: a folder validated, its memory checked before anything large is read
+    fs.py        the folder as someone may have left it: capped reads, links, leftovers of a kill -9
+    limits.py    free disk and memory against the limits; a failed write in plain words
     store.py     SessionStore: list, create, open (with crash recovery), save, duplicate, delete
     archive.py   zip export and validated import
     idle.py      idle start/end of a demonstration (for trimming)
@@ -33,8 +36,9 @@ from studio.storage.format import (
     check_session_name,
 )
 from studio.storage.idle import idle_bounds
+from studio.storage.loading import load_session
 from studio.storage.manifest import DemoEntry, Manifest, SkillEntry
-from studio.storage.session import Session, load_session
+from studio.storage.session import Session
 from studio.storage.store import SessionStore, SessionSummary
 
 __all__ = [

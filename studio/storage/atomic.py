@@ -14,6 +14,7 @@ from typing import BinaryIO
 import numpy as np
 
 from studio.core.errors import InvalidInput
+from studio.storage.limits import write_failed
 
 
 def _fsync_dir(d: Path) -> None:
@@ -26,9 +27,17 @@ def _fsync_dir(d: Path) -> None:
 
 
 def atomic_write(path: Path, write: Callable[[BinaryIO], object]) -> None:
-    """Call ``write`` on a temporary file in ``path``'s folder, fsync it, then rename it onto ``path``."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".tmp-{path.name}-", dir=path.parent)
+    """Call ``write`` on a temporary file in ``path``'s folder, fsync it, then rename it onto ``path``.
+
+    Raises:
+        StorageError: the disk is full, read-only or not writable (plain words naming the file); the old file,
+            if any, is untouched and no temporary file is left.
+    """
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".tmp-{path.name}-", dir=path.parent)
+    except OSError as exc:
+        raise write_failed(path, exc) from exc
     try:
         with os.fdopen(fd, "wb") as f:
             os.fchmod(f.fileno(), 0o644)  # mkstemp makes 0600; session files are ordinary documents
@@ -36,9 +45,11 @@ def atomic_write(path: Path, write: Callable[[BinaryIO], object]) -> None:
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
+        if isinstance(exc, OSError):
+            raise write_failed(path, exc) from exc
         raise
     _fsync_dir(path.parent)
 

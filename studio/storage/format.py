@@ -6,12 +6,14 @@ Everything else in :mod:`studio.storage` reads these; change a limit here and it
 from __future__ import annotations
 
 import datetime as _dt
+import math
 import re
 from pathlib import Path
 
 import numpy as np
 
 from studio.core.errors import InvalidInput, SessionFormatError
+from studio.core.sampling import MAX_SECONDS
 
 FORMAT = "teaching-studio-session"
 #: Version of the manifest written today; see :mod:`studio.storage.manifest` for how it is extended.
@@ -24,20 +26,42 @@ RECORDING_DIR = ".recording"
 #: The one place that knows where sessions live by default: the repository's ``sessions/`` folder.
 DEFAULT_ROOT = Path(__file__).resolve().parent.parent.parent / "sessions"
 
-#: Largest demonstration accepted: 6 hours at 1 kHz. Anything larger is treated as a damaged/hostile file.
+# -- limits: bytes, counted from what a file declares, checked before anything is read or unpacked ------------
+#: Longest demonstration accepted: 6 hours at 1 kHz (the recorder stops by itself after 4).
 MAX_SAMPLES = 6 * 3600 * 1000
+#: Longest demonstration or learned trajectory, seconds (whatever the sampling rate; Preview and export too).
+MAX_DURATION_S = MAX_SECONDS
+#: Shortest mean (and median) sampling interval, seconds (a 100 kHz stream; robots stream at 1 kHz at most).
+MIN_TIME_STEP_S = 1e-5
+#: Largest joint angle accepted, radians (Baxter's joints turn less than ±3.1 rad; a full turn either way).
+MAX_JOINT_RAD = 2 * math.pi
+#: Bytes a demonstration takes in memory per sample: t, 14 joints, 2 grippers as float64.
+DEMO_BYTES_PER_SAMPLE = 17 * 8
+#: Largest demonstration in memory (≈ 4.4 hours at 1 kHz), and largest session (demonstrations and skills).
+MAX_DEMO_BYTES = 2 * 1024**3
+MAX_SESSION_BYTES = 4 * 1024**3
+#: Largest learned skill file's arrays (bytes, as declared by its headers).
+MAX_SKILL_BYTES = 2 * 1024**3
 MAX_MANIFEST_BYTES = 4 * 1024 * 1024
 MAX_DEMOS = 1000
 #: Largest number of clusters (k) kept with a session.
 MAX_CLUSTERS = 10_000
-#: Largest uncompressed array accepted inside a skill file (elements).
-MAX_SKILL_ELEMENTS = 50_000_000
-MAX_ZIP_BYTES = 8 * 1024**3
+#: Largest number of a demo file (``demos/d<id>.npz`` has 4 to 9 digits).
+MAX_FILE_ID = 999_999_999
 MAX_NOTES_CHARS = 100_000
+#: Uploaded archives (someone else's files): what unpacking may write to disk, and what loading may take in
+#: memory, for each byte uploaded, beyond a floor that any ordinary session stays under.
+ARCHIVE_DISK_PER_BYTE = 4
+ARCHIVE_DISK_FLOOR = 16 * 1024**2
+ARCHIVE_MEMORY_PER_BYTE = 32
+ARCHIVE_MEMORY_FLOOR = 64 * 1024**2
+#: Disk space left free after any write the studio plans (bytes).
+DISK_RESERVE = 8 * 1024**2
 
-NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9 _\-.()]{0,63}$")
-DEMO_FILE_RE = re.compile(r"^demos/d(\d{4,9})\.npz$")
-SKILL_FILE_RE = re.compile(r"^skills/(left|right)\.npz$")
+# Names and files. Every pattern is matched whole (``fullmatch``): "$" would accept a trailing newline.
+NAME_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9 _\-.()]{0,63}")
+DEMO_FILE_RE = re.compile(r"demos/d(\d{4,9})\.npz")
+SKILL_FILE_RE = re.compile(r"skills/(left|right)\.npz")
 PRECISIONS: dict[str, type[np.floating]] = {"float64": np.float64, "float32": np.float32}
 
 _NOT_LOADED = "It was not loaded; your other files are untouched."
@@ -50,7 +74,7 @@ def now() -> str:
 
 def check_session_name(name: str) -> str:
     """Return ``name`` if it is a safe folder name for a session, else raise :class:`InvalidInput`."""
-    if not isinstance(name, str) or not NAME_RE.match(name) or ".." in name or name.endswith((" ", ".")):
+    if not isinstance(name, str) or not NAME_RE.fullmatch(name) or ".." in name or name.endswith((" ", ".")):
         raise InvalidInput(
             f"{name!r} cannot be a session name: use up to 64 letters, digits, spaces, '-', '_', '.' or "
             "brackets, starting with a letter or digit (no '/' and no '..')."
@@ -109,3 +133,27 @@ def what_went_wrong(exc: SessionFormatError) -> str:
 def skipped_note(exc: SessionFormatError) -> str:
     """The message of a damaged file that loading with ``skip_damaged`` passed over, told as skipped."""
     return f"{what_went_wrong(exc)} It was skipped."
+
+
+def implausible(t: np.ndarray, q: np.ndarray) -> str | None:
+    """What makes a demonstration's times ``t`` (N,) s or joints ``q`` (N, 14) rad impossible for a robot, in plain
+    words ("lasts 9.3 hours; …"), or None. Such values pass as numbers but make learning overflow or never end.
+
+    The sampling interval is judged by its mean and median (what learning divides by), not by the closest two
+    samples: a real stream has jitter, and one pair of samples a microsecond apart harms nothing.
+    """
+    if len(t) >= 2:
+        duration = float(t[-1] - t[0])
+        if duration > MAX_DURATION_S:
+            return f"lasts {duration / 3600:,.1f} hours; the limit is {MAX_DURATION_S / 3600:.0f} hours"
+        step = min(duration / (len(t) - 1), float(np.median(np.diff(t))))
+        if step < MIN_TIME_STEP_S:
+            return (
+                f"has its samples {step:.3g} s apart; a robot streams at most {1 / MIN_TIME_STEP_S:,.0f} samples "
+                "a second (times are in seconds)"
+            )
+    if q.size:
+        worst = max(abs(float(np.max(q))), abs(float(np.min(q))))  # no |q| temporary: q may be 2 GB
+        if worst > MAX_JOINT_RAD:
+            return f"has a joint angle of {worst:.3g} rad, more than a full turn (joint angles are in radians)"
+    return None

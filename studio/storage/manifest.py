@@ -19,6 +19,7 @@ Loading never writes: an upgraded manifest is written in the new version the nex
 from __future__ import annotations
 
 import json
+import math
 import numbers
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -33,6 +34,7 @@ from studio.storage.format import (
     FORMAT_VERSION,
     MANIFEST,
     MAX_DEMOS,
+    MAX_FILE_ID,
     MAX_MANIFEST_BYTES,
     MAX_SAMPLES,
     PRECISIONS,
@@ -42,6 +44,7 @@ from studio.storage.format import (
     check_n_clusters,
     damaged,
 )
+from studio.storage.fs import read_capped
 
 #: Upgrades of older manifests: ``UPGRADES[v]`` turns the raw JSON of version ``v`` into version ``v + 1``.
 UPGRADES: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {}
@@ -132,6 +135,10 @@ class Manifest:
             "skills_stale": self.skills_stale,
         }
 
+    def files(self) -> set[str]:
+        """Every file the manifest lists (demos and skills), relative to the session folder."""
+        return {d.file for d in self.demos} | {s.file for s in self.skills.values()}
+
     def to_bytes(self) -> bytes:
         return json.dumps(self.to_json(), indent=2, ensure_ascii=False).encode("utf-8") + b"\n"
 
@@ -139,16 +146,10 @@ class Manifest:
     @classmethod
     def read(cls, path: Path, session: str) -> Manifest:
         """Read and validate the manifest file ``path`` of session ``session`` (never writes)."""
-        if not path.exists():
+        if not path.exists() and not path.is_symlink():
             raise damaged(session, MANIFEST, "is missing (this folder is not a Teaching Studio session)")
-        try:
-            size = path.stat().st_size
-            if size > MAX_MANIFEST_BYTES:
-                raise damaged(session, MANIFEST, f"is absurdly large ({size} bytes)")
-            raw = path.read_bytes()
-        except OSError as exc:
-            raise damaged(session, MANIFEST, f"cannot be read ({exc.strerror})") from exc
-        return cls.from_json(raw, session)
+        # A regular file of bounded size only: a link to /dev/zero or a FIFO is refused before it is read.
+        return cls.from_json(read_capped(path, MAX_MANIFEST_BYTES, session=session, rel=MANIFEST), session)
 
     @classmethod
     def from_json(cls, raw: bytes, session: str) -> Manifest:
@@ -171,6 +172,8 @@ class Manifest:
         nid = m.raw.get("next_id", max_id + 1)
         if not isinstance(nid, int) or isinstance(nid, bool) or nid < 1:
             raise m.bad('has an invalid "next_id"')
+        if nid > MAX_FILE_ID:  # no file can have that number: start after the highest one listed instead
+            nid = max_id + 1
         return cls(
             name=name,
             arms=arms,
@@ -190,7 +193,7 @@ class Manifest:
 
 
 def _file_id(rel: str) -> int:
-    match = DEMO_FILE_RE.match(rel)
+    match = DEMO_FILE_RE.fullmatch(rel)
     return int(match.group(1)) if match else 0
 
 
@@ -199,10 +202,14 @@ def _decode(raw: bytes, session: str) -> dict[str, Any]:
         m = json.loads(raw.decode("utf-8"))
     except UnicodeDecodeError as exc:
         raise damaged(session, MANIFEST, "is not readable text") from exc
+    except RecursionError as exc:
+        raise damaged(session, MANIFEST, "is damaged (it is nested too deeply to be a session description)") from exc
     except json.JSONDecodeError as exc:
         cut = not raw.rstrip().endswith(b"}") or exc.pos >= len(raw.rstrip()) - 1
         problem = "it ends early" if cut else f"unreadable near line {exc.lineno}"
         raise damaged(session, MANIFEST, f"is damaged ({problem})") from exc
+    except ValueError as exc:  # e.g. a number of more than 4300 digits
+        raise damaged(session, MANIFEST, "is damaged (it holds an impossible number)") from exc
     if not isinstance(m, dict) or m.get("format") != FORMAT:
         raise damaged(session, MANIFEST, "is not a Teaching Studio session description")
     return m
@@ -251,7 +258,7 @@ class _Reader:
     def params(self) -> KeypointParams:
         try:
             return KeypointParams.from_dict(self.need("params", dict))
-        except (InvalidInput, TypeError, ValueError) as exc:
+        except (InvalidInput, TypeError, ValueError, OverflowError) as exc:
             raise self.bad(f"has invalid key-point thresholds ({exc})") from exc
 
     def n_clusters(self) -> int | None:
@@ -284,7 +291,7 @@ class _Reader:
         if not isinstance(d, dict):
             raise self.bad(f"has an invalid entry for demonstration {i + 1}")
         f = d.get("file")
-        if not isinstance(f, str) or not DEMO_FILE_RE.match(f):
+        if not isinstance(f, str) or not DEMO_FILE_RE.fullmatch(f):
             raise self.bad(f"names an unsafe or invalid file for demonstration {i + 1}: {f!r}")
         try:
             name = check_demo_name(d.get("name"))
@@ -300,7 +307,7 @@ class _Reader:
         if not isinstance(hidden, bool):
             raise self.bad(f'has an invalid "hidden" mark for demonstration {i + 1}')
         dur = d.get("duration", 0.0)
-        duration = float(dur) if isinstance(dur, numbers.Real) and not isinstance(dur, bool) else 0.0
+        duration = _number(dur) or 0.0
         return DemoEntry(file=f, name=name, arms=tuple(da), samples=s, duration=duration, hidden=hidden)
 
     def skills(self) -> dict[str, SkillEntry]:
@@ -311,7 +318,7 @@ class _Reader:
         for arm, s in skills.items():
             if arm not in ARMS or not isinstance(s, dict) or not isinstance(s.get("file"), str):
                 raise self.bad(f"has an invalid skill entry {arm!r}")
-            if not SKILL_FILE_RE.match(s["file"]) or s["file"] != f"{SKILL_DIR}/{arm}.npz":
+            if not SKILL_FILE_RE.fullmatch(s["file"]) or s["file"] != f"{SKILL_DIR}/{arm}.npz":
                 raise self.bad(f"names an unsafe or invalid skill file: {s['file']!r}")
             out[arm] = _skill_entry(s)
         return out
@@ -324,9 +331,20 @@ def _skill_entry(s: Mapping[str, object]) -> SkillEntry:
         file=str(s["file"]),
         learned=learned if isinstance(learned, str) else "",
         params={
-            str(k): float(v)
-            for k, v in (params.items() if isinstance(params, dict) else ())
-            if isinstance(v, numbers.Real) and not isinstance(v, bool)
+            str(k): v
+            for k, v in ((k, _number(v)) for k, v in (params.items() if isinstance(params, dict) else ()))
+            if v is not None
         },
         demos=tuple(str(n) for n in demos) if isinstance(demos, list) else (),
     )
+
+
+def _number(v: object) -> float | None:
+    """``v`` as a finite float, or None (not a number, a bool, or too large for a float)."""
+    if not isinstance(v, numbers.Real) or isinstance(v, bool):
+        return None
+    try:
+        f = float(v)
+    except (OverflowError, ValueError):
+        return None
+    return f if math.isfinite(f) else None

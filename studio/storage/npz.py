@@ -8,6 +8,7 @@ naming the file and the problem (see :func:`studio.storage.format.damaged`).
 
 from __future__ import annotations
 
+import math
 import zipfile
 import zlib
 from collections.abc import Mapping
@@ -15,9 +16,18 @@ from pathlib import Path
 
 import numpy as np
 
-from studio.core.errors import InvalidInput, SessionFormatError, StudioError
+from studio.core.errors import InvalidInput, SessionFormatError
 from studio.core.types import Recording, Skill
-from studio.storage.format import MAX_SAMPLES, MAX_SKILL_ELEMENTS, damaged
+from studio.storage.format import (
+    DEMO_BYTES_PER_SAMPLE,
+    MAX_DEMO_BYTES,
+    MAX_DURATION_S,
+    MAX_SAMPLES,
+    MAX_SKILL_BYTES,
+    damaged,
+    implausible,
+)
+from studio.storage.limits import size_text
 from studio.storage.manifest import DemoEntry
 
 #: member name -> (shape with None for "any length", dtype kinds allowed e.g. "f")
@@ -25,22 +35,43 @@ Expect = Mapping[str, tuple[tuple[int | None, ...], str]]
 _MAX_MEMBERS = 200
 
 
-def read_npz(path: Path, session: str, rel: str, expect: Expect | None, *, max_elements: int) -> dict[str, np.ndarray]:
+def read_npz(path: Path, session: str, rel: str, expect: Expect | None, *, max_bytes: int) -> dict[str, np.ndarray]:
     """Read an ``.npz`` safely: members, dtypes, shapes and sizes are checked from the headers first.
 
     Args:
         expect: the members and their shapes and dtype kinds; None allows any members of numeric, bool or
             text kinds (skill files).
-        max_elements: the largest array accepted (elements).
+        max_bytes: the most its arrays may declare together (bytes), checked before any data is read.
     """
+    members = _inspect(path, session, rel, expect, max_bytes)[0]
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            return {key: npz[key] for key in members}
+    except (zipfile.BadZipFile, EOFError, zipfile.LargeZipFile, zlib.error, ValueError, OSError, RuntimeError) as exc:
+        raise _read_failure(exc, session, rel) from exc
+
+
+def declared_bytes(path: Path, session: str, rel: str, *, max_bytes: int) -> int:
+    """What the arrays of the ``.npz`` at ``path`` declare (bytes), from its headers only (checked as when read)."""
+    return _inspect(path, session, rel, None, max_bytes)[1]
+
+
+def _inspect(
+    path: Path, session: str, rel: str, expect: Expect | None, max_bytes: int
+) -> tuple[dict[str, zipfile.ZipInfo], int]:
+    """The members and the bytes their arrays declare, once every header was found sound and within limits."""
     _check_regular_file(path, session, rel)
     try:
         with zipfile.ZipFile(path) as zf:
             members = _members(zf, session, rel, expect)
+            total = 0
             for key, info in members.items():
-                _check_member(zf, info, key, session, rel, expect, max_elements)
-        with np.load(path, allow_pickle=False) as npz:
-            return {key: npz[key] for key in members}
+                total += _check_member(zf, info, key, session, rel, expect)
+                if total > max_bytes:
+                    raise damaged(
+                        session, rel, f"is too large to open ({key} alone takes it past {size_text(max_bytes)})"
+                    )
+        return members, total
     except SessionFormatError:
         raise
     except (zipfile.BadZipFile, EOFError, zipfile.LargeZipFile, zlib.error, ValueError, OSError, RuntimeError) as exc:
@@ -80,6 +111,11 @@ def _members(zf: zipfile.ZipFile, session: str, rel: str, expect: Expect | None)
     names = [i.filename for i in infos]
     if len(names) != len(set(names)) or len(names) > _MAX_MEMBERS:
         raise damaged(session, rel, "has a suspicious structure")
+    for i in infos:
+        if i.flag_bits & 0x1:
+            raise damaged(session, rel, "is encrypted")
+        if i.compress_type not in (zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED):
+            raise damaged(session, rel, "uses a kind of compression the studio never writes")
     members = {n[:-4]: i for n, i in zip(names, infos, strict=True) if n.endswith(".npy")}
     if len(members) != len(names):
         raise damaged(session, rel, "contains something other than arrays")
@@ -100,7 +136,9 @@ def _read_header(zf: zipfile.ZipFile, info: zipfile.ZipInfo, key: str, session: 
             if version in ((2, 0), (3, 0)):
                 return tuple(np.lib.format.read_array_header_2_0(mf))
             raise ValueError("unknown npy version")
-        except ValueError as exc:
+        except (zipfile.BadZipFile, zlib.error, EOFError, OSError, RuntimeError):
+            raise
+        except Exception as exc:  # numpy parses the header as Python literals: SyntaxError, TokenError, ...
             raise damaged(session, rel, f"has a damaged array header ({key})") from exc
 
 
@@ -111,17 +149,19 @@ def _check_member(
     session: str,
     rel: str,
     expect: Expect | None,
-    max_elements: int,
-) -> None:
+) -> int:
+    """Check one member from its header and directory entry; returns the bytes its array declares."""
     shape, _fortran, dtype = _read_header(zf, info, key, session, rel)
+    if not isinstance(dtype, np.dtype) or not isinstance(shape, tuple):
+        raise damaged(session, rel, f"has a damaged array header ({key})")
     if dtype.hasobject:
         raise damaged(session, rel, "holds Python objects (a pickle), which the studio never writes and never opens")
-    n_el = int(np.prod(shape, dtype=np.int64)) if shape else 1
-    if any(s < 0 for s in shape) or n_el > max_elements:
+    if any(not isinstance(s, int) or s < 0 for s in shape):
         raise damaged(session, rel, f"declares an absurd size ({key}: {shape})")
+    n_el = math.prod(shape)
     if expect is not None:
         want_shape, kinds = expect[key]
-        if dtype.kind not in kinds:
+        if dtype.kind not in kinds or (dtype.kind == "f" and dtype.itemsize not in (4, 8)):
             raise damaged(session, rel, f"has the wrong kind of numbers in {key} ({dtype})")
         if len(shape) != len(want_shape) or any(
             w is not None and w != s for w, s in zip(want_shape, shape, strict=True)
@@ -135,17 +175,25 @@ def _check_member(
         raise damaged(session, rel, f"declares an absurd size ({key})")
     if info.file_size < n_el * dtype.itemsize:
         raise damaged(session, rel, f"is damaged (it ends early: {key} is incomplete)")
+    return n_el * dtype.itemsize
 
 
 def load_demo(path: Path, session: str, entry: DemoEntry) -> Recording:
     """The demonstration in ``path`` as listed by ``entry`` in the manifest, fully validated."""
     rel, n = entry.file, entry.samples
+    if n * DEMO_BYTES_PER_SAMPLE > MAX_DEMO_BYTES:
+        raise damaged(
+            session,
+            rel,
+            f"is too large to open ({n:,} samples would take {size_text(n * DEMO_BYTES_PER_SAMPLE)} of memory; "
+            f"a demonstration may take {size_text(MAX_DEMO_BYTES)})",
+        )
     arrays = read_npz(
         path,
         session,
         rel,
         {"t": ((n,), "f"), "q": ((n, 14), "f"), "gripper": ((n, 2), "f")},
-        max_elements=MAX_SAMPLES * 14,
+        max_bytes=n * DEMO_BYTES_PER_SAMPLE,
     )
     for key, a in arrays.items():
         if not np.all(np.isfinite(a)):
@@ -156,6 +204,9 @@ def load_demo(path: Path, session: str, entry: DemoEntry) -> Recording:
     g = arrays["gripper"]
     if np.any(g < -1e-6) or np.any(g > 100 + 1e-6):
         raise damaged(session, rel, "has gripper openings outside 0–100 %")
+    problem = implausible(arrays["t"], arrays["q"])
+    if problem is not None:
+        raise damaged(session, rel, f"is not a demonstration a robot could make (it {problem})")
     try:
         return Recording(
             t=arrays["t"].astype(np.float64, copy=False),
@@ -170,8 +221,24 @@ def load_demo(path: Path, session: str, entry: DemoEntry) -> Recording:
 
 def load_skill(path: Path, session: str, rel: str) -> Skill:
     """The learned skill saved in ``path`` (:meth:`Skill.to_arrays`), fully validated."""
-    arrays = read_npz(path, session, rel, None, max_elements=MAX_SKILL_ELEMENTS)
+    arrays = read_npz(path, session, rel, None, max_bytes=MAX_SKILL_BYTES)
     try:
-        return Skill.from_arrays(arrays)
-    except (StudioError, ValueError, KeyError, TypeError, IndexError) as exc:
+        skill = Skill.from_arrays(arrays)
+    except Exception as exc:  # any malformed content: the file is refused, never the studio
         raise damaged(session, rel, f"is not a valid learned skill ({exc})") from exc
+    # Preview and the CSV export sample its trajectories over their whole time: a stretched time axis (×10⁶)
+    # would make them allocate tens of gigabytes.
+    for what, part in (("trajectory", "trajectory"), ("joint trajectory", "joint_trajectory")):
+        t = getattr(getattr(skill, part, None), "t", None)
+        if t is None:
+            continue
+        t = np.asarray(t, dtype=np.float64).ravel()
+        if len(t) > MAX_SAMPLES or not np.all(np.isfinite(t)) or (len(t) and t[-1] - t[0] > MAX_DURATION_S):
+            span = f"{(t[-1] - t[0]) / 3600:,.0f} hours" if len(t) and np.all(np.isfinite(t)) else "no valid time"
+            raise damaged(
+                session,
+                rel,
+                f"is not a valid learned skill (its {what} lasts {span}; "
+                f"the limit is {MAX_DURATION_S / 3600:.0f} hours)",
+            )
+    return skill

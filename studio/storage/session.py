@@ -8,9 +8,10 @@ removed, so a crash at any moment leaves a loadable session. Loading validates e
 from __future__ import annotations
 
 import contextlib
+import copy
 import functools
 import threading
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Concatenate, ParamSpec, TypeVar
@@ -18,13 +19,14 @@ from typing import Concatenate, ParamSpec, TypeVar
 import numpy as np
 
 from studio.core.arms import normalize_arms
-from studio.core.errors import InvalidInput, SessionFormatError
+from studio.core.errors import InvalidInput, StorageError
 from studio.core.types import ARMS, KeypointParams, Recording, Skill
 from studio.storage.atomic import atomic_write_bytes, atomic_write_npz
 from studio.storage.format import (
     DEMO_DIR,
     MANIFEST,
     MAX_DEMOS,
+    MAX_FILE_ID,
     MAX_NOTES_CHARS,
     MAX_SAMPLES,
     PRECISIONS,
@@ -33,25 +35,32 @@ from studio.storage.format import (
     check_demo_name,
     check_n_clusters,
     now,
-    skipped_note,
 )
+from studio.storage.fs import changing, check_changeable
 from studio.storage.idle import idle_bounds
+from studio.storage.limits import check_keepable, reworded
 from studio.storage.manifest import DemoEntry, Manifest, SkillEntry
-from studio.storage.npz import load_demo, load_skill
 
 P = ParamSpec("P")
 R = TypeVar("R")
 
 
 def _locked(fn: Callable[Concatenate[Session, P], R]) -> Callable[Concatenate[Session, P], R]:
-    """Serialise a Session mutator (GUI callbacks and the recorder may call from different threads)."""
+    """A Session mutator runs as one change (:meth:`Session.change`): serialised, and all or nothing in memory."""
 
     @functools.wraps(fn)
     def wrapper(self: Session, /, *args: P.args, **kwargs: P.kwargs) -> R:
-        with self._lock:
+        with self.change():
             return fn(self, *args, **kwargs)
 
     return wrapper
+
+
+#: What a failed change puts back (the in-memory state; files on disk are written atomically, manifest last).
+_STATE = (
+    *("arms", "notes", "params", "n_clusters", "recordings", "hidden_demos", "skills", "skills_stale"),
+    *("skill_info", "precision", "_files", "_next_id"),
+)
 
 
 @dataclass
@@ -86,6 +95,7 @@ class Session:
     _files: list[str] = field(default_factory=list, repr=False)
     _next_id: int = field(default=1, repr=False)
     _lock: threading.RLock = field(default_factory=threading.RLock, repr=False, compare=False)
+    _changing: int = field(default=0, repr=False, compare=False)
 
     # -- reading ------------------------------------------------------------------------------------------
     @property
@@ -105,6 +115,10 @@ class Session:
     def __len__(self) -> int:
         return len(self.recordings)
 
+    def change(self) -> contextlib.AbstractContextManager[None]:
+        """One change of the session, all or nothing in memory (see :func:`_change`)."""
+        return _change(self)
+
     # -- demos --------------------------------------------------------------------------------------------
     def _check_index(self, i: int) -> int:
         if not isinstance(i, (int, np.integer)) or not 0 <= int(i) < len(self.recordings):
@@ -112,8 +126,7 @@ class Session:
         return int(i)
 
     def _write_demo(self, rec: Recording) -> str:
-        rel = f"{DEMO_DIR}/d{self._next_id:04d}.npz"
-        self._next_id += 1
+        rel = new_demo_file(self)
         dt = PRECISIONS[self.precision]
         atomic_write_npz(
             self.path / rel,
@@ -138,9 +151,13 @@ class Session:
             )
         if len(self.recordings) >= MAX_DEMOS:
             raise InvalidInput(f"A session holds at most {MAX_DEMOS} demonstrations.")
+        check_keepable(rec, self.recordings)
         nm = unique_name(check_demo_name(name if name is not None else rec.name), set(self.demo_names))
         rec = Recording(t=rec.t, q=rec.q, gripper=rec.gripper, arms=rec.arms, name=nm)
-        rel = self._write_demo(rec)
+        try:
+            rel = self._write_demo(rec)
+        except StorageError as exc:
+            raise reworded(exc, self.path, f'The demonstration "{nm}"', "saved") from exc.__cause__
         self.recordings.append(as_stored(self.precision, rec))
         self._files.append(rel)
         self._mark_stale()
@@ -175,7 +192,7 @@ class Session:
         self.hidden_demos = self.hidden_demos - {self.recordings.pop(i).name}
         self._mark_stale()
         self._write_manifest()
-        with contextlib.suppress(FileNotFoundError):
+        with contextlib.suppress(OSError):  # saved already; a file left behind is cleaned at the next open
             (self.path / rel).unlink()
 
     @_locked
@@ -195,7 +212,7 @@ class Session:
         self.recordings[i] = as_stored(self.precision, new)
         self._mark_stale()
         self._write_manifest()
-        with contextlib.suppress(FileNotFoundError):
+        with contextlib.suppress(OSError):
             (self.path / old).unlink()
 
     @_locked
@@ -269,7 +286,7 @@ class Session:
         self.skills_stale = False
         self._write_manifest()
         for arm in old:
-            with contextlib.suppress(FileNotFoundError):
+            with contextlib.suppress(OSError):
                 (self.path / SKILL_DIR / f"{arm}.npz").unlink()
 
     # -- manifest -----------------------------------------------------------------------------------------
@@ -305,6 +322,45 @@ class Session:
 
 
 
+@contextlib.contextmanager
+def _change(s: Session) -> Iterator[None]:
+    """One change of session ``s``: one thread at a time, the folder held against other processes (so that
+    opening it elsewhere never cleans away a file being written), refused if a folder of the session became a
+    link, and undone in memory if it fails (the files stay as the last complete save left them)."""
+    with s._lock:
+        if s._changing:
+            yield
+            return
+        error = check_changeable(s.path, s.name)
+        if error is not None:
+            raise error
+        saved = {k: copy.copy(getattr(s, k)) for k in _STATE}
+        s._changing = 1
+        try:
+            with changing(s.path):
+                yield
+        except BaseException:
+            for k, v in saved.items():
+                setattr(s, k, v)
+            raise
+        finally:
+            s._changing = 0
+
+
+def new_demo_file(s: Session) -> str:
+    """The next demo file of session ``s``: numbers are not reused; once past the largest possible, the lowest
+    one neither listed nor on disk."""
+    if s._next_id <= MAX_FILE_ID:
+        s._next_id += 1
+        return f"{DEMO_DIR}/d{s._next_id - 1:04d}.npz"
+    used = {int(f[len(DEMO_DIR) + 2 : -4]) for f in s._files}
+    for i in range(1, MAX_FILE_ID + 1):
+        rel = f"{DEMO_DIR}/d{i:04d}.npz"
+        if i not in used and not (s.path / rel).exists():
+            return rel
+    raise InvalidInput("This session has used every demonstration file number; copy it to a new session.")
+
+
 def unique_name(name: str, taken: set[str]) -> str:
     """``name``, or ``name (2)``, ``name (3)``… whichever is not ``taken``, within the 100-character limit."""
     if name not in taken:
@@ -331,56 +387,3 @@ def as_stored(precision: str, rec: Recording) -> Recording:
         arms=rec.arms,
         name=rec.name,
     )
-
-
-def load_session(path: Path, *, skip_damaged: bool = False) -> Session:
-    """Load and validate the session in folder ``path`` (never writes).
-
-    Args:
-        skip_damaged: load what is valid and list the damaged demo/skill files in ``problems`` instead of
-            raising (the manifest itself must be valid).
-
-    Raises:
-        SessionFormatError: a file is missing, damaged, of another version, or hostile.
-    """
-    path = Path(path)
-    name = path.name
-    m = Manifest.read(path / MANIFEST, name)
-    s = Session(
-        name=name,
-        path=path,
-        arms=m.arms,
-        created=m.created,
-        notes=m.notes,
-        params=m.params,
-        n_clusters=m.n_clusters,
-        precision=m.precision,
-        skills_stale=m.skills_stale,
-    )
-    s._next_id = m.next_id
-
-    def skip_or_raise(exc: SessionFormatError) -> None:
-        if not skip_damaged:
-            raise exc
-        s.problems.append(skipped_note(exc))
-
-    for entry in m.demos:
-        try:
-            rec = load_demo(path / entry.file, name, entry)
-        except SessionFormatError as exc:
-            skip_or_raise(exc)
-            continue
-        s.recordings.append(rec)
-        s._files.append(entry.file)
-        if entry.hidden:
-            s.hidden_demos.add(rec.name)
-    for arm, info in m.skills.items():
-        try:
-            s.skills[arm] = load_skill(path / info.file, name, info.file)
-        except SessionFormatError as exc:
-            skip_or_raise(exc)
-            continue
-        s.skill_info[arm] = info
-    if len(s.recordings) != len(m.demos):
-        s.skills_stale = bool(s.skills) or s.skills_stale
-    return s

@@ -15,14 +15,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from studio.core.arms import normalize_arms
-from studio.core.errors import InvalidInput, SessionFormatError
+from studio.core.errors import InvalidInput, SessionFormatError, StorageError
 from studio.core.types import KeypointParams
 from studio.recorder import pending_recordings, recover_recordings
 from studio.storage import archive as _archive
 from studio.storage.atomic import atomic_write_npz
 from studio.storage.format import (
     DEFAULT_ROOT,
-    DEMO_DIR,
     MANIFEST,
     NAME_RE,
     PRECISIONS,
@@ -30,8 +29,11 @@ from studio.storage.format import (
     check_session_name,
     now,
 )
+from studio.storage.fs import clean_leftovers
+from studio.storage.limits import check_disk, reworded, write_failed
+from studio.storage.loading import load_session
 from studio.storage.manifest import Manifest
-from studio.storage.session import Session, load_session
+from studio.storage.session import Session, new_demo_file
 
 
 @dataclass(frozen=True)
@@ -65,7 +67,7 @@ class SessionStore:
         return [
             p.name
             for p in sorted(self.root.iterdir())
-            if p.is_dir() and not p.is_symlink() and NAME_RE.match(p.name) and (p / MANIFEST).is_file()
+            if p.is_dir() and not p.is_symlink() and NAME_RE.fullmatch(p.name) and (p / MANIFEST).is_file()
         ]
 
     def summaries(self) -> list[SessionSummary]:
@@ -99,9 +101,18 @@ class SessionStore:
         if precision not in PRECISIONS:
             raise InvalidInput(f"Precision must be one of {', '.join(PRECISIONS)}.")
         a = normalize_arms(tuple(arms))
-        path.mkdir(parents=True)
+        try:
+            path.mkdir(parents=True)
+        except OSError as exc:
+            raise write_failed(path, exc, doing="created") from exc
         s = Session(name=name, path=path, arms=a, notes=notes, params=params or KeypointParams(), precision=precision)
-        s._write_manifest()
+        try:
+            s._write_manifest()
+        except BaseException as exc:
+            shutil.rmtree(path, ignore_errors=True)  # no half-made session folder
+            if isinstance(exc, StorageError):
+                raise reworded(exc, path, f'The session "{name}"', "created") from exc.__cause__
+            raise
         return s
 
     def open(self, name: str, *, recover: bool = True, skip_damaged: bool = False) -> Session:
@@ -110,23 +121,27 @@ class SessionStore:
         The recovery message (if any) is in ``session.recovery_message``.
         """
         path = self.path_of(name)
-        if not path.is_dir():
+        if not path.is_dir() and not path.is_symlink():
             raise SessionFormatError(f'There is no session called "{name}" in {self.root}.')
         s = load_session(path, skip_damaged=skip_damaged)
+        # What a kill -9 during a save left: temporary files, files the manifest never came to list.
+        clean_leftovers(path, Manifest.read(path / MANIFEST, name).files())
         if recover and (path / RECORDING_DIR).is_dir():
             _, s.recovery_message = recover_recordings(path / RECORDING_DIR, add=s.add_recording)
         return s
 
     def save(self, session: Session) -> None:
         """Write the whole session (manifest and any missing demo files) to its folder atomically."""
-        with session._lock:
+        try:
             session.path.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise write_failed(session.path, exc) from exc
+        with session.change():
             dt = PRECISIONS[session.precision]
             for i, r in enumerate(session.recordings):
                 if i < len(session._files) and (session.path / session._files[i]).exists():
                     continue
-                rel = f"{DEMO_DIR}/d{session._next_id:04d}.npz"
-                session._next_id += 1
+                rel = new_demo_file(session)
                 atomic_write_npz(session.path / rel, {"t": r.t, "q": r.q.astype(dt), "gripper": r.gripper.astype(dt)})
                 if i < len(session._files):
                     session._files[i] = rel
@@ -153,20 +168,28 @@ class SessionStore:
             i += 1
 
     def duplicate(self, name: str, new_name: str) -> Session:
-        """Copy a session (not its in-progress recordings) under a new name; returns the copy."""
+        """Copy a session under a new name; returns the copy. Only its own files are copied (manifest, demos,
+        skills), as regular files: not its in-progress recordings, nor anything else in its folder or behind a link."""
         src = self.path_of(name)
         dst = self.path_of(new_name)
         if dst.exists():
             raise InvalidInput(f'A session called "{new_name}" already exists; choose another name.')
-        load_session(src)  # only valid sessions are copied
+        original = load_session(src)  # only valid sessions are copied
+        # Only the session's own files, as regular files: never a link, nor what a link points to.
+        files = [*original.demo_files, *(i.file for i in original.skill_info.values())]
+        check_disk(self.root, sum((src / f).stat().st_size for f in files), f'The copy of "{name}"')
         tmp = self.root / f".tmp-copy-{uuid.uuid4().hex[:8]}"
         try:
-            shutil.copytree(src, tmp, ignore=shutil.ignore_patterns(RECORDING_DIR, ".tmp-*"))
-            s = load_session(tmp)
-            s.name = new_name
-            s.created = now()
-            s._write_manifest()
+            for rel in files:
+                (tmp / rel).parent.mkdir(parents=True, exist_ok=True)
+                shutil.copyfile(src / rel, tmp / rel, follow_symlinks=False)
+            original.path = tmp
+            original.name = new_name
+            original.created = now()
+            original._write_manifest()
             os.rename(tmp, dst)
+        except OSError as exc:
+            raise write_failed(dst, exc, doing="copied") from exc
         finally:
             if tmp.exists():
                 shutil.rmtree(tmp, ignore_errors=True)

@@ -112,7 +112,7 @@ def test_an_oversize_upload_is_refused_in_plain_words(browser, shots, tmp_path, 
     from studio import security
     from studio.app import build_app
 
-    monkeypatch.setattr(security, "MAX_UPLOAD_BYTES", 1024 * 1024)
+    monkeypatch.setattr(security.uploads, "MAX_UPLOAD_BYTES", 1024 * 1024)
     sessions = tmp_path / "sessions"
     sessions.mkdir()
     app = build_app(port=free_port(), session="fresh", sessions_dir=sessions)

@@ -1,0 +1,626 @@
+"""Hostile input, at full size and many times over (issue 13 §2–§4): what each attack costs the studio now.
+
+The fuzzing suite (``tests/hostile/``) keeps every attack as a test at a size a test can afford; this runs the
+slow ones at the issue's sizes and counts. Each part runs in a fresh process, so that memory one part freed
+does not hide growth in the next.
+
+Parts (``--part NAME`` runs one):
+
+* ``archives``  every hostile archive of the suite plus the issue's full-size ones (1 MB → 1 GiB, 8 × 1 GiB,
+  a demo at the 21.6 M-sample limit), imported with ``SessionStore.import_zip``: refused or not, peak memory
+  growth (VmHWM after a reset through /proc/self/clear_refs) and bytes written (/proc/self/io ``wchar``), per
+  uploaded megabyte. Baseline, same run: an honest archive (the example session) of a similar size.
+* ``websocket`` the 21.6 M-sample archive uploaded to a running studio over the websocket, as the browser does.
+* ``skill``     a learned skill whose time axis is stretched ×10⁶: ``studio export-csv`` (peak memory of its
+  process) and the sampling Preview uses.
+* ``kill-save``, ``kill-record``  kill -9 during saves (add, trim, rename, hide, delete) and while recording,
+  ``--runs`` times each: does the session open, what did opening clean, how much of the take was lost.
+* ``race``      two websocket clients, one opening another session while the other presses Record 0–20 ms
+  later, ``--runs`` times: takes saved into a session other than the one they started in.
+* ``disk-full`` add, create, import, recover and the CLI on a 3 MB tmpfs (root only).
+* ``fuzz``      random array headers and mutated CSV files, ``--runs`` × 50 each: failures that are not the
+  studio's own plain-words errors.
+
+Run:  .venv/bin/python bench/bench_hostile.py   (--runs 40 by default; about 15 minutes on 2 busy cores)
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import io
+import json
+import os
+import random
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+import zipfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+MiB = 1024 * 1024
+PARTS = ("archives", "websocket", "skill", "kill-save", "kill-record", "race", "disk-full", "fuzz")
+
+
+# -- measuring -----------------------------------------------------------------------------------------------
+def _status(field: str) -> int:
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith(field + ":"):
+                return int(line.split()[1]) * 1024
+    raise RuntimeError(field)
+
+
+def _written() -> int:
+    with open("/proc/self/io") as f:
+        for line in f:
+            if line.startswith("wchar:"):
+                return int(line.split()[1])
+    raise RuntimeError("wchar")
+
+
+def measured(fn: Callable[[], Any]) -> dict[str, Any]:
+    """Run ``fn``: its outcome, seconds, peak memory growth and bytes written."""
+    with open("/proc/self/clear_refs", "w") as f:
+        f.write("5")
+    rss0, w0, t0 = _status("VmRSS"), _written(), time.perf_counter()
+    try:
+        fn()
+        outcome = "accepted"
+    except Exception as exc:  # the studio's own errors are the expected outcome
+        from studio.core.errors import StudioError
+
+        outcome = ("refused: " if isinstance(exc, StudioError) else f"CRASH {type(exc).__name__}: ") + str(exc)
+    return {
+        "outcome": outcome,
+        "seconds": time.perf_counter() - t0,
+        "peak_mb": (_status("VmHWM") - rss0) / MiB,
+        "written_mb": (_written() - w0) / MiB,
+    }
+
+
+# -- parts ----------------------------------------------------------------------------------------------------
+def part_archives(args: argparse.Namespace) -> list[dict[str, Any]]:
+    from studio.storage import SessionStore
+    from tests.hostile import test_archives as ta
+    from tests.hostile.builders import big_demo_npz, fast_zip, manifest, zip_bytes
+
+    def bombs(n: int, each: int) -> bytes:
+        buf = io.BytesIO()
+        demos = [(f"demos/d{i + 1:04d}.npz", 1500) for i in range(n)]
+        parts: dict[str, Any] = {"b/session.json": [("data", manifest("b", demos))]}
+        parts.update({f"b/{f}": [("zeros", each)] for f, _ in demos})
+        fast_zip(buf, parts)
+        return buf.getvalue()
+
+    def sample_limit() -> bytes:
+        n = 21_600_000
+        npz = io.BytesIO()
+        big_demo_npz(npz, n)
+        return zip_bytes(
+            {"l/session.json": manifest("l", [("demos/d0001.npz", n)]), "l/demos/d0001.npz": npz.getvalue()},
+            compression=zipfile.ZIP_STORED,
+        )
+
+    def still(n: int) -> bytes:
+        npz = io.BytesIO()
+        big_demo_npz(npz, n)
+        return zip_bytes(
+            {"s/session.json": manifest("s", [("demos/d0001.npz", n)]), "s/demos/d0001.npz": npz.getvalue()},
+            compression=zipfile.ZIP_STORED,
+        )
+
+    tmp = Path(tempfile.mkdtemp(prefix="bench-hostile-"))
+    try:
+        store = SessionStore(tmp / "sessions")
+        shutil.copytree(ROOT / "sessions" / "stack-cup", store.root / "stack-cup")
+        honest = store.export_zip("stack-cup")
+        shutil.rmtree(store.root)
+        cases: list[tuple[str, Callable[[], bytes]]] = [
+            ("honest archive: the stack-cup example (baseline)", lambda: honest),
+            ("bomb: 1 MB unpacking to 1 GiB (issue)", lambda: bombs(1, 1024 * MiB)),
+            ("bomb: 8 entries of 1 GiB (issue: 8.3 MB → 8.55 GB)", lambda: bombs(8, 1024 * MiB + 80 * MiB)),
+            ("demo at the 21.6 M-sample limit (issue: 2.9 MB → 3.2 GB)", sample_limit),
+            ("still robot, 2.5 M samples (340 MB of arrays)", lambda: still(2_500_000)),
+            ("still robot, 480 k samples (65 MB, under the 64 MiB floor: accepted)", lambda: still(480_000)),
+            ("still robot, 500 k samples (68 MB, over the floor and 32 x the upload)", lambda: still(500_000)),
+        ]
+        for name, data in sorted(ta.CORPUS.items()):
+            cases.append((f"suite: {name}", functools.partial(bytes, data)))
+        rows = []
+        for i, (name, build) in enumerate(cases):
+            f = tmp / f"case{i}.zip"
+            f.write_bytes(build())
+            # Each import in a fresh process: memory freed by building the attack would hide its cost.
+            proc = subprocess.run(
+                [sys.executable, __file__, "--part", "import-one", "--file", str(f), "--json"],
+                capture_output=True,
+                text=True,
+                timeout=1200,
+                cwd=ROOT,
+            )
+            row = json.loads(proc.stdout.strip().splitlines()[-1]) if proc.returncode == 0 else {}
+            row = row or {"outcome": f"CRASH (exit {proc.returncode}): {proc.stderr[-300:]}", "peak_mb": 0.0}
+            row.update(case=name, upload_mb=f.stat().st_size / MiB)
+            row.setdefault("seconds", 0.0)
+            row.setdefault("written_mb", 0.0)
+            rows.append(row)
+            f.unlink()
+        return rows
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def part_import_one(args: argparse.Namespace) -> dict[str, Any]:
+    """Import the archive ``--file`` into an empty sessions folder (one case of ``archives``)."""
+    from studio.storage import SessionStore
+
+    data = Path(args.file).read_bytes()
+    tmp = Path(tempfile.mkdtemp(prefix="bench-hostile-one-"))
+    try:
+        return measured(lambda: SessionStore(tmp).import_zip(data, archive="upload.zip"))
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def part_websocket(args: argparse.Namespace) -> list[dict[str, Any]]:
+    from studio.app import build_app
+    from tests.conftest import free_port
+    from tests.hostile.builders import big_demo_npz, manifest, zip_bytes
+    from tests.viser_client import ViserClient
+
+    n = 21_600_000
+    npz = io.BytesIO()
+    big_demo_npz(npz, n)
+    data = zip_bytes(
+        {"l/session.json": manifest("l", [("demos/d0001.npz", n)]), "l/demos/d0001.npz": npz.getvalue()},
+        compression=zipfile.ZIP_STORED,
+    )
+    del npz
+    tmp = Path(tempfile.mkdtemp(prefix="bench-hostile-ws-"))
+    shutil.copytree(ROOT / "sessions" / "stack-cup", tmp / "stack-cup")
+    app = build_app(port=free_port(), session="stack-cup", sessions_dir=tmp)
+    c = ViserClient(f"ws://127.0.0.1:{app.port}/?key={app.access.key}")
+    try:
+        uuid = c.wait_gui("Upload session (.zip)")["uuid"]
+        time.sleep(2.0)
+        chunk = 512 * 1024
+        parts = -(-len(data) // chunk)
+
+        def send() -> None:
+            c.send(
+                {
+                    "type": "FileTransferStartUpload",
+                    "source_component_uuid": uuid,
+                    "transfer_uuid": "bench",
+                    "filename": "limit.zip",
+                    "mime_type": "application/zip",
+                    "part_count": parts,
+                    "size_bytes": len(data),
+                }
+            )
+            for i in range(parts):
+                c.send(
+                    {
+                        "type": "FileTransferPart",
+                        "source_component_uuid": uuid,
+                        "transfer_uuid": "bench",
+                        "part_index": i,
+                        "content": data[i * chunk : (i + 1) * chunk],
+                    }
+                )
+            deadline = time.monotonic() + 120
+            while time.monotonic() < deadline:
+                if any("limit.zip" in str(m) for m in c.notifications() if "did not work" in str(m)):
+                    return
+                time.sleep(0.1)
+            raise RuntimeError("no answer to the upload")
+
+        rss0 = _status("VmRSS")
+        r = measured(send)
+        notes = [str(m.get("props", m).get("body", "")) for m in c.notifications() if "limit.zip" in str(m)]
+        r.update(
+            case="21.6 M-sample archive over the websocket",
+            upload_mb=len(data) / MiB,
+            rss_before_mb=rss0 / MiB,
+            rss_after_mb=_status("VmRSS") / MiB,
+            said=notes[-1] if notes else "",
+            sessions=app.controller.sessions.names(),
+        )
+        return [r]
+    finally:
+        c.close()
+        app.stop()
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def part_skill(args: argparse.Namespace) -> list[dict[str, Any]]:
+    import numpy as np
+
+    from studio.core import pipeline, sampling
+    from studio.storage import SessionStore
+
+    tmp = Path(tempfile.mkdtemp(prefix="bench-hostile-skill-"))
+    try:
+        shutil.copytree(ROOT / "sessions" / "stack-cup", tmp / "stack-cup")
+        store = SessionStore(tmp)
+        s = store.open("stack-cup")
+        skills = pipeline.learn_arms(s.recordings, params=s.params, arms=("left",), seed=0)
+        s.set_skills(skills)
+        sk = skills["left"]
+        jt = sk.joint_trajectory
+        assert jt is not None
+        p = s.path / "skills" / "left.npz"
+
+        def export(what: str) -> dict[str, Any]:
+            """``studio export-csv`` in its own process; its own peak memory (VmHWM, kB)."""
+            argv = ["export-csv", "stack-cup", "--out", str(tmp / "x.csv"), "--sessions-dir", str(tmp)]
+            # VmHWM of the new process (ru_maxrss would carry this process's peak across fork and exec)
+            code = (
+                "import sys\nfrom studio.cli import main\n"
+                f"rc = main({argv!r})\n"
+                "hwm = [ln.split()[1] for ln in open('/proc/self/status') if ln.startswith('VmHWM:')][0]\n"
+                "print('MAXRSS', hwm, file=sys.stderr)\n"
+                "sys.exit(rc)\n"
+            )
+            t0 = time.perf_counter()
+            proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600, cwd=ROOT)
+            peak = next((int(ln.split()[1]) / 1024 for ln in proc.stderr.splitlines() if ln.startswith("MAXRSS")), -1)
+            said = [ln for ln in proc.stderr.splitlines() if not ln.startswith("MAXRSS")]
+            return {
+                "case": what,
+                "seconds": time.perf_counter() - t0,
+                "exit": proc.returncode,
+                "process_peak_mb": peak,
+                "said": (said[-1] if said else proc.stdout.strip())[-300:],
+            }
+
+        baseline = export("studio export-csv of the learned skill (baseline, same run)")
+        with np.load(p) as z:
+            arrays = {k: z[k] for k in z.files}
+        for k in ("trajectory_t", "joint_t", "centroid_times", "path_times"):
+            arrays[k] = arrays[k] * 1e6
+        buf = io.BytesIO()
+        np.savez(buf, **arrays)
+        p.write_bytes(buf.getvalue())
+        stretched_run = export("studio export-csv of the same skill stretched ×10⁶")
+        stretched = type(jt)(**{**jt.__dict__, "t": np.asarray(jt.t) * 1e6})
+        fake = type(sk)(**{**sk.__dict__, "joint_trajectory": stretched})
+        preview = measured(lambda: sampling.duration({"left": fake}))
+        preview["case"] = "the sampling Preview uses, same skill"
+        return [baseline, stretched_run, preview]
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _kill_loop(code: str, ready: str, runs: int, seconds: Callable[[random.Random], float]) -> list[dict[str, Any]]:
+    from studio.storage import SessionStore
+    from tests.hostile.builders import make_rec
+
+    rng = random.Random(13)
+    tmp = Path(tempfile.mkdtemp(prefix="bench-hostile-kill-"))
+    store = SessionStore(tmp / "sessions")
+    s = store.create("victim")
+    s.add_recording(make_rec(seed=1))
+    out = []
+    try:
+        for _ in range(runs):
+            proc = subprocess.Popen(
+                [sys.executable, "-c", code.format(root=str(ROOT), sessions=str(store.root))],
+                stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE,
+                text=True,
+            )
+            assert proc.stdout is not None
+            line = proc.stdout.readline()
+            assert ready in line, proc.stderr.read() if proc.stderr else line
+            t0 = time.monotonic()
+            time.sleep(seconds(rng))
+            os.kill(proc.pid, 9)
+            alive = time.monotonic() - t0
+            proc.communicate(timeout=10)
+            path = store.root / "victim"
+            tmp_files = len(list(path.rglob(".tmp-*")))
+            row: dict[str, Any] = {"alive": alive, "tmp_before": tmp_files}
+            try:
+                opened = store.open("victim")
+                row["opened"] = True
+                row["demos"] = len(opened.recordings)
+                row["recovered"] = opened.recordings[-1].duration if "recovered" in opened.recovery_message else None
+                listed = set(opened.demo_files)
+                row["tmp_after"] = len(list(path.rglob(".tmp-*")))
+                row["orphans_after"] = len(
+                    [p for p in (path / "demos").glob("*.npz") if f"demos/{p.name}" not in listed]
+                )
+            except Exception as exc:
+                row["opened"] = False
+                row["error"] = f"{type(exc).__name__}: {exc}"
+            out.append(row)
+        return out
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def part_kill_save(args: argparse.Namespace) -> list[dict[str, Any]]:
+    from tests.hostile.test_kill import SAVER
+
+    return _kill_loop(SAVER, "ready", args.runs, lambda r: r.uniform(0.1, 1.5))
+
+
+def part_kill_record(args: argparse.Namespace) -> list[dict[str, Any]]:
+    from tests.hostile.test_kill import RECORDER
+
+    return _kill_loop(RECORDER, "recording", args.runs, lambda r: r.uniform(0.5, 2.5))
+
+
+def part_race(args: argparse.Namespace) -> list[dict[str, Any]]:
+    from studio.app import build_app
+    from studio.controller import Topic
+    from studio.storage import SessionStore
+    from tests.conftest import free_port, wait_for
+    from tests.viser_client import ViserClient
+
+    tmp = Path(tempfile.mkdtemp(prefix="bench-hostile-race-"))
+    for name in ("stack-cup", "pick-place"):
+        shutil.copytree(ROOT / "sessions" / name, tmp / name)
+    app = build_app(port=free_port(), session="stack-cup", sessions_dir=tmp)
+    ctl = app.controller
+    started: list[str] = []
+    ctl.events.on(Topic.RECORDING, lambda: started.append(ctl.session.name) if ctl.teaching.recording else None)
+    url = f"ws://127.0.0.1:{app.port}/?key={app.access.key}"
+    a, b = ViserClient(url), ViserClient(url)
+    rng = random.Random(5)
+    rows = []
+
+    def counts() -> dict[str, int]:
+        st = SessionStore(tmp)
+        return {n: len(st.open(n, recover=False).recordings) for n in ("stack-cup", "pick-place")}
+
+    try:
+        for c in (a, b):
+            c.wait_gui("Record")
+        for _ in range(args.runs):
+            before = counts()
+            other = "pick-place" if ctl.session.name == "stack-cup" else "stack-cup"
+            started.clear()
+            b.set_value("Open session", other)
+            time.sleep(0.3)
+            delay = rng.uniform(0.0, 0.02)
+            b.set_value("Session action", "Open")
+            time.sleep(delay)
+            a.set_value("Record", True)
+            ok = wait_for(lambda: bool(started), 15)
+            time.sleep(0.3)
+            a.set_value("Stop", True)
+            wait_for(lambda: not ctl.teaching.recording, 15)
+            time.sleep(0.4)
+            after = counts()
+            where = started[0] if ok else "?"
+            landed = [n for n in after if after[n] != before[n]]
+            rows.append(
+                {"delay_ms": delay * 1000, "started_in": where, "landed_in": landed, "open_now": ctl.session.name}
+            )
+        return rows
+    finally:
+        a.close()
+        b.close()
+        app.stop()
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def part_disk_full(args: argparse.Namespace) -> list[dict[str, Any]]:
+    if os.geteuid() != 0:
+        return [{"case": "disk full", "outcome": "skipped: mounting a tmpfs needs root"}]
+    from studio.storage import SessionStore
+    from tests.hostile.builders import make_rec
+    from tests.hostile.test_disk_full import fill
+
+    mnt = Path(tempfile.mkdtemp(prefix="bench-hostile-disk-"))
+    subprocess.run(["mount", "-t", "tmpfs", "-o", "size=3m", "tmpfs", str(mnt)], check=True)
+    rows = []
+    try:
+        store = SessionStore(mnt / "sessions")
+        s = store.create("s")
+
+        def add_until_full() -> None:
+            for i in range(500):
+                s.add_recording(make_rec(n=5000, seed=i, name=f"d{i}"))
+
+        r = measured(add_until_full)
+        r.update(case=f"add demos until the disk is full ({len(s.recordings)} kept)")
+        rows.append(r)
+        again = store.open("s")
+        rows.append(
+            {"case": "reopen after that", "outcome": f"{len(again.recordings)} demos, problems {again.problems}"}
+        )
+        filler = fill(mnt)
+        r = measured(lambda: store.create("new"))
+        r.update(case="create a session on the full disk", left=sorted(p.name for p in store.root.iterdir()))
+        rows.append(r)
+        r = measured(lambda: store.import_zip(SessionStore(ROOT / "sessions").export_zip("stack-cup"), archive="s.zip"))
+        r.update(case="import the example on the full disk")
+        rows.append(r)
+        filler.unlink()
+        return rows
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)], check=False)
+        shutil.rmtree(mnt, ignore_errors=True)
+
+
+def part_fuzz(args: argparse.Namespace) -> list[dict[str, Any]]:
+    from studio.core.errors import StudioError
+    from studio.csv_io import import_csv
+    from studio.storage import SessionStore
+    from tests.hostile.builders import make_rec, npy, raw_npy
+
+    rng = random.Random(3)
+    n = args.runs * 50
+    tmp = Path(tempfile.mkdtemp(prefix="bench-hostile-fuzz-"))
+    try:
+        store = SessionStore(tmp / "s")
+        s = store.create("f")
+        for i in range(2):
+            s.add_recording(make_rec(seed=i))
+        p = s.path / s.demo_files[1]
+        r = s.recordings[1]
+        alphabet = b"(){}[]'\":,0123456789.-e <>fiuOSUVbcx_ descrshapefortran_orderTrueFalse"
+        crashes: dict[str, int] = {}
+        t0 = time.perf_counter()
+        for _ in range(n):
+            k = rng.randrange(3)
+            if k == 0:
+                header = bytes(rng.choice(alphabet) for _ in range(rng.randrange(0, 200)))
+            elif k == 1:
+                header = rng.randbytes(rng.randrange(0, 200))
+            else:
+                good = bytearray(npy(r.q)[10:128])
+                for _ in range(rng.randrange(1, 6)):
+                    good[rng.randrange(len(good))] = rng.choice(alphabet)
+                header = bytes(good)
+            with zipfile.ZipFile(p, "w") as zf:
+                zf.writestr("t.npy", npy(r.t))
+                zf.writestr("q.npy", raw_npy(header))
+                zf.writestr("gripper.npy", npy(r.gripper))
+            try:
+                store.open("f", recover=False)
+            except StudioError:
+                pass
+            except Exception as exc:
+                crashes[type(exc).__name__] = crashes.get(type(exc).__name__, 0) + 1
+        headers = {"case": f"{n} fuzzed array headers", "crashes": crashes, "seconds": time.perf_counter() - t0}
+        from tests.hostile.test_csv_fuzz import NUMBERS, _valid_text  # noqa: F401  (the same seed text)
+
+        values = ["1e-300", "1e300", "-1e300", "nan", "inf", "-0", "0x10", "1_0", "١", "1e", "", " ", "9" * 400]
+        lines0 = _valid_text().splitlines()
+        crashes = {}
+        refused = accepted = 0
+        t0 = time.perf_counter()
+        for i in range(n):
+            lines = list(lines0)
+            for _ in range(rng.randrange(1, 6)):
+                row = rng.randrange(len(lines))
+                parts = lines[row].split(",")
+                parts[rng.randrange(len(parts))] = rng.choice([*values, rng.randbytes(4).decode("latin-1")])
+                lines[row] = ",".join(parts)
+            f = tmp / f"c{i % 7}.csv"
+            f.write_text("\n".join(lines) + "\n")
+            try:
+                rec = import_csv(f)
+                s.add_recording(rec)
+                accepted += 1
+            except StudioError:
+                refused += 1
+            except Exception as exc:
+                crashes[type(exc).__name__] = crashes.get(type(exc).__name__, 0) + 1
+        csv = {
+            "case": f"{n} mutated CSV files",
+            "crashes": crashes,
+            "refused": refused,
+            "accepted": accepted,
+            "seconds": time.perf_counter() - t0,
+        }
+        return [headers, csv]
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+# -- running and reporting ----------------------------------------------------------------------------------
+def run_part(name: str, runs: int) -> list[dict[str, Any]]:
+    """One part in a fresh process; its rows."""
+    proc = subprocess.run(
+        [sys.executable, __file__, "--part", name, "--runs", str(runs), "--json"],
+        capture_output=True,
+        text=True,
+        timeout=3600,
+        cwd=ROOT,
+    )
+    if proc.returncode != 0:
+        return [{"case": name, "outcome": f"CRASH (exit {proc.returncode}): {proc.stderr[-800:]}"}]
+    return list(json.loads(proc.stdout.strip().splitlines()[-1]))
+
+
+def report(name: str, rows: list[dict[str, Any]]) -> None:
+    print(f"\n== {name}")
+    if name == "archives":
+        print(
+            f"{'attack':<58}{'upload':>9}{'peak mem':>10}{'written':>10}{'mem/MB':>8}{'disk/MB':>8}{'time':>7}  outcome"
+        )
+        for r in rows:
+            up = max(r["upload_mb"], 1e-6)
+            print(
+                f"{r['case'][:57]:<58}{r['upload_mb']:>7.2f}MB{r['peak_mb']:>8.1f}MB{r['written_mb']:>8.2f}MB"
+                f"{r['peak_mb'] / up:>8.1f}{r['written_mb'] / up:>8.2f}{r['seconds']:>6.2f}s  {r['outcome'][:90]}"
+            )
+        hostile = [r for r in rows if "baseline" not in r["case"] and not r["outcome"].startswith("accepted")]
+        crash = [r for r in rows if r["outcome"].startswith("CRASH")]
+        big = [r for r in hostile if r["upload_mb"] >= 0.5]
+        print(f"attacks refused: {len(hostile)} of {len(rows) - 1}; crashes: {len(crash)}")
+        if big:
+            wm = max(big, key=lambda r: r["peak_mb"] / r["upload_mb"])
+            wd = max(big, key=lambda r: r["written_mb"] / r["upload_mb"])
+            print(
+                f"worst refused upload of ≥ 0.5 MB: memory {wm['peak_mb'] / wm['upload_mb']:.2f} MB per uploaded MB "
+                f"({wm['case']}), disk {wd['written_mb'] / wd['upload_mb']:.3f} MB per uploaded MB ({wd['case']})"
+            )
+        print(
+            f"largest absolute cost of any attack: memory +{max(r['peak_mb'] for r in hostile):.1f} MB, "
+            f"written {max(r['written_mb'] for r in hostile):.2f} MB"
+        )
+        return
+    if name in ("kill-save", "kill-record"):
+        opened = sum(r.get("opened", False) for r in rows)
+        print(f"runs {len(rows)}; session opened {opened}/{len(rows)}")
+        print(
+            f"temporary files found before opening in {sum(r['tmp_before'] > 0 for r in rows)} runs; "
+            f"after opening: .tmp {sum(r.get('tmp_after', 0) for r in rows)}, "
+            f"unlisted demo files {sum(r.get('orphans_after', 0) for r in rows)}"
+        )
+        if name == "kill-record":
+            lost = [r["alive"] - r["recovered"] for r in rows if r.get("recovered") is not None]
+            print(
+                f"takes recovered {len(lost)}/{len(rows)}; lost at most {max(lost, default=float('nan')):.2f} s "
+                f"(median {sorted(lost)[len(lost) // 2] if lost else float('nan'):.2f} s) of each take"
+            )
+        for r in rows:
+            if not r.get("opened", False):
+                print("  did not open:", r.get("error"))
+        return
+    if name == "race":
+        wrong = [r for r in rows if r["landed_in"] != [r["started_in"]]]
+        print(
+            f"tries {len(rows)} (Record 0–20 ms after Open); takes saved into another session than the one "
+            f"they started in: {len(wrong)}"
+        )
+        for r in wrong:
+            print("  ", r)
+        return
+    for r in rows:
+        print("  " + json.dumps(r, ensure_ascii=False)[:400])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--part", choices=(*PARTS, "import-one"))
+    ap.add_argument("--runs", type=int, default=40)
+    ap.add_argument("--json", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--file", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.part and args.json:
+        rows = globals()[f"part_{args.part.replace('-', '_')}"](args)
+        print(json.dumps(rows, default=str))
+        return
+    for name in [args.part] if args.part else PARTS:
+        t0 = time.perf_counter()
+        rows = run_part(name, args.runs)
+        report(name, rows)
+        print(f"({time.perf_counter() - t0:.0f} s)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,245 @@
+"""Who may use the studio's server: :class:`Access` decides on every request (host, origin, key) and hooks that
+decision, and the upload caps, into viser's server (see :mod:`studio.security` for why there)."""
+
+from __future__ import annotations
+
+import hmac
+import http
+import inspect
+import logging
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Literal
+
+from studio.core.errors import StudioError
+from studio.security.addresses import (
+    FOREIGN_SOURCE_PARAMS,
+    KEY_PARAM,
+    KEY_RE,
+    LOOPBACK_HOSTS,
+    WILDCARD_HOSTS,
+    cookie,
+    is_loopback,
+    new_key,
+    query_key,
+    split_host,
+)
+from studio.security.uploads import MAX_MESSAGE_BYTES, UploadLimit
+
+if TYPE_CHECKING:
+    import viser
+    from websockets.asyncio.server import ServerConnection
+    from websockets.datastructures import Headers
+    from websockets.http11 import Request, Response
+
+log = logging.getLogger("studio.security")
+
+_SERVE_LOCK = threading.Lock()
+
+NEEDS_KEY_TEXT = (
+    "Teaching Studio: this address needs its key.\n\n"
+    "Open the full address the studio printed when it started, for example\n"
+    "    http://127.0.0.1:{port}/?key=...\n"
+    "The key changes each time the studio starts; if you restarted it, use the new address.\n"
+    "(The key keeps other web pages and other people from controlling the robot. "
+    "If you did open that address, allow cookies for it.)\n"
+)
+REFUSED_TEXT = (
+    "Teaching Studio: this connection is refused.\n\n"
+    "Only the studio's own page may control it. Open the address the studio printed when it started\n"
+    "(http://127.0.0.1:{port}/?key=...) directly in your browser.\n"
+)
+
+
+@dataclass
+class Verdict:
+    """What :meth:`Access.decide` concluded about one request."""
+
+    action: Literal["pass", "refuse", "redirect"]
+    reason: str = ""
+    location: str = ""  # for "redirect"
+
+
+class Access:
+    """Who may use the studio's server: its host, its key, its upload limits.
+
+    Args:
+        host: the address the server listens on (as given with ``--host``).
+        key: None for a new random key; a string for a chosen key (16-128 letters, digits, ``-`` or ``_``);
+            False for no key, allowed only on this computer (loopback).
+    """
+
+    def __init__(self, host: str, key: str | Literal[False] | None = None) -> None:
+        self.host = host.strip().lower()
+        if key is False:
+            if not is_loopback(self.host):
+                raise StudioError(
+                    f"Listening on {host} without the key would let anyone who can reach this computer control "
+                    "the robot and change your sessions. Remove --no-key (the studio then prints an address "
+                    "with a key to open), or use --host 127.0.0.1."
+                )
+            self.key: str | None = None
+        elif key is None:
+            self.key = new_key()
+        elif isinstance(key, str) and KEY_RE.fullmatch(key):
+            self.key = key
+        else:
+            raise StudioError("The key must be 16 to 128 characters long, made of letters, digits, '-' and '_' only.")
+        #: the viser function the guard wraps (its qualified name) once the server listens; None before.
+        self.hooked: str | None = None
+        self.uploads: UploadLimit | None = None
+        self._last_log: dict[str, float] = {}
+
+    # -- addresses ---------------------------------------------------------------------------------------
+    def cookie_name(self, port: int) -> str:
+        return f"studio-key-{port}"
+
+    def url(self, port: int) -> str:
+        """The address to open in the browser (with the key)."""
+        host = "127.0.0.1" if self.host in WILDCARD_HOSTS else self.host
+        if ":" in host:
+            host = f"[{host}]"
+        base = f"http://{host}:{port}"
+        return f"{base}/?{KEY_PARAM}={self.key}" if self.key else base
+
+    # -- the decision ------------------------------------------------------------------------------------
+    def _key_ok(self, candidate: str | None) -> bool:
+        return bool(
+            self.key is not None
+            and candidate is not None
+            and hmac.compare_digest(candidate.encode("utf-8", "replace"), self.key.encode())
+        )
+
+    def _host_ok(self, name: str, port: int, local_port: int) -> bool:
+        if port != local_port:
+            return False
+        if self.host in WILDCARD_HOSTS:
+            return True
+        return name in LOOPBACK_HOSTS or name == self.host
+
+    def decide(self, path: str, headers: Headers, local_port: int) -> Verdict:
+        """Pass, refuse or redirect (key in the address → cookie) one request, from its target and headers."""
+        hosts = headers.get_all("Host")
+        parsed = split_host(hosts[0]) if len(hosts) == 1 else None
+        if parsed is None or not self._host_ok(*parsed, local_port):
+            return Verdict("refuse", f"unknown host {hosts!r}")
+        origins = headers.get_all("Origin")
+        if len(origins) > 1:
+            return Verdict("refuse", "several Origin headers")
+        if origins:
+            origin = origins[0].strip().lower().rstrip("/")
+            host = hosts[0].strip().lower()
+            if origin not in (f"http://{host}", f"https://{host}"):
+                return Verdict("refuse", f"foreign origin {origins[0]!r}")
+        upgrade = any("websocket" in v.lower() for v in headers.get_all("Upgrade"))
+        if not upgrade:
+            names = {part.partition("=")[0] for part in path.partition("?")[2].split("&")}
+            if names & FOREIGN_SOURCE_PARAMS:
+                return Verdict("refuse", "the address asks the page to use another server")
+        if self.key is None:
+            return Verdict("pass")
+        in_address, without_key = query_key(path)
+        if in_address is not None:
+            if not self._key_ok(in_address):
+                return Verdict("refuse", "wrong key in the address")
+            if upgrade:
+                return Verdict("pass")
+            location = "/" + without_key.lstrip("/")  # never "//host": a redirect stays on this server
+            return Verdict("redirect", location=location)
+        if self._key_ok(cookie(headers, self.cookie_name(local_port))):
+            return Verdict("pass")
+        return Verdict("refuse", "no key")
+
+    def check(
+        self, inner: Callable[[ServerConnection, Request], Any] | None
+    ) -> Callable[[ServerConnection, Request], Any]:
+        """A websockets ``process_request`` hook: :meth:`decide` first, then viser's own (``inner``)."""
+        from websockets.datastructures import Headers
+        from websockets.http11 import Response
+
+        async def process_request(connection: ServerConnection, request: Request) -> Response | None:
+            local_port = int(connection.local_address[1])
+            verdict = self.decide(request.path, request.headers, local_port)
+            if verdict.action == "refuse":
+                self._log_refusal(verdict.reason, request)
+                page = not any("websocket" in v.lower() for v in request.headers.get_all("Upgrade"))
+                needs_key = page and verdict.reason in ("no key", "wrong key in the address")
+                text = (NEEDS_KEY_TEXT if needs_key else REFUSED_TEXT).format(port=local_port)
+                response = connection.respond(http.HTTPStatus.FORBIDDEN, text)
+                _protect(response.headers)
+                return response
+            if verdict.action == "redirect":
+                assert self.key is not None
+                headers = Headers()
+                headers["Location"] = verdict.location
+                headers["Set-Cookie"] = f"{self.cookie_name(local_port)}={self.key}; Path=/; HttpOnly; SameSite=Strict"
+                headers["Cache-Control"] = "no-store"
+                headers["Content-Length"] = "0"
+                _protect(headers)
+                return Response(http.HTTPStatus.SEE_OTHER.value, "See Other", headers, b"")
+            result = inner(connection, request) if inner is not None else None
+            if inspect.isawaitable(result):
+                result = await result
+            if result is not None:
+                _protect(result.headers)
+            return result
+
+        return process_request
+
+    def _log_refusal(self, reason: str, request: Request) -> None:
+        now = time.monotonic()
+        if now - self._last_log.get(reason, -1e9) < 10.0:
+            return
+        self._last_log[reason] = now
+        origin = request.headers.get("Origin")
+        where = f", from a page at {origin}" if origin and "origin" not in reason else ""
+        log.warning("refused a connection to the studio (%s%s)", reason, where)
+
+    # -- hooking into viser ------------------------------------------------------------------------------
+    def start_viser(self, **kwargs: Any) -> viser.ViserServer:
+        """``viser.ViserServer(**kwargs)`` with every request checked and uploads capped (see the module doc)."""
+        import rich
+        import viser
+        import websockets.asyncio.server as wss
+
+        access = self
+        console = rich.get_console()
+
+        with _SERVE_LOCK:
+            real_serve = wss.serve
+
+            def guarded_serve(handler: Any, *args: Any, process_request: Any = None, **kw: Any) -> Any:
+                access.hooked = getattr(process_request, "__qualname__", repr(process_request))
+                kw["max_size"] = MAX_MESSAGE_BYTES
+                return real_serve(handler, *args, process_request=access.check(process_request), **kw)
+
+            setattr(wss, "serve", guarded_serve)  # noqa: B010 (mypy: `serve` is a class)
+            # viser prints a box with its address *without* the key; the studio prints the one to open.
+            quiet, console.quiet = console.quiet, True
+            try:
+                server = viser.ViserServer(**kwargs)
+            finally:
+                setattr(wss, "serve", real_serve)  # noqa: B010
+                console.quiet = quiet
+        try:
+            if self.hooked is None:
+                raise StudioError("its web server no longer starts where the studio checks who connects")
+            self.uploads = UploadLimit(server)
+        except Exception as exc:
+            server.stop()
+            detail = str(exc) if isinstance(exc, StudioError) else f"{type(exc).__name__}: {exc}"
+            raise StudioError(
+                f"The studio could not protect its connection with viser {viser.__version__} ({detail}), so it "
+                "did not start. Install the viser version it was made for: pip install 'viser==1.1.1'."
+            ) from exc
+        return server
+
+
+def _protect(headers: Headers) -> None:
+    """Headers for every answer: no framing by other sites, no address in Referer, no type sniffing."""
+    headers["Content-Security-Policy"] = "frame-ancestors 'self'"
+    headers["X-Frame-Options"] = "SAMEORIGIN"
+    headers["Referrer-Policy"] = "no-referrer"
+    headers["X-Content-Type-Options"] = "nosniff"

@@ -1,0 +1,135 @@
+"""Two people (two tabs, two websocket clients) racing: one opens another session while the other presses
+Record. The session switch and the start of a recording are one decision under one lock: a take always lands
+in the session that was open when it started."""
+
+from __future__ import annotations
+
+import shutil
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from studio.controller import Controller, Topic
+from studio.core.errors import StudioError
+from studio.robot_backend.simulated import SimulatedBaxter
+from studio.storage import SessionStore
+from tests.conftest import ROOT, RecordingNotifier, free_port, wait_for
+
+
+@pytest.fixture
+def two(tmp_path: Path) -> Path:
+    d = tmp_path / "sessions"
+    d.mkdir()
+    for name in ("stack-cup", "pick-place"):
+        shutil.copytree(ROOT / "sessions" / name, d / name)
+    return d
+
+
+@pytest.fixture
+def ctl(two: Path) -> Iterator[Controller]:
+    c = Controller(
+        store=SessionStore(two), session="stack-cup", backend=SimulatedBaxter(), notifier=RecordingNotifier()
+    )
+    c.start()
+    yield c
+    c.close()
+    c.shutdown()
+
+
+def demo_counts(root: Path) -> dict[str, int]:
+    store = SessionStore(root)
+    return {n: len(store.open(n, recover=False).recordings) for n in ("stack-cup", "pick-place")}
+
+
+def test_record_pressed_while_another_session_is_being_opened(
+    ctl: Controller, two: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """B's open has passed its "not recording" check and is reading pick-place when A presses Record."""
+    reading = threading.Event()
+    go_on = threading.Event()
+    real_open = ctl.ctx.store.open
+
+    def slow_open(name: str, **kw):
+        s = real_open(name, **kw)
+        reading.set()
+        go_on.wait(10)
+        return s
+
+    monkeypatch.setattr(ctl.ctx.store, "open", slow_open)
+    before = demo_counts(two)
+    outcome: list[BaseException | None] = []
+
+    def b() -> None:
+        try:
+            ctl.sessions.open("pick-place")
+            outcome.append(None)
+        except BaseException as exc:
+            outcome.append(exc)
+
+    tb = threading.Thread(target=b)
+    tb.start()
+    assert reading.wait(10)
+    ctl.teaching.start_recording()  # A, under stack-cup
+    go_on.set()
+    tb.join(10)
+    time.sleep(0.3)
+    ctl.teaching.stop_recording()
+    after = demo_counts(two)
+    assert after == {"stack-cup": before["stack-cup"] + 1, "pick-place": before["pick-place"]}, after
+    assert isinstance(outcome[0], StudioError) and "recording" in str(outcome[0]), outcome
+    assert ctl.session.name == "stack-cup"
+
+
+def test_a_take_is_saved_into_the_session_it_started_in(ctl: Controller, two: Path) -> None:
+    """Even when the open session changes under a running take (switch called directly), it lands where it began."""
+    ctl.teaching.start_recording()
+    other = ctl.ctx.store.open("pick-place")
+    with pytest.raises(StudioError, match="recording"):
+        ctl.sessions.switch(other)
+    time.sleep(0.2)
+    ctl.teaching.stop_recording()
+    assert demo_counts(two)["stack-cup"] == 4 and demo_counts(two)["pick-place"] == 3
+
+
+@pytest.mark.slow
+def test_two_websocket_clients_racing_open_and_record(two: Path) -> None:
+    from studio.app import build_app
+    from tests.viser_client import ViserClient
+
+    app = build_app(port=free_port(), session="stack-cup", sessions_dir=two)
+    url = f"ws://127.0.0.1:{app.port}/?key={app.access.key}"
+    ctl = app.controller
+    started_in: list[str] = []
+    ctl.events.on(Topic.RECORDING, lambda: started_in.append(ctl.session.name) if ctl.teaching.recording else None)
+    a, b = ViserClient(url), ViserClient(url)
+    try:
+        for c in (a, b):
+            c.wait_gui("Record")
+            c.wait_gui("Session action")
+        for delay_ms in (0, 5, 10, 20):
+            counts = demo_counts(two)
+            start = ctl.session.name
+            other = "pick-place" if start == "stack-cup" else "stack-cup"
+            started_in.clear()
+            b.set_value("Open session", other)
+            time.sleep(0.3)
+            b.set_value("Session action", "Open")
+            time.sleep(delay_ms / 1000)
+            a.set_value("Record", True)
+            assert wait_for(lambda: bool(started_in), 15), "the recording did not start"
+            time.sleep(0.5)
+            a.set_value("Stop", True)
+            assert wait_for(lambda: not ctl.teaching.recording, 15)
+            time.sleep(0.5)
+            after = demo_counts(two)
+            where = started_in[0]
+            expected = {**counts, where: counts[where] + 1}
+            assert after == expected, f"delay {delay_ms} ms: started in {where}, counts {counts} -> {after}"
+            assert ctl.session.name == where, "the session changed under a running take"
+    finally:
+        a.close()
+        b.close()
+        app.stop()
