@@ -14,7 +14,7 @@ ALLOWED = {
     "core": {"core"},
     "robot_backend": {"core", "robot_backend"},
     "recorder": {"core", "robot_backend", "recorder"},
-    "storage": {"core", "robot_backend", "recorder", "storage"},
+    "storage": {"core", "robot_backend", "recorder", "world", "storage"},
     "csv_io": {"core", "storage", "csv_io"},
     "teacher": {"core", "teacher"},
     "world": {"core", "robot_backend", "teacher", "world"},

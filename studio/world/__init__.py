@@ -27,7 +27,7 @@ Modules, one concern each::
     result.py      task_goal, task_result: the task result in plain words
 """
 
-from studio.world.events import ObjectPose, WorldEvent, events_from_dict, events_to_dict
+from studio.world.events import ObjectPose, WorldEvent, bounded, events_from_dict, events_to_dict, retime
 from studio.world.geometry import (
     CUP_GRASP_HEIGHT,
     DEFAULT_SIZE,
@@ -39,6 +39,8 @@ from studio.world.geometry import (
     GRASP_XY_TOL,
     GRASPABLE,
     KINDS,
+    MAX_EVENTS,
+    MAX_OBJECTS,
     NEST_STEP,
     PRESETS,
     SCENE_VERSION,
@@ -76,6 +78,8 @@ __all__ = [
     "GRASP_BELOW_TOL",
     "GRASP_XY_TOL",
     "KINDS",
+    "MAX_EVENTS",
+    "MAX_OBJECTS",
     "NEST_STEP",
     "PRESETS",
     "SCENE_VERSION",
@@ -97,12 +101,14 @@ __all__ = [
     "WorldEvent",
     "WorldObject",
     "WorldRun",
+    "bounded",
     "describe_offset",
     "events_from_dict",
     "events_to_dict",
     "format_distance",
     "gripper_actions",
     "preset",
+    "retime",
     "simulate",
     "task_goal",
     "task_result",

@@ -4,15 +4,15 @@ stream (:class:`WorldEvent`: start, grasp, miss, release, end), frozen and versi
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from studio.core.errors import InvalidInput, SessionFormatError
-from studio.core.kinematics import matrix_from_quat_wxyz
+from studio.core.rotations import matrix_from_quat_wxyz
 from studio.core.types import check_arm
-from studio.world.geometry import EVENT_KINDS, EVENTS_VERSION, KINDS, finite, finite3, finite4, yaw_of
+from studio.world.geometry import EVENT_KINDS, EVENTS_VERSION, KINDS, MAX_EVENTS, finite, finite3, finite4, yaw_of
 
 
 @dataclass(frozen=True)
@@ -146,8 +146,41 @@ def events_from_dict(d: Mapping[str, Any] | None) -> list[WorldEvent]:
             raise SessionFormatError(
                 f"The object events were saved by a newer Teaching Studio (format {version}); update the studio."
             )
-        return [WorldEvent.from_dict(e) for e in d.get("events", [])]
+        events = d.get("events", [])
+        if len(events) > MAX_EVENTS:
+            raise SessionFormatError(f"A demonstration lists an absurd number of object events ({len(events)}).")
+        return [WorldEvent.from_dict(e) for e in events]
     except SessionFormatError:
         raise
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
         raise SessionFormatError(f"The object events of a demonstration are damaged ({exc}).") from exc
+
+
+def retime(events: Sequence[WorldEvent], t0: float, t1: float) -> tuple[WorldEvent, ...]:
+    """The events of a demonstration trimmed to ``t0 ≤ t ≤ t1``, times restarting at 0 (as the trim does).
+
+    The objects at the new start are as the last event before ``t0`` left them (an object then held is where
+    it was grasped: replaying the trimmed demonstration attaches it to the gripper at its first sample).
+    """
+    if not events:
+        return ()
+    before = [e for e in events if e.t < t0]
+    kept = [replace(e, t=e.t - t0) for e in events if t0 <= e.t <= t1 and e.kind not in ("start", "end")]
+    start = before[-1] if before else next((e for e in events if e.kind == "start"), events[0])
+    ends = [e for e in events if e.t <= t1]
+    end = ends[-1] if ends else start
+    first = WorldEvent(0.0, "start", None, None, None, start.poses)
+    last = WorldEvent(max(t1 - t0, 0.0), "end", None, None, None, end.poses)
+    return (first, *kept, last)
+
+
+def bounded(events: Sequence[WorldEvent], limit: int = MAX_EVENTS) -> tuple[WorldEvent, ...]:
+    """At most ``limit`` events for the session: the first and last, every grasp and release, then as many
+    misses (closes on nothing) as still fit, in time order."""
+    if len(events) <= limit:
+        return tuple(events)
+    keep = {0, len(events) - 1} | {i for i, e in enumerate(events) if e.kind != "miss"}
+    keep_sorted = [*sorted(keep)[: limit - 1], len(events) - 1] if len(keep) > limit else sorted(keep)
+    spare = limit - len(keep_sorted)
+    misses = [i for i, e in enumerate(events) if e.kind == "miss" and i not in keep][: max(spare, 0)]
+    return tuple(events[i] for i in sorted(set(keep_sorted) | set(misses)))

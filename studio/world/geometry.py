@@ -15,7 +15,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from studio.core.errors import InvalidInput
-from studio.core.kinematics import matrix_from_quat_wxyz
+from studio.core.rotations import matrix_from_quat_wxyz
 
 # -- constants --------------------------------------------------------------------------------------------------
 
@@ -57,6 +57,9 @@ SUCCESS_TOL = 0.02
 SCENE_VERSION = 1
 EVENTS_VERSION = 1
 PRESETS: tuple[str, ...] = ("empty table", "stack-cup", "pick-place")
+#: Most objects a scene holds, and most events one demonstration keeps (bounds on what a session stores).
+MAX_OBJECTS = 40
+MAX_EVENTS = 500
 EVENT_KINDS: tuple[str, ...] = ("start", "grasp", "miss", "release", "end")
 #: Workspace limits for object positions (m): beyond these a typed or dragged position is refused.
 WORKSPACE = ((-2.0, 2.0), (-2.0, 2.0), (FLOOR_Z, 2.0))

@@ -19,7 +19,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from studio.core.kinematics import quat_wxyz_from_matrix
+from studio.core.rotations import quat_wxyz_from_matrix
 from studio.world.events import ObjectPose, WorldEvent
 from studio.world.geometry import (
     GRASP_ABOVE_TOL,

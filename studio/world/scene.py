@@ -15,6 +15,7 @@ from studio.core.errors import InvalidInput, SessionFormatError
 from studio.world.geometry import (
     DEFAULT_SIZE,
     KINDS,
+    MAX_OBJECTS,
     SCENE_VERSION,
     WORKSPACE,
     Table,
@@ -97,6 +98,8 @@ class Scene:
     objects: tuple[WorldObject, ...] = ()
 
     def __post_init__(self) -> None:
+        if len(self.objects) > MAX_OBJECTS:
+            raise InvalidInput(f"A scene holds at most {MAX_OBJECTS} objects; remove one first.")
         names = [o.name for o in self.objects]
         if len(set(names)) != len(names):
             raise InvalidInput("Two objects in the scene have the same name.")

@@ -7,17 +7,19 @@ import math
 import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from studio.core.errors import InvalidInput
-from studio.core.kinematics import Baxter
 from studio.core.types import ARMS, check_arm
 from studio.world.events import ObjectPose, WorldEvent
 from studio.world.geometry import transform
 from studio.world.rules import Grip, Objects
 from studio.world.scene import Scene
+
+if TYPE_CHECKING:  # pinocchio is loaded only when a world is made (the session store reads scenes without it)
+    from studio.core.kinematics import Baxter
 
 
 @dataclass(frozen=True, eq=False)
@@ -54,7 +56,11 @@ class World:
         record_path: bool = False,
         path_rate_hz: float = 100.0,
     ) -> None:
-        self.baxter = baxter if baxter is not None else Baxter.load()
+        if baxter is None:
+            from studio.core.kinematics import Baxter
+
+            baxter = Baxter.load()
+        self.baxter = baxter
         self._lock = threading.RLock()
         self._scene = scene if scene is not None else Scene()
         self._path_rate = float(path_rate_hz) if record_path else 0.0
