@@ -123,8 +123,19 @@ class Demos:
         self.changed()
 
     def trim(self, i: int, t0: float, t1: float) -> None:
+        """Keep demonstration ``i`` from ``t0`` to ``t1`` s; its objects are played again from its start so the
+        trimmed take starts with them as they were at ``t0``."""
+        from studio.world import trimmed_events
+
         with self.ctx.lock:
-            self.ctx.session.trim_demo(i, t0, t1)
+            session = self.ctx.session
+            events = None
+            if 0 <= i < len(session.recordings) and t0 < t1:
+                r = session.recordings[i]
+                old = session.objects.events(session.demo_files[i])
+                scene = session.objects.scene
+                events = trimmed_events(old, r.t, r.q, r.gripper, scene, t0, t1, baxter=self.ctx.baxter)
+            session.trim_demo(i, t0, t1, events=events)
         self.changed()
 
     def delete(self, i: int) -> None:
@@ -147,7 +158,7 @@ class Demos:
         self.ctx.notify(
             "Delete for good?",
             f'Press Delete again within {self.DELETE_CONFIRM_S:.0f} seconds to delete "{name}" from disk. '
-            "To keep it but leave it out of learning, untick \"Show in the scene\" instead.",
+            'To keep it but leave it out of learning, untick "Show in the scene" instead.',
             kind="warning",
         )
         return False

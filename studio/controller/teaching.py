@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import logging
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -17,12 +18,14 @@ from studio.controller.pose import Display
 from studio.core.arms import arm_columns, arm_of_joint, gripper_column, normalize_arms
 from studio.core.errors import InvalidInput, StudioError
 from studio.core.kinematics import IkResult
-from studio.core.types import ARMS
+from studio.core.types import ARMS, Recording
 from studio.recorder import Recorder
 from studio.robot_backend.base import JointStateBatch, RobotBackend
 from studio.storage import Session
+from studio.world import WorldEvent
 
 log = logging.getLogger(__name__)
+
 
 @dataclass(frozen=True)
 class Reach:
@@ -32,8 +35,19 @@ class Reach:
     target: tuple[float, float, float]
 
 
+class Takes(Protocol):
+    """What happens to the objects during a take (:class:`studio.controller.scene.SceneActions`)."""
+
+    def begin_take(self) -> None: ...
+    def end_take(self, recording: Recording) -> Sequence[WorldEvent]: ...
+    def cancel_take(self) -> None: ...
+
+
 class Teaching:
-    """The live robot and the recorder. Only one recording runs at a time, across all tabs."""
+    """The live robot and the recorder. Only one recording runs at a time, across all tabs.
+
+    ``takes`` (set by the controller) keeps each take's object events with its demonstration.
+    """
 
     def __init__(self, ctx: Context, backend: RobotBackend, display: Display, demos: Demos) -> None:
         self.ctx = ctx
@@ -46,6 +60,7 @@ class Teaching:
         self._ik_lock = {arm: threading.Lock() for arm in ARMS}
         self._recorder: Recorder | None = None
         self._unsubscribe: Callable[[], None] | None = None
+        self.takes: Takes | None = None
 
     # -- the live robot ------------------------------------------------------------------------------------
     def start_robot(self) -> None:
@@ -178,6 +193,8 @@ class Teaching:
             rec = Recorder(self.backend, session.recording_dir, self.selected_arms, name=self._next_demo_name())
             rec.start()
             self._recorder = rec
+            if self.takes is not None:
+                self.takes.begin_take()
         self.ctx.emit(Topic.RECORDING)
 
     def _next_demo_name(self) -> str:
@@ -196,8 +213,9 @@ class Teaching:
             self._recorder = None
             try:
                 recording = rec.stop()
+                events = self.takes.end_take(recording) if self.takes is not None else ()
                 try:
-                    self.ctx.session.add_recording(recording)
+                    self.ctx.session.add_recording(recording, events=events)
                 except InvalidInput:
                     # One sample is not a demonstration: nothing to keep. Any other take the session refuses
                     # stays on disk; the next open sets it aside by name (crash recovery), never lost.
@@ -219,6 +237,8 @@ class Teaching:
     def discard_recording(self) -> None:
         with self.ctx.lock:
             rec, self._recorder = self._recorder, None
+            if self.takes is not None:
+                self.takes.cancel_take()
         if rec is not None:
             rec.discard()
         self.ctx.emit(Topic.RECORDING)

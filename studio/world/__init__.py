@@ -65,7 +65,7 @@ from studio.world.result import (
 )
 from studio.world.rules import Grip, gripper_actions
 from studio.world.scene import Scene, WorldObject
-from studio.world.simulation import World, WorldRun, simulate
+from studio.world.simulation import World, WorldRun, simulate, trimmed_events
 
 __all__ = [
     "CUP_GRASP_HEIGHT",
@@ -112,4 +112,5 @@ __all__ = [
     "simulate",
     "task_goal",
     "task_result",
+    "trimmed_events",
 ]

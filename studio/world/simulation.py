@@ -263,3 +263,31 @@ def simulate(
     world.feed(t, q, gripper)
     world.snapshot("end", float(t[ok][-1]))
     return world.run()
+
+
+def trimmed_events(
+    events: Sequence[WorldEvent],
+    t: np.ndarray,
+    q: np.ndarray,
+    gripper: np.ndarray,
+    scene: Scene,
+    t0: float,
+    t1: float,
+    *,
+    baxter: Baxter | None = None,
+) -> tuple[WorldEvent, ...]:
+    """The object events of a demonstration (``events``, samples ``t``, ``q``, ``gripper``) trimmed to
+    ``t0 ≤ t ≤ t1``, times restarting at 0: played again from its recorded start, so the new start is exactly
+    the objects at ``t0`` (one then held is attached to the gripper). No events stay no events."""
+    start = next((e.poses for e in events if e.kind == "start"), None)
+    if start is None:
+        return ()
+    t = np.asarray(t, dtype=np.float64)
+    before = t < t0 - 1e-9
+    if before.any():
+        start = simulate(t[before], q[before], gripper[before], scene, baxter=baxter, start=start).final
+    keep = (t >= t0 - 1e-9) & (t <= t1 + 1e-9)
+    if not keep.any():
+        return ()
+    tk = t[keep]
+    return simulate(tk - tk[0], q[keep], gripper[keep], scene, baxter=baxter, start=start).events
