@@ -151,7 +151,8 @@ def test_training_gives_a_task_result_and_the_preview_moves_the_objects(rig) -> 
     ctl.events.on(Topic.TASK, lambda: results.append(ctl.scene.task_result()))
     ctl.training.train().result()
     result = ctl.scene.task_result()
-    assert result is not None and results[-1] is result
+    assert result is not None
+    assert results[-1] is ctl.scene.task_result()
     assert result.ok, result.text
     assert "The block ended" in result.text and "from where you put it — the skill works" in result.text
     # The preview moves the objects too: halfway through, the block is away from where it started.
