@@ -40,6 +40,8 @@ from studio.controller.view import Layer, Step, View
 from studio.core.kinematics import Baxter
 from studio.robot_backend.base import RobotBackend
 from studio.storage import Session, SessionStore
+from studio.world import PRESETS as SCENE_PRESETS
+from studio.world import ObjectPose, Scene, TaskResult, WorldObject
 
 log = logging.getLogger(__name__)
 P = ParamSpec("P")
@@ -156,6 +158,7 @@ __all__ = [
     "PREVIEW",
     "RECOVERED",
     "REPLAY",
+    "SCENE_PRESETS",
     "Context",
     "Controller",
     "DemoSummary",
@@ -168,17 +171,21 @@ __all__ = [
     "Layer",
     "LogNotifier",
     "Notifier",
+    "ObjectPose",
     "Playback",
     "PlaybackKind",
     "Player",
     "PoseSource",
     "Reach",
+    "Scene",
     "SceneActions",
     "SessionActions",
     "Step",
+    "TaskResult",
     "Teaching",
     "Topic",
     "Training",
     "UsedDemo",
     "View",
+    "WorldObject",
 ]

@@ -105,20 +105,25 @@ class SessionActions:
         self.switch(session)
         self.ctx.emit(Topic.SESSIONS)
 
-    def save(self) -> None:
+    def save(self, *, quiet: bool = False) -> None:
         self.keypoints.persist()
         self.ctx.store.save(self.ctx.session)
-        self.ctx.notify("Saved", f'Session "{self.ctx.session.name}" is saved.', kind="success")
+        if not quiet:
+            self.ctx.notify("Saved", f'Session "{self.ctx.session.name}" is saved.', kind="success")
 
     def duplicate(self, new_name: str) -> None:
         self._check_can_switch("copying the session")
         new_name = check_session_name(_typed_name(new_name))
         if self.ctx.store.path_of(new_name).exists():  # checked before "Saved" is shown
             raise InvalidInput(f'A session called "{new_name}" already exists; choose another name.')
-        self.save()
-        copy = self.ctx.store.duplicate(self.ctx.session.name, new_name)
+        original = self.ctx.session.name
+        self.save(quiet=True)  # the copy is what the person asked for: say that, not "… is saved"
+        copy = self.ctx.store.duplicate(original, new_name)
         self.switch(copy)
         self.ctx.emit(Topic.SESSIONS)
+        self.ctx.notify(
+            "Copied", f'Session "{original}" was copied as "{new_name}"; the copy is open now.', kind="success"
+        )
 
     def zip(self) -> tuple[str, bytes]:
         """(file name, bytes) of the open session as a zip archive, saved first."""

@@ -66,9 +66,15 @@ def click_in_row(page: Page, label: str, button: str) -> None:
 
 
 def tab(page: Page, name: str) -> None:
-    t = page.get_by_role("tab", name=name)
-    t.click()
-    expect(t).to_have_attribute("aria-selected", "true")
+    """Go to a step (Teach, Key-points, Train, Preview, Sessions) with the step buttons at the top of the panel;
+    returns once the page shows that step (every tab of the studio follows the step)."""
+    step_buttons = row(page, "Step")
+    step_buttons.get_by_role("button", name=name, exact=True).click()
+    expect(page.locator(f'.step-title[data-step="{name}"]')).to_be_attached()
+
+
+def current_step(page: Page) -> str:
+    return str(page.locator(".step-title").first.get_attribute("data-step"))
 
 
 def open_folder(page: Page, title: str) -> None:
