@@ -21,7 +21,6 @@ import logging
 import math
 import threading
 from collections.abc import Callable, Sequence
-from dataclasses import replace
 
 import numpy as np
 
@@ -41,6 +40,7 @@ from studio.world import (
     World,
     WorldEvent,
     bounded,
+    on_clock,
     preset,
     simulate,
     task_goal,
@@ -155,12 +155,7 @@ class SceneActions:
             return ()
         self.live.snapshot("end")
         mark, t0 = take
-        duration = float(recording.duration)
-        events = [
-            replace(e, t=min(max(e.t - t0, 0.0), duration) if e.kind != "end" else duration)
-            for e in self.live.events_since(mark)
-        ]
-        return bounded(events)
+        return bounded(on_clock(self.live.events_since(mark), t0, float(recording.duration)))
 
     def cancel_take(self) -> None:
         self._take = None

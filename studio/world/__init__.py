@@ -27,7 +27,15 @@ Modules, one concern each::
     result.py      task_goal, task_result: the task result in plain words
 """
 
-from studio.world.events import ObjectPose, WorldEvent, bounded, events_from_dict, events_to_dict, retime
+from studio.world.events import (
+    ObjectPose,
+    WorldEvent,
+    bounded,
+    events_from_dict,
+    events_to_dict,
+    on_clock,
+    retime,
+)
 from studio.world.geometry import (
     CUP_GRASP_HEIGHT,
     DEFAULT_SIZE,
@@ -107,6 +115,7 @@ __all__ = [
     "events_to_dict",
     "format_distance",
     "gripper_actions",
+    "on_clock",
     "preset",
     "retime",
     "simulate",

@@ -184,3 +184,11 @@ def bounded(events: Sequence[WorldEvent], limit: int = MAX_EVENTS) -> tuple[Worl
     spare = limit - len(keep_sorted)
     misses = [i for i, e in enumerate(events) if e.kind == "miss" and i not in keep][: max(spare, 0)]
     return tuple(events[i] for i in sorted(set(keep_sorted) | set(misses)))
+
+
+def on_clock(events: Sequence[WorldEvent], t0: float, duration: float) -> tuple[WorldEvent, ...]:
+    """Events of a live stream on a recording's clock: ``t0`` (the stream's time of the recording's first
+    sample) becomes 0; times are kept within ``0..duration``, the "end" at ``duration``."""
+    return tuple(
+        replace(e, t=duration if e.kind == "end" else min(max(e.t - t0, 0.0), duration)) for e in events
+    )
