@@ -27,8 +27,10 @@ from studio.controller import Controller, Layer, Step, Topic
 
 #: The camera every tab starts with and "Reset view" returns to: in front of Baxter and to its right, above
 #: the table, framing the robot and the task area (metres, robot base frame; z up).
-HOME_CAMERA_POSITION = (2.45, -1.35, 1.15)
-HOME_CAMERA_LOOK_AT = (0.45, 0.05, -0.05)
+#: The look-at point is to the right of the task area, so that the task area is in the middle of what the side
+#: panel (the right third of a 1280-pixel-wide window) leaves visible.
+HOME_CAMERA_POSITION = (2.65, -0.63, 1.2)
+HOME_CAMERA_LOOK_AT = (0.74, 0.71, 0.05)
 HOME_CAMERA_FOV_DEG = 55.0
 
 HINTS = {
@@ -58,7 +60,11 @@ class StepPanel:
         self.steps = gui.add_button_group("Step", options=tuple(s.value for s in Step), order=1)
         self.title = gui.add_html(self._title_html(), order=1.1)
         self.reset_view = gui.add_button(
-            "Reset view", icon=viser.Icon.FOCUS_CENTERED, order=1.2, hint="Look at the robot and the table again."
+            "Reset view",
+            icon=viser.Icon.FOCUS_CENTERED,
+            color="gray",
+            order=1.2,
+            hint="Look at the robot and the table again.",
         )
         with gui.add_folder("Show in the scene", order=1.3, expand_by_default=False):
             self.toggles = {
