@@ -2,7 +2,8 @@
 the scene's layers, and "Reset view".
 
 viser's tab group tells the server nothing when a browser switches tabs (``GuiTabGroupHandle`` has no change
-event in viser 1.1.1), so the steps are a button group the server hears: a click sets the controller's step
+event in viser 1.1.1), so the step is a dropdown the server hears (a button group was tried: its "Train" and
+"Preview" buttons read like the panels' own buttons): choosing a step sets the controller's step
 (:meth:`studio.controller.View.set_step`), every tab shows that step's section, and each panel draws the
 layers the step shows (:attr:`studio.controller.Topic.VIEW`). Like the rest of the GUI the step is shared by
 every browser tab.
@@ -50,14 +51,20 @@ ARROW_KEYS_STAY_ON_SLIDERS = (
 
 
 class StepPanel:
-    """The step buttons above one section per step, the "Show" toggles and "Reset view"."""
+    """The step chooser above one section per step, the "Show" toggles and "Reset view"."""
 
     def __init__(self, ctl: Controller, server: viser.ViserServer, sections: Mapping[Step, viser.GuiFolderHandle]):
         self.ctl = ctl
         self.server = server
         self.sections = dict(sections)
         gui = server.gui
-        self.steps = gui.add_button_group("Step", options=tuple(s.value for s in Step), order=1)
+        self.steps = gui.add_dropdown(
+            "Step",
+            options=tuple(s.value for s in Step),
+            initial_value=ctl.view.step.value,
+            order=1,
+            hint="What you are doing now: each step shows its own controls and what the scene draws for it.",
+        )
         self.title = gui.add_html(self._title_html(), order=1.1)
         self.reset_view = gui.add_button(
             "Reset view",
@@ -71,7 +78,7 @@ class StepPanel:
                 layer: gui.add_checkbox(layer.value, initial_value=ctl.view.shown(layer)) for layer in Layer
             }
         gui.add_html(ARROW_KEYS_STAY_ON_SLIDERS, order=99)
-        self.steps.on_click(ctl.guarded("Could not change the step")(self._on_step))
+        self.steps.on_update(ctl.guarded("Could not change the step")(self._on_step))
         self.reset_view.on_click(ctl.guarded("Could not reset the view")(self._on_reset_view))
         for layer, box in self.toggles.items():
             box.on_update(ctl.guarded("Could not change what is shown")(self._make_toggle(layer)))
@@ -79,7 +86,9 @@ class StepPanel:
         self.refresh()
 
     def _on_step(self, event: viser.GuiEvent) -> None:
-        self.ctl.view.set_step(Step(event.target.value))
+        if event.client is None:  # our own sync from the view
+            return
+        self.ctl.view.set_step(Step(self.steps.value))
 
     def _make_toggle(self, layer: Layer) -> Callable[[viser.GuiEvent], None]:
         def cb(event: viser.GuiEvent) -> None:
@@ -96,9 +105,10 @@ class StepPanel:
 
     def _title_html(self) -> str:
         step = self.ctl.view.step
+        n = list(Step).index(step) + 1
         return (
-            f'<div class="step-title" data-step="{html.escape(step.value)}" style="font-size:0.9em">'
-            f"<b>{html.escape(step.value)}</b> · {html.escape(HINTS[step])}</div>"
+            f'<div class="step-title" data-step="{html.escape(step.value)}" style="font-size:0.9em;margin:0 4px">'
+            f"<b>Step {n} of {len(Step)}</b> · {html.escape(HINTS[step])}</div>"
         )
 
     def refresh(self) -> None:
@@ -107,6 +117,7 @@ class StepPanel:
         with self.server.atomic():
             for step, section in self.sections.items():
                 section.visible = step == view.step
+            self.steps.value = view.step.value
             for layer, box in self.toggles.items():
                 box.value = view.shown(layer)
             self.title.content = self._title_html()
