@@ -33,7 +33,7 @@ pytestmark = pytest.mark.e2e
 ROOT = Path(__file__).resolve().parents[2]
 VIEWS = {
     "front": ((2.9, 0.55, 0.55), (0.3, 0.55, -0.05)),  # shifted: the panel covers the right of the page
-    "top": ((0.45, 0.55, 2.6), (0.75, 0.55, -0.07)),
+    "top": ((0.45, -0.1, 2.6), (0.75, -0.1, -0.07)),
 }
 JOINTS = ("s0", "s1", "e0", "e1", "w0", "w1", "w2")
 LABELS = {
