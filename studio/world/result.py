@@ -16,10 +16,12 @@ from studio.world.simulation import WorldRun
 
 
 def format_distance(d: float) -> str:
-    """A distance in plain words: "0.6 cm" under 1 cm, "3 cm" above, "1.2 m" beyond a metre."""
+    """A distance in plain words: "less than 1 mm", "0.6 cm" under 1 cm, "3 cm" above, "1.2 m" beyond a metre."""
     d = abs(float(d))
     if d >= 1.0:
         return f"{d:.1f} m"
+    if d < 0.001:
+        return "less than 1 mm"
     if d < 0.0095:
         return f"{d * 100:.1f} cm"
     return f"{d * 100:.0f} cm"
