@@ -201,3 +201,25 @@ def test_reset_view_puts_the_camera_back(app: Studio) -> None:
     cam = c.camera
     assert cam.position == HOME_CAMERA_POSITION and cam.look_at == HOME_CAMERA_LOOK_AT  # type: ignore[attr-defined]
     assert cam.up_direction == (0.0, 0.0, 1.0)  # type: ignore[attr-defined]
+
+
+def test_an_object_is_moved_with_its_handle(app: Studio) -> None:
+    from types import SimpleNamespace
+
+    ctl, panel = app.controller, app.panels.scene
+    assert not panel.handle.visible  # no object chosen: no handle
+    panel.pick.value = "block"  # type: ignore[misc]
+    panel._on_pick(None)  # type: ignore[arg-type]
+    block = ctl.scene.scene.object("block")
+    assert panel.handle.visible
+    assert np.allclose(panel.handle.position, np.add(block.position, (0, 0, block.size[2])))
+    # Dragged: the object follows the handle; let go: it settles on what is below and is saved.
+    panel.handle.position = (0.6, -0.25, 0.2)
+    panel._on_handle(SimpleNamespace(phase="update", client=None))
+    assert np.allclose(panel._nodes["block"].position, (0.6, -0.25, 0.15))
+    panel._on_handle(SimpleNamespace(phase="end", client=None))
+    moved = ctl.scene.scene.object("block")
+    assert moved.position == pytest.approx((0.6, -0.25, -0.07))
+    assert np.allclose(panel.handle.position, (0.6, -0.25, -0.02))  # back on the settled block's top
+    ctl.view.set_step(Step.PREVIEW)
+    assert not panel.handle.visible  # a Teach thing
