@@ -4,6 +4,7 @@ and the edits (show/hide, rename, trim, delete with a second press)."""
 from __future__ import annotations
 
 import html
+import threading
 from typing import Literal
 
 import numpy as np
@@ -29,6 +30,7 @@ class DemosPanel:
         gui = server.gui
         self._traces: dict[str, viser.SceneNodeHandle] = {}
         self._marks: dict[str, viser.SceneNodeHandle] = {}
+        self._lock = threading.RLock()  # redrawing and the view's show/hide, one at a time
         with gui.add_folder("Demonstrations", order=3):
             self.demo_list = gui.add_html(self._demo_list_html())
             self.demo_pick = gui.add_dropdown("Demo", options=["(none)"], initial_value="(none)")
@@ -79,7 +81,7 @@ class DemosPanel:
                 wanted[f"/demos/{i}_{arm}"] = (pts, demos.color(i))
                 marks[f"/demo_grips/{i}_{arm}"] = demos.gripper_marks(rec, arm)
         traces_on, marks_on = self.ctl.view.shown(Layer.DEMOS), self.ctl.view.shown(Layer.GRIPPER_EVENTS)
-        with self.server.atomic():
+        with self._lock, self.server.atomic():
             for key in list(self._traces):
                 self._traces.pop(key).remove()
             for key in list(self._marks):
@@ -107,7 +109,7 @@ class DemosPanel:
     def _apply_view(self) -> None:
         """Traces and gripper markers follow the "Demonstrations" and "Gripper closes/opens" layers."""
         traces_on, marks_on = self.ctl.view.shown(Layer.DEMOS), self.ctl.view.shown(Layer.GRIPPER_EVENTS)
-        with self.server.atomic():
+        with self._lock, self.server.atomic():
             for node in self._traces.values():
                 node.visible = traces_on
             for node in self._marks.values():

@@ -170,7 +170,7 @@ class KeypointsPanel:
         self._label_wanted: list[bool] = []  # label i has a centroid and room to be read
         self._centroid_nodes: dict[str, viser.PointCloudHandle] = {}
         self._closed = False
-        self._draw_lock = threading.Lock()
+        self._draw_lock = threading.RLock()  # drawing and the view's show/hide, one at a time
         ctl.events.on(Topic.SESSION, self._sync_sliders)
         ctl.events.on(Topic.KEYPOINTS, self._on_view)
         ctl.events.on(Topic.VIEW, self._apply_view)
@@ -228,7 +228,7 @@ class KeypointsPanel:
     def _apply_view(self) -> None:
         """Key-points and cluster centres (with their numbers) follow the step's "Show" layers."""
         kp, centres = self.ctl.view.shown(Layer.KEYPOINTS), self.ctl.view.shown(Layer.CENTROIDS)
-        with self.server.atomic():
+        with self._draw_lock, self.server.atomic():
             for node in self._kp_nodes.values():
                 node.visible = kp
             for c in self._centroid_nodes.values():

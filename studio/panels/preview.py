@@ -110,7 +110,7 @@ class PreviewPanel:
         """The learned path (and its unreachable points) follow the "Learned path" layer of the step."""
         shown = self.ctl.view.shown(Layer.LEARNED_PATH)
         with self.server.atomic():
-            for n in self._nodes.values():
+            for n in list(self._nodes.values()):
                 n.visible = shown
             self.show_path.value = shown
 

@@ -33,7 +33,7 @@ class ScenePanel:
         self.server = server
         self.scene = server.scene
         gui = server.gui
-        self._lock = threading.Lock()
+        self._lock = threading.RLock()
         self._nodes: dict[str, viser.FrameHandle] = {}
         self._drawn: tuple[object, ...] | None = None
         self._table: list[viser.SceneNodeHandle] = []
@@ -227,7 +227,7 @@ class ScenePanel:
         """Objects follow the "Objects" toggle; their handle shows in the Teach step on the live robot only."""
         ctl = self.ctl
         shown = ctl.view.shown(Layer.OBJECTS)
-        with self.server.atomic():
+        with self._lock, self.server.atomic():
             for node in self._nodes.values():
                 node.visible = shown
             self.handle.visible = (
