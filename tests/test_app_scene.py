@@ -223,3 +223,48 @@ def test_an_object_is_moved_with_its_handle(app: Studio) -> None:
     assert np.allclose(panel.handle.position, (0.6, -0.25, -0.02))  # back on the settled block's top
     ctl.view.set_step(Step.PREVIEW)
     assert not panel.handle.visible  # a Teach thing
+
+
+@pytest.mark.parametrize(
+    ("verdict", "text"),
+    [
+        ("works", "The cup ended 0.6 cm from where you put it — the skill works."),
+        ("never picked up", "The block was never picked up: the gripper closed 3 cm above it."),
+        ("never picked up", "The block was not picked up the second time: the gripper did not close again."),
+        ("still held", "The cup was still in the gripper at the end: the gripper never opened."),
+        (
+            "dropped early",
+            "The cup was dropped early: it landed 9 cm from where you put it, because the gripper "
+            "opened before it got there.",
+        ),
+        (
+            "wrong place",
+            "The block was released in the wrong place: 5 cm short of where you put it, towards the "
+            "robot (it landed on the table, not on the pad).",
+        ),
+        ("moved", "The block ended 6 cm to the robot's left of where you put it: it was picked up again afterwards."),
+        (None, "There is nothing to check: your demonstrations did not pick up any object."),
+    ],
+)
+def test_the_preview_panel_shows_each_task_result_wording(verdict: str | None, text: str) -> None:
+    from types import SimpleNamespace
+
+    from studio.controller import TaskResult
+    from studio.panels.preview import PreviewPanel
+    from studio.world import ObjectResult
+
+    ok = verdict == "works"
+    objects = () if verdict is None else (ObjectResult("x", ok, verdict, text, 0.01),)
+    result = TaskResult(ok, text, objects)
+    panel = SimpleNamespace(ctl=SimpleNamespace(scene=SimpleNamespace(task_result=lambda: result)))
+    shown = PreviewPanel._task_html(panel)  # type: ignore[arg-type]
+    assert html_text(shown).endswith(text) and f'data-ok="{str(ok).lower()}"' in shown
+    head = "The skill does the task." if ok else ("Task result." if verdict is None else "The skill misses the task.")
+    assert html_text(shown).startswith(head)
+
+
+def html_text(fragment: str) -> str:
+    import html
+    import re
+
+    return html.unescape(re.sub(r"<[^>]+>", "", fragment)).strip()
