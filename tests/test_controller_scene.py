@@ -5,6 +5,7 @@ recorder), replay and preview moving the objects, trim replaying the objects, an
 from __future__ import annotations
 
 import json
+import shutil
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -42,14 +43,27 @@ def record_plan(ctl: Controller, sim: SimulatedBaxter, task: str, seed: int) -> 
     return len(ctl.session.recordings) - 1
 
 
-def test_an_older_session_opens_on_an_empty_table(rig) -> None:
+def test_an_older_session_opens_on_an_empty_table(rig, sessions: Path) -> None:
     ctl, _ = rig
+    assert ctl.scene.scene.preset == "stack-cup" and len(ctl.scene.live.poses()) == 2  # the example's objects
+    # The same session as a studio of format 1 wrote it: no scene, no object events.
+    old = sessions / "stack-cup old"
+    shutil.copytree(sessions / "stack-cup", old)
+    raw = json.loads((old / "session.json").read_text())
+    raw["version"] = 1
+    del raw["scene"]
+    for d in raw["demos"]:
+        del d["objects"]
+    (old / "session.json").write_text(json.dumps(raw))
+    ctl.sessions.open("stack-cup old")
     assert ctl.scene.scene == Scene() and ctl.scene.live.poses() == ()
     assert all(ctl.session.objects.events(f) == () for f in ctl.session.demo_files)
+    assert len(ctl.session.recordings) == 3
 
 
 def test_add_move_remove_are_saved_and_refused_while_recording(rig, sessions: Path) -> None:
     ctl, _ = rig
+    ctl.sessions.new("objects")  # an empty table
     seen: list[int] = []
     ctl.events.on(Topic.SCENE, lambda: seen.append(len(ctl.scene.scene.objects)))
     cup = ctl.scene.add("cup")
@@ -62,7 +76,7 @@ def test_add_move_remove_are_saved_and_refused_while_recording(rig, sessions: Pa
     assert ctl.scene.scene.object("cup").position == pytest.approx((0.7, 0.3, -0.07))
     assert ctl.scene.live.poses()[0].position == pytest.approx((0.7, 0.3, -0.07))
     ctl.scene.remove("block")
-    raw = json.loads((sessions / "stack-cup" / "session.json").read_text())
+    raw = json.loads((sessions / "objects" / "session.json").read_text())
     assert [o["name"] for o in raw["scene"]["objects"]] == ["cup"]
     with pytest.raises(StudioError, match="cup, a block or a pad"):
         ctl.scene.add("piano")

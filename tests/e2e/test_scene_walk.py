@@ -1,4 +1,4 @@
-"""In real Chromium, the way a newcomer works with objects: a new session on the pick-and-place table, three
+"""In real Chromium, the way a newcomer works with objects: a new session on the pick-and-place table, two
 demonstrations that pick the block up and put it on the pad (joint sliders and the gripper buttons), key-points,
 train, preview, and the task result in words; screenshots from the front and the top at each step.
 
@@ -142,8 +142,8 @@ def test_teach_with_objects_to_the_task_result(browser, tmp_path) -> None:
         current: dict[str, float] = {}
         views(app, page, out, "1-teach-set-up")
         start = drawn_block(app)
-        for variant in range(3):
-            record_demo(page, wp, variant - 1, current)
+        for variant in range(2):  # two are enough to learn from (and keep the suite short)
+            record_demo(page, wp, variant, current)
             if variant == 0:  # the block went onto the pad, drawn where the world put it
                 on_pad = drawn_block(app)
                 world = next(p for p in app.controller.scene.live.poses() if p.name == "block")

@@ -20,7 +20,8 @@ def open_studio(browser, url: str) -> Page:
 def wait_ready(page: Page) -> None:
     """Wait until the studio's panel is connected and the robot meshes are drawn."""
     expect(page.get_by_text("Teaching Studio", exact=True).first).to_be_visible(timeout=30_000)
-    expect(page.get_by_role("button", name="Record")).to_be_visible(timeout=30_000)
+    # The step is the studio's (shared by every tab): a reload shows the step the studio is at.
+    expect(page.locator(".step-title")).to_be_attached(timeout=30_000)
     page.wait_for_function("() => document.querySelector('canvas') !== null", timeout=30_000)
     # The robot's status arrives after its meshes (viser replays the scene in the order it was built).
     expect(page.locator(".gripper-status").first).to_be_attached(timeout=30_000)
