@@ -5,7 +5,9 @@
 2. Robot pose updates reaching a connected browser while the arm moves: headless Chromium (Playwright)
    connected to the studio; every websocket frame the page receives is decoded (viser's wire format:
    zstd-compressed msgpack) and frames carrying a new robot joint pose are counted per second.
-3. Frames per second drawn by software WebGL in headless Chromium at 1280×800, light and full meshes.
+3. Frames per second drawn by software WebGL in headless Chromium at 1280×800, light and full meshes: with the
+   task scene (a table, the pick-place block and pad and two cups) and, in the same run, without any table or
+   object (the baseline).
 
 Run:  .venv/bin/python bench/bench_app.py            (add --skip-browser to run only part 1)
 """
@@ -29,14 +31,18 @@ sys.path.insert(0, str(ROOT))
 from tests.conftest import CHROMIUM, CHROMIUM_ARGS, free_port  # noqa: E402  (after the path insert)
 
 
-def make_session(root: Path, n_samples: int = 30_000) -> str:
-    """A session with three 30,000-sample left-arm demos from the scripted teacher (time-stretched)."""
+def make_session(root: Path, n_samples: int = 30_000, name: str = "bench", objects: bool = True) -> str:
+    """A session with three 30,000-sample left-arm demos from the scripted teacher (time-stretched), on the task
+    scene (a table, a block, a pad and two cups) or, without ``objects``, on nothing at all."""
     from studio.core.types import Recording
     from studio.storage import SessionStore
     from studio.teacher import recording_from_plan, teach
+    from studio.world import Scene, preset
 
     store = SessionStore(root)
-    s = store.create("bench", arms=("left",))
+    s = store.create(name, arms=("left",))
+    scene = preset("pick-place").add("cup", (0.6, -0.3, -0.07)).add("cup", (0.75, -0.45, -0.07))
+    s.set_scene(scene if objects else Scene(preset="", table=None))
     for seed in range(3):
         rec = recording_from_plan(teach("stack-cup", seed=seed))
         t = np.arange(n_samples) / 1000.0
@@ -44,7 +50,7 @@ def make_session(root: Path, n_samples: int = 30_000) -> str:
         q = np.column_stack([np.interp(src, rec.t, rec.q[:, j]) for j in range(14)])
         g = np.column_stack([np.interp(src, rec.t, rec.gripper[:, j]) for j in range(2)])
         s.add_recording(Recording(t=t, q=q, gripper=g, arms=("left",), name=f"demo {seed + 1}"))
-    return "bench"
+    return name
 
 
 def bench_slider(root: Path, repeats: int = 40) -> dict[str, float]:
@@ -92,7 +98,7 @@ def _decode(frame: bytes) -> list[dict]:
     return list(msgspec.msgpack.decode(inner).get("messages", ()))
 
 
-def bench_browser(root: Path, seconds: float = 5.0) -> dict[str, float]:
+def bench_browser(root: Path, seconds: float = 5.0, session: str = "bench") -> dict[str, float]:
     """Pose updates per second reaching connected clients while the arm moves, and the browser's frame rate.
 
     Headless Chromium is connected (it receives and draws every update); next to it a plain websocket client
@@ -107,7 +113,7 @@ def bench_browser(root: Path, seconds: float = 5.0) -> dict[str, float]:
     from studio.app import build_app
 
     out: dict[str, float] = {}
-    app = build_app(port=free_port(), session="bench", sessions_dir=root)
+    app = build_app(port=free_port(), session=session, sessions_dir=root)
     try:
         with sync_playwright() as p:
             b = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
@@ -226,6 +232,7 @@ def main() -> int:
     tmp = Path(tempfile.mkdtemp(prefix="bench-app-"))
     try:
         make_session(tmp)
+        make_session(tmp, name="bare", objects=False)
         r = bench_slider(tmp)
         print(
             f"eps slider -> scene update, 3 demos x {r['samples_per_demo']:.0f} samples: "
@@ -240,7 +247,12 @@ def main() -> int:
                 f"{r2['pose_updates_per_s']:.1f}/s ({r2['frames_per_s']:.1f} websocket frames/s; "
                 f"the studio pushed {r2['server_pose_pushes_per_s']:.1f} poses/s)"
             )
-            print(f"software WebGL, light meshes, 1280x800: {r2['render_fps_light']:.1f} frames/s")
+            print(f"software WebGL, light meshes, 1280x800, with the task scene: {r2['render_fps_light']:.1f} frames/s")
+            bare = bench_browser(tmp, session="bare")
+            print(
+                f"software WebGL, light meshes, 1280x800, no table or objects (same run): "
+                f"{bare['render_fps_light']:.1f} frames/s (pose updates {bare['pose_updates_per_s']:.1f}/s)"
+            )
             if args.full_meshes:
                 print(f"software WebGL, full meshes, 1280x800: {bench_full_meshes(tmp):.1f} frames/s")
     finally:

@@ -29,6 +29,7 @@ from studio.controller import Controller, Kind, LogNotifier
 from studio.core.errors import StudioError
 from studio.core.kinematics import baxter_urdf_path
 from studio.panels import Panels, build_panels
+from studio.panels.steps import HOME_CAMERA_FOV_DEG, HOME_CAMERA_LOOK_AT, HOME_CAMERA_POSITION
 from studio.robot_backend.base import RobotBackend
 from studio.storage import DEFAULT_ROOT, SessionStore
 
@@ -37,10 +38,10 @@ log = logging.getLogger(__name__)
 ROOT = Path(__file__).resolve().parent.parent
 LIGHT_URDF = ROOT / "urdf" / "baxter_light.urdf"
 DEFAULT_SESSION = "stack-cup"
-#: Initial view for every tab: in front of Baxter, to its right, looking at the workspace of the grippers.
-CAMERA_POSITION = (2.5, -0.95, 1.05)
-CAMERA_LOOK_AT = (0.3, 0.12, 0.12)
-CAMERA_FOV_DEG = 55.0
+#: Initial view for every tab (and "Reset view"): in front of Baxter, to its right, framing the robot and table.
+CAMERA_POSITION = HOME_CAMERA_POSITION
+CAMERA_LOOK_AT = HOME_CAMERA_LOOK_AT
+CAMERA_FOV_DEG = HOME_CAMERA_FOV_DEG
 _COLORS: dict[Kind, Literal["red", "blue", "green", "yellow"]] = {
     "error": "red",
     "info": "blue",

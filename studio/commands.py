@@ -297,13 +297,14 @@ def export_csv(args: argparse.Namespace, out: TextIO | None = None) -> int:
 
 # -- example sessions -----------------------------------------------------------------------------------------
 def record_plan(session: Session, plan: TeacherPlan, name: str, *, noise_seed: int) -> int:
-    """Drive a :class:`SimulatedBaxter` through ``plan`` in manual-step mode, record it, add it to ``session``.
-
-    The real path of the studio (backend → recorder → session), faster than real time and deterministic.
-    """
+    """Drive a :class:`SimulatedBaxter` through ``plan`` in manual-step mode, record it, add it to ``session``
+    with its object events (a :class:`~studio.world.World` listening to the robot): the real path of the studio
+    (backend → recorder → session), faster than real time and deterministic."""
     from studio import teacher
     from studio.recorder import Recorder
+    from studio.robot_backend.base import JointStateBatch
     from studio.robot_backend.simulated import SimulatedBaxter
+    from studio.world import World, on_clock
 
     sim = SimulatedBaxter(
         rate_hz=plan.rate_hz,
@@ -314,10 +315,25 @@ def record_plan(session: Session, plan: TeacherPlan, name: str, *, noise_seed: i
         gripper_noise=teacher.GRIPPER_NOISE_PERCENT,
         seed=noise_seed,
     )
+    world = World(session.objects.scene)
+    first: list[float] = []  # the robot's time of the recording's first sample
+
+    def follow(batch: JointStateBatch) -> None:
+        if not first and len(batch):
+            first.append(float(batch.t[0]))
+        world.on_batch(batch)
+
+    unsubscribe = sim.subscribe(follow)
+    world.snapshot("start")
     rec = Recorder(sim, session.recording_dir, plan.arms, name=name)
     rec.start()
     sim.run_targets(plan.q, plan.gripper, batch=16)
-    index = rec.save_to(session)
+    recording = rec.stop()
+    unsubscribe()
+    world.snapshot("end")
+    events = on_clock(world.events, first[0] if first else 0.0, float(recording.duration))
+    index = session.add_recording(recording, events=events)
+    rec.discard()
     shutil.rmtree(session.recording_dir, ignore_errors=True)
     return index
 
@@ -325,6 +341,7 @@ def record_plan(session: Session, plan: TeacherPlan, name: str, *, noise_seed: i
 def build_example(store: SessionStore, task: str, *, learn_skill: bool = False, out: TextIO | None = None) -> Session:
     """(Re)create the example session ``task`` in ``store``; replaces an existing one only when complete."""
     from studio import teacher
+    from studio.world import preset
 
     out = out or sys.stdout
     seeds, arm, notes = EXAMPLES[task]
@@ -334,6 +351,7 @@ def build_example(store: SessionStore, task: str, *, learn_skill: bool = False, 
     try:
         session = tmp_store.create(task, arms=(arm,), notes=notes, precision="float32")
         session.created = "2026-11-22T00:00:00+00:00"  # fixed: regenerating does not churn the manifest
+        session.set_scene(preset(task, (arm,)))  # the task's objects, where the scripted teacher acts
         for i, seed in enumerate(seeds):
             plan = teacher.teach(task, seed, arm=arm)
             record_plan(session, plan, f"demo {i + 1}", noise_seed=1000 * (i + 1) + seed)

@@ -44,7 +44,7 @@ JOINT_QUANTUM_RAD = 2.0 * math.pi / 2**14
 GRIPPER_NOISE_PERCENT = 0.3
 
 #: Where the left arm's demonstrations act (base frame, metres; the right arm mirrors y and the yaws). The
-#: task scene (:mod:`studio.world`) puts the objects here: the cup handed over in the air and the stack it
+#: task scene (:mod:`studio.world.presets`) puts the objects here: the cup handed over in the air and the stack it
 #: goes on; the block at A (grasped turned by YAW_A) and the target pad at B.
 STACK_CUP_HANDOVER = (0.66, 0.47, 0.20)  # gripper point where the handed-over cup is taken
 STACK_CUP_STACK = (0.78, 0.14, 0.06)  # gripper point where it is let go over the stack
@@ -391,17 +391,10 @@ def _gripper_signal(
 
 
 def recording_from_plan(plan: TeacherPlan, noise: bool | None = None, name: str | None = None) -> Recording:
-    """The recording a 1 kHz joint-state stream would have produced while following ``plan`` exactly.
-
-    Args:
-        plan: a :class:`TeacherPlan`.
-        noise: add encoder noise (``JOINT_NOISE_RAD`` white, then quantised to ``JOINT_QUANTUM_RAD``) and
-            gripper noise; default ``plan.noise``.
-        name: the recording's name; default "<task> #<seed>".
-
-    Returns:
-        A :class:`Recording` with the plan's time stamps, arms and joints (noisy if asked).
-    """
+    """The :class:`Recording` a 1 kHz joint-state stream would have produced while following ``plan`` exactly:
+    its time stamps, arms and joints, with encoder noise (``JOINT_NOISE_RAD`` white, then quantised to
+    ``JOINT_QUANTUM_RAD``) and gripper noise when ``noise`` (default ``plan.noise``); ``name`` defaults to
+    "<task> #<seed>"."""
     noise = plan.noise if noise is None else noise
     q, g = np.array(plan.q), np.array(plan.gripper)
     if noise:

@@ -17,6 +17,7 @@ import pytest
 from studio.app import Studio, build_app, exposure_warning, robot_urdf_path
 from studio.controller import PREVIEW
 from studio.core.errors import StudioError
+from studio.panels.keypoints import LABEL_GAP
 from studio.recorder import Recorder
 from studio.robot_backend.simulated import SimulatedBaxter
 from studio.storage import RECORDING_DIR, SessionStore
@@ -90,7 +91,14 @@ def test_keypoints_are_drawn(app: Studio) -> None:
     v1 = kp.compute()
     app.panels.keypoints.draw(v1)
     assert len(app.panels.keypoints._kp_nodes) == 3
-    assert sum(lab.visible for lab in app.panels.keypoints._labels) == v1.k["left"]
+    panel = app.panels.keypoints
+    assert not any(lab.visible for lab in panel._labels)  # Teach shows no cluster centres
+    app.controller.view.set_step("Key-points")
+    shown = [np.asarray(lab.position) for lab in panel._labels if lab.visible]
+    assert 0 < len(shown) <= v1.k["left"]  # numbers that would pile up are left out
+    gaps = [np.linalg.norm(a - b) for i, a in enumerate(shown) for b in shown[i + 1 :]]
+    assert min(gaps, default=1.0) >= LABEL_GAP - 1e-9
+    assert all(n.visible for n in panel._kp_nodes.values())
     assert 'data-count="' in app.panels.keypoints.counts.content
 
 

@@ -14,7 +14,7 @@ ALLOWED = {
     "core": {"core"},
     "robot_backend": {"core", "robot_backend"},
     "recorder": {"core", "robot_backend", "recorder"},
-    "storage": {"core", "robot_backend", "recorder", "storage"},
+    "storage": {"core", "robot_backend", "recorder", "world", "storage"},
     "csv_io": {"core", "storage", "csv_io"},
     "teacher": {"core", "teacher"},
     "world": {"core", "robot_backend", "teacher", "world"},
@@ -22,14 +22,14 @@ ALLOWED = {
     "controller": {"core", "robot_backend", "recorder", "storage", "csv_io", "world", "controller"},
     "panels": {"core", "controller", "panels"},
     "app": {"core", "robot_backend", "storage", "controller", "panels", "security", "app"},
-    "commands": {"core", "robot_backend", "recorder", "storage", "csv_io", "teacher", "commands"},
+    "commands": {"core", "robot_backend", "recorder", "storage", "csv_io", "teacher", "world", "commands"},
     "cli": {"core", "storage", "app", "commands", "cli"},
 }
 #: "About 400 lines a module (outside studio/core), about 250 a class": past that, split by concern.
 MAX_MODULE_LINES = 410
 MAX_CLASS_LINES = 255
 #: Merged before the split (issues 10 and 13 split them next); this set must shrink to empty, never grow.
-SPLIT_PENDING = {"studio.world", "studio.world.World", "studio.teacher"}
+SPLIT_PENDING: set[str] = set()
 
 
 def _module_name(path: Path) -> str:

@@ -81,6 +81,12 @@ def test_committed_example_sessions_load_and_look_like_the_paper() -> None:
             assert r.arms == ("left",)
             assert np.ptp(r.arm_q("left"), axis=0).max() > 0.3  # the taught arm moves
             assert np.ptp(r.arm_gripper("left")) > 40  # and grasps
+        # ... the task's objects, moved by every demonstration as the task says
+        obj = {"stack-cup": "cup", "pick-place": "block"}[task]
+        assert s.objects.scene.preset == task
+        for f in s.demo_files:
+            moves = [(e.kind, e.object) for e in s.objects.events(f) if e.kind in ("grasp", "release", "miss")]
+            assert moves == [("grasp", obj), ("release", obj)] * (1 if task == "stack-cup" else 2)
 
 
 def test_make_examples_is_reproducible(tmp_path: Path) -> None:
@@ -90,6 +96,8 @@ def test_make_examples_is_reproducible(tmp_path: Path) -> None:
         s = build_example(store, "stack-cup", learn_skill=False, out=log)
     committed = SessionStore(DEFAULT_ROOT).open("stack-cup", recover=False)
     assert s.demo_files == committed.demo_files
+    assert s.objects.scene == committed.objects.scene
+    assert [s.objects.events(f) for f in s.demo_files] == [committed.objects.events(f) for f in s.demo_files]
     for f in s.demo_files:
         assert (s.path / f).read_bytes() == (committed.path / f).read_bytes(), (
             "the committed example differs from what the teacher makes now: run `studio make-examples`"

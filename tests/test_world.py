@@ -462,3 +462,15 @@ def test_result_moved_again_after_it_was_put_down() -> None:
     assert res.objects[0].verdict == "moved"
     assert res.text.startswith("The block ended ") and "to the robot's left of where you put it" in res.text
     assert res.text.endswith(": it was picked up again afterwards."), res.text
+
+
+def test_distances_in_plain_words() -> None:
+    from studio.world import format_distance
+
+    assert [format_distance(d) for d in (0.0004, 0.006, -0.03, 0.25, 1.24)] == [
+        "less than 1 mm",
+        "0.6 cm",
+        "3 cm",
+        "25 cm",
+        "1.2 m",
+    ]

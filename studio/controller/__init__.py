@@ -11,6 +11,8 @@ runs and is tested without a browser. One module per concern:
     learning.py   KeypointTuning (ε, k, the live key-point view), Training (train, skills)
     playback.py   Player, Playback: preview of the skill and replay of a demo, one mechanism
     sessions.py   SessionActions: open, new, save, duplicate, zip, CSV; switching sessions
+    scene.py      SceneActions: the objects on the table, the live world, replay/preview objects, task result
+    view.py       View: the step the teacher is at and which scene layers are drawn
 
 Threads: the backend's thread delivers joint states (only the newest is kept); one *work* thread runs heavy
 jobs (training) one at a time; one *key-point* thread recomputes the key-point view (newest request wins);
@@ -31,12 +33,15 @@ from studio.controller.events import Events, Topic
 from studio.controller.learning import KeypointItem, KeypointTuning, KeypointView, Training, UsedDemo
 from studio.controller.playback import PREVIEW, REPLAY, Playback, PlaybackKind, Player
 from studio.controller.pose import Display, PoseSource
+from studio.controller.scene import SceneActions
 from studio.controller.sessions import RECOVERED, SessionActions, open_or_create
 from studio.controller.teaching import Reach, Teaching
 from studio.controller.view import Layer, Step, View
 from studio.core.kinematics import Baxter
 from studio.robot_backend.base import RobotBackend
 from studio.storage import Session, SessionStore
+from studio.world import PRESETS as SCENE_PRESETS
+from studio.world import ObjectPose, Scene, TaskResult, WorldObject
 
 log = logging.getLogger(__name__)
 P = ParamSpec("P")
@@ -47,7 +52,8 @@ class Controller:
     """The studio without its GUI: a thin composition of the parts, each an attribute a panel uses.
 
     Attributes:
-        teaching, demos, keypoints, training, playback, sessions: the parts (see the module docstring).
+        teaching, demos, keypoints, training, playback, sessions, scene, view: the parts (see the module
+            docstring).
         display: the pose the scene draws; events: the topics to subscribe to; baxter: the kinematic model.
 
     Start it with :meth:`start` (robot streaming, key-point thread) and stop it with :meth:`shutdown`.
@@ -72,8 +78,10 @@ class Controller:
         arms = self._arms
         self.keypoints = KeypointTuning(self.ctx, self.demos, arms)
         self.training = Training(self.ctx, self.demos, self.keypoints, arms, self.playback)
+        self.scene = SceneActions(self.ctx, backend, self.display, self.playback, arms, lambda: self.teaching.recording)
+        self.teaching.takes = self.scene
         self.sessions = SessionActions(
-            self.ctx, self.display, self.teaching, self.demos, self.keypoints, self.training, self.playback
+            self.ctx, self.display, self.teaching, self.demos, self.keypoints, self.training, self.playback, self.scene
         )
 
     def _arms(self) -> tuple[str, ...]:
@@ -141,6 +149,7 @@ class Controller:
         """Stop following the robot, stop it, unload playback and drop queued work."""
         self.playback.unload()
         self.teaching.stop_robot()
+        self.scene.close()
         self.ctx.shutdown()
 
 
@@ -149,6 +158,7 @@ __all__ = [
     "PREVIEW",
     "RECOVERED",
     "REPLAY",
+    "SCENE_PRESETS",
     "Context",
     "Controller",
     "DemoSummary",
@@ -161,16 +171,21 @@ __all__ = [
     "Layer",
     "LogNotifier",
     "Notifier",
+    "ObjectPose",
     "Playback",
     "PlaybackKind",
     "Player",
     "PoseSource",
     "Reach",
+    "Scene",
+    "SceneActions",
     "SessionActions",
     "Step",
+    "TaskResult",
     "Teaching",
     "Topic",
     "Training",
     "UsedDemo",
     "View",
+    "WorldObject",
 ]

@@ -6,12 +6,15 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
+import numpy as np
+
 from studio.controller.context import Context
 from studio.controller.events import Topic
 from studio.core.errors import StudioError
 from studio.core.types import Demo, Recording
 
-#: Demo colours (RGB), distinct on the light background and never red (red marks the cluster centroids).
+#: Demo colours (RGB), distinct on the light background, never red (red marks the cluster centroids) and never
+#: cyan (the learned path).
 PALETTE: tuple[tuple[int, int, int], ...] = (
     (31, 119, 180),
     (44, 160, 44),
@@ -21,7 +24,7 @@ PALETTE: tuple[tuple[int, int, int], ...] = (
     (227, 119, 194),
     (127, 127, 127),
     (188, 189, 34),
-    (23, 190, 207),
+    (120, 100, 20),
     (57, 59, 121),
 )
 
@@ -96,6 +99,18 @@ class Demos:
         self._cache[key] = (rec, d)
         return d
 
+    def gripper_marks(self, rec: Recording, arm: str) -> tuple[np.ndarray, np.ndarray]:
+        """Where ``arm``'s gripper closed and where it opened in recording ``rec``: two (n, 3) arrays (m), with
+        the same close/open rule as the objects (:func:`studio.world.gripper_actions`)."""
+        from studio.world import gripper_actions
+
+        d = self.demo_of(rec, arm)
+        actions = gripper_actions(np.asarray(d.gripper))
+        pos = np.asarray(d.position)
+        closes = [pos[k] for k, a in actions if a == "close"]
+        opens = [pos[k] for k, a in actions if a == "open"]
+        return np.reshape(closes, (-1, 3)), np.reshape(opens, (-1, 3))
+
     def for_arm(self, arm: str) -> list[tuple[int, Demo]]:
         """(index, Demo) of every shown recording that taught ``arm`` (what learning uses)."""
         hidden = self.hidden
@@ -123,8 +138,19 @@ class Demos:
         self.changed()
 
     def trim(self, i: int, t0: float, t1: float) -> None:
+        """Keep demonstration ``i`` from ``t0`` to ``t1`` s; its objects are played again from its start so the
+        trimmed take starts with them as they were at ``t0``."""
+        from studio.world import trimmed_events
+
         with self.ctx.lock:
-            self.ctx.session.trim_demo(i, t0, t1)
+            session = self.ctx.session
+            events = None
+            if 0 <= i < len(session.recordings) and t0 < t1:
+                r = session.recordings[i]
+                old = session.objects.events(session.demo_files[i])
+                scene = session.objects.scene
+                events = trimmed_events(old, r.t, r.q, r.gripper, scene, t0, t1, baxter=self.ctx.baxter)
+            session.trim_demo(i, t0, t1, events=events)
         self.changed()
 
     def delete(self, i: int) -> None:
@@ -147,7 +173,7 @@ class Demos:
         self.ctx.notify(
             "Delete for good?",
             f'Press Delete again within {self.DELETE_CONFIRM_S:.0f} seconds to delete "{name}" from disk. '
-            "To keep it but leave it out of learning, untick \"Show in the scene\" instead.",
+            'To keep it but leave it out of learning, untick "Show in the scene" instead.',
             kind="warning",
         )
         return False

@@ -39,6 +39,10 @@ class Topic(StrEnum):
     PLAYBACK = "playback"
     #: The step or the shown scene layers changed (``view.step``, ``view.shown(layer)``).
     VIEW = "view"
+    #: The objects on the table were set up differently, or put back (``scene.scene``).
+    SCENE = "scene"
+    #: The task result of the learned skill changed (``scene.task_result()``).
+    TASK = "task"
 
 
 class Events:

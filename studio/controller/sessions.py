@@ -12,9 +12,11 @@ from studio.controller.events import Topic
 from studio.controller.learning import KeypointTuning, Training
 from studio.controller.playback import Player
 from studio.controller.pose import Display
+from studio.controller.scene import SceneActions
 from studio.controller.teaching import Teaching
 from studio.core.errors import InvalidInput, StudioError
 from studio.storage import Session, SessionStore, check_session_name
+from studio.world import preset
 
 #: Title of the note told once after a crash recovery (damaged files are told to every new tab).
 RECOVERED = "Recovered recordings"
@@ -48,6 +50,7 @@ class SessionActions:
         keypoints: KeypointTuning,
         training: Training,
         player: Player,
+        scene: SceneActions,
     ) -> None:
         self.ctx = ctx
         self.display = display
@@ -56,6 +59,7 @@ class SessionActions:
         self.keypoints = keypoints
         self.training = training
         self.player = player
+        self.scene = scene
         self._startup_notes = session_notes(ctx.session)
 
     @property
@@ -91,27 +95,35 @@ class SessionActions:
             self.ctx.notify(title, body, kind="warning")
         self.startup_notes_shown()  # told to every open tab
 
-    def new(self, name: str) -> None:
+    def new(self, name: str, scene: str = "empty table") -> None:
+        """Start a new session on the task scene ``scene`` (a preset: "empty table", "stack-cup", "pick-place")."""
         self._check_can_switch("starting a new session")
         name = check_session_name(_typed_name(name))
+        objects = preset(scene, self.teaching.selected_arms)  # checked before anything is created
         session = self.ctx.store.create(name, arms=self.teaching.selected_arms)
+        session.set_scene(objects)
         self.switch(session)
         self.ctx.emit(Topic.SESSIONS)
 
-    def save(self) -> None:
+    def save(self, *, quiet: bool = False) -> None:
         self.keypoints.persist()
         self.ctx.store.save(self.ctx.session)
-        self.ctx.notify("Saved", f'Session "{self.ctx.session.name}" is saved.', kind="success")
+        if not quiet:
+            self.ctx.notify("Saved", f'Session "{self.ctx.session.name}" is saved.', kind="success")
 
     def duplicate(self, new_name: str) -> None:
         self._check_can_switch("copying the session")
         new_name = check_session_name(_typed_name(new_name))
         if self.ctx.store.path_of(new_name).exists():  # checked before "Saved" is shown
             raise InvalidInput(f'A session called "{new_name}" already exists; choose another name.')
-        self.save()
-        copy = self.ctx.store.duplicate(self.ctx.session.name, new_name)
+        original = self.ctx.session.name
+        self.save(quiet=True)  # the copy is what the person asked for: say that, not "… is saved"
+        copy = self.ctx.store.duplicate(original, new_name)
         self.switch(copy)
         self.ctx.emit(Topic.SESSIONS)
+        self.ctx.notify(
+            "Copied", f'Session "{original}" was copied as "{new_name}"; the copy is open now.', kind="success"
+        )
 
     def zip(self) -> tuple[str, bytes]:
         """(file name, bytes) of the open session as a zip archive, saved first."""
@@ -153,6 +165,7 @@ class SessionActions:
             self.keypoints.on_session(session)
             self.demos.clear()
             self.teaching.on_session(session)
+            self.scene.on_session()
         self.display.show_live()
         self.ctx.emit(Topic.SESSION)
 

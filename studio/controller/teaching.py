@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import logging
 import threading
-from collections.abc import Callable
-from dataclasses import dataclass
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 
@@ -17,12 +19,19 @@ from studio.controller.pose import Display
 from studio.core.arms import arm_columns, arm_of_joint, gripper_column, normalize_arms
 from studio.core.errors import InvalidInput, StorageError, StudioError
 from studio.core.kinematics import IkResult
-from studio.core.types import ARMS
+from studio.core.types import ARMS, Recording
 from studio.recorder import Recorder
 from studio.robot_backend.base import JointStateBatch, RobotBackend
 from studio.storage import Session
+from studio.world import WorldEvent
 
 log = logging.getLogger(__name__)
+#: Seconds an out-of-reach handle target stays told (marker and words) once the drag ended: the handle is
+#: back on the gripper by then, so the message would be stale.
+REACH_HOLD_S = 4.0
+#: Seconds within which a second Discard from another tab than the one recording confirms the first.
+DISCARD_CONFIRM_S = 5.0
+
 
 @dataclass(frozen=True)
 class Reach:
@@ -30,10 +39,23 @@ class Reach:
 
     ok: bool
     target: tuple[float, float, float]
+    #: When it was decided (``time.monotonic()``); not part of equality.
+    at: float = field(default=0.0, compare=False)
+
+
+class Takes(Protocol):
+    """What happens to the objects during a take (:class:`studio.controller.scene.SceneActions`)."""
+
+    def begin_take(self) -> None: ...
+    def end_take(self, recording: Recording) -> Sequence[WorldEvent]: ...
+    def cancel_take(self) -> None: ...
 
 
 class Teaching:
-    """The live robot and the recorder. Only one recording runs at a time, across all tabs."""
+    """The live robot and the recorder. Only one recording runs at a time, across all tabs.
+
+    ``takes`` (set by the controller) keeps each take's object events with its demonstration.
+    """
 
     def __init__(self, ctx: Context, backend: RobotBackend, display: Display, demos: Demos) -> None:
         self.ctx = ctx
@@ -47,6 +69,9 @@ class Teaching:
         self._recorder: Recorder | None = None
         self._session: Session = ctx.session
         self._unsubscribe: Callable[[], None] | None = None
+        self.takes: Takes | None = None
+        self._owner: object | None = None  # the browser tab that started the running take
+        self._discard_asked: float | None = None
 
     # -- the live robot ------------------------------------------------------------------------------------
     def start_robot(self) -> None:
@@ -100,6 +125,7 @@ class Teaching:
     def on_session(self, session: Session) -> None:
         """Another session is open: teach its arms."""
         self.selected_arms = _session_arms(session)
+        self.forget_reach()
 
     # -- moving the robot ----------------------------------------------------------------------------------
     def move_gripper(self, arm: str, position: np.ndarray, wxyz: np.ndarray) -> IkResult:
@@ -113,13 +139,23 @@ class Teaching:
             res = self.ctx.baxter.ik(arm, position, wxyz, self._target_arm(arm), max_iterations=60)
             self.command_arm(arm, np.asarray(res.q))
         p = np.asarray(position, dtype=float)
-        self._set_reach(arm, Reach(bool(res.converged), (float(p[0]), float(p[1]), float(p[2]))))
+        self._set_reach(arm, Reach(bool(res.converged), (float(p[0]), float(p[1]), float(p[2])), time.monotonic()))
         return res
 
     def _set_reach(self, arm: str, reach: Reach) -> None:
         old = self.reach.get(arm)
         self.reach[arm] = reach
         if old is None or old != reach:
+            self.ctx.emit(Topic.REACH)
+
+    def forget_reach(self, arms: tuple[str, ...] = ARMS, *, older_than: float | None = None) -> None:
+        """Stop telling that ``arms`` could not reach their handle (all of it, or what was decided more than
+        ``older_than`` seconds ago): the arm was moved otherwise, or the handle is back on the gripper."""
+        now = time.monotonic()
+        gone = [a for a in arms if a in self.reach and (older_than is None or now - self.reach[a].at > older_than)]
+        for a in gone:
+            self.reach.pop(a, None)
+        if gone:
             self.ctx.emit(Topic.REACH)
 
     def unreachable(self, arm: str) -> bool:
@@ -147,6 +183,7 @@ class Teaching:
         """Move one of the 14 joints (order ALL_ARM_JOINTS) to ``value`` radians, the others held."""
         self.display.show_live()
         arm = arm_of_joint(index)
+        self.forget_reach((arm,))
         q = self._target_arm(arm)
         q[index % 7] = value
         self.command_arm(arm, q)
@@ -169,8 +206,9 @@ class Teaching:
     def recording(self) -> bool:
         return self._recorder is not None
 
-    def start_recording(self) -> None:
-        """Start recording the taught arm(s); only one recording runs at a time (across all tabs)."""
+    def start_recording(self, by: object | None = None) -> None:
+        """Start recording the taught arm(s); only one recording runs at a time (across all tabs). ``by``: the
+        browser tab that started it (see :meth:`discard_recording`)."""
         with self.ctx.lock:
             if self._recorder is not None:
                 raise StudioError("A recording is already running (maybe in another tab). Stop it first.")
@@ -179,6 +217,9 @@ class Teaching:
             rec = Recorder(self.backend, session.recording_dir, self.selected_arms, name=self._next_demo_name())
             rec.start()
             self._recorder, self._session = rec, session  # the take is saved where it was started
+            self._owner, self._discard_asked = _tab_id(by), None
+            if self.takes is not None:
+                self.takes.begin_take()
         self.ctx.emit(Topic.RECORDING)
 
     def _next_demo_name(self) -> str:
@@ -197,8 +238,9 @@ class Teaching:
             self._recorder = None
             try:
                 recording = rec.stop()
+                events = self.takes.end_take(recording) if self.takes is not None else ()
                 try:
-                    self._session.add_recording(recording)
+                    self._session.add_recording(recording, events=events)
                 except StorageError as exc:  # the take stays in the recorder's file: recovered at the next open
                     kept = "The take itself is kept and is added when the session is next opened."
                     raise StorageError(f"{exc} {kept}") from exc
@@ -220,12 +262,30 @@ class Teaching:
             kind="success",
         )
 
-    def discard_recording(self) -> None:
+    def discard_recording(self, by: object | None = None, *, now: float | None = None) -> bool:
+        """Throw the running take away. From another browser tab than the one recording (``by``), the first
+        press asks and a second one within :data:`DISCARD_CONFIRM_S` discards. Returns True when discarded."""
+        now = time.monotonic() if now is None else now
         with self.ctx.lock:
+            other = by is not None and self._recorder is not None and _tab_id(by) != self._owner
+            asked = self._discard_asked
+            if other and (asked is None or now - asked > DISCARD_CONFIRM_S):
+                self._discard_asked = now
+                self.ctx.notify(
+                    "Discard the recording of another tab?",
+                    f"This recording was started in another browser tab. Press Discard again within "
+                    f"{DISCARD_CONFIRM_S:.0f} seconds to throw it away.",
+                    kind="warning",
+                    client=by,
+                )
+                return False
             rec, self._recorder = self._recorder, None
+            if self.takes is not None:
+                self.takes.cancel_take()
         if rec is not None:
             rec.discard()
         self.ctx.emit(Topic.RECORDING)
+        return rec is not None
 
     def save_running_recording(self) -> None:
         """Keep a take that is still running (when the studio stops); failures are logged."""
@@ -235,6 +295,11 @@ class Teaching:
             self.stop_recording()
         except Exception:
             log.exception("saving the running recording at shutdown")
+
+
+def _tab_id(tab: object | None) -> object | None:
+    """Who pressed a button: viser's tab handle has a ``client_id`` (None: the studio itself, or a script)."""
+    return getattr(tab, "client_id", tab)
 
 
 def _session_arms(session: Session) -> tuple[str, ...]:

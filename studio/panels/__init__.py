@@ -13,12 +13,14 @@ from pathlib import Path
 
 import viser
 
-from studio.controller import Controller
+from studio.controller import Controller, Step
 from studio.panels.demos import DemosPanel
 from studio.panels.keypoints import KeypointsPanel
 from studio.panels.preview import PreviewPanel
 from studio.panels.robot import RobotPanel
+from studio.panels.scene import ScenePanel
 from studio.panels.sessions import SessionsPanel
+from studio.panels.steps import StepPanel
 from studio.panels.teach import TeachPanel
 from studio.panels.train import TrainPanel
 
@@ -32,10 +34,13 @@ class Panels:
     train: TrainPanel
     preview: PreviewPanel
     sessions: SessionsPanel
+    scene: ScenePanel
+    steps: StepPanel
 
     def tick(self, now: float) -> None:
         """Periodic refresh from the pose pump thread (timers, handles following the robot, playback)."""
         self.robot.tick(now)
+        self.scene.tick(now)
         self.teach.tick(now)
         self.preview.tick(now)
         self.sessions.tick(now)
@@ -45,7 +50,8 @@ class Panels:
 
 
 def build_panels(ctl: Controller, server: viser.ViserServer, urdf_path: Path) -> Panels:
-    """The robot panel above a tab per step: Teach, Key-points, Train, Preview, Sessions."""
+    """The robot panel, the step buttons, then one section per step: Teach, Key-points, Train, Preview, Sessions
+    (only the current step's is shown; see :mod:`studio.panels.steps`)."""
     gui = server.gui
     gui.add_markdown(
         "Teach Baxter a skill by showing it a few times: guide the arm, record three demonstrations, "
@@ -53,16 +59,18 @@ def build_panels(ctl: Controller, server: viser.ViserServer, urdf_path: Path) ->
         order=-1,
     )
     robot = RobotPanel(ctl, server, urdf_path)
-    tabs = gui.add_tab_group(order=1)
-    with tabs.add_tab("Teach", viser.Icon.HAND_FINGER):
+    sections = {step: gui.add_folder(None, order=10 + i, visible=step == ctl.view.step) for i, step in enumerate(Step)}
+    with sections[Step.TEACH]:
         teach = TeachPanel(ctl, server)
+        scene = ScenePanel(ctl, server)
         demos = DemosPanel(ctl, server)
-    with tabs.add_tab("Key-points", viser.Icon.POINT):
+    with sections[Step.KEYPOINTS]:
         keypoints = KeypointsPanel(ctl, server)
-    with tabs.add_tab("Train", viser.Icon.BRAIN):
+    with sections[Step.TRAIN]:
         train = TrainPanel(ctl, server)
-    with tabs.add_tab("Preview", viser.Icon.PLAYER_PLAY):
+    with sections[Step.PREVIEW]:
         preview = PreviewPanel(ctl, server)
-    with tabs.add_tab("Sessions", viser.Icon.FOLDER):
+    with sections[Step.SESSIONS]:
         sessions = SessionsPanel(ctl, server)
-    return Panels(robot, teach, demos, keypoints, train, preview, sessions)
+    steps = StepPanel(ctl, server, sections)
+    return Panels(robot, teach, demos, keypoints, train, preview, sessions, scene, steps)

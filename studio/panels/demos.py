@@ -4,13 +4,20 @@ and the edits (show/hide, rename, trim, delete with a second press)."""
 from __future__ import annotations
 
 import html
+import threading
+from typing import Literal
 
 import numpy as np
 import viser
 
-from studio.controller import Controller, Topic
+from studio.controller import Controller, Layer, Topic
 from studio.core.errors import InvalidInput
 from studio.panels._charts import downsample_path, segments
+
+#: Small markers where a demonstration's gripper closed (dark diamonds) and opened (grey circles).
+CLOSE_COLOR = (25, 25, 25)
+OPEN_COLOR = (160, 160, 160)
+Shape = Literal["diamond", "circle"]
 
 
 class DemosPanel:
@@ -22,6 +29,8 @@ class DemosPanel:
         self.scene = server.scene
         gui = server.gui
         self._traces: dict[str, viser.SceneNodeHandle] = {}
+        self._marks: dict[str, viser.SceneNodeHandle] = {}
+        self._lock = threading.RLock()  # redrawing and the view's show/hide, one at a time
         with gui.add_folder("Demonstrations", order=3):
             self.demo_list = gui.add_html(self._demo_list_html())
             self.demo_pick = gui.add_dropdown("Demo", options=["(none)"], initial_value="(none)")
@@ -36,6 +45,7 @@ class DemosPanel:
         self.demo_actions.on_click(ctl.guarded("Could not change the demonstration")(self._on_demo_action))
         ctl.events.on(Topic.DEMOS, self.refresh_demos)
         ctl.events.on(Topic.SESSION, self.refresh_demos)
+        ctl.events.on(Topic.VIEW, self._apply_view)
         self.refresh_demos()
 
     def _demo_list_html(self) -> str:
@@ -51,25 +61,59 @@ class DemosPanel:
             )
         if not rows:
             return '<div class="demo-row-empty" style="font-size:0.85em">No demonstrations yet: press Record.</div>'
-        return "".join(rows)
+        legend = (
+            '<div style="font-size:0.8em;color:#555;margin-top:2px">In the scene: ◆ the gripper closed, '
+            "● it opened.</div>"
+        )
+        return "".join(rows) + legend
 
     def draw_traces(self) -> None:
-        """Each shown demonstration as a coloured 3-D line of the taught gripper(s)."""
+        """Each shown demonstration as a coloured 3-D line of the taught gripper(s), with small markers where
+        the gripper closed and opened."""
         demos = self.ctl.demos
         wanted: dict[str, tuple[np.ndarray, tuple[int, int, int]]] = {}
+        marks: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         for i, rec in enumerate(demos.recordings()):
             if rec.name in demos.hidden:
                 continue
             for arm in rec.arms:
                 pts = downsample_path(np.asarray(demos.demo_of(rec, arm).position))
                 wanted[f"/demos/{i}_{arm}"] = (pts, demos.color(i))
-        with self.server.atomic():
+                marks[f"/demo_grips/{i}_{arm}"] = demos.gripper_marks(rec, arm)
+        traces_on, marks_on = self.ctl.view.shown(Layer.DEMOS), self.ctl.view.shown(Layer.GRIPPER_EVENTS)
+        with self._lock, self.server.atomic():
             for key in list(self._traces):
                 self._traces.pop(key).remove()
+            for key in list(self._marks):
+                self._marks.pop(key).remove()
             for key, (pts, color) in wanted.items():
                 self._traces[key] = self.scene.add_line_segments(
-                    key, segments(pts), colors=color, thickness=3.0, thickness_units="screen"
+                    key, segments(pts), colors=color, thickness=3.0, thickness_units="screen", visible=traces_on
                 )
+            for key, (closes, opens) in marks.items():
+                kinds: tuple[tuple[str, np.ndarray, tuple[int, int, int], Shape], ...] = (
+                    ("closed", closes, CLOSE_COLOR, "diamond"),
+                    ("opened", opens, OPEN_COLOR, "circle"),
+                )
+                for what, pts, color, shape in kinds:
+                    if len(pts):
+                        self._marks[f"{key}/{what}"] = self.scene.add_point_cloud(
+                            f"{key}/{what}",
+                            points=pts.astype(np.float32),
+                            colors=color,
+                            point_size=0.02,
+                            point_shape=shape,
+                            visible=marks_on,
+                        )
+
+    def _apply_view(self) -> None:
+        """Traces and gripper markers follow the "Demonstrations" and "Gripper closes/opens" layers."""
+        traces_on, marks_on = self.ctl.view.shown(Layer.DEMOS), self.ctl.view.shown(Layer.GRIPPER_EVENTS)
+        with self._lock, self.server.atomic():
+            for node in self._traces.values():
+                node.visible = traces_on
+            for node in self._marks.values():
+                node.visible = marks_on
 
     def refresh_demos(self) -> None:
         try:

@@ -11,7 +11,7 @@ from dataclasses import fields
 import numpy as np
 import viser
 
-from studio.controller import Controller, KeypointView, Topic
+from studio.controller import Controller, KeypointView, Layer, Topic
 from studio.core.types import ARMS, KeypointParams
 
 #: (field, plain label, unit, min, max, step, hint) — labels say what the threshold does, then the symbol.
@@ -107,6 +107,8 @@ ORIENTATION_SLIDERS: tuple[tuple[str, str, str, float, float, float, str], ...] 
 )
 SYMBOL = {f"eps{i}": f"ε{i}" for i in range(1, 15)}
 CENTROID_COLOR = (220, 20, 20)
+#: A centroid's number is left out when a shown number is closer than this (m): numbers never pile up.
+LABEL_GAP = 0.035
 #: Range of the k slider; a session may hold a k outside it (set in code): the slider shows the nearest end.
 K_MIN, K_MAX, K_DEFAULT = 2, 40, 12
 
@@ -165,11 +167,13 @@ class KeypointsPanel:
         # Scene: one point cloud per (demo, arm) for key-points, one for the centroids, a pool of labels.
         self._kp_nodes: dict[str, viser.PointCloudHandle] = {}
         self._labels: list[viser.LabelHandle] = []
+        self._label_wanted: list[bool] = []  # label i has a centroid and room to be read
         self._centroid_nodes: dict[str, viser.PointCloudHandle] = {}
         self._closed = False
-        self._draw_lock = threading.Lock()
+        self._draw_lock = threading.RLock()  # drawing and the view's show/hide, one at a time
         ctl.events.on(Topic.SESSION, self._sync_sliders)
         ctl.events.on(Topic.KEYPOINTS, self._on_view)
+        ctl.events.on(Topic.VIEW, self._apply_view)
         if ctl.keypoints.view is not None:  # computed before this panel existed
             self.draw(ctl.keypoints.view)
         ctl.keypoints.request()
@@ -219,6 +223,18 @@ class KeypointsPanel:
                 self._draw_keypoints(view)
                 self._draw_centroids(view)
                 self.counts.content = self._counts_html(view)
+                self._apply_view()
+
+    def _apply_view(self) -> None:
+        """Key-points and cluster centres (with their numbers) follow the step's "Show" layers."""
+        kp, centres = self.ctl.view.shown(Layer.KEYPOINTS), self.ctl.view.shown(Layer.CENTROIDS)
+        with self._draw_lock, self.server.atomic():
+            for node in self._kp_nodes.values():
+                node.visible = kp
+            for c in self._centroid_nodes.values():
+                c.visible = centres
+            for lab, wanted in zip(self._labels, self._label_wanted, strict=True):
+                lab.visible = centres and wanted
 
     def _draw_keypoints(self, view: KeypointView) -> None:
         seen: set[str] = set()
@@ -252,6 +268,7 @@ class KeypointsPanel:
             self._centroid_nodes[key] = self.scene.add_point_cloud(
                 key, points=c[:, :3].astype(np.float32), colors=CENTROID_COLOR, point_size=0.028, point_shape="circle"
             )
+            room = spaced(c[:, :3], LABEL_GAP)
             for j, p in enumerate(c[:, :3]):
                 if n_labels >= len(self._labels):
                     self._labels.append(
@@ -259,13 +276,14 @@ class KeypointsPanel:
                             f"/keypoints/labels/{n_labels}", str(j), font_size_mode="screen", font_screen_scale=0.7
                         )
                     )
+                    self._label_wanted.append(False)
                 lab = self._labels[n_labels]
                 lab.text = str(j)
                 lab.position = (float(p[0]), float(p[1]), float(p[2]) + 0.035)
-                lab.visible = True
+                self._label_wanted[n_labels] = room[j]
                 n_labels += 1
-        for lab in self._labels[n_labels:]:
-            lab.visible = False
+        for k in range(n_labels, len(self._labels)):
+            self._label_wanted[k] = False
 
     def _counts_html(self, view: KeypointView | None) -> str:
         if view is None:
@@ -291,3 +309,15 @@ class KeypointsPanel:
 
     def close(self) -> None:
         self._closed = True
+
+
+def spaced(points: np.ndarray, gap: float) -> list[bool]:
+    """Which points get a label so that no two labels are closer than ``gap`` (in order: the first wins)."""
+    kept: list[np.ndarray] = []
+    out = []
+    for p in np.asarray(points, dtype=float):
+        ok = all(float(np.linalg.norm(p - k)) >= gap for k in kept)
+        if ok:
+            kept.append(p)
+        out.append(ok)
+    return out

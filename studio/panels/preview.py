@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import html
+
 import numpy as np
 import viser
 
-from studio.controller import PREVIEW, Controller, Topic
+from studio.controller import PREVIEW, Controller, Layer, Topic
 from studio.core.types import ARMS
 from studio.panels._charts import downsample_path, segments
 
@@ -27,7 +29,8 @@ class PreviewPanel:
         self.controls = gui.add_button_group("Playback", options=("Play", "Pause", "Stop"))
         self.speed = gui.add_dropdown("Speed", options=list(SPEEDS), initial_value="1×")
         self.time = gui.add_slider("Time (s)", min=0.0, max=1.0, step=0.01, initial_value=0.0)
-        self.show_path = gui.add_checkbox("Show the learned path", initial_value=True)
+        self.show_path = gui.add_checkbox("Show the learned path", initial_value=ctl.view.shown(Layer.LEARNED_PATH))
+        self.task = gui.add_html(self._task_html())  # the task result in words (see _task_html)
         self._nodes: dict[str, viser.SceneNodeHandle] = {}
         self._last_time_sync = 0.0
 
@@ -37,6 +40,8 @@ class PreviewPanel:
         self.show_path.on_update(ctl.guarded()(self._on_show))
         ctl.events.on(Topic.SKILL, self.refresh)
         ctl.events.on(Topic.SESSION, self.refresh)
+        ctl.events.on(Topic.TASK, self._on_task)
+        ctl.events.on(Topic.VIEW, self._apply_view)
         self.refresh()
 
     def refresh(self) -> None:
@@ -55,9 +60,9 @@ class PreviewPanel:
                     f"/preview/{arm}/path",
                     segments(pts),
                     colors=CYAN,
-                    thickness=5.0,
+                    thickness=6.0,
                     thickness_units="screen",
-                    visible=bool(self.show_path.value),
+                    visible=self.ctl.view.shown(Layer.LEARNED_PATH),
                 )
                 bad = self.ctl.training.ik_failures(arm)
                 fails += len(bad)
@@ -68,7 +73,7 @@ class PreviewPanel:
                         colors=IK_FAIL,
                         point_size=0.03,
                         point_shape="diamond",
-                        visible=bool(self.show_path.value),
+                        visible=self.ctl.view.shown(Layer.LEARNED_PATH),
                     )
             duration = self.ctl.playback.preview_duration()
             self.time.max = round(max(duration, 0.01), 2)
@@ -98,8 +103,33 @@ class PreviewPanel:
         self.ctl.playback.seek_preview(float(self.time.value))
 
     def _on_show(self, event: viser.GuiEvent) -> None:
-        for n in self._nodes.values():
-            n.visible = bool(self.show_path.value)
+        if event.client is not None:
+            self.ctl.view.set_shown(Layer.LEARNED_PATH, bool(self.show_path.value))
+
+    def _apply_view(self) -> None:
+        """The learned path (and its unreachable points) follow the "Learned path" layer of the step."""
+        shown = self.ctl.view.shown(Layer.LEARNED_PATH)
+        with self.server.atomic():
+            for n in list(self._nodes.values()):
+                n.visible = shown
+            self.show_path.value = shown
+
+    # -- the task result (what the learned skill does with the objects), self-contained --------------------
+    def _on_task(self) -> None:
+        self.task.content = self._task_html()
+
+    def _task_html(self) -> str:
+        result = self.ctl.scene.task_result()
+        if result is None:
+            return ""
+        nothing = not result.objects
+        color = "#15803d" if result.ok else ("#92400e" if nothing else "#b91c1c")
+        head = "Task result" if nothing else ("The skill does the task" if result.ok else "The skill misses the task")
+        return (
+            f'<div class="task-result" data-ok="{str(result.ok).lower()}" style="font-size:0.9em;'
+            f'border-left:4px solid {color};padding:2px 8px;margin:4px 0"><b style="color:{color}">{head}.</b> '
+            f"{html.escape(result.text)}</div>"
+        )
 
     def tick(self, now: float) -> None:
         pos = self.ctl.playback.position(PREVIEW)

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import viser
 
-from studio.controller import REPLAY, Controller, Topic
+from studio.controller import REPLAY, SCENE_PRESETS, Controller, Topic
 from studio.core.errors import InvalidInput
+
+EXPORT_WHY = "*Train first: the export is the learned skill.*"
 
 
 class SessionsPanel:
@@ -21,6 +23,12 @@ class SessionsPanel:
             )
             self.name = gui.add_text(
                 "New name", initial_value="", hint="Name for a new session or for a copy of this one."
+            )
+            self.new_scene = gui.add_dropdown(
+                "New session's table",
+                options=SCENE_PRESETS,
+                initial_value=SCENE_PRESETS[0],
+                hint="The objects a new session starts with (you can add, move and remove them in Teach).",
             )
             self.actions = gui.add_button_group("Session action", options=("Open", "New", "Save", "Duplicate"))
         with gui.add_folder("Replay a demonstration"):
@@ -50,6 +58,7 @@ class SessionsPanel:
                 disabled=not ctl.training.skills(),
                 hint="The learned skill as a file the Baxter SDK can play back (train first).",
             )
+            self.export_why = gui.add_markdown(EXPORT_WHY, visible=not ctl.training.skills())
         self._last_sync = 0.0
 
         self.actions.on_click(ctl.guarded("The session action did not work")(self._on_action))
@@ -60,6 +69,7 @@ class SessionsPanel:
         self.export.on_click(ctl.guarded("Could not export the trajectory")(self._on_export))
         for topic in (Topic.SESSION, Topic.SESSIONS, Topic.DEMOS):
             ctl.events.on(topic, self.refresh)
+        ctl.events.on(Topic.SESSION, self._on_session)
         # Buttons that cannot act now are disabled (the actions still refuse in plain words if raced).
         for topic in (Topic.SESSION, Topic.SKILL, Topic.RECORDING, Topic.TRAINING, Topic.PLAYBACK):
             ctl.events.on(topic, self._sync_enabled)
@@ -68,6 +78,7 @@ class SessionsPanel:
         ctl = self.ctl
         with self.server.atomic():
             self.export.disabled = not ctl.training.skills()
+            self.export_why.visible = not ctl.training.skills()
             self.upload.disabled = ctl.teaching.recording or ctl.training.busy
             self.replay_time.disabled = ctl.playback.kind != REPLAY
 
@@ -87,13 +98,22 @@ class SessionsPanel:
             if cur not in demos:
                 self.replay_pick.value = demos[0]
 
+    def _on_session(self) -> None:
+        """Another session is open: the replay starts over on its first demonstration."""
+        demos = self.ctl.demos.names()
+        with self.server.atomic():
+            self.replay_pick.options = demos or ["(none)"]
+            self.replay_pick.value = demos[0] if demos else "(none)"
+            self.replay_time.max = round(max(self.ctl.demos.duration(0), 0.01), 2) if demos else 1.0
+            self.replay_time.value = 0.0
+
     def _on_action(self, event: viser.GuiEvent) -> None:
         action = event.target.value
         sessions = self.ctl.sessions
         if action == "Open":
             sessions.open(self.pick.value)
         elif action == "New":
-            sessions.new(self.name.value)
+            sessions.new(self.name.value, scene=self.new_scene.value)
         elif action == "Save":
             sessions.save()
         elif action == "Duplicate":

@@ -9,7 +9,8 @@ from collections.abc import Callable
 import numpy as np
 import viser
 
-from studio.controller import Controller, Topic
+from studio.controller import Controller, Step, Topic
+from studio.controller.teaching import REACH_HOLD_S
 from studio.core.arms import arm_columns
 from studio.core.types import ALL_ARM_JOINTS, ARMS
 
@@ -54,6 +55,7 @@ class TeachPanel:
         ctl.events.on(Topic.ARMS, self._on_arms)
         ctl.events.on(Topic.REACH, self._on_reach)
         ctl.events.on(Topic.RECORDING, self._on_recording_state)
+        ctl.events.on(Topic.VIEW, self._on_arms)
 
     def _build_handles(self) -> None:
         """A transform gizmo on each gripper, and a red marker where a handle is out of reach."""
@@ -70,7 +72,7 @@ class TeachPanel:
                 position=tuple(pos),
                 wxyz=tuple(wxyz),
                 depth_test=False,
-                visible=arm in ctl.teaching.selected_arms,
+                visible=arm in ctl.teaching.selected_arms and ctl.view.step == Step.TEACH,
             )
             self.handles[arm] = h
             self.miss_markers[arm] = self.scene.add_icosphere(
@@ -128,9 +130,9 @@ class TeachPanel:
                 self.sliders[name] = s
 
         t = ctl.teaching
-        self.record_btn.on_click(ctl.guarded("Could not start recording")(lambda _: t.start_recording()))
+        self.record_btn.on_click(ctl.guarded("Could not start recording")(lambda e: t.start_recording(by=e.client)))
         self.stop_btn.on_click(ctl.guarded("Could not save the recording")(lambda _: t.stop_recording()))
-        self.discard_btn.on_click(ctl.guarded("Could not discard the recording")(lambda _: t.discard_recording()))
+        self.discard_btn.on_click(ctl.guarded("Could not discard the recording")(self._on_discard))
 
     # -- gizmo -> IK -> robot ------------------------------------------------------------------------------
     def _make_gizmo_cb(self, arm: str) -> Callable[[viser.TransformControlsEvent], None]:
@@ -163,7 +165,7 @@ class TeachPanel:
         with self.server.atomic():
             for arm in ARMS:
                 r = teaching.reach.get(arm)
-                off = r is None or r.ok or arm not in teaching.selected_arms
+                off = r is None or r.ok or arm not in teaching.selected_arms or self.ctl.view.step != Step.TEACH
                 if r is not None:
                     self.miss_markers[arm].position = r.target
                 self.miss_markers[arm].visible = not off
@@ -196,13 +198,18 @@ class TeachPanel:
         return self.ctl.guarded("Could not move the gripper")(cb)
 
     def _on_arms(self) -> None:
+        """The taught arms or the step changed: a handle on each taught gripper, in the Teach step only."""
         self._last_q = None  # snap the newly shown handles to the grippers
+        teach = self.ctl.view.step == Step.TEACH
         with self.server.atomic():
             for arm in ARMS:
-                self.handles[arm].visible = arm in self.ctl.teaching.selected_arms
+                self.handles[arm].visible = teach and arm in self.ctl.teaching.selected_arms
         self._on_reach()
 
     # -- recording -------------------------------------------------------------------------------------
+    def _on_discard(self, event: viser.GuiEvent) -> None:
+        self.ctl.teaching.discard_recording(by=event.client)  # from another tab: asks first
+
     def _on_recording_state(self) -> None:
         rec = self.ctl.teaching.recording
         self.record_btn.disabled = rec
@@ -214,6 +221,8 @@ class TeachPanel:
     # -- periodic (pose pump thread) -------------------------------------------------------------------
     def tick(self, now: float) -> None:
         ctl = self.ctl
+        # An out-of-reach target is told for a while after its drag; the handle is back on the gripper then.
+        ctl.teaching.forget_reach(tuple(a for a in ARMS if not self._dragging[a]), older_than=REACH_HOLD_S)
         if ctl.display.is_live:
             q = ctl.teaching.robot_q()
             self._follow_robot(q)

@@ -22,7 +22,9 @@ from studio.storage.fs import check_session_folder
 from studio.storage.limits import check_memory
 from studio.storage.manifest import Manifest
 from studio.storage.npz import declared_bytes, load_demo, load_skill
+from studio.storage.objects import SessionObjects
 from studio.storage.session import Session, unique_name
+from studio.world import Scene
 
 
 def demos_bytes(m: Manifest) -> int:
@@ -69,6 +71,7 @@ def load_session(path: Path, *, skip_damaged: bool = False) -> Session:
         n_clusters=m.n_clusters,
         precision=m.precision,
         skills_stale=m.skills_stale,
+        objects=SessionObjects(m.scene if m.scene is not None else Scene()),
     )
     s._next_id = m.next_id
 
@@ -89,6 +92,7 @@ def load_session(path: Path, *, skip_damaged: bool = False) -> Session:
         names.add(rec.name)
         s.recordings.append(rec)
         s._files.append(entry.file)
+        s.objects.by_file[entry.file] = entry.events
         if entry.hidden:
             s.hidden_demos.add(rec.name)
     for arm, info in m.skills.items():

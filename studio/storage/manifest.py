@@ -11,7 +11,9 @@ Versioning and extending (read before adding anything to the format):
 * **A change an older studio would misread** (a field changing meaning, data moving between files): bump
   ``FORMAT_VERSION`` and register ``UPGRADES[old_version]``, a function turning the raw JSON of version
   ``old_version`` into ``old_version + 1``; :meth:`Manifest.from_json` applies them in order before validating,
-  so the validation below only ever sees the current version.
+  so the validation below only ever sees the current version. Version 2 added the task scene (``scene``) and
+  each demonstration's object events (``objects``): ``UPGRADES[1]`` reads a version-1 session as one on an
+  empty table, whose demonstrations have no object events.
 
 Loading never writes: an upgraded manifest is written in the new version the next time the session changes.
 """
@@ -26,7 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from studio.core.errors import InvalidInput
+from studio.core.errors import InvalidInput, StudioError
 from studio.core.types import ARMS, KeypointParams
 from studio.storage.format import (
     DEMO_FILE_RE,
@@ -45,9 +47,16 @@ from studio.storage.format import (
     damaged,
 )
 from studio.storage.fs import read_capped
+from studio.world import Scene, WorldEvent, events_from_dict, events_to_dict
+
+
+def _scene_added(raw: dict[str, Any]) -> dict[str, Any]:
+    """Version 1 -> 2: a session from before task scenes stands on an empty table (no ``scene``, no events)."""
+    return {**raw, "version": 2, "scene": None}
+
 
 #: Upgrades of older manifests: ``UPGRADES[v]`` turns the raw JSON of version ``v`` into version ``v + 1``.
-UPGRADES: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {}
+UPGRADES: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {1: _scene_added}
 
 
 @dataclass(frozen=True)
@@ -61,9 +70,11 @@ class DemoEntry:
     duration: float
     #: Hidden by the teacher: drawn faintly and left out of learning (optional, default False).
     hidden: bool = False
+    #: What happened to the objects (start, grasps, releases, misses, end; format 2, optional: none before).
+    events: tuple[WorldEvent, ...] = ()
 
     def to_json(self) -> dict[str, object]:
-        return {
+        out: dict[str, object] = {
             "file": self.file,
             "name": self.name,
             "arms": list(self.arms),
@@ -71,6 +82,9 @@ class DemoEntry:
             "duration": round(self.duration, 6),
             "hidden": self.hidden,
         }
+        if self.events:
+            out["objects"] = events_to_dict(self.events)
+        return out
 
 
 @dataclass(frozen=True)
@@ -114,6 +128,8 @@ class Manifest:
     modified: str = ""
     robot: str = "baxter"
     version: int = FORMAT_VERSION
+    #: The task scene (format 2); None for a session from before scenes (it opens on an empty table).
+    scene: Scene | None = None
 
     # -- writing ----------------------------------------------------------------------------------------------
     def to_json(self) -> dict[str, object]:
@@ -133,6 +149,7 @@ class Manifest:
             "demos": [d.to_json() for d in self.demos],
             "skills": {arm: s.to_json() for arm, s in self.skills.items()},
             "skills_stale": self.skills_stale,
+            "scene": None if self.scene is None else self.scene.to_dict(),
         }
 
     def files(self) -> set[str]:
@@ -189,6 +206,7 @@ class Manifest:
             modified=str(m.raw.get("modified", "")),
             robot=robot,
             version=version,
+            scene=m.scene(),
         )
 
 
@@ -308,7 +326,25 @@ class _Reader:
             raise self.bad(f'has an invalid "hidden" mark for demonstration {i + 1}')
         dur = d.get("duration", 0.0)
         duration = _number(dur) or 0.0
-        return DemoEntry(file=f, name=name, arms=tuple(da), samples=s, duration=duration, hidden=hidden)
+        objects = d.get("objects")
+        try:
+            events = tuple(events_from_dict(objects)) if isinstance(objects, dict) or objects is None else None
+        except StudioError as exc:
+            raise self.bad(f"has damaged object events for demonstration {i + 1} ({exc})") from exc
+        if events is None:
+            raise self.bad(f"has invalid object events for demonstration {i + 1}")
+        return DemoEntry(f, name, tuple(da), s, duration, hidden, events)
+
+    def scene(self) -> Scene | None:
+        raw = self.raw.get("scene")
+        if raw is None:
+            return None
+        if not isinstance(raw, dict):
+            raise self.bad('has an invalid task scene ("scene")')
+        try:
+            return Scene.from_dict(raw)
+        except StudioError as exc:
+            raise self.bad(f"has a damaged task scene ({exc})") from exc
 
     def skills(self) -> dict[str, SkillEntry]:
         skills = self.raw.get("skills", {})

@@ -40,6 +40,8 @@ from studio.storage.fs import changing, check_changeable
 from studio.storage.idle import idle_bounds
 from studio.storage.limits import check_keepable, reworded
 from studio.storage.manifest import DemoEntry, Manifest, SkillEntry
+from studio.storage.objects import SessionObjects
+from studio.world import Scene, WorldEvent
 
 P = ParamSpec("P")
 R = TypeVar("R")
@@ -59,7 +61,7 @@ def _locked(fn: Callable[Concatenate[Session, P], R]) -> Callable[Concatenate[Se
 #: What a failed change puts back (the in-memory state; files on disk are written atomically, manifest last).
 _STATE = (
     *("arms", "notes", "params", "n_clusters", "recordings", "hidden_demos", "skills", "skills_stale"),
-    *("skill_info", "precision", "_files", "_next_id"),
+    *("skill_info", "precision", "_files", "_next_id", "objects"),
 )
 
 
@@ -75,6 +77,7 @@ class Session:
         skills: arm -> learned :class:`Skill`; skill_info: arm -> what it was learned from and when.
         skills_stale: the demonstrations changed since the skills were learned.
         problems, recovery_message: plain-words notes from loading (skipped damaged files, crash recovery).
+        objects: the task scene and each demonstration's object events (:class:`SessionObjects`).
     """
 
     name: str
@@ -92,6 +95,7 @@ class Session:
     skill_info: dict[str, SkillEntry] = field(default_factory=dict)
     problems: list[str] = field(default_factory=list)
     recovery_message: str = ""
+    objects: SessionObjects = field(default_factory=SessionObjects)
     _files: list[str] = field(default_factory=list, repr=False)
     _next_id: int = field(default=1, repr=False)
     _lock: threading.RLock = field(default_factory=threading.RLock, repr=False, compare=False)
@@ -138,8 +142,8 @@ class Session:
         self.skills_stale = bool(self.skills) or self.skills_stale
 
     @_locked
-    def add_recording(self, rec: Recording, name: str | None = None) -> int:
-        """Add a demonstration (saved at once); returns its index. Names are made unique ("demo (2)")."""
+    def add_recording(self, rec: Recording, name: str | None = None, events: Iterable[WorldEvent] = ()) -> int:
+        """Add a demonstration (saved at once) and its object events; returns its index. Names are made unique."""
         if not isinstance(rec, Recording):
             raise InvalidInput("Only recordings can be added to a session.")
         if len(rec) < 2:
@@ -160,6 +164,7 @@ class Session:
             raise reworded(exc, self.path, f'The demonstration "{nm}"', "saved") from exc.__cause__
         self.recordings.append(as_stored(self.precision, rec))
         self._files.append(rel)
+        self.objects.added(rel, events)
         self._mark_stale()
         self._write_manifest()
         return len(self.recordings) - 1
@@ -189,6 +194,7 @@ class Session:
         """Delete demonstration ``i``: the manifest stops listing it first, then its file is removed."""
         i = self._check_index(i)
         rel = self._files.pop(i)
+        self.objects.removed(rel)
         self.hidden_demos = self.hidden_demos - {self.recordings.pop(i).name}
         self._mark_stale()
         self._write_manifest()
@@ -196,8 +202,9 @@ class Session:
             (self.path / rel).unlink()
 
     @_locked
-    def trim_demo(self, i: int, t0: float, t1: float) -> None:
-        """Keep only the samples of demonstration ``i`` with t0 ≤ t ≤ t1 (seconds); times restart at 0."""
+    def trim_demo(self, i: int, t0: float, t1: float, events: Iterable[WorldEvent] | None = None) -> None:
+        """Keep only the samples of demonstration ``i`` with t0 ≤ t ≤ t1 (seconds); times restart at 0 (object
+        events: ``events``, by default those within the kept time)."""
         i = self._check_index(i)
         r = self.recordings[i]
         if not (np.isfinite(t0) and np.isfinite(t1)) or t1 <= t0:
@@ -209,6 +216,7 @@ class Session:
         rel = self._write_demo(new)
         old = self._files[i]
         self._files[i] = rel
+        self.objects.trimmed(old, rel, t0, t1, events)
         self.recordings[i] = as_stored(self.precision, new)
         self._mark_stale()
         self._write_manifest()
@@ -226,6 +234,11 @@ class Session:
         if t0 > r.t[0] + 1e-9 or t1 < r.t[-1] - 1e-9:
             self.trim_demo(i, t0, t1)
         return t0, t1
+
+    @_locked
+    def set_scene(self, scene: Scene) -> None:
+        self.objects.scene = scene
+        self._write_manifest()
 
     # -- parameters, notes, skills ------------------------------------------------------------------------
     @_locked
@@ -292,34 +305,40 @@ class Session:
     # -- manifest -----------------------------------------------------------------------------------------
     def manifest(self) -> Manifest:
         """The manifest describing the session as it is now."""
-        return Manifest(
-            name=self.name,
-            arms=self.arms,
-            created=self.created,
-            modified=now(),
-            notes=self.notes,
-            params=self.params,
-            n_clusters=self.n_clusters,
-            precision=self.precision,
-            next_id=self._next_id,
-            demos=tuple(
-                DemoEntry(
-                    file=f,
-                    name=r.name,
-                    arms=r.arms,
-                    samples=len(r),
-                    duration=r.duration,
-                    hidden=r.name in self.hidden_demos,
-                )
-                for f, r in zip(self._files, self.recordings, strict=True)
-            ),
-            skills=dict(self.skill_info),
-            skills_stale=self.skills_stale,
-        )
+        return _manifest(self)
 
     def _write_manifest(self) -> None:
         atomic_write_bytes(self.path / MANIFEST, self.manifest().to_bytes())
 
+
+def _manifest(session: Session) -> Manifest:
+    """The manifest describing ``session`` as it is now."""
+    return Manifest(
+        name=session.name,
+        arms=session.arms,
+        created=session.created,
+        modified=now(),
+        notes=session.notes,
+        params=session.params,
+        n_clusters=session.n_clusters,
+        precision=session.precision,
+        next_id=session._next_id,
+        demos=tuple(
+            DemoEntry(
+                file=f,
+                name=r.name,
+                arms=r.arms,
+                samples=len(r),
+                duration=r.duration,
+                hidden=r.name in session.hidden_demos,
+                events=session.objects.events(f),
+            )
+            for f, r in zip(session._files, session.recordings, strict=True)
+        ),
+        skills=dict(session.skill_info),
+        skills_stale=session.skills_stale,
+        scene=session.objects.scene,
+    )
 
 
 @contextlib.contextmanager

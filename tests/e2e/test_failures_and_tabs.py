@@ -76,12 +76,14 @@ def test_two_tabs_see_the_same_robot_and_session(browser, studio_factory, shots,
     ui.wait_number(b, "Pause speed (ε2)", 0.02)
     assert ui.number_value(b, "Pause speed (ε2)") == pytest.approx(0.02)
 
-    # Reloading B restores the view of the current state.
+    # Reloading B restores the view of the current state, at the step the studio is at (every tab shares it).
     b.reload()
     ui.wait_ready(b)
-    expect(b.locator(".demo-row")).to_have_count(1)
-    ui.tab(b, "Key-points")
+    assert ui.current_step(b) == "Key-points"
     assert ui.number_value(b, "Pause speed (ε2)") == pytest.approx(0.02)
+    ui.tab(b, "Teach")
+    expect(b.locator(".demo-row")).to_have_count(1)
+    assert ui.current_step(a) == "Teach"
     shots(b, "tab B after reload")
     a.close()
     b.close()

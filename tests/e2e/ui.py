@@ -20,7 +20,8 @@ def open_studio(browser, url: str) -> Page:
 def wait_ready(page: Page) -> None:
     """Wait until the studio's panel is connected and the robot meshes are drawn."""
     expect(page.get_by_text("Teaching Studio", exact=True).first).to_be_visible(timeout=30_000)
-    expect(page.get_by_role("button", name="Record")).to_be_visible(timeout=30_000)
+    # The step is the studio's (shared by every tab): a reload shows the step the studio is at.
+    expect(page.locator(".step-title")).to_be_attached(timeout=30_000)
     page.wait_for_function("() => document.querySelector('canvas') !== null", timeout=30_000)
     # The robot's status arrives after its meshes (viser replays the scene in the order it was built).
     expect(page.locator(".gripper-status").first).to_be_attached(timeout=30_000)
@@ -66,9 +67,15 @@ def click_in_row(page: Page, label: str, button: str) -> None:
 
 
 def tab(page: Page, name: str) -> None:
-    t = page.get_by_role("tab", name=name)
-    t.click()
-    expect(t).to_have_attribute("aria-selected", "true")
+    """Go to a step (Teach, Key-points, Train, Preview, Sessions) with the "Step" chooser at the top of the panel;
+    returns once the page shows that step (every tab of the studio follows the step)."""
+    if current_step(page) != name:
+        choose(page, "Step", name)
+    expect(page.locator(f'.step-title[data-step="{name}"]')).to_be_attached()
+
+
+def current_step(page: Page) -> str:
+    return str(page.locator(".step-title").first.get_attribute("data-step"))
 
 
 def open_folder(page: Page, title: str) -> None:

@@ -1,0 +1,240 @@
+"""The task scene: the session's objects (add, move, remove, a preset), the live world the simulated robot
+acts on, the objects of each recorded take, the objects shown during a replay or the preview, and the task
+result of the learned skill in plain words.
+
+* **Live**: a :class:`~studio.world.World` of the session's scene listens to the robot backend; the pose pump
+  draws :meth:`SceneActions.shown` whenever its key changes.
+* **Recording**: each take starts with the objects where the teacher set them up (unless a gripper holds
+  one); at Stop the world's events since the start of the take, times on the recording's clock, are kept
+  with the demonstration (:meth:`SceneActions.end_take`).
+* **Replay and preview**: a world of their own, started from the demonstration's recorded start (or the
+  scene's set-up for the preview) and played up to the moment shown (forward by feeding, backward by
+  starting over), so a seek, a pause or a speed change always shows the objects as they were.
+* **Task result**: the preview played through the scene (:func:`~studio.world.simulate`) against what the
+  shown demonstrations did (:func:`~studio.world.task_goal`), recomputed when a skill is learned or the
+  scene or demonstrations change (:attr:`Topic.TASK`).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from studio.controller.context import Context
+from studio.controller.events import Topic
+from studio.controller.playback import Playback, Player
+from studio.controller.pose import Display
+from studio.core.errors import StudioError
+from studio.core.types import Recording
+from studio.robot_backend.base import RobotBackend
+from studio.world import (
+    KINDS,
+    PRESETS,
+    ObjectPose,
+    Scene,
+    TaskResult,
+    World,
+    WorldEvent,
+    bounded,
+    on_clock,
+    preset,
+    simulate,
+    task_goal,
+    task_result,
+)
+
+log = logging.getLogger(__name__)
+
+#: Where a new object goes on the table, tried in order until one is free: in front of the robot, within
+#: reach of both grippers (x forward, y to the robot's left, metres).
+_SPOTS = tuple((x, y) for x in (0.62, 0.72, 0.82, 0.55) for y in (0.0, 0.2, -0.2, 0.35, -0.35, 0.1, -0.1, 0.45, -0.45))
+
+
+class SceneActions:
+    """The session's task scene and the worlds that bring it to life (see the module docstring).
+
+    Args:
+        robot_arms: the taught arms (for a preset's objects: one set per arm).
+        recording: whether a take is being recorded (the scene cannot change during one).
+    """
+
+    def __init__(
+        self,
+        ctx: Context,
+        backend: RobotBackend,
+        display: Display,
+        player: Player,
+        robot_arms: Callable[[], tuple[str, ...]],
+        recording: Callable[[], bool],
+    ) -> None:
+        self.ctx = ctx
+        self.display = display
+        self.player = player
+        self._arms = robot_arms
+        self._recording = recording
+        self._lock = threading.RLock()
+        self.live = World(ctx.session.objects.scene, ctx.baxter)
+        self._unsubscribe = backend.subscribe(self.live.on_batch)
+        self._take: tuple[int, float] | None = None  # (event mark, stream time at the start of the take)
+        self._played: tuple[Playback, World, int] | None = None  # (playback, its world, samples fed)
+        self._result: TaskResult | None = None
+        self._result_key: object = None
+        for topic in (Topic.SKILL, Topic.DEMOS, Topic.SESSION):
+            ctx.events.on(topic, self._result_may_change)
+
+    # -- the scene set-up ------------------------------------------------------------------------------
+    @property
+    def scene(self) -> Scene:
+        """The open session's scene, as the teacher set it up."""
+        return self.ctx.session.objects.scene
+
+    def add(self, kind: str) -> str:
+        """Put a new cup, block or pad on the table at a free spot in reach; returns its name."""
+        if kind not in KINDS:
+            raise StudioError(f'Choose a cup, a block or a pad (not "{kind}").')
+        scene = self.scene
+        x, y = _free_spot(scene)
+        z = scene.table.top_z if scene.table is not None else -0.93
+        new = scene.add(kind, (x, y, z))
+        self._set(new)
+        return new.objects[-1].name
+
+    def move(self, name: str, position: Sequence[float], yaw: float | None = None) -> None:
+        """Put object ``name`` at ``position`` (its bottom centre, m; it settles on what is below) and heading
+        ``yaw`` (rad; kept when None)."""
+        self._set(self.scene.move(name, position, yaw))
+
+    def remove(self, name: str) -> None:
+        self._set(self.scene.remove(name))
+
+    def use_preset(self, name: str) -> None:
+        """Replace the scene by a preset ("empty table", "stack-cup", "pick-place") for the taught arms."""
+        if name not in PRESETS:
+            raise StudioError(f'Unknown scene "{name}": choose {", ".join(PRESETS)}.')
+        self._set(preset(name, self._arms()))
+
+    def put_back(self) -> None:
+        """Put every object back where the scene sets it up (what a gripper holds is let go)."""
+        if self._recording():
+            raise StudioError("Stop the recording before putting the objects back.")
+        self.live.reset(self.scene)
+        self.ctx.emit(Topic.SCENE)
+
+    def _set(self, scene: Scene) -> None:
+        with self.ctx.lock:
+            if self._recording():
+                raise StudioError("Stop the recording before changing the objects on the table.")
+            self.ctx.session.set_scene(scene)
+            self.live.reset(scene)
+        self.ctx.emit(Topic.SCENE)
+        self._result_may_change()
+
+    def on_session(self) -> None:
+        """Another session is open: its scene comes to life (called with the context lock held)."""
+        self._take = None
+        self.live.reset(self.scene)
+
+    # -- recording takes -------------------------------------------------------------------------------
+    def begin_take(self) -> None:
+        """A recording starts: objects go back to the set-up (unless a gripper holds one), then a start event."""
+        t0 = self.live.last_time  # the recording's first sample is the next one the robot sends
+        if not any(p.held_by for p in self.live.poses()):
+            self.live.reset(self.scene)
+        mark = self.live.mark()
+        start = self.live.snapshot("start", t0)
+        self._take = (mark, start.t)
+
+    def end_take(self, recording: Recording) -> tuple[WorldEvent, ...]:
+        """The take stopped: its object events on the recording's clock (0 at its first sample)."""
+        take, self._take = self._take, None
+        if take is None:
+            return ()
+        self.live.snapshot("end")
+        mark, t0 = take
+        return bounded(on_clock(self.live.events_since(mark), t0, float(recording.duration)))
+
+    def cancel_take(self) -> None:
+        self._take = None
+
+    def demo_start(self, i: int) -> tuple[ObjectPose, ...] | None:
+        """The objects at the start of demonstration ``i`` (None when it was recorded without them)."""
+        session = self.ctx.session
+        events = session.objects.events(session.demo_files[i]) if i < len(session.demo_files) else ()
+        return next((e.poses for e in events if e.kind == "start"), None)
+
+    # -- what the scene shows --------------------------------------------------------------------------
+    def shown(self) -> tuple[tuple[int, ...], tuple[ObjectPose, ...]]:
+        """(key, object poses) to draw now: the live world's, or the replay's or preview's at the moment shown.
+        The key changes whenever the poses may have (draw again only then)."""
+        pb = self.player.loaded
+        if pb is None or self.display.is_live:
+            return (id(self.live), self.live.version, len(self.scene.objects)), self.live.poses()
+        with self._lock:
+            world = self._played_world(pb)
+            return (id(world), world.version), world.poses()
+
+    def _played_world(self, pb: Playback) -> World:
+        rec = pb.recording
+        if self._played is None or self._played[0] is not pb:
+            start = None
+            if pb.kind == "replay":
+                i = next((k for k, r in enumerate(self.ctx.session.recordings) if r is pb.key), None)
+                start = self.demo_start(i) if i is not None else None
+            self._played = (pb, World(self.scene, self.ctx.baxter, start=start), 0)
+        _, world, fed = self._played
+        upto = int(np.searchsorted(rec.t, pb.position + 1e-9, side="right"))
+        if upto < fed:  # went back: start over from the first sample
+            world.reset()
+            fed = 0
+        if upto > fed:
+            world.feed(rec.t[fed:upto], rec.q[fed:upto], rec.gripper[fed:upto])
+        self._played = (pb, world, upto)
+        return world
+
+    # -- the task result -------------------------------------------------------------------------------
+    def task_result(self) -> TaskResult | None:
+        """What the learned skill does with the objects, in plain words (None before a skill is learned)."""
+        return self._result
+
+    def _result_may_change(self) -> None:
+        try:
+            self._update_result()
+        except Exception:
+            log.exception("task result")
+            self._result = None
+            self.ctx.emit(Topic.TASK)
+
+    def _update_result(self) -> None:
+        session = self.ctx.session
+        if not session.skills:
+            result = None
+            key: object = None
+        else:
+            shown = [i for i, r in enumerate(session.recordings) if r.name not in session.hidden_demos]
+            events = [session.objects.events(session.demo_files[i]) for i in shown if i < len(session.demo_files)]
+            key = (id(session), tuple(id(s) for s in session.skills.values()), self.scene, tuple(map(id, events)))
+            if key == self._result_key:
+                return
+            rec = self.player.preview_recording()
+            run = simulate(rec.t, rec.q, rec.gripper, self.scene, baxter=self.ctx.baxter)
+            result = task_result(run, task_goal(events))
+        self._result, self._result_key = result, key
+        self.ctx.emit(Topic.TASK)
+
+    def close(self) -> None:
+        self._unsubscribe()
+
+
+def _free_spot(scene: Scene) -> tuple[float, float]:
+    """The first of :data:`_SPOTS` on the table at least 12 cm from every object (else the first spot)."""
+    taken = [o.position for o in scene.objects]
+    for x, y in _SPOTS:
+        if scene.table is not None and not scene.table.contains(x, y):
+            continue
+        if all(math.hypot(x - p[0], y - p[1]) >= 0.12 for p in taken):
+            return x, y
+    return _SPOTS[0]

@@ -1,0 +1,134 @@
+"""Step panel: which step the teacher is at (Teach, Key-points, Train, Preview, Sessions), the "Show" toggles of
+the scene's layers, and "Reset view".
+
+viser's tab group tells the server nothing when a browser switches tabs (``GuiTabGroupHandle`` has no change
+event in viser 1.1.1), so the step is a dropdown the server hears (a button group was tried: its "Train" and
+"Preview" buttons read like the panels' own buttons): choosing a step sets the controller's step
+(:meth:`studio.controller.View.set_step`), every tab shows that step's section, and each panel draws the
+layers the step shows (:attr:`studio.controller.Topic.VIEW`). Like the rest of the GUI the step is shared by
+every browser tab.
+
+Arrow keys: viser's client moves the camera with the arrow keys unless the focused element is a text field
+(``isFormElement`` in ``CameraControls.tsx`` checks INPUT, TEXTAREA, SELECT, contentEditable), but a slider's
+thumb is a ``div role="slider"``: the slider moved *and* the camera orbited. viser has no setting for it and
+its client cannot be changed from Python, so :data:`ARROW_KEYS_STAY_ON_SLIDERS` (an HTML element whose
+``onload`` adds one listener to the page body, once per page) stops an arrow key pressed on a slider from
+bubbling up to viser's document-level camera listener; the slider (React, at its root below the body) has
+already handled it.
+"""
+
+from __future__ import annotations
+
+import html
+from collections.abc import Callable, Mapping
+
+import viser
+
+from studio.controller import Controller, Layer, Step, Topic
+
+#: The camera every tab starts with and "Reset view" returns to: in front of Baxter and to its right, above
+#: the table, framing the robot and the task area (metres, robot base frame; z up).
+#: The look-at point is to the right of the task area, so that the task area is in the middle of what the side
+#: panel (the right third of a 1280-pixel-wide window) leaves visible.
+HOME_CAMERA_POSITION = (2.65, -0.63, 1.2)
+HOME_CAMERA_LOOK_AT = (0.74, 0.71, 0.05)
+HOME_CAMERA_FOV_DEG = 55.0
+
+HINTS = {
+    Step.TEACH: "Guide the gripper with its handle, put the objects where you want them, record three demonstrations.",
+    Step.KEYPOINTS: "Where each demonstration changes (key-points) and the cluster centres the skill is built on.",
+    Step.TRAIN: "Learn the skill from the shown demonstrations.",
+    Step.PREVIEW: "Watch the robot do the learned skill, and what happens to the objects.",
+    Step.SESSIONS: "Open, save, copy, download or replay your work.",
+}
+
+ARROW_KEYS_STAY_ON_SLIDERS = (
+    '<img alt="" style="display:none" src="data:image/gif;base64,R0lGODlhAQABAAAAACH5BAEKAAEALAAAAAABAAEAAAICTAEAOw==" '
+    "onload=\"if(!window.__studioArrowKeys){window.__studioArrowKeys=1;document.body.addEventListener('keydown',"
+    "function(e){var t=e.target;if(e.key&&e.key.indexOf('Arrow')===0&&t&&t.closest&&t.closest('[role=slider]'))"
+    '{e.stopPropagation();}});}">'
+)
+
+
+class StepPanel:
+    """The step chooser above one section per step, the "Show" toggles and "Reset view"."""
+
+    def __init__(self, ctl: Controller, server: viser.ViserServer, sections: Mapping[Step, viser.GuiFolderHandle]):
+        self.ctl = ctl
+        self.server = server
+        self.sections = dict(sections)
+        gui = server.gui
+        self.steps = gui.add_dropdown(
+            "Step",
+            options=tuple(s.value for s in Step),
+            initial_value=ctl.view.step.value,
+            order=1,
+            hint="What you are doing now: each step shows its own controls and what the scene draws for it.",
+        )
+        self.title = gui.add_html(self._title_html(), order=1.1)
+        self.reset_view = gui.add_button(
+            "Reset view",
+            icon=viser.Icon.FOCUS_CENTERED,
+            color="gray",
+            order=1.2,
+            hint="Look at the robot and the table again.",
+        )
+        with gui.add_folder("Show in the scene", order=1.3, expand_by_default=False):
+            self.toggles = {
+                layer: gui.add_checkbox(layer.value, initial_value=ctl.view.shown(layer)) for layer in Layer
+            }
+        gui.add_html(ARROW_KEYS_STAY_ON_SLIDERS, order=99)
+        self.steps.on_update(ctl.guarded("Could not change the step")(self._on_step))
+        self.reset_view.on_click(ctl.guarded("Could not reset the view")(self._on_reset_view))
+        for layer, box in self.toggles.items():
+            box.on_update(ctl.guarded("Could not change what is shown")(self._make_toggle(layer)))
+        ctl.events.on(Topic.VIEW, self.refresh)
+        self.refresh()
+
+    def _on_step(self, event: viser.GuiEvent) -> None:
+        if event.client is None:  # our own sync from the view
+            return
+        self.ctl.view.set_step(Step(self.steps.value))
+
+    def _make_toggle(self, layer: Layer) -> Callable[[viser.GuiEvent], None]:
+        def cb(event: viser.GuiEvent) -> None:
+            if event.client is None:  # our own sync from the view
+                return
+            self.ctl.view.set_shown(layer, bool(self.toggles[layer].value))
+
+        return cb
+
+    def _on_reset_view(self, event: viser.GuiEvent) -> None:
+        if event.client is None:
+            return
+        reset_camera(event.client)
+
+    def _title_html(self) -> str:
+        step = self.ctl.view.step
+        n = list(Step).index(step) + 1
+        return (
+            f'<div class="step-title" data-step="{html.escape(step.value)}" style="font-size:0.9em;margin:0 4px">'
+            f"<b>Step {n} of {len(Step)}</b> · {html.escape(HINTS[step])}</div>"
+        )
+
+    def refresh(self) -> None:
+        """The step or the layers changed (in any tab): show that step's section and the toggles' state."""
+        view = self.ctl.view
+        with self.server.atomic():
+            for step, section in self.sections.items():
+                section.visible = step == view.step
+            self.steps.value = view.step.value
+            for layer, box in self.toggles.items():
+                box.value = view.shown(layer)
+            self.title.content = self._title_html()
+
+
+def reset_camera(client: viser.ClientHandle) -> None:
+    """Put one tab's camera back to the home view (robot and table)."""
+    import math
+
+    with client.atomic():
+        client.camera.up_direction = (0.0, 0.0, 1.0)
+        client.camera.position = HOME_CAMERA_POSITION
+        client.camera.look_at = HOME_CAMERA_LOOK_AT
+        client.camera.fov = math.radians(HOME_CAMERA_FOV_DEG)
