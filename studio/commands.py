@@ -26,7 +26,6 @@ from studio.storage import DEFAULT_ROOT, Session, SessionStore
 
 if TYPE_CHECKING:
     from studio.core.autotune import TuneResult
-    from studio.core.types import Demo
     from studio.teacher import TeacherPlan
 
 #: The example sessions: task -> (seeds of the three demonstrations, taught arm, notes).
@@ -135,8 +134,7 @@ def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
 
 def verdict_lines(session: Session, arm: str, skill: Skill | None) -> list[str]:
     """The quality verdict of one arm's skill in plain words (empty for something that is not a learned skill)."""
-    from studio.core import quality
-    from studio.core.pipeline import demo_from_recording, learn_path
+    from studio.core.pipeline import demo_from_recording, judge_skill
 
     if not isinstance(skill, Skill):
         return []
@@ -144,19 +142,8 @@ def verdict_lines(session: Session, arm: str, skill: Skill | None) -> list[str]:
     demos = [demo_from_recording(recs[n], arm) for n in skill.demo_names if n in recs]
     if len(demos) != len(skill.demo_names):
         return []
-    held = None
-    if len(demos) >= 2:
-        k = skill.n_clusters if session.n_clusters is not None else None
-
-        def learn(dd: list[Demo]) -> Demo:
-            kk = None if k is None else min(k, sum(len(x) for x in skill.keypoints))
-            return learn_path(dd, skill.params, n_clusters=kk, generalization=skill.generalization)
-
-        try:
-            held = quality.held_out(demos, learn, folds=list(range(min(len(demos), 3))))
-        except StudioError:
-            held = None
-    return list(quality.verdict(quality.assess(skill, demos, held_out_result=held)).lines)
+    _, verdict = judge_skill(skill, demos, fixed_k=session.n_clusters is not None)
+    return list(verdict.lines)
 
 
 def _fmt(x: float, spec: str = ".3g") -> str:

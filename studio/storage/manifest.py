@@ -6,8 +6,8 @@ Versioning and extending (read before adding anything to the format):
   manifest written by a newer one (a higher version) and reads every older one.
 * **Adding an optional field** (the usual case): add it to the dataclass with a default, read it in
   ``from_json`` with that default when it is absent (older files), write it in ``to_json``. No version change:
-  an older studio ignores keys it does not know. ``n_clusters``, ``hidden`` and ``skills_stale`` were added
-  this way.
+  an older studio ignores keys it does not know. ``n_clusters``, ``hidden``, ``skills_stale``, ``thresholds``
+  and ``generalization`` were added this way.
 * **A change an older studio would misread** (a field changing meaning, data moving between files): bump
   ``FORMAT_VERSION`` and register ``UPGRADES[old_version]``, a function turning the raw JSON of version
   ``old_version`` into ``old_version + 1``; :meth:`Manifest.from_json` applies them in order before validating,
@@ -26,7 +26,8 @@ from pathlib import Path
 from typing import Any
 
 from studio.core.errors import InvalidInput
-from studio.core.types import ARMS, KeypointParams
+from studio.core.thresholds import ThresholdSettings
+from studio.core.types import ARMS, DEFAULT_GENERALIZATION, GENERALIZATIONS, KeypointParams
 from studio.storage.format import (
     DEMO_FILE_RE,
     FORMAT,
@@ -111,6 +112,12 @@ class Manifest:
     modified: str = ""
     robot: str = "baxter"
     version: int = FORMAT_VERSION
+    # -- learning settings (issue 11; optional: absent in older sessions) --------------------------------------
+    #: Detail and the thresholds the teacher set by hand; the others follow the demonstrations. None when the
+    #: file predates it: :func:`settings_of` then derives it from ``params``.
+    thresholds: ThresholdSettings | None = None
+    #: The generalisation mode training uses ("aligned-mean" or "paper").
+    generalization: str = DEFAULT_GENERALIZATION
 
     # -- writing ----------------------------------------------------------------------------------------------
     def to_json(self) -> dict[str, object]:
@@ -130,7 +137,14 @@ class Manifest:
             "demos": [d.to_json() for d in self.demos],
             "skills": {arm: s.to_json() for arm, s in self.skills.items()},
             "skills_stale": self.skills_stale,
+            **self._learning_json(),
         }
+
+    def _learning_json(self) -> dict[str, object]:
+        out: dict[str, object] = {"generalization": self.generalization}
+        if self.thresholds is not None:
+            out["thresholds"] = self.thresholds.as_dict()
+        return out
 
     def to_bytes(self) -> bytes:
         return json.dumps(self.to_json(), indent=2, ensure_ascii=False).encode("utf-8") + b"\n"
@@ -186,7 +200,15 @@ class Manifest:
             modified=str(m.raw.get("modified", "")),
             robot=robot,
             version=version,
+            thresholds=m.thresholds(),
+            generalization=m.generalization(),
         )
+
+
+def settings_of(m: Manifest) -> ThresholdSettings:
+    """The threshold settings of a manifest; for a file saved before they existed, values that differ from the
+    old fixed defaults are the teacher's and the others follow the demonstrations."""
+    return m.thresholds if m.thresholds is not None else ThresholdSettings.from_params(m.params)
 
 
 def _file_id(rel: str) -> int:
@@ -253,6 +275,21 @@ class _Reader:
             return KeypointParams.from_dict(self.need("params", dict))
         except (InvalidInput, TypeError, ValueError) as exc:
             raise self.bad(f"has invalid key-point thresholds ({exc})") from exc
+
+    def thresholds(self) -> ThresholdSettings | None:
+        raw = self.raw.get("thresholds")
+        if raw is None:
+            return None
+        try:
+            return ThresholdSettings.from_dict(raw)
+        except (InvalidInput, TypeError, ValueError) as exc:
+            raise self.bad(f'has invalid "thresholds" ({exc})') from exc
+
+    def generalization(self) -> str:
+        mode = self.raw.get("generalization", DEFAULT_GENERALIZATION)
+        if mode not in GENERALIZATIONS:
+            raise self.bad(f'has an unknown "generalization" {mode!r}')
+        return str(mode)
 
     def n_clusters(self) -> int | None:
         try:

@@ -19,7 +19,8 @@ import numpy as np
 
 from studio.core.arms import normalize_arms
 from studio.core.errors import InvalidInput, SessionFormatError
-from studio.core.types import ARMS, KeypointParams, Recording, Skill
+from studio.core.thresholds import ThresholdSettings
+from studio.core.types import ARMS, DEFAULT_GENERALIZATION, GENERALIZATIONS, KeypointParams, Recording, Skill
 from studio.storage.atomic import atomic_write_bytes, atomic_write_npz
 from studio.storage.format import (
     DEMO_DIR,
@@ -36,7 +37,7 @@ from studio.storage.format import (
     skipped_note,
 )
 from studio.storage.idle import idle_bounds
-from studio.storage.manifest import DemoEntry, Manifest, SkillEntry
+from studio.storage.manifest import DemoEntry, Manifest, SkillEntry, settings_of
 from studio.storage.npz import load_demo, load_skill
 
 P = ParamSpec("P")
@@ -61,7 +62,9 @@ class Session:
     Attributes:
         name, path: the session's name and folder.
         arms: the taught arm(s).
-        params: the ε thresholds last used; n_clusters: k chosen by hand (None: automatic).
+        params: the ε thresholds last used (in real units, for the arm shown first; what older studios read);
+            thresholds: Detail and the thresholds the teacher set (the others follow the demonstrations);
+            n_clusters: k chosen by hand (None: automatic); generalization: the mode training uses.
         recordings: the demonstrations, in order; hidden_demos: names of those hidden from learning.
         skills: arm -> learned :class:`Skill`; skill_info: arm -> what it was learned from and when.
         skills_stale: the demonstrations changed since the skills were learned.
@@ -75,6 +78,8 @@ class Session:
     notes: str = ""
     params: KeypointParams = field(default_factory=KeypointParams)
     n_clusters: int | None = None
+    thresholds: ThresholdSettings = field(default_factory=ThresholdSettings)
+    generalization: str = DEFAULT_GENERALIZATION
     recordings: list[Recording] = field(default_factory=list)
     hidden_demos: set[str] = field(default_factory=set)
     skills: dict[str, Skill] = field(default_factory=dict)
@@ -219,6 +224,26 @@ class Session:
         self._write_manifest()
 
     @_locked
+    def set_thresholds(self, settings: ThresholdSettings, params: KeypointParams | None = None) -> None:
+        """Keep the threshold settings (and, if given, the values they resolve to now, for older studios)."""
+        if not isinstance(settings, ThresholdSettings):
+            raise InvalidInput("Threshold settings must be a ThresholdSettings.")
+        if params is not None and not isinstance(params, KeypointParams):
+            raise InvalidInput("Key-point thresholds must be a KeypointParams.")
+        self.thresholds = settings
+        if params is not None:
+            self.params = params
+        self._write_manifest()
+
+    @_locked
+    def set_generalization(self, mode: str) -> None:
+        """Choose how training generalises the demonstrations: "aligned-mean" (default) or "paper"."""
+        if mode not in GENERALIZATIONS:
+            raise InvalidInput(f'Unknown generalisation "{mode}": choose {" or ".join(GENERALIZATIONS)}.')
+        self.generalization = mode
+        self._write_manifest()
+
+    @_locked
     def set_n_clusters(self, k: int | None) -> None:
         """Remember k, the number of clusters chosen by hand (None: choose it automatically)."""
         self.n_clusters = check_n_clusters(k)
@@ -298,6 +323,8 @@ class Session:
             ),
             skills=dict(self.skill_info),
             skills_stale=self.skills_stale,
+            thresholds=self.thresholds,
+            generalization=self.generalization,
         )
 
     def _write_manifest(self) -> None:
@@ -354,6 +381,8 @@ def load_session(path: Path, *, skip_damaged: bool = False) -> Session:
         notes=m.notes,
         params=m.params,
         n_clusters=m.n_clusters,
+        thresholds=settings_of(m),
+        generalization=m.generalization,
         precision=m.precision,
         skills_stale=m.skills_stale,
     )

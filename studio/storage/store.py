@@ -16,6 +16,7 @@ from pathlib import Path
 
 from studio.core.arms import normalize_arms
 from studio.core.errors import InvalidInput, SessionFormatError
+from studio.core.thresholds import ThresholdSettings
 from studio.core.types import KeypointParams
 from studio.recorder import pending_recordings, recover_recordings
 from studio.storage import archive as _archive
@@ -100,7 +101,15 @@ class SessionStore:
             raise InvalidInput(f"Precision must be one of {', '.join(PRECISIONS)}.")
         a = normalize_arms(tuple(arms))
         path.mkdir(parents=True)
-        s = Session(name=name, path=path, arms=a, notes=notes, params=params or KeypointParams(), precision=precision)
+        s = Session(
+            name=name,
+            path=path,
+            arms=a,
+            notes=notes,
+            params=params or KeypointParams(),
+            thresholds=ThresholdSettings.from_params(params) if params is not None else ThresholdSettings(),
+            precision=precision,
+        )
         s._write_manifest()
         return s
 
