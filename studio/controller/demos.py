@@ -147,7 +147,7 @@ class Demos:
         self.ctx.notify(
             "Delete for good?",
             f'Press Delete again within {self.DELETE_CONFIRM_S:.0f} seconds to delete "{name}" from disk. '
-            'To keep it but leave it out of learning, untick "Show in the scene" instead.',
+            "To keep it but leave it out of learning, untick \"Show in the scene\" instead.",
             kind="warning",
         )
         return False

@@ -24,7 +24,6 @@ from studio.storage import Session
 
 log = logging.getLogger(__name__)
 
-
 @dataclass(frozen=True)
 class Reach:
     """Whether an arm reached where its handle was dragged (``target``: the handle's position, m)."""
