@@ -114,9 +114,7 @@ def measure(browser, url: str, steps: int, has_path: bool) -> dict[str, list[flo
                 continue
             if has_path:
                 try:
-                    page.wait_for_function(
-                        f"() => window.__live.pathFrame.length > {n_path}", timeout=5000, polling=20
-                    )
+                    page.wait_for_function(f"() => window.__live.pathFrame.length > {n_path}", timeout=5000, polling=20)
                 except Exception:
                     pass
             time.sleep(0.25)  # the teacher looks before the next step

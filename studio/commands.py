@@ -79,8 +79,9 @@ def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
     from studio.core import pipeline
     from studio.core.thresholds import ThresholdSettings
 
-    # The session stores plain values; those still at the old fixed defaults are automatic (follow the demos).
-    settings = ThresholdSettings.from_params(session.params)
+    # Automatic thresholds follow each arm's demos; the teacher's own values are kept (older sessions: values off
+    # the old fixed defaults count as the teacher's).
+    settings: ThresholdSettings = session.thresholds
     k = session.n_clusters
     t0 = time.perf_counter()
     tuned: dict[str, TuneResult] = {}
@@ -91,7 +92,7 @@ def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
             demos_arm = [pipeline.demo_from_recording(r, arm) for r in session.recordings if arm in r.arms]
             if len(demos_arm) < 2:
                 continue
-            res = autotune.suggest(demos_arm, current=settings, n_clusters=k)
+            res = autotune.suggest(demos_arm, current=settings, n_clusters=k, generalization=session.generalization)
             tuned[arm] = res
             print(
                 f"{arm.capitalize()} arm — suggested thresholds (Detail {res.settings.detail:+.1f}, "
@@ -109,19 +110,24 @@ def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
                     arms=(arm,),
                     n_clusters=r.n_clusters if r is not None else k,
                     seed=0,
+                    generalization=session.generalization,
                 )
             )
     else:
-        skills = pipeline.learn_arms(session.recordings, params=settings, arms=arms, n_clusters=k, seed=0)
+        skills = pipeline.learn_arms(
+            session.recordings, params=settings, arms=arms, n_clusters=k, seed=0, generalization=session.generalization
+        )
     elapsed = time.perf_counter() - t0
     demos = {arm: list(skill.demo_names) for arm, skill in skills.items()}
     if len(tuned) == 1 and len(arms) == 1:
-        # Suggest applied: its values and k become the session's (kept as the teacher's from now on)
+        # Suggest applied: its settings (Detail, every threshold automatic) and k become the session's
         only = next(iter(tuned.values()))
         session.set_skills(skills, params=only.params, demos=demos)
+        session.set_params(only.params, only.settings)
         session.set_n_clusters(only.n_clusters)
     else:
-        session.set_skills(skills, params=session.params, demos=demos)
+        used = next(iter(skills.values())).params if skills else session.params  # what older studios read
+        session.set_skills(skills, params=used, demos=demos)
     print(report(session, skills, elapsed), file=out)
     for arm, skill in skills.items():
         lines = verdict_lines(session, arm, skill)

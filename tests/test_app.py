@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from studio.app import Studio, build_app, exposure_warning, robot_urdf_path
-from studio.controller import PREVIEW
+from studio.controller import PREVIEW, Step
 from studio.core.errors import StudioError
 from studio.recorder import Recorder
 from studio.robot_backend.simulated import SimulatedBaxter
@@ -85,6 +85,7 @@ def test_demo_edits_redraw_the_traces(app: Studio) -> None:
 
 
 def test_keypoints_are_drawn(app: Studio) -> None:
+    app.controller.view.set_step(Step.KEYPOINTS)
     kp = app.controller.keypoints
     kp.set_param("eps5", 0.03)
     v1 = kp.compute()
@@ -253,7 +254,8 @@ def test_sessions_cannot_change_while_training(app: Studio, sessions: Path) -> N
 
 
 def _loglik_rows(app: Studio) -> list[str]:
-    return re.findall(r'<tr class="loglik-row"><td>(.*?)</td>', app.panels.train.summary.content)
+    """The per-demo rows of the Train panel ("fits the skill: well / poorly"), in the skill's order."""
+    return re.findall(r'<tr class="fit-row" data-well="[01]?"><td>(.*?)</td>', app.panels.train.summary.content)
 
 
 def test_train_panel_rows_stay_matched_to_the_skill(app: Studio) -> None:

@@ -189,7 +189,7 @@ class KeypointTuning:
             settings, k, session = self._settings, self._k, self.ctx.session
         params = self.params(settings=settings)
         if settings != session.thresholds or params != session.params:
-            session.set_thresholds(settings, params)
+            session.set_params(params, settings)
         if k != session.n_clusters:
             session.set_n_clusters(k)
 

@@ -92,7 +92,7 @@ class Suggesting:
                 generalization=mode,
                 progress=progress,
                 cancel=self._cancel,
-                **kwargs,  # type: ignore[arg-type]
+                **kwargs,
             )
             if res.cancelled:
                 self._set(running=False, summary="Suggest was stopped: your thresholds are unchanged.")
@@ -119,7 +119,7 @@ class Suggesting:
 
         fut = self.ctx.submit(job, title="Suggest did not work")
         fut.add_done_callback(failed)
-        return fut  # type: ignore[return-value]
+        return fut
 
     def cancel(self) -> None:
         """Stop a running search (nothing is changed)."""

@@ -77,7 +77,7 @@ class Training:
         with self.ctx.lock:
             if mode == self.ctx.session.generalization:
                 return
-            self.ctx.session.set_generalization(mode)
+            self.ctx.session.set_params(mode=mode)
         self.ctx.emit(Topic.TRAINING)
 
     # -- training ------------------------------------------------------------------------------------------
@@ -180,7 +180,7 @@ class Training:
 
         fut = self.ctx.submit(job, title="Could not judge the skill")
         fut.add_done_callback(finished)
-        return fut  # type: ignore[return-value]
+        return fut
 
     def _judge_one(self, arm: str, skill: Skill, fixed_k: bool) -> SkillVerdict:
         from studio.core.pipeline import judge_skill

@@ -606,6 +606,7 @@ def learn_arms(
     n_clusters: int | None = None,
     seed: int = 0,
     baxter: Baxter | None = None,
+    generalization: str = DEFAULT_GENERALIZATION,
 ) -> dict[str, Skill]:
     """One skill per taught arm, each with its joint trajectory.
 
@@ -631,7 +632,9 @@ def learn_arms(
         if not demos:
             raise NotEnoughData(f"No demonstration teaches the {arm} arm.")
         p = params.resolve(demos) if isinstance(params, ThresholdSettings) else params
-        out[arm] = learn_skill(demos, p, n_clusters=n_clusters, seed=seed, arm=arm, baxter=b)
+        out[arm] = learn_skill(
+            demos, p, n_clusters=n_clusters, seed=seed, arm=arm, baxter=b, generalization=generalization
+        )
     return out
 
 

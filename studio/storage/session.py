@@ -62,9 +62,7 @@ class Session:
     Attributes:
         name, path: the session's name and folder.
         arms: the taught arm(s).
-        params: the ε thresholds last used (in real units, for the arm shown first; what older studios read);
-            thresholds: Detail and the thresholds the teacher set (the others follow the demonstrations);
-            n_clusters: k chosen by hand (None: automatic); generalization: the mode training uses.
+        params, thresholds, n_clusters, generalization: the learning settings (see :class:`Manifest`).
         recordings: the demonstrations, in order; hidden_demos: names of those hidden from learning.
         skills: arm -> learned :class:`Skill`; skill_info: arm -> what it was learned from and when.
         skills_stale: the demonstrations changed since the skills were learned.
@@ -217,30 +215,16 @@ class Session:
 
     # -- parameters, notes, skills ------------------------------------------------------------------------
     @_locked
-    def set_params(self, params: KeypointParams) -> None:
-        if not isinstance(params, KeypointParams):
-            raise InvalidInput("Key-point thresholds must be a KeypointParams.")
-        self.params = params
-        self._write_manifest()
-
-    @_locked
-    def set_thresholds(self, settings: ThresholdSettings, params: KeypointParams | None = None) -> None:
-        """Keep the threshold settings (and, if given, the values they resolve to now, for older studios)."""
-        if not isinstance(settings, ThresholdSettings):
-            raise InvalidInput("Threshold settings must be a ThresholdSettings.")
-        if params is not None and not isinstance(params, KeypointParams):
-            raise InvalidInput("Key-point thresholds must be a KeypointParams.")
-        self.thresholds = settings
+    def set_params(
+        self, params: KeypointParams | None = None, settings: ThresholdSettings | None = None, mode: str | None = None
+    ) -> None:
+        """Keep the ε values with the settings they come from (default: values off the old fixed defaults are the
+        teacher's, the others automatic), and/or the generalisation ``mode`` ("aligned-mean" or "paper")."""
+        if (params is not None and not isinstance(params, KeypointParams)) or mode not in (None, *GENERALIZATIONS):
+            raise InvalidInput('Key-point thresholds must be a KeypointParams, the mode "aligned-mean" or "paper".')
         if params is not None:
-            self.params = params
-        self._write_manifest()
-
-    @_locked
-    def set_generalization(self, mode: str) -> None:
-        """Choose how training generalises the demonstrations: "aligned-mean" (default) or "paper"."""
-        if mode not in GENERALIZATIONS:
-            raise InvalidInput(f'Unknown generalisation "{mode}": choose {" or ".join(GENERALIZATIONS)}.')
-        self.generalization = mode
+            self.params, self.thresholds = params, settings or ThresholdSettings.from_params(params)
+        self.generalization = mode or self.generalization
         self._write_manifest()
 
     @_locked
@@ -300,36 +284,33 @@ class Session:
     # -- manifest -----------------------------------------------------------------------------------------
     def manifest(self) -> Manifest:
         """The manifest describing the session as it is now."""
-        return Manifest(
-            name=self.name,
-            arms=self.arms,
-            created=self.created,
-            modified=now(),
-            notes=self.notes,
-            params=self.params,
-            n_clusters=self.n_clusters,
-            precision=self.precision,
-            next_id=self._next_id,
-            demos=tuple(
-                DemoEntry(
-                    file=f,
-                    name=r.name,
-                    arms=r.arms,
-                    samples=len(r),
-                    duration=r.duration,
-                    hidden=r.name in self.hidden_demos,
-                )
-                for f, r in zip(self._files, self.recordings, strict=True)
-            ),
-            skills=dict(self.skill_info),
-            skills_stale=self.skills_stale,
-            thresholds=self.thresholds,
-            generalization=self.generalization,
-        )
+        return _manifest_of(self)
 
     def _write_manifest(self) -> None:
         atomic_write_bytes(self.path / MANIFEST, self.manifest().to_bytes())
 
+
+def _manifest_of(self: Session) -> Manifest:
+    """The manifest describing ``self`` as it is now (:meth:`Session.manifest`)."""
+    return Manifest(
+        name=self.name,
+        arms=self.arms,
+        created=self.created,
+        modified=now(),
+        notes=self.notes,
+        params=self.params,
+        n_clusters=self.n_clusters,
+        precision=self.precision,
+        next_id=self._next_id,
+        demos=tuple(
+            DemoEntry(f, r.name, r.arms, samples=len(r), duration=r.duration, hidden=r.name in self.hidden_demos)
+            for f, r in zip(self._files, self.recordings, strict=True)
+        ),
+        skills=dict(self.skill_info),
+        skills_stale=self.skills_stale,
+        thresholds=self.thresholds,
+        generalization=self.generalization,
+    )
 
 
 def unique_name(name: str, taken: set[str]) -> str:
