@@ -1,21 +1,28 @@
-"""The live loop in a real browser: an ε slider step until the key-points (and the live learned path) show.
+"""The live loop in a real browser: one ε5 step (ArrowRight on the focused slider) until the new key-points,
+centroids and live learned path show.
 
-Measured in headless Debian Chromium (Playwright) against a `studio serve` subprocess, the way a teacher
-works: the Key-points tab is open, the ε5 slider ("Travel distance") has the keyboard focus, and each step is
-one ArrowRight key press. In the page, a key-down listener stamps the press (``performance.now()``), a
-MutationObserver stamps the moment the per-demo key-point counts change in the side panel (they arrive in the
-same atomic batch as the key-point and centroid markers) and the first animation frame after it (the frame
-that draws the new markers); the live path's figure (and its dashed path, one batch) is stamped the same way.
+Headless Debian Chromium (Playwright) drives the studio the way a teacher does: the Key-points tab, the "All
+thresholds" folder open, the ε5 slider ("Travel distance") focused, one arrow key press per step (four right,
+four left, …, 0.6 s apart: a teacher looks at the result before the next step). The studio runs in this
+process (as `studio serve` would: robot streaming at 1 kHz, pose pump, key-point thread), so the server's side
+of each step is timed too, on the same clock as the page (epoch milliseconds).
 
-Baseline in the same run: the round trip of a GUI change that does no work (the "Choose the number of
-clusters automatically" box is ticked twice; its callback only stores k and requests the key-point view),
-measured from the click to the first frame after the studio's answer (the k slider's enabled state).
+Per step, from the key press (the key event's own time stamp, taken by the browser when the key went down):
+  * server got the change — the slider's callback runs in the studio;
+  * server queued the markers — key-points, centroids and counts sent as one atomic batch;
+  * page shows the counts — the per-demo key-point counts changed in the page (same batch as the markers);
+  * frame with the markers — two animation frames after that: the frame that draws the new markers is done;
+  * live path shown — the live path's figure (sent with its dashed path, one batch) changed in the page,
+    and its frame (two animation frames later).
 
-Sessions:
-* ``example``: a copy of the example session "stack-cup" (3 demos × ~22,000 samples at 1 kHz);
-* ``3x30k``: 3 demos × 30,000 samples (bench_app.py's), for the live path's ≤ 150 ms budget.
+Baseline in the same run: the same steps without the page script that keeps arrow keys in the focused
+control (:mod:`studio.panels._page`): the key press then also starts viser's keyboard camera orbit, as it
+did before.
 
-Run:  .venv/bin/python bench/bench_live.py [--steps 15] [--session example|3x30k|both]
+Sessions: ``example`` — a copy of "stack-cup" (3 demos × ~22,000 samples at 1 kHz); ``3x30k`` — 3 demos ×
+30,000 samples (bench_app.py's), for the live path's ≤ 150 ms budget.
+
+Run:  .venv/bin/python bench/bench_live.py [--steps 16] [--session example|3x30k|both] [--no-baseline]
 """
 
 from __future__ import annotations
@@ -26,129 +33,133 @@ import statistics
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from tests.conftest import CHROMIUM, CHROMIUM_ARGS  # noqa: E402  (after the path insert)
-from tests.e2e.conftest import StudioProcess  # noqa: E402
+from tests.conftest import CHROMIUM, CHROMIUM_ARGS, free_port  # noqa: E402  (after the path insert)
 
-EPS5_LABEL = "Travel distance (ε5)"
+EPS5_LABEL = "Travel distance, cm (ε5)"
 
 _INSTALL_JS = """() => {
-    window.__live = {press: [], counts: [], countsFrame: [], path: [], pathFrame: [], click: []};
-    const L = window.__live;
-    document.addEventListener("pointerdown", () => L.click.push(performance.now()), true);
-    document.addEventListener("keydown", e => { if (e.key.startsWith("Arrow")) {L.press.push(performance.now()); console.log("TRACE press " + (performance.timeOrigin + performance.now()).toFixed(1));} },
-                              true);
-    let lastCounts = null, lastPath = null;
-    const read = () => {
-        const c = [...document.querySelectorAll(".kp-count")].map(e => e.dataset.count).join(",");
-        const p = [...document.querySelectorAll(".live-path")].map(e => e.dataset.version).join(",");
-        return [c, p];
-    };
-    [lastCounts, lastPath] = read();
+    const L = window.__live = {press: [], counts: [], countsFrame: [], path: [], pathFrame: []};
+    const epoch = (t) => performance.timeOrigin + t;
+    window.addEventListener("keydown", e => { if (e.key.startsWith("Arrow")) L.press.push(epoch(e.timeStamp)); },
+                            true);
+    const read = () => [
+        [...document.querySelectorAll(".kp-count")].map(e => e.dataset.count).join(","),
+        [...document.querySelectorAll(".live-path")].map(e => e.dataset.version).join(","),
+    ];
+    const twoFrames = (list) => requestAnimationFrame(() => requestAnimationFrame(
+        () => list.push(epoch(performance.now()))));
+    let [lastCounts, lastPath] = read();
     new MutationObserver(() => {
         const [c, p] = read();
-        const now = performance.now();
-        if (c !== lastCounts) {
-            lastCounts = c; L.counts.push(now); console.log("TRACE counts " + (performance.timeOrigin + now).toFixed(1));
-            requestAnimationFrame(() => L.countsFrame.push(performance.now()));
-        }
-        if (p !== lastPath) {
-            lastPath = p; L.path.push(now);
-            requestAnimationFrame(() => L.pathFrame.push(performance.now()));
-        }
+        const now = epoch(performance.now());
+        if (c !== lastCounts) { lastCounts = c; L.counts.push(now); twoFrames(L.countsFrame); }
+        if (p !== lastPath) { lastPath = p; L.path.push(now); twoFrames(L.pathFrame); }
     }).observe(document.body, {subtree: true, childList: true, characterData: true, attributes: true});
 }"""
 
 
-def make_sessions(root: Path, which: str) -> None:
+def make_sessions(root: Path, which: str) -> str:
     if which == "example":
         shutil.copytree(ROOT / "sessions" / "stack-cup", root / "example")
-    else:
-        from bench.bench_app import make_session
+        return "example"
+    from bench.bench_app import make_session
 
-        make_session(root)
-        (root / "bench").rename(root / "3x30k")
-
-
-def _slider_thumb(page, label: str):
-    from tests.e2e import ui
-
-    return ui.row(page, label).locator("[role=slider]").first
+    make_session(root)
+    return "bench"
 
 
-def measure(browser, url: str, steps: int, has_path: bool) -> dict[str, list[float]]:
+@contextmanager
+def studio(root: Path, session: str, guard: bool) -> Iterator:
+    """The studio in this process; ``guard=False`` leaves out the arrow-key page script (the baseline)."""
+    import studio.app as app_mod
+    from studio.app import build_app
+
+    original = app_mod.install_page
+    if not guard:
+        app_mod.install_page = lambda server: None  # type: ignore[assignment]
+    try:
+        app = build_app(port=free_port(), session=session, sessions_dir=root)
+    finally:
+        app_mod.install_page = original
+    stamps: dict[str, list[float]] = {"got": [], "queued": [], "path_queued": []}
+    from studio.controller import Topic
+
+    kp, panel = app.controller.keypoints, app.panels.keypoints
+    set_param, draw = kp.set_param, panel.draw
+
+    def timed_set(name: str, value: float) -> None:
+        stamps["got"].append(1e3 * time.time())
+        set_param(name, value)
+
+    def timed_draw(view) -> None:  # type: ignore[no-untyped-def]
+        draw(view)
+        stamps["queued"].append(1e3 * time.time())
+
+    kp.set_param = timed_set  # type: ignore[method-assign]
+    panel.draw = timed_draw  # type: ignore[method-assign]
+    # subscribed after the panel: runs once the panel queued the dashed path and its figure
+    app.controller.events.on(Topic.LIVE_PATH, lambda: stamps["path_queued"].append(1e3 * time.time()))
+    try:
+        yield app, stamps
+    finally:
+        app.stop()
+
+
+def _after(xs: list[float], t: float, until: float) -> float | None:
+    hit = [x for x in xs if t <= x < until]
+    return hit[0] if hit else None
+
+
+def measure(browser, app, stamps: dict[str, list[float]], steps: int) -> dict[str, list[float]]:
     from playwright.sync_api import expect
 
     from tests.e2e import ui
 
-    page = ui.open_studio(browser, url)
-    page.on("console", lambda m: print(m.text, flush=True) if m.text.startswith("TRACE") else None)
+    page = ui.open_studio(browser, app.url())
+    out: dict[str, list[float]] = {k: [] for k in ("got", "queued", "counts", "frame", "path", "path_frame")}
+    out["misses"] = []
+    out["live_ms"] = []
     try:
         ui.tab(page, "Key-points")
-        thumb = _slider_thumb(page, EPS5_LABEL)
+        ui.open_folder(page, "All thresholds")
+        thumb = ui.row(page, EPS5_LABEL).locator("[role=slider]").first
         expect(thumb).to_be_visible()
         page.wait_for_function("() => document.querySelectorAll('.kp-count').length > 0", timeout=60_000)
-        time.sleep(2.0)  # let the first view and live path settle
-        page.evaluate(_INSTALL_JS)
-        out: dict[str, list[float]] = {"counts": [], "frame": [], "path": [], "path_frame": [], "misses": []}
         thumb.focus()
+        page.keyboard.press("ArrowRight")  # the first step opens the Key-points step of the scene; not counted
+        time.sleep(3.0)
+        page.evaluate(_INSTALL_JS)
         for i in range(steps):
-            n_press = page.evaluate("() => window.__live.press.length")
-            n_counts = page.evaluate("() => window.__live.counts.length")
-            n_path = page.evaluate("() => window.__live.path.length")
-            key = "ArrowRight" if (i // 4) % 2 == 0 else "ArrowLeft"  # wander up and back
-            thumb.press(key)
+            n = page.evaluate("() => window.__live.counts.length")
+            page.keyboard.press("ArrowRight" if (i // 4) % 2 == 0 else "ArrowLeft")  # the focused slider
             try:
-                page.wait_for_function(
-                    f"() => window.__live.counts.length > {n_counts} && window.__live.countsFrame.length > {n_counts}",
-                    timeout=3000,
-                    polling=20,
-                )
+                page.wait_for_function(f"() => window.__live.countsFrame.length > {n}", timeout=5000, polling=10)
             except Exception:
-                out["misses"].append(float(i))  # this step did not change any count
-                time.sleep(0.3)
-                continue
-            if has_path:
-                try:
-                    page.wait_for_function(f"() => window.__live.pathFrame.length > {n_path}", timeout=5000, polling=20)
-                except Exception:
-                    pass
-            time.sleep(0.25)  # the teacher looks before the next step
-            live = page.evaluate("() => window.__live")
-            t0 = live["press"][n_press]
-            out["counts"].append(live["counts"][n_counts] - t0)
-            out["frame"].append(live["countsFrame"][n_counts] - t0)
-            if has_path and len(live["pathFrame"]) > n_path:
-                out["path"].append(live["path"][n_path] - t0)
-                out["path_frame"].append(live["pathFrame"][n_path] - t0)
-        # Baseline: a GUI change that does no work, click → the studio's answer drawn.
-        base: list[float] = []
-        box = ui.row(page, "Choose the number of clusters automatically").locator("input").first
-        k_input = ui.row(page, "Clusters (k)").locator("[role=slider]").first
-        for _ in range(6):
-            was_disabled = k_input.get_attribute("data-disabled") == "true"
-            n_click = page.evaluate("() => window.__live.click.length")
-            box.click()
-            page.wait_for_function(
-                """(was) => {
-                    const rows = [...document.querySelectorAll('label')].filter(l => l.textContent.trim() === 'Clusters (k)');
-                    if (!rows.length) return false;
-                    const row = rows[0].closest('.mantine-Flex-root');
-                    const s = row && row.querySelector('[role=slider]');
-                    return s && ((s.getAttribute('data-disabled') === 'true') !== was);
-                }""",
-                arg=was_disabled,
-                timeout=5000,
-                polling=10,
-            )
-            t1 = page.evaluate("() => new Promise(r => requestAnimationFrame(() => r(performance.now())))")
-            base.append(t1 - page.evaluate(f"() => window.__live.click[{n_click}]"))
-            time.sleep(0.3)
-        out["baseline"] = base
+                out["misses"].append(float(i))
+            time.sleep(0.6)
+            out["live_ms"].append(app.controller.live.computed_ms)
+        live = page.evaluate("() => window.__live")
+        presses = live["press"] + [float("inf")]
+        for j, t0 in enumerate(presses[:-1]):
+            t1 = presses[j + 1]
+            for key, src in (
+                ("got", stamps["got"]),
+                ("queued", stamps["queued"]),
+                ("counts", live["counts"]),
+                ("frame", live["countsFrame"]),
+                ("path", live["path"]),
+                ("path_frame", live["pathFrame"]),
+            ):
+                hit = _after(src, t0, t1)
+                if hit is not None:
+                    out[key].append(hit - t0)
         return out
     finally:
         page.close()
@@ -157,38 +168,47 @@ def measure(browser, url: str, steps: int, has_path: bool) -> dict[str, list[flo
 def _fmt(xs: list[float]) -> str:
     if not xs:
         return "n/a"
-    return f"median {statistics.median(xs):.0f} ms (range {min(xs):.0f}–{max(xs):.0f}, n = {len(xs)})"
+    return f"median {statistics.median(xs):5.0f} ms (range {min(xs):.0f}–{max(xs):.0f}, n = {len(xs)})"
+
+
+def report(name: str, r: dict[str, list[float]]) -> None:
+    print(f"  server got the change:                 {_fmt(r['got'])}")
+    print(f"  server queued key-points + centroids:  {_fmt(r['queued'])}")
+    print(f"  page shows the new key-point counts:   {_fmt(r['counts'])}")
+    print(f"  frame with the new markers done:       {_fmt(r['frame'])}")
+    print(f"  page shows the live path's figure:     {_fmt(r['path'])}")
+    print(f"  frame with the new live path done:     {_fmt(r['path_frame'])}")
+    live = [x for x in r["live_ms"] if x == x]
+    if live:
+        print(f"  (live path computed in {statistics.median(live):.0f} ms median on the server)")
+    if r["misses"]:
+        print(f"  steps after which no count changed: {len(r['misses'])}")
 
 
 def main() -> int:
     from playwright.sync_api import sync_playwright
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--steps", type=int, default=15)
+    ap.add_argument("--steps", type=int, default=16)
     ap.add_argument("--session", choices=("example", "3x30k", "both"), default="both")
+    ap.add_argument("--no-baseline", action="store_true", help="skip the run without the page script")
     args = ap.parse_args()
     which = ("example", "3x30k") if args.session == "both" else (args.session,)
-    tmp = Path(tempfile.mkdtemp(prefix="bench-live-"))
-    try:
-        with sync_playwright() as p:
-            browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
-            for name in which:
-                make_sessions(tmp, name)
-                studio = StudioProcess(tmp, name).start(timeout=120)
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
+        for which_one in which:
+            for guard in (True,) if args.no_baseline else (True, False):
+                tmp = Path(tempfile.mkdtemp(prefix="bench-live-"))
                 try:
-                    r = measure(browser, studio.url, args.steps, has_path=True)
+                    session = make_sessions(tmp, which_one)
+                    with studio(tmp, session, guard) as (app, stamps):
+                        r = measure(browser, app, stamps, args.steps)
+                    label = "the studio" if guard else "baseline: arrow keys also orbit the camera"
+                    print(f"[{which_one}] {label}, ε5 one step, from the key press:")
+                    report(which_one, r)
                 finally:
-                    studio.stop()
-                print(f"[{name}] ε5 ArrowRight → key-point counts changed in the page: {_fmt(r['counts'])}")
-                print(f"[{name}] ε5 ArrowRight → first frame with the new key-points: {_fmt(r['frame'])}")
-                print(f"[{name}] ε5 ArrowRight → live path figure changed: {_fmt(r['path'])}")
-                print(f"[{name}] ε5 ArrowRight → first frame with the new live path: {_fmt(r['path_frame'])}")
-                print(f"[{name}] baseline, a GUI change that does no work → answer drawn: {_fmt(r['baseline'])}")
-                if r["misses"]:
-                    print(f"[{name}] steps that changed no count: {len(r['misses'])}")
-            browser.close()
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+                    shutil.rmtree(tmp, ignore_errors=True)
+        browser.close()
     return 0
 
 

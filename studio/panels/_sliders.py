@@ -106,6 +106,7 @@ def scaled_range(size_m: float, value_shown: float) -> tuple[float, float]:
 
 
 def _digits(step: float) -> int:
+    """Decimals a slider with this step shows (0.05 → 2, 0.5 → 1, 1 → 0)."""
     return max(0, -math.floor(math.log10(step) + 1e-9))
 
 
@@ -113,16 +114,19 @@ class ThresholdSliders:
     """The "All thresholds" folder: a line with the current key-point counts and whose values are whose, the
     position and orientation sliders, and "back to automatic" for one or all."""
 
-    def __init__(self, ctl: Controller, gui: viser.GuiApi, counts_line: Callable[[], str]) -> None:
+    def __init__(
+        self, ctl: Controller, gui: viser.GuiApi, counts_line: Callable[[], str], touched: Callable[[], None]
+    ) -> None:
         self.ctl = ctl
         self.counts_line = counts_line
+        self.touched = touched  # the teacher works on the thresholds (the scene shows the key-points)
         self.sliders: dict[str, viser.GuiSliderHandle[float]] = {}
         self.lines: list[viser.GuiHtmlHandle] = []
         self._scale = 0.0
         settings = ctl.keypoints.settings()
         params = ctl.keypoints.params()
         with gui.add_folder("All thresholds", expand_by_default=False):
-            self.whose = gui.add_html(self._whose_html())
+            self.whose = gui.add_html("")
             for title, group in (("Position (ε1–ε7)", POSITION), ("Orientation (ε8–ε14)", ORIENTATION)):
                 with gui.add_folder(title, expand_by_default=title.startswith("Position")):
                     self.lines.append(gui.add_html(""))  # the counts, right above the sliders being moved
@@ -136,6 +140,7 @@ class ThresholdSliders:
                             initial_value=min(max(v, spec.lo), spec.hi),
                             hint=f"{spec.hint} ({spec.symbol} in the paper.)",
                         )
+                        s.precision = _digits(spec.step)
                         s.on_update(self._make_cb(spec))
                         self.sliders[spec.name] = s
             self.yours = gui.add_dropdown(
@@ -162,6 +167,7 @@ class ThresholdSliders:
                 value = min(max(value, math.pi), 2 * math.pi)
             first = self.ctl.keypoints.settings().is_auto(spec.name)
             self.ctl.keypoints.set_param(spec.name, value)
+            self.touched()
             if first:  # it is the teacher's from now on
                 self.sliders[spec.name].label = spec.label(True)
                 self._sync_whose()
@@ -192,19 +198,23 @@ class ThresholdSliders:
                 hi, step = scaled_range(size, v)
                 s.max, s.step, s.precision = hi, step, _digits(step)
             if every or auto:
+                v = round(min(max(v, s.min), s.max), _digits(s.step) + 1)  # what the box can show
                 if abs(float(s.value) - v) > 1e-9:
-                    s.value = min(max(v, s.min), s.max)
+                    s.value = v
                 if s.label != spec.label(not auto):
                     s.label = spec.label(not auto)
         self._sync_whose()
 
     def _sync_whose(self) -> None:
+        content = self._whose_html()
+        if content == self.whose.content:  # nothing changed: send nothing (this runs after every view)
+            return
         settings = self.ctl.keypoints.settings()
         mine = [SPECS[n].label() for n in SPECS if not settings.is_auto(n)]
         self.yours.options = tuple(mine) or ("none",)
         self.yours.value = mine[0] if mine else "none"
         self.make_auto.disabled = not mine
-        self.whose.content = self._whose_html()
+        self.whose.content = content
 
     def _whose_html(self) -> str:
         settings = self.ctl.keypoints.settings()

@@ -11,7 +11,7 @@ import threading
 import numpy as np
 import viser
 
-from studio.controller import Controller, KeypointView, Layer, LivePath, Topic
+from studio.controller import Controller, KeypointView, Layer, LivePath, Step, Topic
 from studio.core.thresholds import DETAIL_MAX, DETAIL_MIN
 from studio.core.types import ARMS
 from studio.panels._charts import dashes
@@ -54,7 +54,7 @@ class KeypointsPanel:
             "right for more (closer to every turn of your demonstrations). Values you set yourself stay.",
         )
         self.suggest = SuggestControls(ctl, gui)
-        self.thresholds = ThresholdSliders(ctl, gui, lambda: counts_line(ctl.keypoints.view))
+        self.thresholds = ThresholdSliders(ctl, gui, lambda: counts_line(ctl.keypoints.view), self._touched)
         self.sliders = self.thresholds.sliders
         k = ctl.keypoints.k
         with gui.add_folder("Clusters", expand_by_default=False):
@@ -95,16 +95,24 @@ class KeypointsPanel:
         ctl.keypoints.request()
 
     # -- callbacks ---------------------------------------------------------------------------------------
+    def _touched(self) -> None:
+        """The teacher works on the thresholds: the scene shows the Key-points step (their own "Show" choices
+        stay while they are in it)."""
+        if self.ctl.view.step != Step.KEYPOINTS:
+            self.ctl.view.set_step(Step.KEYPOINTS)
+
     def _on_detail(self, event: viser.GuiEvent) -> None:
         if event.client is None:
             return
         self.ctl.keypoints.set_detail(float(self.detail.value))
+        self._touched()
 
     def _on_k(self, event: viser.GuiEvent) -> None:
         if event.client is None:
             return
         self.k.disabled = bool(self.k_auto.value)
         self.ctl.keypoints.set_k(None if self.k_auto.value else int(self.k.value))
+        self._touched()
 
     def _sync_all(self) -> None:
         """Settings changed other than by one slider (Detail, automatic again, Suggest, undo, session)."""
@@ -115,12 +123,15 @@ class KeypointsPanel:
 
     def _sync_k(self, view: KeypointView | None) -> None:
         k = self.ctl.keypoints.k
-        self.k_auto.value = k is None
-        self.k.disabled = k is None
-        if k is not None:
-            self.k.value = _k_shown(k)
-        elif view is not None and view.k:  # automatic: show the k in use, not a stale number
-            self.k.value = _k_shown(next(iter(view.k.values())))
+        if self.k_auto.value != (k is None):
+            self.k_auto.value = k is None
+        if self.k.disabled != (k is None):
+            self.k.disabled = k is None
+        shown = _k_shown(k) if k is not None else None
+        if k is None and view is not None and view.k:  # automatic: show the k in use, not a stale number
+            shown = _k_shown(next(iter(view.k.values())))
+        if shown is not None and self.k.value != shown:
+            self.k.value = shown
 
     # -- drawing -----------------------------------------------------------------------------------------
     def _on_view(self) -> None:
