@@ -186,6 +186,15 @@ def test_outlier_demo_is_named():
     v = Q.verdict(r)
     assert v.level == "fair"
     assert "demo 4 differs a lot from the others — re-record or hide it." in v.lines
+    fits = Q.demo_fits(r)  # the Train panel's per-demo list: the odd one fits poorly, the others well
+    assert [(f.name, f.well) for f in fits] == [("demo 1", True), ("demo 2", True), ("demo 3", True), ("demo 4", False)]
+    assert fits[3].note == "It differs a lot from the others." and fits[0].note == ""
+
+
+def test_every_demo_fits_a_good_skill_well():
+    ds = zigzag()
+    fits = Q.demo_fits(Q.assess(learn_skill(ds), ds))
+    assert len(fits) == 3 and all(f.well for f in fits) and all(0 < f.distance < 0.01 for f in fits)
 
 
 def test_start_and_end_away_from_the_demonstrations():
