@@ -10,6 +10,7 @@ from __future__ import annotations
 import re
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any, cast
 
 import numpy as np
 import pytest
@@ -365,7 +366,7 @@ def test_sliders_show_real_units_and_whose_values_they_are(app: Studio) -> None:
     assert s12.value == pytest.approx(math.degrees(auto.eps12), abs=0.1)
     assert s5.label == "Travel distance, cm (ε5)" and s5.value == pytest.approx(100 * auto.eps5, abs=0.05)
     assert "follows your demonstrations" in kp.thresholds.whose.content and kp.thresholds.make_auto.disabled
-    s5.value = 4.5  # what the browser does when the teacher drags it
+    cast(Any, s5).value = 4.5  # what the browser does when the teacher drags it
     kp.thresholds._make_cb(SPECS["eps5"])(_Event())
     assert ctl.keypoints.params().eps5 == pytest.approx(0.045) and s5.label == "Travel distance, cm (ε5) · yours"
     assert 'data-yours="1"' in kp.thresholds.whose.content and kp.thresholds.yours.value == s5.label.split(" ·")[0]
@@ -376,8 +377,13 @@ def test_sliders_show_real_units_and_whose_values_they_are(app: Studio) -> None:
     assert s5.value == pytest.approx(100 * ctl.keypoints.params().eps5, abs=0.05)
 
 
-class _Event:
+class _FakeEvent:
     client = object()
+
+
+def _Event() -> Any:
+    """What a callback receives when a person (not the server) changed the control."""
+    return _FakeEvent()
 
 
 def test_train_panel_says_how_good_the_skill_is(app: Studio) -> None:
@@ -391,7 +397,7 @@ def test_train_panel_says_how_good_the_skill_is(app: Studio) -> None:
     assert 'data-mode="aligned-mean"' in train.summary.content and "Follow the demonstrations" in train.summary.content
     assert re.search(r"Zero-points [^:]*: (none|states? \d)", train.summary.content)
     assert "to state →" in train.heatmap.content and "time, s" in train.plots.content
-    train.mode.value = train.mode.options[1]  # the curious choose the paper's spline
+    cast(Any, train.mode).value = train.mode.options[1]  # the curious choose the paper's spline
     train._on_mode(_Event())
     assert ctl.training.generalization == "paper"
 

@@ -413,4 +413,5 @@ def test_the_live_path_follows_the_thresholds_in_the_key_points_step(ctl: Contro
     assert len(first.position) > 10 and 0 < first.distance < 0.05 and "within" in first.words
     ctl.keypoints.set_param("eps5", 0.4)
     assert wait_for(lambda: ctl.live.paths["left"].version > first.version, 60)
-    assert ctl.live.paths["left"].k == ctl.keypoints.view.k["left"]
+    view = ctl.keypoints.view
+    assert view is not None and ctl.live.paths["left"].k == view.k["left"]
