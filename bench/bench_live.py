@@ -165,6 +165,40 @@ def measure(browser, app, stamps: dict[str, list[float]], steps: int) -> dict[st
         page.close()
 
 
+def measure_suggest(browser, app, repeats: int = 2) -> dict[str, list[float]]:
+    """Suggest pressed in the page until "Undo suggestion" shows (applied), in the running studio; with the
+    auto-tune's forked worker processes and in one process (the work thread), alternately."""
+    from playwright.sync_api import expect
+
+    from tests.e2e import ui
+
+    page = ui.open_studio(browser, app.url())
+    out: dict[str, list[float]] = {"workers": [], "one process": [], "server": [], "applied": []}
+    applied: list[float] = []
+    from studio.controller import Topic
+
+    app.controller.events.on(
+        Topic.SUGGEST, lambda: applied.append(time.perf_counter()) if app.controller.suggest.state.can_undo else None
+    )
+    try:
+        ui.tab(page, "Key-points")
+        page.wait_for_function("() => document.querySelectorAll('.kp-count').length > 0", timeout=60_000)
+        for _ in range(repeats):
+            for label, workers in (("workers", None), ("one process", 1)):
+                app.controller.suggest.workers = workers
+                t0 = time.perf_counter()
+                page.get_by_role("button", name="Suggest thresholds").click()
+                expect(page.get_by_role("button", name="Undo suggestion")).to_be_visible(timeout=120_000)
+                out[label].append(1e3 * (time.perf_counter() - t0))
+                out["server"].append(1e3 * app.controller.suggest.state.seconds)
+                out["applied"].append(1e3 * (applied[-1] - t0))
+                page.get_by_role("button", name="Undo suggestion").click()
+                expect(page.get_by_role("button", name="Undo suggestion")).to_be_hidden(timeout=30_000)
+        return out
+    finally:
+        page.close()
+
+
 def _fmt(xs: list[float]) -> str:
     if not xs:
         return "n/a"
@@ -192,6 +226,7 @@ def main() -> int:
     ap.add_argument("--steps", type=int, default=16)
     ap.add_argument("--session", choices=("example", "3x30k", "both"), default="both")
     ap.add_argument("--no-baseline", action="store_true", help="skip the run without the page script")
+    ap.add_argument("--suggest", action="store_true", help="also time Suggest in the browser on 3 × 30,000")
     args = ap.parse_args()
     which = ("example", "3x30k") if args.session == "both" else (args.session,)
     with sync_playwright() as p:
@@ -208,6 +243,19 @@ def main() -> int:
                     report(which_one, r)
                 finally:
                     shutil.rmtree(tmp, ignore_errors=True)
+        if args.suggest:
+            tmp = Path(tempfile.mkdtemp(prefix="bench-live-"))
+            try:
+                session = make_sessions(tmp, "3x30k")
+                with studio(tmp, session, True) as (app, _):
+                    r = measure_suggest(browser, app)
+                print("[3x30k] Suggest thresholds pressed → applied (Undo shown), in the running studio:")
+                print(f"  forked worker processes:  {_fmt(r['workers'])}")
+                print(f"  one process:              {_fmt(r['one process'])}")
+                print(f"  applied in the studio:    {_fmt(r['applied'])}")
+                print(f"  (the search itself:       {_fmt(r['server'])})")
+            finally:
+                shutil.rmtree(tmp, ignore_errors=True)
         browser.close()
     return 0
 

@@ -422,7 +422,7 @@ def test_live_path_is_drawn_dashed_with_the_key_points_layer(app: Studio) -> Non
     ctl.view.set_step(Step.KEYPOINTS)
     assert wait_for(lambda: "/keypoints/left/live-path" in kp._live_nodes, 60)
     node = kp._live_nodes["/keypoints/left/live-path"]
-    assert node.points.shape == (120, 2, 3) and node.visible
+    assert node.points.shape == (60, 2, 3) and node.visible
     assert "The learned path would stay within" in kp.live_text.content
     ctl.view.set_shown(Layer.KEYPOINTS, False)
     assert not node.visible and not any(n.visible for n in kp._kp_nodes.values())

@@ -7,7 +7,7 @@ import html
 
 import viser
 
-from studio.controller import Controller, Topic
+from studio.controller import Controller, Step, Topic
 
 
 class SuggestControls:
@@ -35,8 +35,8 @@ class SuggestControls:
 
     def _on_suggest(self, event: viser.GuiEvent) -> None:
         self.ctl.suggest.start()  # the work thread searches; SUGGEST events redraw
-        if self.ctl.view.step.value != "Key-points":  # the scene shows what Suggest changes
-            self.ctl.view.set_step("Key-points")
+        if self.ctl.view.step != Step.KEYPOINTS:  # the scene shows what Suggest changes
+            self.ctl.view.set_step(Step.KEYPOINTS)
 
     def refresh(self) -> None:
         st = self.ctl.suggest.state

@@ -19,7 +19,7 @@ from studio.panels._sliders import SPECS, ThresholdSliders
 from studio.panels._suggest import SuggestControls
 
 CENTROID_COLOR = (220, 20, 20)
-LIVE_PATH_COLOR = (0, 140, 190)
+LIVE_PATH_COLOR = (0, 200, 230)  # the learned path's cyan (Preview draws it thick and solid)
 #: Range of the k slider; a session may hold a k outside it (set in code): the slider shows the nearest end.
 K_MIN, K_MAX, K_DEFAULT = 2, 40, 12
 
@@ -217,7 +217,7 @@ class KeypointsPanel:
                 for arm in ARMS:
                     key = f"/keypoints/{arm}/live-path"
                     p = paths.get(arm)
-                    segs = dashes(p.position) if p is not None and len(p.position) > 1 else None
+                    segs = dashes(p.position, 60) if p is not None and len(p.position) > 1 else None
                     node = self._live_nodes.get(key)
                     if segs is None or not len(segs):
                         if node is not None:
@@ -230,7 +230,7 @@ class KeypointsPanel:
                         if node is not None:
                             node.remove()
                         self._live_nodes[key] = self.scene.add_line_segments(
-                            key, segs, colors=LIVE_PATH_COLOR, thickness=2.0, thickness_units="screen", visible=shown
+                            key, segs, colors=LIVE_PATH_COLOR, thickness=3.0, thickness_units="screen", visible=shown
                         )
                 self.live_text.content = live_html(self.ctl.live.paths)
 
@@ -268,7 +268,7 @@ def live_html(paths: dict[str, LivePath]) -> str:
     version = max(p.version for p in paths.values())
     return (
         f'<div class="live-path" data-version="{version}" style="font-size:0.85em">'
-        '<span style="color:rgb(0,140,190)">- - -</span> ' + "<br>".join(rows) + "</div>"
+        '<span style="color:rgb(0,200,230);font-weight:700">- - -</span> ' + "<br>".join(rows) + "</div>"
     )
 
 

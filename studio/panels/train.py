@@ -8,7 +8,7 @@ import html
 import numpy as np
 import viser
 
-from studio.controller import MODE_WORDS, Controller, SkillVerdict, Topic, UsedDemo
+from studio.controller import MODE_WORDS, Controller, SkillVerdict, Step, Topic, UsedDemo
 from studio.core.quality import FIT_EXPLANATION
 from studio.core.types import DEFAULT_GENERALIZATION, Skill
 from studio.panels._charts import heatmap_svg, position_plot_svg
@@ -70,6 +70,8 @@ class TrainPanel:
 
     def _on_train(self, event: viser.GuiEvent) -> None:
         self.ctl.training.train()  # the work thread learns; TRAINING and SKILL events redraw
+        if self.ctl.view.step != Step.TRAIN:  # the scene shows the Train step (the learned path)
+            self.ctl.view.set_step(Step.TRAIN)
 
     def _on_mode(self, event: viser.GuiEvent) -> None:
         if event.client is None:
