@@ -762,10 +762,14 @@ def verdict(report: QualityReport) -> Verdict:
             )
     ex = r.execution
     if ex is not None and (ex.tracked < 0.98 or ex.max_error > 0.005):
+        miss = 100 * (1 - ex.tracked)
+        what = (
+            f"cannot follow {miss:.0f} % of it (up to {length_words(ex.max_error)} off at {ex.worst_time:.1f} s)"
+            if miss >= 0.5
+            else f"strays up to {length_words(ex.max_error)} from it (at {ex.worst_time:.1f} s)"
+        )
         notes.append(
-            f"The robot cannot follow {100 * (1 - ex.tracked):.0f} % of it (up to {length_words(ex.max_error)} off "
-            f"at {ex.worst_time:.1f} s) — teach it closer to the robot, with the gripper in a direction the arm "
-            "can hold."
+            f"The robot {what} — teach it closer to the robot, with the gripper in a direction the arm can hold."
         )
     if ex is not None and r.demo_durations and ex.duration > 1.2 * max(r.demo_durations) + 0.2:
         notes.append(
