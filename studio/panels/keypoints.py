@@ -262,8 +262,12 @@ def live_html(paths: dict[str, LivePath]) -> str:
     rows = []
     for arm, p in paths.items():
         who = f"{arm.capitalize()} arm: " if len(paths) > 1 else ""
-        close = math.isfinite(p.g_over_r) and p.g_over_r <= 0.6
-        mark = "" if p.message or not math.isfinite(p.g_over_r) else (" (close)" if close else " (loose)")
+        mark = ""
+        if not p.message and math.isfinite(p.g_over_r):  # G/R: against how far the demos are from each other
+            if p.g_over_r <= 0.6:
+                mark = " That is closer than your demonstrations are to each other."
+            elif p.g_over_r > 1.0:
+                mark = " That is farther than they are from each other: try more detail."
         rows.append(f"{who}{html.escape(p.words)}{mark}")
     version = max(p.version for p in paths.values())
     return (
