@@ -199,6 +199,59 @@ def measure_suggest(browser, app, repeats: int = 2) -> dict[str, list[float]]:
         page.close()
 
 
+def measure_server(app, repeats: int = 30) -> dict[str, list[float]]:
+    """One ε5 step on the server (re-extract, re-cluster, draw; then the live path), timed in the running studio
+    (1 kHz stream, pose pump, viser) and again with the robot stream and the pose pump stopped: what the GIL
+    contention with them costs. Also the messages one step sends to the browsers."""
+
+    from studio.controller import Step
+
+    ctl, panel = app.controller, app.panels.keypoints
+    ctl.view.set_step(Step.KEYPOINTS)
+    kp, live = ctl.keypoints, ctl.live
+    base = kp.params().eps5
+    out: dict[str, list[float]] = {}
+
+    def steps(label: str) -> None:
+        view_ms, path_ms = [], []
+        for i in range(repeats):
+            kp.set_param("eps5", base * (1.0 + 0.1 * (i % 5)))
+            t0 = time.perf_counter()
+            view = kp.compute()
+            panel.draw(view)
+            t1 = time.perf_counter()
+            live.follow(view, lambda: False)
+            t2 = time.perf_counter()
+            view_ms.append(1e3 * (t1 - t0))
+            path_ms.append(1e3 * (t2 - t1))
+        out[f"view {label}"], out[f"path {label}"] = view_ms, path_ms
+
+    kp.close()  # the key-point thread would compete: the steps here are run by hand
+    time.sleep(1.0)
+    steps("running")
+    app._pump.stop()
+    ctl.teaching.stop_robot()
+    time.sleep(1.0)
+    steps("quiet")
+    # messages and bytes one step queues for the browsers (viser's message buffer)
+    import msgspec
+
+    buf = app.server._websock_server._broadcast_buffer
+    counts, sizes = [], []
+    for i in range(10):
+        kp.set_param("eps5", base * (1.0 + 0.1 * (i % 5)))
+        view = kp.compute()
+        n0 = buf.message_counter
+        panel.draw(view)
+        live.follow(view, lambda: False)
+        ids = range(n0, buf.message_counter)
+        msgs = [buf.message_from_id[j] for j in ids if j in buf.message_from_id]
+        counts.append(float(buf.message_counter - n0))
+        sizes.append(sum(len(msgspec.msgpack.encode(m.as_serializable_dict())) for m in msgs) / 1024.0)
+    out["messages"], out["kib"] = counts, sizes
+    return out
+
+
 def _fmt(xs: list[float]) -> str:
     if not xs:
         return "n/a"
@@ -227,6 +280,7 @@ def main() -> int:
     ap.add_argument("--session", choices=("example", "3x30k", "both"), default="both")
     ap.add_argument("--no-baseline", action="store_true", help="skip the run without the page script")
     ap.add_argument("--suggest", action="store_true", help="also time Suggest in the browser on 3 × 30,000")
+    ap.add_argument("--server", action="store_true", help="also time one step on the server, stream on and off")
     args = ap.parse_args()
     which = ("example", "3x30k") if args.session == "both" else (args.session,)
     with sync_playwright() as p:
@@ -241,6 +295,22 @@ def main() -> int:
                     label = "the studio" if guard else "baseline: arrow keys also orbit the camera"
                     print(f"[{which_one}] {label}, ε5 one step, from the key press:")
                     report(which_one, r)
+                finally:
+                    shutil.rmtree(tmp, ignore_errors=True)
+        if args.server:
+            for which_one in which:
+                tmp = Path(tempfile.mkdtemp(prefix="bench-live-"))
+                try:
+                    with studio(tmp, make_sessions(tmp, which_one), True) as (app, _):
+                        r = measure_server(app)
+                    print(f"[{which_one}] one ε5 step on the server (no browser connected):")
+                    for key in ("view running", "view quiet", "path running", "path quiet"):
+                        what = "key-points + k-means + drawing" if key.startswith("view") else "live path"
+                        where = "studio running" if key.endswith("running") else "stream and pose pump stopped"
+                        print(f"  {what}, {where}: {_fmt(r[key])}")
+                    m, kib = r["messages"], r["kib"]
+                    print(f"  sent to the browsers per step: {statistics.median(m):.0f} messages, "
+                          f"{statistics.median(kib):.1f} KiB (median)")
                 finally:
                     shutil.rmtree(tmp, ignore_errors=True)
         if args.suggest:
