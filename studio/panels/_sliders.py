@@ -226,6 +226,9 @@ class ThresholdSliders:
                 "Yours: " + ", ".join(html.escape(f"{s.words} ({s.symbol})") for s in mine) + ". The others follow "
                 "your demonstrations."
             )
+        arm, arms = self.ctl.keypoints.shown_arm(), self.ctl.teaching.selected_arms
+        if arm is not None and len(arms) > 1:  # one set of sliders: automatic values differ per arm
+            text += f" Values shown for the {arm} arm's demonstrations; each arm's automatic ones follow its own."
         return f'<div class="kp-whose" data-yours="{len(mine)}" style="font-size:0.85em">{text}</div>'
 
     def show_counts(self) -> None:
