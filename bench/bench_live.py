@@ -9,15 +9,16 @@ of each step is timed too, on the same clock as the page (epoch milliseconds).
 
 Per step, from the key press (the key event's own time stamp, taken by the browser when the key went down):
   * server got the change — the slider's callback runs in the studio;
-  * server queued the markers — key-points, centroids and counts sent as one atomic batch;
-  * page shows the counts — the per-demo key-point counts changed in the page (same batch as the markers);
+  * server queued the markers — key-points and centroids (sent with the live path, one scene batch);
+  * page shows the counts — the per-demo key-point counts changed in the page (sent at once, GUI only);
   * frame with the markers — two animation frames after that: the frame that draws the new markers is done;
-  * live path shown — the live path's figure (sent with its dashed path, one batch) changed in the page,
-    and its frame (two animation frames later).
+  * live path shown — the live path's figure (sent with its dashed path and the markers, one batch) changed
+    in the page, and its frame (two animation frames later).
 
-Baseline in the same run: the same steps without the page script that keeps arrow keys in the focused
-control (:mod:`studio.panels._page`): the key press then also starts viser's keyboard camera orbit, as it
-did before.
+Baselines in the same run: the same steps (1) with the key-point markers sent as soon as they are computed,
+apart from their live path (two scene updates a step, as first written), and (2) also without the page script
+that keeps arrow keys in the focused control (:mod:`studio.panels._page`): the key press then also starts
+viser's keyboard camera orbit, as it did before this work.
 
 Sessions: ``example`` — a copy of "stack-cup" (3 demos × ~22,000 samples at 1 kHz); ``3x30k`` — 3 demos ×
 30,000 samples (bench_app.py's), for the live path's ≤ 150 ms budget.
@@ -76,34 +77,43 @@ def make_sessions(root: Path, which: str) -> str:
 
 
 @contextmanager
-def studio(root: Path, session: str, guard: bool) -> Iterator:
-    """The studio in this process; ``guard=False`` leaves out the arrow-key page script (the baseline)."""
+def studio(root: Path, session: str, guard: bool, batched: bool = True) -> Iterator:
+    """The studio in this process; ``guard=False`` leaves out the arrow-key page script, ``batched=False`` sends
+    the markers at once instead of with their live path (the baselines)."""
     import studio.app as app_mod
     from studio.app import build_app
+    from studio.panels.keypoints import KeypointsPanel
 
-    original = app_mod.install_page
+    original, on_view = app_mod.install_page, KeypointsPanel._on_view
     if not guard:
         app_mod.install_page = lambda server: None  # type: ignore[assignment]
+    if not batched:
+
+        def apart(self: KeypointsPanel) -> None:
+            if self.ctl.keypoints.view is not None:
+                self.draw(self.ctl.keypoints.view)
+
+        KeypointsPanel._on_view = apart  # type: ignore[method-assign]
     try:
         app = build_app(port=free_port(), session=session, sessions_dir=root)
     finally:
-        app_mod.install_page = original
+        app_mod.install_page, KeypointsPanel._on_view = original, on_view  # type: ignore[method-assign]
     stamps: dict[str, list[float]] = {"got": [], "queued": [], "path_queued": []}
     from studio.controller import Topic
 
     kp, panel = app.controller.keypoints, app.panels.keypoints
-    set_param, draw = kp.set_param, panel.draw
+    set_param, draw_markers = kp.set_param, panel._draw_markers
 
     def timed_set(name: str, value: float) -> None:
         stamps["got"].append(1e3 * time.time())
         set_param(name, value)
 
-    def timed_draw(view) -> None:  # type: ignore[no-untyped-def]
-        draw(view)
-        stamps["queued"].append(1e3 * time.time())
+    def timed_markers(view) -> None:  # type: ignore[no-untyped-def]
+        draw_markers(view)
+        stamps["queued"].append(1e3 * time.time())  # the atomic batch is sent when its block ends, right after
 
     kp.set_param = timed_set  # type: ignore[method-assign]
-    panel.draw = timed_draw  # type: ignore[method-assign]
+    panel._draw_markers = timed_markers  # type: ignore[method-assign]
     # subscribed after the panel: runs once the panel queued the dashed path and its figure
     app.controller.events.on(Topic.LIVE_PATH, lambda: stamps["path_queued"].append(1e3 * time.time()))
     try:
@@ -285,14 +295,19 @@ def main() -> int:
     which = ("example", "3x30k") if args.session == "both" else (args.session,)
     with sync_playwright() as p:
         browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
+        variants = [("the studio", True, True)]
+        if not args.no_baseline:
+            variants += [
+                ("baseline: markers sent apart from their live path (two scene updates a step)", True, False),
+                ("baseline: as before, arrow keys also orbit the camera, markers apart", False, False),
+            ]
         for which_one in which:
-            for guard in (True,) if args.no_baseline else (True, False):
+            for label, guard, batched in variants:
                 tmp = Path(tempfile.mkdtemp(prefix="bench-live-"))
                 try:
                     session = make_sessions(tmp, which_one)
-                    with studio(tmp, session, guard) as (app, stamps):
+                    with studio(tmp, session, guard, batched) as (app, stamps):
                         r = measure(browser, app, stamps, args.steps)
-                    label = "the studio" if guard else "baseline: arrow keys also orbit the camera"
                     print(f"[{which_one}] {label}, ε5 one step, from the key press:")
                     report(which_one, r)
                 finally:

@@ -430,3 +430,33 @@ def test_live_path_is_drawn_dashed_with_the_key_points_layer(app: Studio) -> Non
     assert not any(lab.visible for lab in kp._labels)
     ctl.view.set_step(Step.TRAIN)
     assert not node.visible
+
+
+def test_markers_go_with_their_live_path_and_never_wait_for_a_failed_one(
+    app: Studio, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import studio.core.pipeline as pipeline
+
+    ctl, kp = app.controller, app.panels.keypoints
+    ctl.view.set_step(Step.KEYPOINTS)
+    assert wait_for(lambda: "left" in ctl.live.paths, 60)
+    ctl.keypoints.set_param("eps5", 0.02)  # many more key-points
+
+    def drawn() -> list[int]:
+        return [len(n.points) for n in kp._kp_nodes.values()]
+
+    assert wait_for(lambda: ctl.keypoints.view is not None and ctl.keypoints.view.params["left"].eps5 == 0.02, 30)
+    view = ctl.keypoints.view
+    assert view is not None
+    assert wait_for(lambda: ctl.live.paths["left"].version == view.version, 60)
+    assert drawn() == [d.count for d in view.demos]  # one scene update: the markers with their path
+
+    def broken(*args: object, **kwargs: object) -> object:
+        raise RuntimeError("no path today")
+
+    monkeypatch.setattr(pipeline, "preview_path", broken)
+    ctl.keypoints.set_param("eps5", 0.2)
+    assert wait_for(lambda: ctl.live.paths == {}, 30)  # the failure was told; no path …
+    view = ctl.keypoints.view
+    assert view is not None and drawn() == [d.count for d in view.demos]  # … and the markers still came
+    assert any(title == "Could not draw the learned path" for _, title, _ in notes(app))

@@ -69,7 +69,9 @@ class LivePaths:
         tuning.followers.append(self.follow)
 
     def follow(self, view: KeypointView, stale: Callable[[], bool]) -> None:
-        """Compute the live path of every arm of ``view`` unless a newer view is coming."""
+        """Compute the live path of every arm of ``view`` unless a newer view is coming; :attr:`Topic.LIVE_PATH`
+        is emitted for every view it does not skip, also when no path could be made (the key-points panel
+        draws the view's markers with it)."""
         import time
 
         from studio.core.pipeline import preview_path
@@ -79,26 +81,32 @@ class LivePaths:
         t0 = time.perf_counter()
         mode = self.ctx.session.generalization
         out: dict[str, LivePath] = {}
-        for arm, params in view.params.items():
-            demos = [d for _, d in self.demos.for_arm(arm)]
-            idx = view.indices.get(arm)
-            if stale() or not demos or idx is None or len(idx) != len(demos):
-                return
-            pp = preview_path(
-                demos,
-                params,
-                n_clusters=view.k.get(arm) if self.tuning.k is not None else None,
-                generalization=mode,
-                cache=self.tuning.cache,
-                align_cache=self.align_cache,
-                keypoints=idx,
-            )
-            out[arm] = LivePath(arm, view.version, pp.position, pp.distance, pp.g_over_r, pp.n_clusters, pp.message)
-        if stale():
-            return
-        self.paths = out
-        self.computed_ms = 1e3 * (time.perf_counter() - t0)
-        self.ctx.emit(Topic.LIVE_PATH)
+        try:
+            for arm, params in view.params.items():
+                demos = [d for _, d in self.demos.for_arm(arm)]
+                idx = view.indices.get(arm)
+                if stale():
+                    return
+                if not demos or idx is None or len(idx) != len(demos):
+                    continue
+                pp = preview_path(
+                    demos,
+                    params,
+                    n_clusters=view.k.get(arm) if self.tuning.k is not None else None,
+                    generalization=mode,
+                    cache=self.tuning.cache,
+                    align_cache=self.align_cache,
+                    keypoints=idx,
+                )
+                out[arm] = LivePath(arm, view.version, pp.position, pp.distance, pp.g_over_r, pp.n_clusters, pp.message)
+        except Exception:
+            out = {}
+            raise
+        finally:
+            if not stale():
+                self.paths = out
+                self.computed_ms = 1e3 * (time.perf_counter() - t0)
+                self.ctx.emit(Topic.LIVE_PATH)
 
     def refresh_if_wanted(self) -> None:
         """The Key-points step opened: bring the paths up to date (a new view is computed first)."""

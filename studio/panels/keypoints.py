@@ -83,6 +83,7 @@ class KeypointsPanel:
         self._centroid_nodes: dict[str, viser.PointCloudHandle] = {}
         self._live_nodes: dict[str, viser.LineSegmentsHandle] = {}
         self._n_labels = 0
+        self._pending: KeypointView | None = None  # a view whose markers wait for its live path
         self._closed = False
         self._draw_lock = threading.Lock()
         ctl.events.on(Topic.SESSION, self._sync_all)
@@ -135,9 +136,23 @@ class KeypointsPanel:
 
     # -- drawing -----------------------------------------------------------------------------------------
     def _on_view(self) -> None:
+        """A new key-point view: the counts and values at once; the markers with the live path computed next
+        (one scene update per step: on software WebGL each costs the page 0.2–0.7 s of drawing, during which
+        nothing else arrives — bench/bench_live.py), or at once when no live path follows."""
         view = self.ctl.keypoints.view
-        if view is not None:
-            self.draw(view)
+        if view is None:
+            return
+        with self._draw_lock:
+            if self._closed:
+                return
+            with self.server.atomic():
+                self._draw_words(view)
+            if self.ctl.live.wanted():
+                self._pending = view
+                return
+            self._pending = None
+            with self.server.atomic():
+                self._draw_markers(view)
 
     def draw(self, view: KeypointView) -> None:
         """Key-points, centroids with their numbers, the counts and the automatic values, in one atomic update."""
@@ -145,14 +160,20 @@ class KeypointsPanel:
             if self._closed:  # the studio is stopping: the server may already be gone
                 return
             with self.server.atomic():
-                self._draw_keypoints(view)
-                self._draw_centroids(view)
-                self.counts.content = counts_html(view)
-                self.thresholds.show_counts()
-                arm = self.ctl.keypoints.shown_arm()
-                if arm in view.params:
-                    self.thresholds.sync(params=view.params[arm])
-                self._sync_k(view)
+                self._draw_markers(view)
+                self._draw_words(view)
+
+    def _draw_markers(self, view: KeypointView) -> None:
+        self._draw_keypoints(view)
+        self._draw_centroids(view)
+
+    def _draw_words(self, view: KeypointView) -> None:
+        self.counts.content = counts_html(view)
+        self.thresholds.show_counts()
+        arm = self.ctl.keypoints.shown_arm()
+        if arm in view.params:
+            self.thresholds.sync(params=view.params[arm])
+        self._sync_k(view)
 
     def _draw_keypoints(self, view: KeypointView) -> None:
         seen: set[str] = set()
@@ -207,13 +228,17 @@ class KeypointsPanel:
         self._n_labels = n_labels
 
     def _on_live(self) -> None:
-        """A new live path: redraw it dashed, with its figure, in one atomic update."""
+        """A new live path: redraw it dashed, with its figure and the key-points it was learned from, in one
+        atomic update."""
         paths = self.ctl.live.paths
         with self._draw_lock:
             if self._closed:
                 return
             shown = self.ctl.view.shown(Layer.KEYPOINTS)
+            pending, self._pending = self._pending, None
             with self.server.atomic():
+                if pending is not None:
+                    self._draw_markers(pending)
                 for arm in ARMS:
                     key = f"/keypoints/{arm}/live-path"
                     p = paths.get(arm)
@@ -240,7 +265,10 @@ class KeypointsPanel:
         with self._draw_lock:
             if self._closed:
                 return
+            pending, self._pending = self._pending, None
             with self.server.atomic():
+                if pending is not None:  # its live path will not come now: draw what is waiting
+                    self._draw_markers(pending)
                 for node in self._kp_nodes.values():
                     node.visible = kp
                 for key, line in self._live_nodes.items():
