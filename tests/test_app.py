@@ -448,7 +448,8 @@ def test_markers_go_with_their_live_path_and_never_wait_for_a_failed_one(
     assert wait_for(lambda: ctl.keypoints.view is not None and ctl.keypoints.view.params["left"].eps5 == 0.02, 30)
     view = ctl.keypoints.view
     assert view is not None
-    assert wait_for(lambda: ctl.live.paths["left"].version == view.version, 60)
+    version = view.version
+    assert wait_for(lambda: ctl.live.paths["left"].version == version, 60)
     assert drawn() == [d.count for d in view.demos]  # one scene update: the markers with their path
 
     def broken(*args: object, **kwargs: object) -> object:
