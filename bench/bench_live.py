@@ -3,9 +3,9 @@ centroids and live learned path show.
 
 Headless Debian Chromium (Playwright) drives the studio the way a teacher does: the Key-points tab, the "All
 thresholds" folder open, the ε5 slider ("Travel distance") focused, one arrow key press per step (four right,
-four left, …, 0.6 s apart: a teacher looks at the result before the next step). The studio runs in this
-process (as `studio serve` would: robot streaming at 1 kHz, pose pump, key-point thread), so the server's side
-of each step is timed too, on the same clock as the page (epoch milliseconds).
+four left, …), each once the page is idle again (a teacher looks at the result before the next step). The
+studio runs in this process (as `studio serve` would: robot streaming at 1 kHz, pose pump, key-point thread),
+so the server's side of each step is timed too, on the same clock as the page (epoch milliseconds).
 
 Per step, from the key press (the key event's own time stamp, taken by the browser when the key went down):
   * server got the change — the slider's callback runs in the studio;
@@ -46,8 +46,19 @@ from tests.conftest import CHROMIUM, CHROMIUM_ARGS, free_port  # noqa: E402  (af
 EPS5_LABEL = "Travel distance, cm (ε5)"
 
 _INSTALL_JS = """() => {
-    const L = window.__live = {press: [], counts: [], countsFrame: [], path: [], pathFrame: []};
+    const L = window.__live = {press: [], counts: [], countsFrame: [], path: [], pathFrame: [], longEnd: 0};
     const epoch = (t) => performance.timeOrigin + t;
+    new PerformanceObserver(list => { for (const e of list.getEntries()) {
+        L.longEnd = Math.max(L.longEnd, e.startTime + e.duration); } }).observe({entryTypes: ["longtask"]});
+    // Quiet: no long task (a frame of the software renderer) for 500 ms, and this check itself ran
+    // every poll without a gap (a blocked page cannot run it), for 500 ms.
+    let since = 0, lastPoll = 0;
+    window.__quiet = () => {
+        const now = performance.now();
+        if (now - lastPoll > 100) since = now;
+        lastPoll = now;
+        return now - since > 500 && now - L.longEnd > 500;
+    };
     window.addEventListener("keydown", e => { if (e.key.startsWith("Arrow")) L.press.push(epoch(e.timeStamp)); },
                             true);
     const read = () => [
@@ -153,7 +164,11 @@ def measure(browser, app, stamps: dict[str, list[float]], steps: int) -> dict[st
                 page.wait_for_function(f"() => window.__live.countsFrame.length > {n}", timeout=5000, polling=10)
             except Exception:
                 out["misses"].append(float(i))
-            time.sleep(0.6)
+            # one step at a time: the next key press finds the page idle (the teacher looks at the result)
+            try:
+                page.wait_for_function("() => window.__quiet()", timeout=10_000, polling=20)
+            except Exception:
+                pass
             out["live_ms"].append(app.controller.live.computed_ms)
         live = page.evaluate("() => window.__live")
         presses = live["press"] + [float("inf")]
