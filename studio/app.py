@@ -29,6 +29,7 @@ from studio.controller import Controller, Kind, LogNotifier
 from studio.core.errors import StudioError
 from studio.core.kinematics import baxter_urdf_path
 from studio.panels import Panels, build_panels
+from studio.panels._page import install as install_page
 from studio.panels.steps import HOME_CAMERA_FOV_DEG, HOME_CAMERA_LOOK_AT, HOME_CAMERA_POSITION
 from studio.robot_backend.base import RobotBackend
 from studio.storage import DEFAULT_ROOT, SessionStore
@@ -210,6 +211,7 @@ class Studio:
         self._stopped = False
         self.controller.start()
         self.panels = build_panels(self.controller, self.server, self.urdf_path)
+        install_page(self.server)  # arrow keys stay in the focused control; hints on labels too
         self._pump = PosePump(self.controller, self.panels)
         self._pump.start()
         self.server.on_client_connect(self._greet)

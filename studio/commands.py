@@ -26,7 +26,6 @@ from studio.storage import DEFAULT_ROOT, Session, SessionStore
 
 if TYPE_CHECKING:
     from studio.core.autotune import TuneResult
-    from studio.core.types import Demo
     from studio.teacher import TeacherPlan
 
 #: The example sessions: task -> (seeds of the three demonstrations, taught arm, notes).
@@ -80,8 +79,9 @@ def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
     from studio.core import pipeline
     from studio.core.thresholds import ThresholdSettings
 
-    # The session stores plain values; those still at the old fixed defaults are automatic (follow the demos).
-    settings = ThresholdSettings.from_params(session.params)
+    # Automatic thresholds follow each arm's demos; the teacher's own values are kept (older sessions: values off
+    # the old fixed defaults count as the teacher's).
+    settings: ThresholdSettings = session.thresholds
     k = session.n_clusters
     t0 = time.perf_counter()
     tuned: dict[str, TuneResult] = {}
@@ -92,7 +92,7 @@ def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
             demos_arm = [pipeline.demo_from_recording(r, arm) for r in session.recordings if arm in r.arms]
             if len(demos_arm) < 2:
                 continue
-            res = autotune.suggest(demos_arm, current=settings, n_clusters=k)
+            res = autotune.suggest(demos_arm, current=settings, n_clusters=k, generalization=session.generalization)
             tuned[arm] = res
             print(
                 f"{arm.capitalize()} arm — suggested thresholds (Detail {res.settings.detail:+.1f}, "
@@ -110,19 +110,24 @@ def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
                     arms=(arm,),
                     n_clusters=r.n_clusters if r is not None else k,
                     seed=0,
+                    generalization=session.generalization,
                 )
             )
     else:
-        skills = pipeline.learn_arms(session.recordings, params=settings, arms=arms, n_clusters=k, seed=0)
+        skills = pipeline.learn_arms(
+            session.recordings, params=settings, arms=arms, n_clusters=k, seed=0, generalization=session.generalization
+        )
     elapsed = time.perf_counter() - t0
     demos = {arm: list(skill.demo_names) for arm, skill in skills.items()}
     if len(tuned) == 1 and len(arms) == 1:
-        # Suggest applied: its values and k become the session's (kept as the teacher's from now on)
+        # Suggest applied: its settings (Detail, every threshold automatic) and k become the session's
         only = next(iter(tuned.values()))
         session.set_skills(skills, params=only.params, demos=demos)
+        session.set_params(only.params, only.settings)
         session.set_n_clusters(only.n_clusters)
     else:
-        session.set_skills(skills, params=session.params, demos=demos)
+        used = next(iter(skills.values())).params if skills else session.params  # what older studios read
+        session.set_skills(skills, params=used, demos=demos)
     print(report(session, skills, elapsed), file=out)
     for arm, skill in skills.items():
         lines = verdict_lines(session, arm, skill)
@@ -135,8 +140,7 @@ def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
 
 def verdict_lines(session: Session, arm: str, skill: Skill | None) -> list[str]:
     """The quality verdict of one arm's skill in plain words (empty for something that is not a learned skill)."""
-    from studio.core import quality
-    from studio.core.pipeline import demo_from_recording, learn_path
+    from studio.core.pipeline import demo_from_recording, judge_skill
 
     if not isinstance(skill, Skill):
         return []
@@ -144,19 +148,8 @@ def verdict_lines(session: Session, arm: str, skill: Skill | None) -> list[str]:
     demos = [demo_from_recording(recs[n], arm) for n in skill.demo_names if n in recs]
     if len(demos) != len(skill.demo_names):
         return []
-    held = None
-    if len(demos) >= 2:
-        k = skill.n_clusters if session.n_clusters is not None else None
-
-        def learn(dd: list[Demo]) -> Demo:
-            kk = None if k is None else min(k, sum(len(x) for x in skill.keypoints))
-            return learn_path(dd, skill.params, n_clusters=kk, generalization=skill.generalization)
-
-        try:
-            held = quality.held_out(demos, learn, folds=list(range(min(len(demos), 3))))
-        except StudioError:
-            held = None
-    return list(quality.verdict(quality.assess(skill, demos, held_out_result=held)).lines)
+    _, verdict = judge_skill(skill, demos, fixed_k=session.n_clusters is not None)
+    return list(verdict.lines)
 
 
 def _fmt(x: float, spec: str = ".3g") -> str:

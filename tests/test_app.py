@@ -10,12 +10,13 @@ from __future__ import annotations
 import re
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any, cast
 
 import numpy as np
 import pytest
 
 from studio.app import Studio, build_app, exposure_warning, robot_urdf_path
-from studio.controller import PREVIEW
+from studio.controller import PREVIEW, Step, Topic
 from studio.core.errors import StudioError
 from studio.panels.keypoints import LABEL_GAP
 from studio.recorder import Recorder
@@ -261,7 +262,8 @@ def test_sessions_cannot_change_while_training(app: Studio, sessions: Path) -> N
 
 
 def _loglik_rows(app: Studio) -> list[str]:
-    return re.findall(r'<tr class="loglik-row"><td>(.*?)</td>', app.panels.train.summary.content)
+    """The per-demo rows of the Train panel ("fits the skill: well / poorly"), in the skill's order."""
+    return re.findall(r'<tr class="fit-row" data-well="[01]?"><td>(.*?)</td>', app.panels.train.summary.content)
 
 
 def test_train_panel_rows_stay_matched_to_the_skill(app: Studio) -> None:
@@ -344,3 +346,125 @@ def test_hidden_demos_stay_hidden_after_a_restart(sessions: Path) -> None:
         assert "hidden" in b.panels.demos.demo_list.content  # the list says so
     finally:
         b.stop()
+
+
+# -- the key-points and train panels: automatic thresholds, units, Suggest, verdict, live path ---------------
+
+
+def test_the_clusters_box_shows_the_k_in_use(app: Studio) -> None:
+    kp, ctl = app.panels.keypoints, app.controller
+    view = ctl.keypoints.refresh()
+    assert ctl.keypoints.k is None and kp.k.disabled and kp.k_auto.value
+    assert kp.k.value == view.k["left"] != 12  # not the slider's default while the text says another number
+    assert f'data-k="{view.k["left"]}"' in kp.counts.content
+
+
+def test_sliders_show_real_units_and_whose_values_they_are(app: Studio) -> None:
+    import math
+
+    from studio.core.thresholds import auto_params
+    from studio.panels._sliders import SPECS
+
+    kp, ctl = app.panels.keypoints, app.controller
+    auto = auto_params([d for _, d in ctl.demos.for_arm("left")])
+    s1, s5, s12 = kp.sliders["eps1"], kp.sliders["eps5"], kp.sliders["eps12"]
+    assert s1.label == "Corner sharpness, ° (ε1)" and s1.min == 180 and s1.max == 360
+    assert s1.value == pytest.approx(math.degrees(auto.eps1), abs=0.1)  # stored in radians, shown in degrees
+    assert s12.value == pytest.approx(math.degrees(auto.eps12), abs=0.1)
+    assert s5.label == "Travel distance, cm (ε5)" and s5.value == pytest.approx(100 * auto.eps5, abs=0.05)
+    assert "follows your demonstrations" in kp.thresholds.whose.content and kp.thresholds.make_auto.disabled
+    cast(Any, s5).value = 4.5  # what the browser does when the teacher drags it
+    kp.thresholds._make_cb(SPECS["eps5"])(_Event())
+    assert ctl.keypoints.params().eps5 == pytest.approx(0.045) and s5.label == "Travel distance, cm (ε5) · yours"
+    assert 'data-yours="1"' in kp.thresholds.whose.content and kp.thresholds.yours.value == s5.label.split(" ·")[0]
+    ctl.keypoints.set_detail(-2.0)  # Detail moves the automatic ones, the teacher's stays
+    assert kp.detail.value == -2.0 and s5.value == 4.5 and ctl.keypoints.params().eps7 > auto.eps7
+    kp.thresholds._on_make_auto(_Event())
+    assert ctl.keypoints.settings().is_auto("eps5") and s5.label == "Travel distance, cm (ε5)"
+    assert s5.value == pytest.approx(100 * ctl.keypoints.params().eps5, abs=0.05)
+
+
+class _FakeEvent:
+    client = object()
+
+
+def _Event() -> Any:
+    """What a callback receives when a person (not the server) changed the control."""
+    return _FakeEvent()
+
+
+def test_train_panel_says_how_good_the_skill_is(app: Studio) -> None:
+    ctl, train = app.controller, app.panels.train
+    ctl.training.train().result(timeout=120)
+    assert wait_for(lambda: 'data-level="good"' in train.verdict.content, 120)
+    assert "Good: the skill follows your demonstrations closely (within " in train.verdict.content
+    assert train.summary.content.count('class="fit-row" data-well="1"') == 3  # each demo fits well
+    assert "How closely the learned path follows each demonstration." in train.summary.content
+    assert "log-likelihood" not in train.summary.content
+    assert 'data-mode="aligned-mean"' in train.summary.content and "Follow the demonstrations" in train.summary.content
+    assert re.search(r"Zero-points [^:]*: (none|states? \d)", train.summary.content)
+    assert "to state →" in train.heatmap.content and "time, s" in train.plots.content
+    cast(Any, train.mode).value = train.mode.options[1]  # the curious choose the paper's spline
+    train._on_mode(_Event())
+    assert ctl.training.generalization == "paper"
+
+
+def test_suggest_controls_show_progress_and_undo(app: Studio) -> None:
+    ctl, sc = app.controller, app.panels.keypoints.suggest
+    ctl.suggest.workers = 1
+    seen: list[tuple[bool, bool]] = []
+    ctl.events.on(Topic.SUGGEST, lambda: seen.append((sc.progress.visible, sc.stop.visible)))
+    assert not sc.undo.visible and not sc.progress.visible
+    ctl.suggest.start().result(timeout=120)
+    assert (True, True) in seen  # the progress bar and Stop while it searched
+    assert not sc.progress.visible and sc.undo.visible and "misses it by" in sc.text.content
+    ctl.suggest.undo()
+    assert not sc.undo.visible and "Undone" in sc.text.content
+
+
+def test_live_path_is_drawn_dashed_with_the_key_points_layer(app: Studio) -> None:
+    from studio.controller import Layer
+
+    ctl, kp = app.controller, app.panels.keypoints
+    ctl.view.set_step(Step.KEYPOINTS)
+    assert wait_for(lambda: "/keypoints/left/live-path" in kp._live_nodes, 60)
+    node = kp._live_nodes["/keypoints/left/live-path"]
+    assert node.points.shape == (60, 2, 3) and node.visible
+    assert "The learned path would stay within" in kp.live_text.content
+    ctl.view.set_shown(Layer.KEYPOINTS, False)
+    assert not node.visible and not any(n.visible for n in kp._kp_nodes.values())
+    ctl.view.set_shown(Layer.CENTROIDS, False)
+    assert not any(lab.visible for lab in kp._labels)
+    ctl.view.set_step(Step.TRAIN)
+    assert not node.visible
+
+
+def test_markers_go_with_their_live_path_and_never_wait_for_a_failed_one(
+    app: Studio, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import studio.core.pipeline as pipeline
+
+    ctl, kp = app.controller, app.panels.keypoints
+    ctl.view.set_step(Step.KEYPOINTS)
+    assert wait_for(lambda: "left" in ctl.live.paths, 60)
+    ctl.keypoints.set_param("eps5", 0.02)  # many more key-points
+
+    def drawn() -> list[int]:
+        return [len(n.points) for n in kp._kp_nodes.values()]
+
+    assert wait_for(lambda: ctl.keypoints.view is not None and ctl.keypoints.view.params["left"].eps5 == 0.02, 30)
+    view = ctl.keypoints.view
+    assert view is not None
+    version = view.version
+    assert wait_for(lambda: ctl.live.paths["left"].version == version, 60)
+    assert drawn() == [d.count for d in view.demos]  # one scene update: the markers with their path
+
+    def broken(*args: object, **kwargs: object) -> object:
+        raise RuntimeError("no path today")
+
+    monkeypatch.setattr(pipeline, "preview_path", broken)
+    ctl.keypoints.set_param("eps5", 0.2)
+    assert wait_for(lambda: ctl.live.paths == {}, 30)  # the failure was told; no path …
+    view = ctl.keypoints.view
+    assert view is not None and drawn() == [d.count for d in view.demos]  # … and the markers still came
+    assert any(title == "Could not draw the learned path" for _, title, _ in notes(app))

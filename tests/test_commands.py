@@ -10,7 +10,7 @@ import pytest
 
 from studio.cli import main
 from studio.commands import EXAMPLES, build_example
-from studio.core.types import Demo, Recording
+from studio.core.types import Demo, KeypointParams, Recording
 from studio.csv_io import export_recording_csv
 from studio.storage import DEFAULT_ROOT, SessionStore
 
@@ -145,13 +145,14 @@ def test_learn_uses_the_sessions_k_and_remembers_each_arms_demos(
             self.loglik = np.zeros(0)
             self.reference = 0
             self.n_clusters = 0
+            self.params = KeypointParams()
             self.trajectory = Demo(np.arange(2.0), np.zeros((2, 3)), np.tile([1.0, 0, 0, 0], (2, 1)), np.full(2, 100.0))
             self.joint_trajectory = None
 
         def to_arrays(self) -> dict[str, np.ndarray]:
             return {"x": np.zeros(1)}
 
-    def fake_learn_arms(recordings, params=None, *, arms=None, n_clusters=None, seed=0, baxter=None):
+    def fake_learn_arms(recordings, params=None, *, arms=None, n_clusters=None, seed=0, baxter=None, generalization=""):
         calls.append({"n_clusters": n_clusters})
         return {a: FakeSkill(tuple(r.name for r in recordings if a in r.arms)) for a in arms}
 
@@ -170,7 +171,7 @@ def test_learn_uses_the_sessions_k_and_remembers_each_arms_demos(
 
 
 def test_learn_auto_suggests_thresholds_first_and_keeps_them(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
-    from studio.core.types import KeypointParams
+
 
     store = SessionStore(tmp_path)
     src = SessionStore(DEFAULT_ROOT).open("stack-cup", recover=False)

@@ -281,3 +281,137 @@ def test_events_reach_every_view_even_after_a_broken_one(ctl: Controller) -> Non
     off()
     ctl.demos.set_visible(0, True)
     assert seen == ["demos"]
+
+
+# -- thresholds that follow the demonstrations, Suggest, the verdict, the live path (issue 11) -----------------
+
+
+def test_the_first_train_uses_thresholds_that_follow_the_demos(ctl: Controller, sessions: Path) -> None:
+    from studio.core.thresholds import ThresholdSettings, auto_params
+
+    demos = [d for _, d in ctl.demos.for_arm("left")]
+    assert ctl.keypoints.settings() == ThresholdSettings()  # the example session: every threshold automatic
+    assert ctl.keypoints.params() == auto_params(demos)
+    ctl.training.train().result(timeout=120)
+    assert ctl.training.skills()["left"].params == auto_params(demos)
+    assert SessionStore(sessions).open("stack-cup").skill_info["left"].params["eps5"] == auto_params(demos).eps5
+
+
+def test_teachers_values_are_kept_and_detail_moves_the_others(ctl: Controller, sessions: Path) -> None:
+    auto = ctl.keypoints.params()
+    seen: list[str] = []
+    ctl.events.on(Topic.THRESHOLDS, lambda: seen.append("thresholds"))
+    ctl.keypoints.set_param("eps5", 0.033)
+    assert not ctl.keypoints.settings().is_auto("eps5") and ctl.keypoints.params().eps5 == 0.033
+    assert seen == []  # a slider's own move is not announced to the sliders
+    ctl.keypoints.set_detail(2.0)  # more key-points: the automatic distances shrink, the teacher's value stays
+    more = ctl.keypoints.params()
+    assert more.eps5 == 0.033 and more.eps7 < auto.eps7 and more.eps4 < auto.eps4 and seen == ["thresholds"]
+    ctl.keypoints.persist()
+    again = SessionStore(sessions).open("stack-cup")
+    assert again.thresholds.detail == 2.0 and dict(again.thresholds.teacher) == {"eps5": 0.033}
+    assert again.params.eps5 == 0.033 and again.params.eps7 == pytest.approx(more.eps7)
+    ctl.keypoints.set_auto("eps5")
+    assert ctl.keypoints.params().eps5 < auto.eps5 and ctl.keypoints.settings().is_auto("eps5")
+    ctl.keypoints.set_param("eps2", 0.02)
+    ctl.keypoints.all_auto()
+    assert ctl.keypoints.settings().teacher == {} and ctl.keypoints.settings().detail == 2.0
+    ctl.keypoints.reset()
+    assert ctl.keypoints.params() == auto and ctl.keypoints.k is None
+
+
+def test_thresholds_are_written_once_they_rest(ctl: Controller, sessions: Path) -> None:
+    ctl.keypoints.set_param("eps5", 0.05)
+    assert SessionStore(sessions).open("stack-cup").params.eps5 != 0.05  # not per slider step
+    assert wait_for(lambda: SessionStore(sessions).open("stack-cup").params.eps5 == 0.05, 10)
+
+
+def test_suggest_applies_one_change_that_can_be_undone(ctl: Controller) -> None:
+    ctl.suggest.workers = 1
+    ctl.keypoints.set_param("eps5", 0.4)  # a far too coarse travel distance: 2–3 key-points per demo
+    ctl.keypoints.set_k(3)
+    states: list[tuple[bool, float]] = []
+    ctl.events.on(Topic.SUGGEST, lambda: states.append((ctl.suggest.state.running, ctl.suggest.state.fraction)))
+    ctl.suggest.start().result(timeout=120)
+    assert states[0] == (True, 0.0) and not states[-1][0] and states[-1][1] == 1.0
+    assert any(running and 0 < f < 1 for running, f in states)  # progress was told on the way
+    st = ctl.suggest.state
+    assert st.can_undo and st.summary.startswith("Suggested: ") and "misses it by" in st.summary
+    assert ctl.keypoints.settings().teacher == {} and ctl.keypoints.params().eps5 < 0.4
+    ctl.suggest.undo()
+    assert ctl.keypoints.params().eps5 == 0.4 and ctl.keypoints.k == 3 and not ctl.suggest.state.can_undo
+    with pytest.raises(StudioError, match="no suggestion to undo"):
+        ctl.suggest.undo()
+
+
+def test_suggest_can_be_stopped_and_changes_nothing(ctl: Controller) -> None:
+    ctl.suggest.workers = 1
+    ctl.keypoints.set_param("eps5", 0.4)
+    ctl.suggest.cancel()
+    fut = ctl.suggest.start()
+    assert wait_for(lambda: ctl.suggest.state.fraction > 0 or not ctl.suggest.state.running, 60)
+    ctl.suggest.cancel()
+    fut.result(timeout=60)
+    assert not ctl.suggest.state.running and not ctl.suggest.state.can_undo
+    assert "stopped" in ctl.suggest.state.summary and ctl.keypoints.params().eps5 == 0.4
+
+
+def test_suggest_needs_two_demos(ctl: Controller) -> None:
+    ctl.demos.set_visible(0, False)
+    ctl.demos.set_visible(1, False)
+    with pytest.raises(NotEnoughData, match="at least two"):
+        ctl.suggest.start()
+
+
+def test_training_is_judged_in_plain_words(ctl: Controller) -> None:
+    verdicts: list[int] = []
+    ctl.events.on(Topic.VERDICT, lambda: verdicts.append(len(ctl.training.verdicts())))
+    ctl.training.train().result(timeout=120)
+    assert wait_for(lambda: "left" in ctl.training.verdicts() and not ctl.training.judging, 120)
+    v = ctl.training.verdicts()["left"]
+    assert v.verdict is not None and v.verdict.lines[0].startswith("Good: the skill follows your demonstrations")
+    assert [f.name for f in v.fits] == ["demo 1", "demo 2", "demo 3"] and all(f.well for f in v.fits)
+    assert verdicts[0] == 0 and verdicts[-1] == 1
+    ctl.demos.rename(0, "renamed")  # the skill stays; its judgement says what it cannot judge any more
+    ctl.training.judge().result(timeout=120)
+    assert "renamed or deleted" in ctl.training.verdicts()["left"].message
+
+
+def test_an_odd_demonstration_is_named(ctl: Controller) -> None:
+    from studio.storage import DEFAULT_ROOT
+
+    pick = SessionStore(DEFAULT_ROOT).open("pick-place", recover=False).recordings[0]
+    ctl.session.add_recording(pick, name="demo 4")  # a pick-place take among the stack-cup ones
+    ctl.events.emit(Topic.DEMOS)
+    ctl.training.train().result(timeout=180)
+    assert wait_for(lambda: "left" in ctl.training.verdicts() and not ctl.training.judging, 180)
+    v = ctl.training.verdicts()["left"]
+    assert v.verdict is not None and "demo 4 differs a lot from the others — re-record or hide it." in v.verdict.lines
+    assert [f.well for f in v.fits] == [True, True, True, False]
+
+
+def test_paper_mode_can_be_chosen(ctl: Controller, sessions: Path) -> None:
+    assert ctl.training.generalization == "aligned-mean"
+    ctl.training.set_generalization("paper")
+    ctl.training.train().result(timeout=120)
+    assert ctl.training.skills()["left"].generalization == "paper"
+    assert SessionStore(sessions).open("stack-cup").generalization == "paper"
+    with pytest.raises(StudioError, match="Unknown way"):
+        ctl.training.set_generalization("spline")
+
+
+def test_the_live_path_follows_the_thresholds_in_the_key_points_step(ctl: Controller) -> None:
+    from studio.controller import Step
+
+    paths: list[int] = []
+    ctl.events.on(Topic.LIVE_PATH, lambda: paths.append(len(ctl.live.paths)))
+    ctl.keypoints.refresh()
+    assert ctl.live.paths == {}  # nobody looks (the Teach step): nothing is computed
+    ctl.view.set_step(Step.KEYPOINTS)
+    assert wait_for(lambda: "left" in ctl.live.paths, 60)
+    first = ctl.live.paths["left"]
+    assert len(first.position) > 10 and 0 < first.distance < 0.05 and "within" in first.words
+    ctl.keypoints.set_param("eps5", 0.4)
+    assert wait_for(lambda: ctl.live.paths["left"].version > first.version, 60)
+    view = ctl.keypoints.view
+    assert view is not None and ctl.live.paths["left"].k == view.k["left"]

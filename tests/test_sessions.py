@@ -224,6 +224,46 @@ def test_manifests_without_n_clusters_still_load(store: SessionStore, three) -> 
     assert loaded.n_clusters is None and loaded.demo_names == ["demo 1", "demo 2", "demo 3"]
 
 
+def test_threshold_settings_and_mode_are_kept_with_the_session(store: SessionStore, three) -> None:
+    from studio.core.thresholds import ThresholdSettings
+
+    assert three.thresholds == ThresholdSettings() and three.generalization == "aligned-mean"  # automatic, default
+    settings = ThresholdSettings(detail=1.5, teacher={"eps5": 0.03})
+    three.set_params(KeypointParams(eps5=0.03, eps7=0.08), settings)
+    three.set_params(mode="paper")
+    m = json.loads((three.path / "session.json").read_text())
+    assert m["thresholds"] == {"detail": 1.5, "teacher": {"eps5": 0.03}} and m["generalization"] == "paper"
+    assert m["params"]["eps7"] == 0.08  # the values they resolved to, what an older studio reads
+    loaded = store.open("three demos")
+    assert loaded.thresholds == settings and loaded.generalization == "paper" and loaded.params.eps7 == 0.08
+    assert store.duplicate("three demos", "copy").thresholds == settings
+    assert store.open(store.import_zip(store.export_zip("three demos"))).generalization == "paper"
+    with pytest.raises(InvalidInput, match="aligned-mean"):
+        three.set_params(mode="spline")
+    assert store.open("three demos").generalization == "paper"  # a refused value changes nothing
+
+
+def test_sessions_saved_before_threshold_settings_still_load(store: SessionStore, three) -> None:
+    from studio.core.thresholds import ThresholdSettings
+
+    three.set_params(KeypointParams(eps5=0.05))
+    m = json.loads((three.path / "session.json").read_text())
+    del m["thresholds"], m["generalization"]
+    (three.path / "session.json").write_text(json.dumps(m))
+    loaded = store.open("three demos")
+    # a value off the old fixed defaults was the teacher's; the others follow the demonstrations now
+    assert loaded.thresholds == ThresholdSettings(0.0, {"eps5": 0.05}) and loaded.generalization == "aligned-mean"
+    for key, value, pattern in (
+        ("thresholds", {"detail": "lots"}, "thresholds"),
+        ("thresholds", {"teacher": {"eps99": 1.0}}, "thresholds"),
+        ("thresholds", [1, 2], "thresholds"),
+        ("generalization", "spline", "generalization"),
+    ):
+        bad = dict(m, **{key: value})
+        (three.path / "session.json").write_text(json.dumps(bad))
+        _expect_error(store, "three demos", pattern)
+
+
 def test_skills_remember_the_demos_of_each_arm(store: SessionStore, three, monkeypatch) -> None:
     import studio.storage.npz as npz
 

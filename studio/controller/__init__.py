@@ -8,7 +8,10 @@ runs and is tested without a browser. One module per concern:
     pose.py       PoseSource, Display: which robot pose the scene draws
     teaching.py   Teaching: arms, moving the live robot (IK), reach, recording
     demos.py      Demos, DemoSummary: the demonstrations, their cache and edits
-    learning.py   KeypointTuning (ε, k, the live key-point view), Training (train, skills)
+    learning.py   KeypointTuning (threshold settings, k, the live key-point view)
+    livepath.py   LivePaths: the learned path recomputed while the thresholds move
+    suggest.py    Suggesting: Suggest thresholds (progress, cancel, undo)
+    training.py   Training: train, the verdict on the skill, what the panels show about it
     playback.py   Player, Playback: preview of the skill and replay of a demo, one mechanism
     sessions.py   SessionActions: open, new, save, duplicate, zip, CSV; switching sessions
     scene.py      SceneActions: the objects on the table, the live world, replay/preview objects, task result
@@ -30,12 +33,15 @@ import numpy as np
 from studio.controller.context import Context, Kind, LogNotifier, Notifier
 from studio.controller.demos import PALETTE, Demos, DemoSummary
 from studio.controller.events import Events, Topic
-from studio.controller.learning import KeypointItem, KeypointTuning, KeypointView, Training, UsedDemo
+from studio.controller.learning import KeypointItem, KeypointTuning, KeypointView
+from studio.controller.livepath import LivePath, LivePaths
 from studio.controller.playback import PREVIEW, REPLAY, Playback, PlaybackKind, Player
 from studio.controller.pose import Display, PoseSource
 from studio.controller.scene import SceneActions
 from studio.controller.sessions import RECOVERED, SessionActions, open_or_create
+from studio.controller.suggest import Suggesting, SuggestState
 from studio.controller.teaching import Reach, Teaching
+from studio.controller.training import MODE_WORDS, SkillVerdict, Training, UsedDemo
 from studio.controller.view import Layer, Step, View
 from studio.core.kinematics import Baxter
 from studio.robot_backend.base import RobotBackend
@@ -52,8 +58,8 @@ class Controller:
     """The studio without its GUI: a thin composition of the parts, each an attribute a panel uses.
 
     Attributes:
-        teaching, demos, keypoints, training, playback, sessions, scene, view: the parts (see the module
-            docstring).
+        teaching, demos, keypoints, live, suggest, training, playback, sessions, scene, view: the parts (see the
+            module docstring).
         display: the pose the scene draws; events: the topics to subscribe to; baxter: the kinematic model.
 
     Start it with :meth:`start` (robot streaming, key-point thread) and stop it with :meth:`shutdown`.
@@ -77,6 +83,9 @@ class Controller:
         self.playback = Player(self.ctx, self.display, self._robot_pose)
         arms = self._arms
         self.keypoints = KeypointTuning(self.ctx, self.demos, arms)
+        self.live = LivePaths(self.ctx, self.demos, self.keypoints, lambda: self.view.shown(Layer.KEYPOINTS))
+        self.events.on(Topic.VIEW, self.live.refresh_if_wanted)
+        self.suggest = Suggesting(self.ctx, self.demos, self.keypoints)
         self.training = Training(self.ctx, self.demos, self.keypoints, arms, self.playback)
         self.scene = SceneActions(self.ctx, backend, self.display, self.playback, arms, lambda: self.teaching.recording)
         self.teaching.takes = self.scene
@@ -135,6 +144,8 @@ class Controller:
         """Follow the robot (start streaming) and start the key-point thread."""
         self.teaching.start_robot()
         self.keypoints.start()
+        if self.ctx.session.skills:
+            self.training.judge()
 
     def close(self) -> None:
         """Keep a running take and unsaved thresholds (failures are logged), and stop the key-point thread."""
@@ -154,6 +165,7 @@ class Controller:
 
 
 __all__ = [
+    "MODE_WORDS",
     "PALETTE",
     "PREVIEW",
     "RECOVERED",
@@ -169,6 +181,8 @@ __all__ = [
     "KeypointTuning",
     "KeypointView",
     "Layer",
+    "LivePath",
+    "LivePaths",
     "LogNotifier",
     "Notifier",
     "ObjectPose",
@@ -180,7 +194,10 @@ __all__ = [
     "Scene",
     "SceneActions",
     "SessionActions",
+    "SkillVerdict",
     "Step",
+    "SuggestState",
+    "Suggesting",
     "TaskResult",
     "Teaching",
     "Topic",

@@ -29,8 +29,17 @@ class Topic(StrEnum):
     RECORDING = "recording"
     #: Whether an arm can reach where its handle was dragged changed (``teaching.reach``).
     REACH = "reach"
-    #: A new key-point view is ready (``learning.view``).
+    #: A new key-point view is ready (``keypoints.view``).
     KEYPOINTS = "keypoints"
+    #: The threshold settings changed other than by a slider being moved: Detail, back to automatic, Suggest
+    #: applied or undone, another session (``keypoints.settings()``, ``keypoints.params()``).
+    THRESHOLDS = "thresholds"
+    #: A new live learned path is ready while the thresholds move (``live.paths``).
+    LIVE_PATH = "live_path"
+    #: Suggest thresholds started, progressed, finished or was undone (``suggest.state``).
+    SUGGEST = "suggest"
+    #: The verdict on the learned skill changed (``training.verdicts()``).
+    VERDICT = "verdict"
     #: Training started or finished (``learning.training``).
     TRAINING = "training"
     #: New skills were learned (``learning.skills()``).

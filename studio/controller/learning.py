@@ -1,23 +1,27 @@
-"""Learning: the ε thresholds and k with the live key-point view (recomputed off the GUI threads, the newest
-request wins), then training the skill of every taught arm and what the panels show about it."""
+"""Learning settings: the ε thresholds (automatic ones follow the demonstrations, the teacher's are kept, one
+Detail control moves the automatic ones together) and k, with the live key-point view recomputed off the GUI
+threads (the newest request wins). Training is in :mod:`studio.controller.training`."""
 
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable
-from concurrent.futures import Future
-from dataclasses import dataclass, field, replace
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from studio.controller.context import Context
 from studio.controller.demos import Demos
 from studio.controller.events import Topic
-from studio.controller.playback import Player
-from studio.core.errors import NotEnoughData, StudioError
+from studio.core.errors import StudioError
 from studio.core.keypoints import KeypointCache
-from studio.core.types import Demo, KeypointParams, Skill
+from studio.core.thresholds import NAMES, DemoStats, ThresholdSettings
+from studio.core.types import Demo, KeypointParams
 from studio.storage import MAX_CLUSTERS, Session
+
+#: The thresholds are written to the session once they rested this long (never per slider step).
+PERSIST_AFTER_S = 1.0
 
 
 @dataclass(frozen=True)
@@ -34,21 +38,35 @@ class KeypointItem:
 
 @dataclass(frozen=True)
 class KeypointView:
-    """What the key-points panel draws: per-demo key-points, per-arm centroids (k, 8) and k, notes."""
+    """What the key-points panel draws: per-demo key-points, per-arm centroids (k, 8) and k, notes; the
+    thresholds it was computed with (``params`` per arm in real units, ``settings``) and a ``version`` that
+    grows with every request (a newer request makes an older view stale)."""
 
     demos: tuple[KeypointItem, ...] = ()
     centroids: dict[str, np.ndarray] = field(default_factory=dict)
     k: dict[str, int] = field(default_factory=dict)
     messages: tuple[str, ...] = ()
+    params: dict[str, KeypointParams] = field(default_factory=dict)
+    settings: ThresholdSettings = field(default_factory=ThresholdSettings)
+    version: int = 0
+    #: arm -> the key-point indices of each shown demo (in the order of ``demos``).
+    indices: dict[str, list[np.ndarray]] = field(default_factory=dict)
+
+
+#: Work done on the key-point thread after each new view while no newer request waits: ``follower(view,
+#: stale)``, where ``stale()`` says a newer request arrived (stop early, the result would be old).
+Follower = Callable[[KeypointView, Callable[[], bool]], None]
 
 
 class KeypointTuning:
-    """The ε thresholds and k of the open session, and the key-points and centroids they give.
+    """The threshold settings and k of the open session, and the key-points and centroids they give.
 
-    Changes are kept in memory and written to the session by :meth:`persist` (after each recomputation, on a
-    session switch and at shutdown), so dragging a slider never writes to disk per step. A change
-    (threshold, k, demos, arms, session) :meth:`request`\\ s a recomputation on the key-point thread, where
-    only the newest request is served; the result is :attr:`view` and :attr:`Topic.KEYPOINTS` is emitted.
+    The settings (:class:`~studio.core.thresholds.ThresholdSettings`) hold Detail and the thresholds the teacher
+    set by hand; every other threshold follows the shown demonstrations of each arm (:meth:`params`). Changes
+    are kept in memory and written to the session once they rested :data:`PERSIST_AFTER_S` (and on a session
+    switch, training and shutdown), so moving a slider never waits for the disk. A change :meth:`request`\\ s a
+    recomputation on the key-point thread, where only the newest request is served; the result is
+    :attr:`view` and :attr:`Topic.KEYPOINTS` is emitted, then the followers run (the live path).
     """
 
     def __init__(self, ctx: Context, demos: Demos, arms: Callable[[], tuple[str, ...]]) -> None:
@@ -57,9 +75,13 @@ class KeypointTuning:
         self.arms = arms
         self.cache = KeypointCache()  # per-demo derived series, reused across ε changes (weak keys)
         self.view: KeypointView | None = None
-        self._params: KeypointParams = ctx.session.params
+        self.followers: list[Follower] = []
+        self._settings: ThresholdSettings = ctx.session.thresholds
         self._k: int | None = ctx.session.n_clusters
+        self._stats: dict[str, tuple[tuple[Demo, ...], DemoStats]] = {}
         self._dirty = False
+        self._changed = 0.0
+        self._version = 0
         self._pending = threading.Event()
         self._stop = threading.Event()
         self._worker: threading.Thread | None = None
@@ -67,82 +89,136 @@ class KeypointTuning:
             ctx.events.on(topic, self.request)
 
     # -- thresholds and k ----------------------------------------------------------------------------------
-    def params(self) -> KeypointParams:
+    def settings(self) -> ThresholdSettings:
         with self.ctx.lock:
-            return self._params
+            return self._settings
+
+    def shown_arm(self) -> str | None:
+        """The arm whose values the sliders show: the first taught arm with shown demonstrations."""
+        arms = self.arms()
+        for arm in arms:
+            if self.demos.for_arm(arm):
+                return arm
+        return arms[0] if arms else None
+
+    def stats(self, arm: str) -> DemoStats | None:
+        """What the automatic thresholds of ``arm`` follow (None without shown demonstrations); cached per set
+        of demonstrations."""
+        demos = tuple(d for _, d in self.demos.for_arm(arm))
+        if not demos:
+            return None
+        hit = self._stats.get(arm)
+        if hit is not None and len(hit[0]) == len(demos) and all(a is b for a, b in zip(hit[0], demos, strict=True)):
+            return hit[1]
+        st = DemoStats.of(demos)
+        self._stats[arm] = (demos, st)
+        return st
+
+    def params(self, arm: str | None = None, settings: ThresholdSettings | None = None) -> KeypointParams:
+        """The fourteen values in real units for ``arm``'s shown demonstrations (default: :meth:`shown_arm`)."""
+        settings = settings or self.settings()
+        arm = arm or self.shown_arm()
+        st = self.stats(arm) if arm is not None else None
+        if st is None:  # nothing to follow yet: the defaults, with the teacher's own values
+            return KeypointParams(**{**KeypointParams().as_dict(), **settings.teacher})
+        return settings.resolve(st)
 
     @property
     def k(self) -> int | None:
         """k chosen by hand, or None: automatic."""
         return self._k
 
-    def set_param(self, name: str, value: float) -> None:
-        """Change one ε threshold (kept with the session)."""
+    def _change(self, settings: ThresholdSettings, k: int | None, *, announce: bool) -> None:
         with self.ctx.lock:
-            self._params = replace(self._params, **{name: float(value)})
+            self._settings = settings
+            self._k = k
             self._dirty = True
+            self._changed = time.monotonic()
         self.request()
+        if announce:
+            self.ctx.emit(Topic.THRESHOLDS)
+
+    def set_param(self, name: str, value: float) -> None:
+        """The teacher set one ε threshold (real units): it is kept as theirs until made automatic again."""
+        self._change(self.settings().set(name, float(value)), self._k, announce=False)
+
+    def set_auto(self, name: str) -> None:
+        """One threshold follows the demonstrations again."""
+        if name not in NAMES:
+            raise StudioError(f"Unknown key-point threshold {name}.")
+        self._change(self.settings().auto(name), self._k, announce=True)
+
+    def all_auto(self) -> None:
+        """Every threshold follows the demonstrations again (Detail is kept)."""
+        self._change(self.settings().all_auto(), self._k, announce=True)
+
+    def set_detail(self, detail: float) -> None:
+        """Fewer (−) ↔ more (+) key-points: moves the automatic thresholds together, keeps the teacher's."""
+        self._change(self.settings().with_detail(float(detail)), self._k, announce=True)
 
     def reset(self) -> None:
-        """Every threshold back to its default, k automatic."""
-        with self.ctx.lock:
-            self._params = KeypointParams()
-            self._k = None
-            self._dirty = True
-        self.request()
+        """Every threshold automatic, Detail 0, k automatic."""
+        self._change(ThresholdSettings(), None, announce=True)
+
+    def restore(self, settings: ThresholdSettings, k: int | None) -> None:
+        """Settings and k at once (Suggest applied, or undone)."""
+        if k is not None:
+            self._check_k(k)
+        self._change(settings, k, announce=True)
+
+    @staticmethod
+    def _check_k(k: int) -> None:
+        if k < 1:
+            raise StudioError("The number of clusters must be at least 1.")
+        if k > MAX_CLUSTERS:
+            raise StudioError(f"The number of clusters can be at most {MAX_CLUSTERS:,}.")
 
     def set_k(self, k: int | None) -> None:
         """Choose k, the number of clusters (None: automatic); kept with the session like the ε values."""
-        if k is not None and k < 1:
-            raise StudioError("The number of clusters must be at least 1.")
-        if k is not None and k > MAX_CLUSTERS:
-            raise StudioError(f"The number of clusters can be at most {MAX_CLUSTERS:,}.")
-        with self.ctx.lock:
-            self._k = k
-            self._dirty = True
-        self.request()
+        if k is not None:
+            self._check_k(k)
+        self._change(self.settings(), k, announce=False)
 
-    def keep_if_changed(self, learned_with: KeypointParams) -> None:
-        """A skill was saved with ``learned_with`` as the session's thresholds: if the current ones differ
-        (changed while training), they still have to be written."""
+    def persist(self, force: bool = False) -> None:
+        """Write changed settings (with the values they resolve to now, for older studios) and k; with
+        ``force`` whatever differs from the session's, changed here or not."""
         with self.ctx.lock:
-            if self._params != learned_with:
-                self._dirty = True
-
-    def persist(self) -> None:
-        """Write changed thresholds and k to the open session."""
-        with self.ctx.lock:
-            if not self._dirty:
+            if not (self._dirty or force):
                 return
             self._dirty = False
-            params, k, session = self._params, self._k, self.ctx.session
-        if params != session.params:
-            session.set_params(params)
+            settings, k, session = self._settings, self._k, self.ctx.session
+        params = self.params(settings=settings)
+        if settings != session.thresholds or params != session.params:
+            session.set_params(params, settings)
         if k != session.n_clusters:
             session.set_n_clusters(k)
 
     def on_session(self, session: Session) -> None:
-        """Another session is open: take its thresholds and k (persist the old ones first)."""
+        """Another session is open: take its settings and k (persist the old ones first)."""
         with self.ctx.lock:
-            self._params = session.params
+            self._settings = session.thresholds
             self._k = session.n_clusters
             self._dirty = False
+            self._stats.clear()
 
     # -- the key-point view ----------------------------------------------------------------------------------
     def compute(self) -> KeypointView:
-        """Key-points of every shown demo and the k-means centroids per taught arm, for the current ε."""
+        """Key-points of every shown demo and the k-means centroids per taught arm, for the current settings."""
         from studio.core.clustering import cluster_keypoints
 
-        params, k = self.params(), self._k
+        settings, k, version = self.settings(), self._k, self._version
         items: list[KeypointItem] = []
         centroids: dict[str, np.ndarray] = {}
         ks: dict[str, int] = {}
+        used: dict[str, KeypointParams] = {}
+        indices: dict[str, list[np.ndarray]] = {}
         messages: list[str] = []
         for arm in self.arms():
             demos = self.demos.for_arm(arm)
             if not demos:
                 continue
-            idx = [np.asarray(self.cache.extract(d, params)) for _, d in demos]
+            params = used[arm] = self.params(arm, settings)
+            idx = indices[arm] = [np.asarray(self.cache.extract(d, params)) for _, d in demos]
             items += [_item(i, arm, d, ix) for (i, d), ix in zip(demos, idx, strict=True)]
             try:
                 c = cluster_keypoints([d for _, d in demos], idx, n_clusters=k, seed=0)
@@ -151,8 +227,7 @@ class KeypointTuning:
                 continue
             centroids[arm] = np.asarray(c)
             ks[arm] = len(c)
-        self.persist()
-        return KeypointView(tuple(items), centroids, ks, tuple(messages))
+        return KeypointView(tuple(items), centroids, ks, tuple(messages), used, settings, version, indices)
 
     def refresh(self) -> KeypointView:
         """Compute the view now, keep it as :attr:`view`, tell the views, and notify its messages."""
@@ -165,7 +240,13 @@ class KeypointTuning:
 
     def request(self) -> None:
         """Recompute on the key-point thread soon (several requests before it runs count as one)."""
+        with self.ctx.lock:
+            self._version += 1
         self._pending.set()
+
+    def stale(self) -> bool:
+        """A newer request waits: work for the current view would be out of date."""
+        return self._pending.is_set() or self._stop.is_set()
 
     def start(self) -> None:
         """Start the key-point thread (it serves a first request at once)."""
@@ -182,136 +263,36 @@ class KeypointTuning:
 
     def _loop(self) -> None:
         while not self._stop.is_set():
-            if not self._pending.wait(timeout=0.5):
+            if not self._pending.wait(timeout=0.25):
+                self._persist_if_rested()
                 continue
             self._pending.clear()
             if self._stop.is_set():  # the studio is stopping: the views may already be gone
                 return
             try:
-                self.refresh()
+                view = self.refresh()
             except Exception as exc:
                 self.ctx.report(exc, title="Could not find the key-points")
+                continue
+            self._follow(view, self.followers)
+
+    def _follow(self, view: KeypointView, followers: Sequence[Follower]) -> None:
+        for follower in followers:
+            if self.stale():
+                return
+            try:
+                follower(view, self.stale)
+            except Exception as exc:
+                self.ctx.report(exc, title="Could not draw the learned path")
+
+    def _persist_if_rested(self) -> None:
+        if self._dirty and time.monotonic() - self._changed >= PERSIST_AFTER_S:
+            try:
+                self.persist()
+            except Exception as exc:
+                self.ctx.report(exc, title="Could not save the key-point settings")
 
 
 def _item(i: int, arm: str, d: Demo, ix: np.ndarray) -> KeypointItem:
     points = np.asarray(d.position)[ix] if len(ix) else np.zeros((0, 3))
     return KeypointItem(index=i, arm=arm, name=d.name, color=Demos.color(i), count=len(ix), points=points)
-
-
-@dataclass(frozen=True)
-class UsedDemo:
-    """A demonstration a skill was learned from: its name then, and its index and Demo now (None when it was
-    renamed or deleted since)."""
-
-    name: str
-    index: int | None
-    demo: Demo | None
-
-
-class Training:
-    """Learns the skill of every taught arm on the work thread, and answers what the panels show about it."""
-
-    def __init__(
-        self, ctx: Context, demos: Demos, tuning: KeypointTuning, arms: Callable[[], tuple[str, ...]], player: Player
-    ) -> None:
-        self.ctx = ctx
-        self.demos = demos
-        self.tuning = tuning
-        self.arms = arms
-        self.player = player
-        self.busy = False
-
-    def skills(self) -> dict[str, Skill]:
-        return dict(self.ctx.session.skills)
-
-    def train(self) -> Future[dict[str, Skill] | None]:
-        """Learn the skill of every taught arm from the shown demos on the work thread."""
-        from studio.core.pipeline import learn_skill
-
-        with self.ctx.lock:
-            if self.busy:
-                raise StudioError("Training is already running; wait for it to finish.")
-            per_arm = {arm: self.demos.for_arm(arm) for arm in self.arms()}
-            for arm, demos in per_arm.items():
-                if len(demos) < 2:
-                    raise NotEnoughData(
-                        f"The {arm} arm needs at least two shown demonstrations to learn from "
-                        f"(it has {len(demos)}). Record more, or show hidden ones."
-                    )
-            params, k = self.tuning.params(), self.tuning.k
-            session = self.ctx.session  # the skill belongs to the session it was learned from
-            self.busy = True
-        self.ctx.emit(Topic.TRAINING)
-        baxter, cache = self.ctx.baxter, self.tuning.cache
-
-        def job() -> dict[str, Skill]:
-            return {
-                arm: learn_skill(
-                    [d for _, d in demos], params, n_clusters=k, seed=0, arm=arm, baxter=baxter, cache=cache
-                )
-                for arm, demos in per_arm.items()
-            }
-
-        def done(skills: dict[str, Skill]) -> None:
-            names = {arm: [d.name for _, d in per_arm[arm]] for arm in skills}
-            with self.ctx.lock:
-                session.set_skills(skills, params=params, demos=names)
-                current = session is self.ctx.session
-                if current:  # ε changed while training: keep the new values
-                    self.tuning.keep_if_changed(params)
-                self.busy = False  # only now: sessions cannot be switched while training
-            self.ctx.emit(Topic.TRAINING)
-            if not current:
-                self.ctx.notify(
-                    "Training finished", f'The skill was learned for session "{session.name}".', kind="info"
-                )
-                return
-            self.tuning.persist()
-            self.player.unload_preview()  # the loaded preview shows the previous skill
-            self.ctx.emit(Topic.SKILL)
-            self.ctx.notify(
-                "Training finished", "The robot learned the skill: open Preview to watch it.", kind="success"
-            )
-
-        fut = self.ctx.submit(job, done=done, title="Training failed")
-        fut.add_done_callback(lambda f: self._finished())
-        return fut
-
-    def _finished(self) -> None:
-        if self.busy:  # the job failed: done() never ran
-            self.busy = False
-            self.ctx.emit(Topic.TRAINING)
-
-    def skill_demo_names(self, arm: str) -> list[str]:
-        """Names of the demonstrations the current skill of ``arm`` was learned from, in the skill's order
-        (the order of its log-likelihoods and key-points), as they were called then."""
-        sk = self.ctx.session.skills.get(arm)
-        if sk is None:
-            return []
-        info = self.ctx.session.skill_info.get(arm)
-        return [str(n) for n in (sk.demo_names or (info.demos if info is not None else ()))]
-
-    def skill_demos(self, arm: str) -> list[UsedDemo]:
-        """Every demonstration the current skill of ``arm`` was learned from, in the skill's order."""
-        by_name = {r.name: (i, r) for i, r in enumerate(self.demos.recordings())}
-        out: list[UsedDemo] = []
-        for nm in self.skill_demo_names(arm):
-            hit = by_name.get(nm)
-            if hit is not None and arm in hit[1].arms:
-                out.append(UsedDemo(nm, hit[0], self.demos.demo_of(hit[1], arm)))
-            else:
-                out.append(UsedDemo(nm, None, None))
-        return out
-
-    def ik_failures(self, arm: str) -> np.ndarray:
-        """(n, 3) positions of the learned path the arm cannot reach exactly."""
-        sk = self.ctx.session.skills.get(arm)
-        jt = sk.joint_trajectory if sk is not None else None
-        if sk is None or jt is None:
-            return np.zeros((0, 3))
-        bad = ~np.asarray(jt.converged, dtype=bool)
-        if not bad.any():
-            return np.zeros((0, 3))
-        tr = sk.trajectory
-        pos = np.column_stack([np.interp(jt.t, tr.t, tr.position[:, c]) for c in range(3)])
-        return pos[bad]

@@ -9,11 +9,12 @@ from pathlib import Path
 from studio.controller.context import Context
 from studio.controller.demos import Demos
 from studio.controller.events import Topic
-from studio.controller.learning import KeypointTuning, Training
+from studio.controller.learning import KeypointTuning
 from studio.controller.playback import Player
 from studio.controller.pose import Display
 from studio.controller.scene import SceneActions
 from studio.controller.teaching import Teaching
+from studio.controller.training import Training
 from studio.core.errors import InvalidInput, StudioError
 from studio.storage import Session, SessionStore, check_session_name
 from studio.world import preset

@@ -245,6 +245,130 @@ def _better(a: Score, ca: Candidate, b: Score, cb: Candidate) -> bool:
     return a.g_over_r < b.g_over_r * need
 
 
+class _Search:
+    """One search's scoring: "before" here (it derives the demos' series and DTW maps), the other candidates in
+    this process or in worker processes forked after that (they inherit them); counts progress, honours cancel."""
+
+    def __init__(
+        self,
+        demos: list[Demo],
+        generalization: str,
+        workers: int,
+        progress: Callable[[float, str], None] | None,
+        cancel: threading.Event | None,
+    ) -> None:
+        self.demos = demos
+        self.generalization = generalization
+        self.folds = _folds(len(demos))
+        self.token = f"{_fingerprint(demos)}-{generalization}"
+        self.st = _state(self.token, demos, generalization)
+        self.workers = workers
+        self.progress = progress
+        self.cancel = cancel
+        self.pool: ProcessPoolExecutor | None = None
+        self.done = 0
+        self.planned = 1 + len(COARSE_DETAIL) + 2 + len(K_FACTORS)
+        self.cancelled = False
+
+    def report(self, msg: str) -> None:
+        if self.progress is not None:
+            self.progress(min(1.0, self.done / self.planned), msg)
+
+    def stopped(self) -> bool:
+        if self.cancel is not None and self.cancel.is_set():
+            self.cancelled = True
+        return self.cancelled
+
+    def first(self, before_c: Candidate) -> Score | None:
+        """Score "before" in this process, then start the workers (they inherit what it derived)."""
+        self.report("Measuring the current thresholds")
+        if self.stopped():
+            return None
+        score = _score(before_c, self.st, self.folds)
+        self.done += 1
+        if self.workers > 1:
+            self.pool = _fork_pool(self.workers)
+        return score
+
+    def run(self, cands: list[Candidate], msg: str) -> list[Score] | None:
+        """Score candidates (one per task across the workers); None if cancelled."""
+        if self.pool is None:
+            out = []
+            for c in cands:
+                if self.stopped():
+                    return None
+                out.extend(_evaluate(self.token, self.demos, self.generalization, self.folds, [c]))
+                self.done += 1
+                self.report(msg)
+            return out
+        futs = {self.pool.submit(_evaluate_inherited, self.token, self.folds, [c]): i for i, c in enumerate(cands)}
+        res: list[Score | None] = [None] * len(cands)
+        pending: set[Future] = set(futs)
+        while pending:
+            done, pending = wait(pending, timeout=0.05, return_when=FIRST_COMPLETED)
+            for f in done:
+                res[futs[f]] = f.result()[0]
+                self.done += 1
+                self.report(msg)
+            if self.stopped():
+                for f in pending:
+                    f.cancel()
+                return None
+        return [r for r in res if r is not None]
+
+    def close(self) -> None:
+        if self.pool is not None:
+            self.pool.shutdown(wait=False, cancel_futures=True)
+            self.pool = None
+
+
+def _before(current: ThresholdSettings | KeypointParams | None, stats: DemoStats, k: int | None) -> Candidate:
+    """The candidate for the thresholds and k in use (scored as "before")."""
+    if isinstance(current, KeypointParams):
+        return Candidate(0.0, fixed=tuple(current.as_dict().items()), k=k)
+    settings = current or ThresholdSettings()
+    return Candidate(settings.detail, fixed=tuple(settings.resolve(stats).as_dict().items()), k=k)
+
+
+def _challenge(cands: list[Candidate], scores: list[Score], best_c: Candidate, best: Score) -> tuple[Candidate, Score]:
+    """The incumbent after each candidate challenged it in turn (:func:`_better`)."""
+    for c, sc in zip(cands, scores, strict=True):
+        if _better(sc, c, best, best_c):
+            best_c, best = c, sc
+    return best_c, best
+
+
+def _rounds(
+    search: _Search, before_c: Candidate, t0: float, budget_s: float
+) -> tuple[Candidate, Score, Score, int, bool]:
+    """The search itself: (best candidate, its score, "before", candidates scored, every round done).
+
+    Round 1: "before" and the coarse Detail values (Detail 0 is the incumbent the others challenge); round 2:
+    ±0.5 around the best; round 3: other k at the best. A round starts only within the time budget.
+    """
+    nothing = Score(math.inf, math.inf, math.nan, math.nan)
+    before0 = search.first(before_c)
+    coarse_c = [Candidate(d) for d in COARSE_DETAIL]
+    coarse = None if before0 is None else search.run(coarse_c, "Trying fewer and more key-points")
+    if before0 is None or coarse is None:
+        return before_c, nothing, nothing, 0, False
+    evaluated = 1 + len(coarse)
+    best_c, best = _challenge(coarse_c, coarse, Candidate(0.0), coarse[COARSE_DETAIL.index(0.0)])
+    for step in ("fine", "k"):
+        if time.perf_counter() - t0 >= budget_s:
+            return best_c, best, before0, evaluated, False
+        if step == "fine":
+            cands, msg = [Candidate(best_c.detail - 0.5), Candidate(best_c.detail + 0.5)], "Refining"
+        else:
+            cands, msg = [Candidate(best_c.detail, f) for f in K_FACTORS], "Trying other numbers of clusters"
+        scores = search.run(cands, msg)
+        if scores is None:
+            return best_c, best, before0, evaluated, False
+        evaluated += len(scores)
+        best_c, best = _challenge(cands, scores, best_c, best)
+    return best_c, best, before0, evaluated, True
+
+
 def suggest(
     demos: Sequence[Demo],
     *,
@@ -281,115 +405,21 @@ def suggest(
         )
     generalization = generalization or DEFAULT_GENERALIZATION
     stats = DemoStats.of(demos)
-    if isinstance(current, KeypointParams):
-        before_c = Candidate(0.0, fixed=tuple(current.as_dict().items()), k=n_clusters)
-    else:
-        settings = current or ThresholdSettings()
-        before_c = Candidate(settings.detail, fixed=tuple(settings.resolve(stats).as_dict().items()), k=n_clusters)
-    folds = _folds(len(demos))
-    token = f"{_fingerprint(demos)}-{generalization}"
-    pool = None
-    st = _state(token, demos, generalization)
-    done_count = 0
-    planned = 1 + len(COARSE_DETAIL) + 2 + len(K_FACTORS)
-    cancelled = False
-
-    def report(msg: str) -> None:
-        if progress is not None:
-            progress(min(1.0, done_count / planned), msg)
-
-    def run(cands: list[Candidate], msg: str) -> list[Score] | None:
-        """Score candidates (in batches across the workers); None if cancelled."""
-        nonlocal done_count, cancelled
-        if pool is None:
-            out = []
-            for c in cands:
-                if cancel is not None and cancel.is_set():
-                    cancelled = True
-                    return None
-                out.extend(_evaluate(token, demos, generalization, folds, [c]))
-                done_count += 1
-                report(msg)
-            return out
-        futs: dict[Future, int] = {pool.submit(_evaluate_inherited, token, folds, [c]): i for i, c in enumerate(cands)}
-        res: list[Score | None] = [None] * len(cands)
-        pending = set(futs)
-        while pending:
-            done, pending = wait(pending, timeout=0.05, return_when=FIRST_COMPLETED)
-            for f in done:
-                res[futs[f]] = f.result()[0]
-                done_count += 1
-                report(msg)
-            if cancel is not None and cancel.is_set():
-                for f in pending:
-                    f.cancel()
-                cancelled = True
-                return None
-        return [r for r in res if r is not None]
-
-    report("Measuring the current thresholds")
-    # "Before" is scored here: it derives the demos' series and DTW maps, which the forked workers then inherit.
-    first = None
-    if cancel is not None and cancel.is_set():
-        cancelled = True
-    else:
-        before0 = _score(before_c, st, folds)
-        done_count += 1
-        if workers > 1:
-            pool = _fork_pool(workers)
-        try:
-            coarse = run([Candidate(d) for d in COARSE_DETAIL], "Trying fewer and more key-points")
-        except BaseException:
-            if pool is not None:
-                pool.shutdown(wait=False, cancel_futures=True)
-            raise
-        first = None if coarse is None else [before0, *coarse]
-    best_c, best = before_c, Score(math.inf, math.inf, math.nan, math.nan)
-    before = best
-    complete = False
-    evaluated = 0
-    if first is not None:
-        before = first[0]
-        evaluated = len(first)
-        best_c, best = Candidate(0.0), first[3]  # Detail 0 is the incumbent, then the others challenge it
-        for c, s in zip([Candidate(d) for d in COARSE_DETAIL], first[1:], strict=True):
-            if _better(s, c, best, best_c):
-                best_c, best = c, s
-        if time.perf_counter() - t0 < budget_s:
-            fine = [Candidate(best_c.detail - 0.5), Candidate(best_c.detail + 0.5)]
-            second = run(fine, "Refining")
-            if second is not None:
-                evaluated += len(second)
-                for c, s in zip(fine, second, strict=True):
-                    if _better(s, c, best, best_c):
-                        best_c, best = c, s
-                if time.perf_counter() - t0 < budget_s:
-                    ks = [Candidate(best_c.detail, f) for f in K_FACTORS]
-                    third = run(ks, "Trying other numbers of clusters")
-                    if third is not None:
-                        evaluated += len(third)
-                        for c, s in zip(ks, third, strict=True):
-                            if _better(s, c, best, best_c):
-                                best_c, best = c, s
-                        complete = True
-    if pool is not None:
-        pool.shutdown(wait=False, cancel_futures=True)
-    if cancelled:  # keep what the teacher has
+    before_c = _before(current, stats, n_clusters)
+    search = _Search(demos, generalization, workers, progress, cancel)
+    try:
+        best_c, best, before, evaluated, complete = _rounds(search, before_c, t0, budget_s)
+    finally:
+        search.close()
+    if search.cancelled:  # keep what the teacher has
         settings = current if isinstance(current, ThresholdSettings) else ThresholdSettings()
-        params = _params(before_c, stats)
-        k = n_clusters
+        params, k = _params(before_c, stats), n_clusters
     else:
         settings = ThresholdSettings(detail=best_c.detail)
         params = auto_params(stats, best_c.detail)
-        k = None
-        if best_c.k_factor != 1.0:
-            from studio.core.clustering import default_n_clusters
-            from studio.core.keypoints import KeypointCache
-
-            kc = KeypointCache()
-            k = max(2, round(best_c.k_factor * default_n_clusters([kc.extract(d, params) for d in demos])))
-    if progress is not None and not cancelled:
-        progress(1.0, "Done")
+        k = _suggested_k(demos, params, best_c.k_factor)
+        if progress is not None:
+            progress(1.0, "Done")
     return TuneResult(
         settings=settings,
         params=params,
@@ -398,9 +428,20 @@ def suggest(
         after=best,
         evaluated=evaluated,
         seconds=time.perf_counter() - t0,
-        cancelled=cancelled,
-        complete=complete and not cancelled,
+        cancelled=search.cancelled,
+        complete=complete and not search.cancelled,
     )
+
+
+def _suggested_k(demos: list[Demo], params: KeypointParams, k_factor: float) -> int | None:
+    """None for the paper's default k, else the default times ``k_factor``."""
+    if k_factor == 1.0:
+        return None
+    from studio.core.clustering import default_n_clusters
+    from studio.core.keypoints import KeypointCache
+
+    kc = KeypointCache()
+    return max(2, round(k_factor * default_n_clusters([kc.extract(d, params) for d in demos])))
 
 
 __all__ = [

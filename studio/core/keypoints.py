@@ -273,86 +273,129 @@ def _after(t: np.ndarray, tau: int, dur: float) -> int:
     return i
 
 
+class _Tests:
+    """The three tests of one part of the pose (position: ε1–ε7, or orientation: ε8–ε14) from the last key-point
+    τ, evaluated on chunks of samples after it.
+
+    Distances are computed with exactly the reference's arithmetic (same operation order, sqrt and acos), so a
+    sample lying exactly on a threshold is decided the same way by both implementations.
+    """
+
+    def __init__(
+        self,
+        rows: np.ndarray,
+        corner: np.ndarray,
+        still: np.ndarray,
+        waits: tuple[float, float],
+        eps: tuple[float, float, float],
+        angle: bool,
+    ) -> None:
+        self.rows = rows  # (D, N): contiguous rows make chunk arithmetic fast
+        self.corner = corner  # (N,) bool: the corner test, thresholded once per call
+        self.still = still  # (N,) bool: slower than the pause speed
+        self.pause_wait, self.travel_wait = waits  # ε3, ε6 (ε10, ε13)
+        self.pause_dist, self.travel_dist, self.radius = eps  # ε4, ε5, ε7 (ε11, ε12, ε14)
+        self.angle = angle
+        self.n = rows.shape[1]
+
+    def start(self, t: np.ndarray, tau: int) -> None:
+        """A new last key-point τ: the time conditions become index bounds."""
+        self.ref = self.rows[:, tau]
+        self.i_pause, self.i_travel = _after(t, tau, self.pause_wait), _after(t, tau, self.travel_wait)
+        # first sample at or after τ that left the radius (d(τ, τ) = 0), n while none did
+        self.left = tau if self.radius <= 0 else self.n
+
+    def distance(self, a: int, b: int) -> np.ndarray:
+        """Distance of samples [a, b) from τ: metres, or the rotation angle in radians."""
+        R, r = self.rows, self.ref
+        if self.angle:
+            dot = R[0, a:b] * r[0] + R[1, a:b] * r[1] + R[2, a:b] * r[2] + R[3, a:b] * r[3]
+            return 2.0 * np.arccos(np.minimum(np.abs(dot), 1.0))
+        d0, d1, d2 = R[0, a:b] - r[0], R[1, a:b] - r[1], R[2, a:b] - r[2]
+        return np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+
+    def keys(self, a: int, b: int) -> np.ndarray:
+        """(b − a,) bool: where a test holds — a corner or a pause (both farther than the pause distance from
+        τ), or the travel distance reached in time while the path stayed within the radius."""
+        d = self.distance(a, b)
+        if self.left == self.n:
+            out = d >= self.radius
+            if out.any():
+                self.left = a + int(np.argmax(out))
+        m = self.corner[a:b].copy()
+        lo = max(self.i_pause, a)
+        if lo < b:
+            m[lo - a :] |= self.still[lo:b]
+        key = m & (d > self.pause_dist)
+        lo, hi = max(self.i_travel, a), min(self.left + 1, b)
+        if lo < hi:
+            key[lo - a : hi - a] |= d[lo - a : hi - a] >= self.travel_dist
+        return key
+
+
+def _next_keypoint(pos: _Tests, ori: _Tests, tau: int, ub: int, chunk: int) -> int:
+    """The first sample after τ and before ``ub`` where a position or orientation test holds (else ``ub``).
+
+    Chunks grow ×2 while nothing is found; orientation only needs checking before the position candidate.
+    """
+    a = tau + 1
+    while a < ub:
+        b = min(a + chunk, ub)
+        key = pos.keys(a, b)
+        k = int(np.argmax(key))
+        if key[k]:
+            b = a + k
+        if b > a:
+            key_o = ori.keys(a, b)
+            ko = int(np.argmax(key_o))
+            if key_o[ko]:
+                return a + ko
+        if key[k]:
+            return a + k
+        a = b
+        chunk *= 2
+    return ub
+
+
 def extract_from_series(s: KeypointSeries, params: KeypointParams) -> np.ndarray:
     """The fast path: key-point indices from precomputed series (see module docstring).
 
     Per call, the ε-dependent masks (corners, stillness) are thresholded once over the whole demonstration;
     the sequential part then evaluates all six tests together on chunks of samples after the last key-point
     τ (distances from τ, the time conditions as index bounds, "stayed within ε7" as the index of the first
-    sample that left the ball) and jumps to the first sample where any test holds.
+    sample that left the ball) and jumps to the first sample where any test holds (:class:`_Tests`).
     """
     p = params
     n = len(s)
     t = s.t
-    PT, OT = s.position_t, s.orientation_t  # (3, N), (4, N): contiguous rows make chunk arithmetic fast
     two_pi = 2.0 * math.pi
-    cp = s.corner_mask("position", two_pi - p.eps1)
-    co = s.corner_mask("orientation", two_pi - p.eps8)
-    still_p = s.speed < p.eps2
-    still_o = s.angular_speed < p.eps9
-
-    # Distances are computed with exactly the reference's arithmetic (same operation order, sqrt and acos),
-    # so a sample lying exactly on a threshold is decided the same way by both implementations.
+    pos = _Tests(
+        s.position_t,
+        s.corner_mask("position", two_pi - p.eps1),
+        s.speed < p.eps2,
+        (p.eps3, p.eps6),
+        (p.eps4, p.eps5, p.eps7),
+        angle=False,
+    )
+    ori = _Tests(
+        s.orientation_t,
+        s.corner_mask("orientation", two_pi - p.eps8),
+        s.angular_speed < p.eps9,
+        (p.eps10, p.eps13),
+        (p.eps11, p.eps12, p.eps14),
+        angle=True,
+    )
     out = [0]
     tau = 0
     chunk = _CHUNK
     gev = s.gripper_events
     while tau < n - 1:
-        Pt, Ot = PT[:, tau], OT[:, tau]
-        i3, i6 = _after(t, tau, p.eps3), _after(t, tau, p.eps6)
-        i10, i13 = _after(t, tau, p.eps10), _after(t, tau, p.eps13)
-        brk_p = tau if p.eps7 <= 0 else n  # first sample at or after τ that left the ε7 ball (d(τ, τ) = 0)
-        brk_o = tau if p.eps14 <= 0 else n
+        pos.start(t, tau)
+        ori.start(t, tau)
         # the next gripper event is a key-point for sure: nothing after it needs looking at
         g = int(np.searchsorted(gev, tau, side="right"))
         ub = min(int(gev[g]), n - 1) if g < gev.shape[0] else n - 1
-        a = tau + 1
-        found = ub
-        while a < ub:
-            b = min(a + chunk, ub)
-            # position: corner or pause (both need "moved more than ε4 since τ") and distance
-            d0, d1, d2 = PT[0, a:b] - Pt[0], PT[1, a:b] - Pt[1], PT[2, a:b] - Pt[2]
-            dp = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-            if brk_p == n:
-                br = dp >= p.eps7
-                if br.any():
-                    brk_p = a + int(np.argmax(br))
-            m = cp[a:b].copy()
-            lo = max(i3, a)
-            if lo < b:
-                m[lo - a :] |= still_p[lo:b]
-            key = m & (dp > p.eps4)
-            lo, hi = max(i6, a), min(brk_p + 1, b)
-            if lo < hi:
-                key[lo - a : hi - a] |= dp[lo - a : hi - a] >= p.eps5
-            k = int(np.argmax(key))
-            if key[k]:
-                b = a + k  # orientation only needs checking before the position candidate
-            # orientation, on [a, b)
-            if b > a:
-                dot = OT[0, a:b] * Ot[0] + OT[1, a:b] * Ot[1] + OT[2, a:b] * Ot[2] + OT[3, a:b] * Ot[3]
-                do = 2.0 * np.arccos(np.minimum(np.abs(dot), 1.0))
-                if brk_o == n:
-                    br = do >= p.eps14
-                    if br.any():
-                        brk_o = a + int(np.argmax(br))
-                m = co[a:b].copy()
-                lo = max(i10, a)
-                if lo < b:
-                    m[lo - a :] |= still_o[lo:b]
-                key_o = m & (do > p.eps11)
-                lo, hi = max(i13, a), min(brk_o + 1, b)
-                if lo < hi:
-                    key_o[lo - a : hi - a] |= do[lo - a : hi - a] >= p.eps12
-                ko = int(np.argmax(key_o))
-                if key_o[ko]:
-                    found = a + ko
-                    break
-            if key[k]:
-                found = a + k
-                break
-            a = b
-            chunk *= 2
+        found = _next_keypoint(pos, ori, tau, ub, chunk)
         if found >= n - 1:
             break
         chunk = max(_CHUNK // 4, min(_CHUNK, 2 * (found - tau)))

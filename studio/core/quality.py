@@ -762,10 +762,14 @@ def verdict(report: QualityReport) -> Verdict:
             )
     ex = r.execution
     if ex is not None and (ex.tracked < 0.98 or ex.max_error > 0.005):
+        miss = 100 * (1 - ex.tracked)
+        what = (
+            f"cannot follow {miss:.0f} % of it (up to {length_words(ex.max_error)} off at {ex.worst_time:.1f} s)"
+            if miss >= 0.5
+            else f"strays up to {length_words(ex.max_error)} from it (at {ex.worst_time:.1f} s)"
+        )
         notes.append(
-            f"The robot cannot follow {100 * (1 - ex.tracked):.0f} % of it (up to {length_words(ex.max_error)} off "
-            f"at {ex.worst_time:.1f} s) — teach it closer to the robot, with the gripper in a direction the arm "
-            "can hold."
+            f"The robot {what} — teach it closer to the robot, with the gripper in a direction the arm can hold."
         )
     if ex is not None and r.demo_durations and ex.duration > 1.2 * max(r.demo_durations) + 0.2:
         notes.append(
@@ -808,9 +812,66 @@ def verdict(report: QualityReport) -> Verdict:
     return Verdict(level, (head, *notes))
 
 
+@dataclass(frozen=True)
+class DemoFit:
+    """How well one demonstration fits the learned skill, for the per-demo list in the Train panel.
+
+    Attributes:
+        index: position in the skill's demo list; name: its name.
+        well: True ("fits the skill: well") or False ("poorly").
+        distance: root-mean-square distance of the learned path to it, m.
+        note: why it fits poorly, in plain words ("" when it fits well).
+    """
+
+    index: int
+    name: str
+    well: bool
+    distance: float
+    note: str = ""
+
+
+#: The one line that explains the per-demo list.
+FIT_EXPLANATION = (
+    "How closely the learned path follows each demonstration. One that fits poorly pulls the skill away from "
+    "the others: re-record it or hide it."
+)
+
+
+def demo_fits(report: QualityReport) -> tuple[DemoFit, ...]:
+    """Per demonstration: "well" or "poorly" (replaces the raw log-likelihoods of the paper's HMM for a teacher).
+
+    A demo fits poorly when it is an outlier (:func:`outliers`: far from the others, or much less likely under
+    the HMM), or when the learned path stays more than twice as far from it as from the typical demo and
+    farther than max(3 mm, 2 % of the size).
+    """
+    per = report.fidelity.per_demo
+    if not per:
+        return ()
+    typical = float(np.median(per))
+    tol = _tolerance(report.size, 0.02, 0.003)
+    outs = {o.index: o for o in report.outliers}
+    names = report.demo_names or tuple(f"demo {i + 1}" for i in range(len(per)))
+    out = []
+    for i, d in enumerate(per):
+        note = ""
+        if i in outs:
+            o = outs[i]
+            note = (
+                "It differs a lot from the others."
+                if o.reason == "shape"
+                else "The skill's model finds it much less likely than the others."
+            )
+        elif d > 2.0 * typical and d > tol:
+            note = f"The learned path stays {length_words(d)} from it on average, far more than from the others."
+        out.append(DemoFit(i, names[i] if i < len(names) else f"demo {i + 1}", not note, float(d), note))
+    return tuple(out)
+
+
 __all__ = [
+    "FIT_EXPLANATION",
     "N_POINTS",
     "Corner",
+    "DemoFit",
     "Execution",
     "Fidelity",
     "GripperCheck",
@@ -822,6 +883,7 @@ __all__ = [
     "assess",
     "corner_checks",
     "curve",
+    "demo_fits",
     "execution",
     "extent",
     "fidelity",

@@ -19,6 +19,11 @@ JOINT_SUFFIXES: tuple[str, ...] = ("s0", "s1", "e0", "e1", "w0", "w1", "w2")
 ARM_JOINTS: dict[str, tuple[str, ...]] = {arm: tuple(f"{arm}_{s}" for s in JOINT_SUFFIXES) for arm in ARMS}
 #: The 14 arm joints in the order the backend streams them (and the Baxter SDK CSV lists them).
 ALL_ARM_JOINTS: tuple[str, ...] = ARM_JOINTS["left"] + ARM_JOINTS["right"]
+#: Generalisation modes (see :mod:`studio.core.pipeline`): "aligned-mean" (the default) and "paper" (the
+#: paper's spline through the states, the reference). Here so that storage can check a saved choice without
+#: importing the pipeline.
+GENERALIZATIONS: tuple[str, str] = ("aligned-mean", "paper")
+DEFAULT_GENERALIZATION = "aligned-mean"
 
 
 def readonly(a: np.ndarray | list | tuple, dtype: type = np.float64) -> np.ndarray:

@@ -11,7 +11,7 @@ AXIS_COLORS = ("#d62728", "#2ca02c", "#1f77b4")  # x red, y green, z blue (as th
 
 
 def heatmap_svg(m: np.ndarray, *, title: str, size: int = 300, css_class: str = "heatmap") -> str:
-    """Transition matrix as a white→dark-blue heat map with state numbers on the axes."""
+    """Transition matrix as a white→dark-blue heat map with state numbers on the axes (rows: from, columns: to)."""
     m = np.asarray(m, dtype=float)
     n = m.shape[0]
     pad = 22
@@ -20,6 +20,8 @@ def heatmap_svg(m: np.ndarray, *, title: str, size: int = 300, css_class: str = 
         f'<svg class="{css_class}" data-states="{n}" width="100%" viewBox="0 0 {size} {size + 14}" '
         f'xmlns="http://www.w3.org/2000/svg" style="font-family:sans-serif">',
         f'<text x="{size / 2}" y="11" font-size="11" text-anchor="middle">{html.escape(title)}</text>',
+        f'<text x="{size - 2}" y="{14 + 9}" font-size="7" text-anchor="end" fill="#555">to state →</text>',
+        f'<text x="2" y="{size + 12}" font-size="7" fill="#555">↑ from state (probability of each step)</text>',
     ]
     top = 14
     for i in range(n):
@@ -53,14 +55,15 @@ def position_plot_svg(
     height: int = 150,
     max_points: int = 400,
 ) -> str:
-    """The paper's "position over time": x, y, z (m) against t (s), key-points marked with triangles."""
+    """The paper's "position over time": x, y, z (m, on the left axis) against time (s, along the bottom),
+    key-points marked with triangles."""
     t = np.asarray(t, dtype=float)
     p = np.asarray(position, dtype=float)
     if len(t) < 2:
         return f"<div>{html.escape(title)}: too short to plot.</div>"
     step = max(1, len(t) // max_points)
     sel = np.arange(0, len(t), step)
-    left, right, top, bottom = 34, 8, 16, 18
+    left, right, top, bottom = 40, 8, 16, 18
     w, h = width - left - right, height - top - bottom
     t0, t1 = float(t[0]), float(t[-1])
     lo, hi = float(p.min()), float(p.max())
@@ -79,9 +82,10 @@ def position_plot_svg(
         f'xmlns="http://www.w3.org/2000/svg" style="font-family:sans-serif">',
         f'<text x="{left}" y="11" font-size="10" fill="rgb{color}">{html.escape(title)}</text>',
         f'<rect x="{left}" y="{top}" width="{w}" height="{h}" fill="none" stroke="#bbb" stroke-width="0.5"/>',
-        f'<text x="{left - 3}" y="{top + 7}" font-size="8" text-anchor="end">{hi:.2f}</text>',
-        f'<text x="{left - 3}" y="{top + h}" font-size="8" text-anchor="end">{lo:.2f}</text>',
+        f'<text x="{left - 3}" y="{top + 7}" font-size="8" text-anchor="end">{hi:.2f} m</text>',
+        f'<text x="{left - 3}" y="{top + h}" font-size="8" text-anchor="end">{lo:.2f} m</text>',
         f'<text x="{left}" y="{height - 4}" font-size="8">{t0:.0f} s</text>',
+        f'<text x="{left + w / 2}" y="{height - 4}" font-size="8" text-anchor="middle">time, s</text>',
         f'<text x="{left + w}" y="{height - 4}" font-size="8" text-anchor="end">{t1:.1f} s</text>',
     ]
     for c in range(3):
@@ -119,3 +123,18 @@ def segments(points: np.ndarray) -> np.ndarray:
     if len(p) < 2:
         return np.zeros((0, 2, 3), dtype=np.float32)
     return np.stack([p[:-1], p[1:]], axis=1)
+
+
+def dashes(points: np.ndarray, n: int = 120) -> np.ndarray:
+    """(n, 2, 3) segments of a dashed line along a (N, 3) path: the path cut into 2n equal lengths, every other
+    one drawn (a fixed count, so a redrawn path updates the same scene node in place)."""
+    p = np.asarray(points, dtype=np.float64)
+    if len(p) < 2:
+        return np.zeros((0, 2, 3), dtype=np.float32)
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
+    if s[-1] <= 1e-9:
+        return np.zeros((0, 2, 3), dtype=np.float32)
+    keep = np.concatenate([[True], np.diff(s) > 0])
+    u = np.linspace(0.0, s[-1], 2 * n + 1)
+    q = np.column_stack([np.interp(u, s[keep], p[keep, k]) for k in range(3)]).astype(np.float32)
+    return np.stack([q[0:-1:2], q[1::2]], axis=1)

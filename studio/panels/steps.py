@@ -8,13 +8,7 @@ event in viser 1.1.1), so the step is a dropdown the server hears (a button grou
 layers the step shows (:attr:`studio.controller.Topic.VIEW`). Like the rest of the GUI the step is shared by
 every browser tab.
 
-Arrow keys: viser's client moves the camera with the arrow keys unless the focused element is a text field
-(``isFormElement`` in ``CameraControls.tsx`` checks INPUT, TEXTAREA, SELECT, contentEditable), but a slider's
-thumb is a ``div role="slider"``: the slider moved *and* the camera orbited. viser has no setting for it and
-its client cannot be changed from Python, so :data:`ARROW_KEYS_STAY_ON_SLIDERS` (an HTML element whose
-``onload`` adds one listener to the page body, once per page) stops an arrow key pressed on a slider from
-bubbling up to viser's document-level camera listener; the slider (React, at its root below the body) has
-already handled it.
+Arrow keys on a slider stay on the slider: :mod:`studio.panels._page`.
 """
 
 from __future__ import annotations
@@ -41,13 +35,6 @@ HINTS = {
     Step.PREVIEW: "Watch the robot do the learned skill, and what happens to the objects.",
     Step.SESSIONS: "Open, save, copy, download or replay your work.",
 }
-
-ARROW_KEYS_STAY_ON_SLIDERS = (
-    '<img alt="" style="display:none" src="data:image/gif;base64,R0lGODlhAQABAAAAACH5BAEKAAEALAAAAAABAAEAAAICTAEAOw==" '
-    "onload=\"if(!window.__studioArrowKeys){window.__studioArrowKeys=1;document.body.addEventListener('keydown',"
-    "function(e){var t=e.target;if(e.key&&e.key.indexOf('Arrow')===0&&t&&t.closest&&t.closest('[role=slider]'))"
-    '{e.stopPropagation();}});}">'
-)
 
 
 class StepPanel:
@@ -77,7 +64,6 @@ class StepPanel:
             self.toggles = {
                 layer: gui.add_checkbox(layer.value, initial_value=ctl.view.shown(layer)) for layer in Layer
             }
-        gui.add_html(ARROW_KEYS_STAY_ON_SLIDERS, order=99)
         self.steps.on_update(ctl.guarded("Could not change the step")(self._on_step))
         self.reset_view.on_click(ctl.guarded("Could not reset the view")(self._on_reset_view))
         for layer, box in self.toggles.items():

@@ -1,4 +1,5 @@
-"""Train panel: learn the HMM from the demonstrations and show what it learned (paper § Task Learning)."""
+"""Train panel: learn the skill from the demonstrations, say in plain words how good it is (the verdict, how
+well each demonstration fits), and show what it learned (paper § Task Learning)."""
 
 from __future__ import annotations
 
@@ -7,13 +8,17 @@ import html
 import numpy as np
 import viser
 
-from studio.controller import Controller, Topic, UsedDemo
-from studio.core.types import Skill
+from studio.controller import MODE_WORDS, Controller, SkillVerdict, Step, Topic, UsedDemo
+from studio.core.quality import FIT_EXPLANATION
+from studio.core.types import DEFAULT_GENERALIZATION, Skill
 from studio.panels._charts import heatmap_svg, position_plot_svg
+
+_LEVEL_COLOR = {"good": "#15803d", "fair": "#b45309", "poor": "#b91c1c"}
 
 
 class TrainPanel:
-    """Train button with progress; transition heat map, log-likelihoods, reference demo, zero-points, plots."""
+    """Train button with progress; the verdict; how the skill is made (the generalisation mode); per arm the
+    states, reference, zero-points and how well each demonstration fits; transition heat map; plots."""
 
     def __init__(self, ctl: Controller, server: viser.ViserServer) -> None:
         self.ctl = ctl
@@ -26,16 +31,28 @@ class TrainPanel:
         )
         self.progress = gui.add_progress_bar(0.0, animated=True, visible=False)
         self.status = gui.add_markdown(self._status_text())
+        self.verdict = gui.add_html("")
+        with gui.add_folder("How the skill is made", expand_by_default=False):
+            self.mode = gui.add_dropdown(
+                "Path",
+                options=tuple(MODE_WORDS.values()),
+                initial_value=MODE_WORDS[ctl.training.generalization],
+                hint="How the learned path is made from your demonstrations. 'Follow the demonstrations' (the "
+                "default) keeps their shape between key-points; 'Paper's spline' is the paper's method, for the "
+                "curious. Press Train again after changing it.",
+            )
         with gui.add_folder("What the robot learned"):
             self.summary = gui.add_html("")
             self.heatmap = gui.add_html("")
         with gui.add_folder("Position over time", expand_by_default=True):
             self.plots = gui.add_html("")
         self.train_btn.on_click(ctl.guarded("Could not start training")(self._on_train))
+        self.mode.on_update(ctl.guarded("Could not change how the skill is made")(self._on_mode))
         ctl.events.on(Topic.SKILL, self.refresh)
         ctl.events.on(Topic.SESSION, self.refresh)
         ctl.events.on(Topic.DEMOS, self.refresh)  # renamed / deleted / trimmed demos: labels, plots and status
         ctl.events.on(Topic.TRAINING, self._on_training)
+        ctl.events.on(Topic.VERDICT, self.refresh)
         self.refresh()
 
     def _status_text(self) -> str:
@@ -53,6 +70,14 @@ class TrainPanel:
 
     def _on_train(self, event: viser.GuiEvent) -> None:
         self.ctl.training.train()  # the work thread learns; TRAINING and SKILL events redraw
+        if self.ctl.view.step != Step.TRAIN:  # the scene shows the Train step (the learned path)
+            self.ctl.view.set_step(Step.TRAIN)
+
+    def _on_mode(self, event: viser.GuiEvent) -> None:
+        if event.client is None:
+            return
+        mode = next((m for m, words in MODE_WORDS.items() if words == self.mode.value), DEFAULT_GENERALIZATION)
+        self.ctl.training.set_generalization(mode)
 
     def _on_training(self) -> None:
         busy = self.ctl.training.busy
@@ -61,31 +86,83 @@ class TrainPanel:
             self.progress.visible = busy
             self.progress.value = 100.0 if busy else 0.0
             self.status.content = self._status_text()
+            self.mode.value = MODE_WORDS[self.ctl.training.generalization]
 
     def refresh(self) -> None:
-        """Redraw the results of the current skill(s)."""
+        """Redraw the verdict and the results of the current skill(s)."""
         summary, heat, plots = [], [], []
+        verdicts = self.ctl.training.verdicts()
         for arm, skill in self.ctl.training.skills().items():
             used = self.ctl.training.skill_demos(arm)  # row j: the j-th demo the skill learned from
-            summary.append(self._summary_html(arm, skill, used))
+            summary.append(self._summary_html(arm, skill, used, verdicts.get(arm)))
             heat.append(heatmap_svg(np.asarray(skill.transmat), title=f"{arm.capitalize()} arm: state transitions"))
             plots += self._plots(arm, skill, used)
         with self.server.atomic():
+            self.verdict.content = self._verdict_html(verdicts)
             self.summary.content = "".join(summary) or "<div style='font-size:0.85em'>No skill learned yet.</div>"
             self.heatmap.content = "".join(heat)
             self.plots.content = "".join(plots)
             self.status.content = self._status_text()
+            self.mode.value = MODE_WORDS[self.ctl.training.generalization]
 
-    def _summary_html(self, arm: str, skill: Skill, used: list[UsedDemo]) -> str:
+    # -- the verdict ---------------------------------------------------------------------------------------
+    def _verdict_html(self, verdicts: dict[str, SkillVerdict]) -> str:
+        skills = self.ctl.training.skills()
+        if not skills:
+            return ""
+        if self.ctl.training.judging and set(verdicts) != set(skills):
+            return '<div class="verdict" data-level="" style="font-size:0.9em">Checking how good the skill is…</div>'
+        blocks = []
+        for arm, v in verdicts.items():
+            who = f"<b>{arm.capitalize()} arm.</b> " if len(skills) > 1 else ""
+            if v.verdict is None:
+                blocks.append(
+                    f'<div class="verdict" data-arm="{arm}" data-level="" style="font-size:0.9em">{who}'
+                    f"{html.escape(v.message)}</div>"
+                )
+                continue
+            head, *notes = v.verdict.lines
+            color = _LEVEL_COLOR.get(v.verdict.level, "#333")
+            bullets = "".join(f"<li>{html.escape(n)}</li>" for n in notes)
+            blocks.append(
+                f'<div class="verdict" data-arm="{arm}" data-level="{v.verdict.level}" '
+                f'style="font-size:0.9em;border-left:4px solid {color};padding:4px 8px;margin:4px 0">'
+                f'{who}<span class="verdict-head" style="color:{color};font-weight:600">{html.escape(head)}</span>'
+                + (f'<ul style="margin:4px 0 0 0;padding-left:18px">{bullets}</ul>' if bullets else "")
+                + "</div>"
+            )
+        return "".join(blocks)
+
+    # -- what it learned -----------------------------------------------------------------------------------
+    def _summary_html(self, arm: str, skill: Skill, used: list[UsedDemo], verdict: SkillVerdict | None) -> str:
         names = [u.name if u.index is not None else f"{u.name} (renamed or deleted since)" for u in used]
-        ll = np.asarray(skill.loglik, dtype=float)
         ref = int(skill.reference)
         zero = [int(z) for z in np.atleast_1d(skill.zero_points)]
-        rows = "".join(
-            f'<tr class="loglik-row"><td>{html.escape(names[i] if i < len(names) else f"demo {i + 1}")}</td>'
-            f'<td style="text-align:right">{v:,.1f}</td><td>{"reference" if i == ref else ""}</td></tr>'
-            for i, v in enumerate(ll)
+        zero_words = (
+            ("state " if len(zero) == 1 else "states ")
+            + ", ".join(str(z) for z in zero[:30])
+            + (" …" if len(zero) > 30 else "")
+            if zero
+            else "none (the path visits every state)"
         )
+        fits = {f.index: f for f in verdict.fits} if verdict is not None else {}
+        rows = []
+        for i in range(len(skill.keypoints)):
+            name = names[i] if i < len(names) else f"demo {i + 1}"
+            f = fits.get(i)
+            if f is None:
+                fit = "…"
+            elif f.well:
+                fit = '<span style="color:#15803d">well</span>'
+            else:
+                fit = f'<span style="color:#b91c1c" title="{html.escape(f.note)}">poorly</span>'
+            well = "" if f is None else ("1" if f.well else "0")
+            rows.append(
+                f'<tr class="fit-row" data-well="{well}"><td>{html.escape(name)}</td><td>{fit}</td>'
+                f'<td style="color:#555">{"reference" if i == ref else ""}</td></tr>'
+            )
+            if f is not None and not f.well:
+                rows.append(f'<tr><td colspan="3" style="color:#555;font-size:0.9em">{html.escape(f.note)}</td></tr>')
         jt = skill.joint_trajectory
         ik_note = ""
         if jt is not None:
@@ -96,17 +173,21 @@ class TrainPanel:
                 else f'<div style="color:#b91c1c">The arm cannot reach {bad} of {len(jt.converged)} points of the '
                 "learned path exactly (marked red in Preview).</div>"
             )
+        mode = MODE_WORDS.get(skill.generalization, skill.generalization)
         return (
             f'<div class="skill-summary" data-arm="{arm}" data-states="{len(skill.centroids)}" '
-            f'data-reference="{ref}" style="font-size:0.85em;margin-bottom:8px">'
+            f'data-reference="{ref}" data-mode="{html.escape(skill.generalization)}" '
+            'style="font-size:0.85em;margin-bottom:8px">'
             f"<b>{arm.capitalize()} arm</b>: {len(skill.centroids)} states (clusters); "
             f"reference demonstration: <b>{html.escape(names[ref] if ref < len(names) else str(ref))}</b> "
             "(the one the model explains best).<br>"
-            f"Zero-points (states no path visits, left out of the learned path): "
-            f"{', '.join(str(z) for z in zero[:30]) or 'none'}{' …' if len(zero) > 30 else ''}<br>"
-            '<table class="loglik" style="width:100%;font-size:0.95em"><tr><th style="text-align:left">'
-            'Demonstration</th><th style="text-align:right">log-likelihood</th><th></th></tr>'
-            f"{rows}</table>{ik_note}</div>"
+            f'<span class="skill-mode">Path made by: <b>{html.escape(mode)}</b></span><br>'
+            f'<span class="zero-points">Zero-points (states no demonstration passes through, left out of the path): '
+            f"{zero_words}</span><br>"
+            f'<div style="color:#555;margin-top:4px">{html.escape(FIT_EXPLANATION)}</div>'
+            '<table class="fits" style="width:100%;font-size:0.95em"><tr><th style="text-align:left">'
+            'Demonstration</th><th style="text-align:left">fits the skill</th><th></th></tr>'
+            f"{''.join(rows)}</table>{ik_note}</div>"
         )
 
     def _plots(self, arm: str, skill: Skill, used: list[UsedDemo]) -> list[str]:

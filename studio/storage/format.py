@@ -6,9 +6,12 @@ Everything else in :mod:`studio.storage` reads these; change a limit here and it
 from __future__ import annotations
 
 import datetime as _dt
+import json
 import math
+import numbers
 import re
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -158,3 +161,47 @@ def implausible(t: np.ndarray, q: np.ndarray) -> str | None:
         if worst > MAX_JOINT_RAD:
             return f"has a joint angle of {worst:.3g} rad, more than a full turn (joint angles are in radians)"
     return None
+
+
+def unique_name(name: str, taken: set[str]) -> str:
+    """``name``, or ``name (2)``, ``name (3)``… whichever is not ``taken``, within the 100-character limit."""
+    if name not in taken:
+        return name
+    i = 2
+    while True:
+        suffix = f" ({i})"
+        # Cut the base so that name and suffix stay within the 100-character limit reload enforces.
+        candidate = f"{name[: 100 - len(suffix)].rstrip()}{suffix}"
+        if candidate not in taken:
+            return check_demo_name(candidate)
+        i += 1
+
+
+def decode_manifest(raw: bytes, session: str) -> dict[str, Any]:
+    """The manifest's JSON object, or a plain-words :class:`SessionFormatError` for each way it can be damaged."""
+    try:
+        m = json.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise damaged(session, MANIFEST, "is not readable text") from exc
+    except RecursionError as exc:
+        raise damaged(session, MANIFEST, "is damaged (it is nested too deeply to be a session description)") from exc
+    except json.JSONDecodeError as exc:
+        cut = not raw.rstrip().endswith(b"}") or exc.pos >= len(raw.rstrip()) - 1
+        problem = "it ends early" if cut else f"unreadable near line {exc.lineno}"
+        raise damaged(session, MANIFEST, f"is damaged ({problem})") from exc
+    except ValueError as exc:  # e.g. a number of more than 4300 digits
+        raise damaged(session, MANIFEST, "is damaged (it holds an impossible number)") from exc
+    if not isinstance(m, dict) or m.get("format") != FORMAT:
+        raise damaged(session, MANIFEST, "is not a Teaching Studio session description")
+    return m
+
+
+def finite_number(v: object) -> float | None:
+    """``v`` as a finite float, or None (not a number, a bool, or too large for a float)."""
+    if not isinstance(v, numbers.Real) or isinstance(v, bool):
+        return None
+    try:
+        f = float(v)
+    except (OverflowError, ValueError):
+        return None
+    return f if math.isfinite(f) else None

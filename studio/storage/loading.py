@@ -17,13 +17,14 @@ from studio.storage.format import (
     MAX_DEMO_BYTES,
     MAX_SKILL_BYTES,
     skipped_note,
+    unique_name,
 )
 from studio.storage.fs import check_session_folder
 from studio.storage.limits import check_memory
-from studio.storage.manifest import Manifest
+from studio.storage.manifest import Manifest, settings_of
 from studio.storage.npz import declared_bytes, load_demo, load_skill
 from studio.storage.objects import SessionObjects
-from studio.storage.session import Session, unique_name
+from studio.storage.session import Session
 from studio.world import Scene
 
 
@@ -69,6 +70,8 @@ def load_session(path: Path, *, skip_damaged: bool = False) -> Session:
         notes=m.notes,
         params=m.params,
         n_clusters=m.n_clusters,
+        thresholds=settings_of(m),
+        generalization=m.generalization,
         precision=m.precision,
         skills_stale=m.skills_stale,
         objects=SessionObjects(m.scene if m.scene is not None else Scene()),

@@ -6,8 +6,8 @@ Versioning and extending (read before adding anything to the format):
   manifest written by a newer one (a higher version) and reads every older one.
 * **Adding an optional field** (the usual case): add it to the dataclass with a default, read it in
   ``from_json`` with that default when it is absent (older files), write it in ``to_json``. No version change:
-  an older studio ignores keys it does not know. ``n_clusters``, ``hidden`` and ``skills_stale`` were added
-  this way.
+  an older studio ignores keys it does not know. ``n_clusters``, ``hidden``, ``skills_stale``, ``thresholds``
+  and ``generalization`` were added this way.
 * **A change an older studio would misread** (a field changing meaning, data moving between files): bump
   ``FORMAT_VERSION`` and register ``UPGRADES[old_version]``, a function turning the raw JSON of version
   ``old_version`` into ``old_version + 1``; :meth:`Manifest.from_json` applies them in order before validating,
@@ -21,15 +21,14 @@ Loading never writes: an upgraded manifest is written in the new version the nex
 from __future__ import annotations
 
 import json
-import math
-import numbers
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from studio.core.errors import InvalidInput, StudioError
-from studio.core.types import ARMS, KeypointParams
+from studio.core.thresholds import ThresholdSettings
+from studio.core.types import ARMS, DEFAULT_GENERALIZATION, GENERALIZATIONS, KeypointParams
 from studio.storage.format import (
     DEMO_FILE_RE,
     FORMAT,
@@ -45,6 +44,8 @@ from studio.storage.format import (
     check_demo_name,
     check_n_clusters,
     damaged,
+    decode_manifest,
+    finite_number,
 )
 from studio.storage.fs import read_capped
 from studio.world import Scene, WorldEvent, events_from_dict, events_to_dict
@@ -130,6 +131,12 @@ class Manifest:
     version: int = FORMAT_VERSION
     #: The task scene (format 2); None for a session from before scenes (it opens on an empty table).
     scene: Scene | None = None
+    # -- learning settings (issue 11; optional: absent in older sessions) --------------------------------------
+    #: Detail and the thresholds the teacher set by hand; the others follow the demonstrations. None when the
+    #: file predates it: :func:`settings_of` then derives it from ``params``.
+    thresholds: ThresholdSettings | None = None
+    #: The generalisation mode training uses ("aligned-mean" or "paper").
+    generalization: str = DEFAULT_GENERALIZATION
 
     # -- writing ----------------------------------------------------------------------------------------------
     def to_json(self) -> dict[str, object]:
@@ -150,11 +157,18 @@ class Manifest:
             "skills": {arm: s.to_json() for arm, s in self.skills.items()},
             "skills_stale": self.skills_stale,
             "scene": None if self.scene is None else self.scene.to_dict(),
+            **self._learning_json(),
         }
 
     def files(self) -> set[str]:
         """Every file the manifest lists (demos and skills), relative to the session folder."""
         return {d.file for d in self.demos} | {s.file for s in self.skills.values()}
+
+    def _learning_json(self) -> dict[str, object]:
+        out: dict[str, object] = {"generalization": self.generalization}
+        if self.thresholds is not None:
+            out["thresholds"] = self.thresholds.as_dict()
+        return out
 
     def to_bytes(self) -> bytes:
         return json.dumps(self.to_json(), indent=2, ensure_ascii=False).encode("utf-8") + b"\n"
@@ -171,7 +185,7 @@ class Manifest:
     @classmethod
     def from_json(cls, raw: bytes, session: str) -> Manifest:
         """Validate the bytes of a manifest; every problem is a :class:`SessionFormatError` in plain words."""
-        m = _Reader(_decode(raw, session), session)
+        m = _Reader(decode_manifest(raw, session), session)
         version = m.version()
         for v in range(version, FORMAT_VERSION):
             m = _Reader(UPGRADES[v](m.raw), session)
@@ -207,30 +221,20 @@ class Manifest:
             robot=robot,
             version=version,
             scene=m.scene(),
+            thresholds=m.thresholds(),
+            generalization=m.generalization(),
         )
+
+
+def settings_of(m: Manifest) -> ThresholdSettings:
+    """The threshold settings of a manifest; for a file saved before they existed, values that differ from the
+    old fixed defaults are the teacher's and the others follow the demonstrations."""
+    return m.thresholds if m.thresholds is not None else ThresholdSettings.from_params(m.params)
 
 
 def _file_id(rel: str) -> int:
     match = DEMO_FILE_RE.fullmatch(rel)
     return int(match.group(1)) if match else 0
-
-
-def _decode(raw: bytes, session: str) -> dict[str, Any]:
-    try:
-        m = json.loads(raw.decode("utf-8"))
-    except UnicodeDecodeError as exc:
-        raise damaged(session, MANIFEST, "is not readable text") from exc
-    except RecursionError as exc:
-        raise damaged(session, MANIFEST, "is damaged (it is nested too deeply to be a session description)") from exc
-    except json.JSONDecodeError as exc:
-        cut = not raw.rstrip().endswith(b"}") or exc.pos >= len(raw.rstrip()) - 1
-        problem = "it ends early" if cut else f"unreadable near line {exc.lineno}"
-        raise damaged(session, MANIFEST, f"is damaged ({problem})") from exc
-    except ValueError as exc:  # e.g. a number of more than 4300 digits
-        raise damaged(session, MANIFEST, "is damaged (it holds an impossible number)") from exc
-    if not isinstance(m, dict) or m.get("format") != FORMAT:
-        raise damaged(session, MANIFEST, "is not a Teaching Studio session description")
-    return m
 
 
 class _Reader:
@@ -279,6 +283,21 @@ class _Reader:
         except (InvalidInput, TypeError, ValueError, OverflowError) as exc:
             raise self.bad(f"has invalid key-point thresholds ({exc})") from exc
 
+    def thresholds(self) -> ThresholdSettings | None:
+        raw = self.raw.get("thresholds")
+        if raw is None:
+            return None
+        try:
+            return ThresholdSettings.from_dict(raw)
+        except (InvalidInput, TypeError, ValueError) as exc:
+            raise self.bad(f'has invalid "thresholds" ({exc})') from exc
+
+    def generalization(self) -> str:
+        mode = self.raw.get("generalization", DEFAULT_GENERALIZATION)
+        if mode not in GENERALIZATIONS:
+            raise self.bad(f'has an unknown "generalization" {mode!r}')
+        return str(mode)
+
     def n_clusters(self) -> int | None:
         try:
             return check_n_clusters(self.raw.get("n_clusters"))
@@ -325,7 +344,7 @@ class _Reader:
         if not isinstance(hidden, bool):
             raise self.bad(f'has an invalid "hidden" mark for demonstration {i + 1}')
         dur = d.get("duration", 0.0)
-        duration = _number(dur) or 0.0
+        duration = finite_number(dur) or 0.0
         objects = d.get("objects")
         try:
             events = tuple(events_from_dict(objects)) if isinstance(objects, dict) or objects is None else None
@@ -368,19 +387,8 @@ def _skill_entry(s: Mapping[str, object]) -> SkillEntry:
         learned=learned if isinstance(learned, str) else "",
         params={
             str(k): v
-            for k, v in ((k, _number(v)) for k, v in (params.items() if isinstance(params, dict) else ()))
+            for k, v in ((k, finite_number(v)) for k, v in (params.items() if isinstance(params, dict) else ()))
             if v is not None
         },
         demos=tuple(str(n) for n in demos) if isinstance(demos, list) else (),
     )
-
-
-def _number(v: object) -> float | None:
-    """``v`` as a finite float, or None (not a number, a bool, or too large for a float)."""
-    if not isinstance(v, numbers.Real) or isinstance(v, bool):
-        return None
-    try:
-        f = float(v)
-    except (OverflowError, ValueError):
-        return None
-    return f if math.isfinite(f) else None

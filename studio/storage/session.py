@@ -20,7 +20,8 @@ import numpy as np
 
 from studio.core.arms import normalize_arms
 from studio.core.errors import InvalidInput, StorageError
-from studio.core.types import ARMS, KeypointParams, Recording, Skill
+from studio.core.thresholds import ThresholdSettings
+from studio.core.types import ARMS, DEFAULT_GENERALIZATION, GENERALIZATIONS, KeypointParams, Recording, Skill
 from studio.storage.atomic import atomic_write_bytes, atomic_write_npz
 from studio.storage.format import (
     DEMO_DIR,
@@ -35,6 +36,7 @@ from studio.storage.format import (
     check_demo_name,
     check_n_clusters,
     now,
+    unique_name,
 )
 from studio.storage.fs import changing, check_changeable
 from studio.storage.idle import idle_bounds
@@ -61,7 +63,7 @@ def _locked(fn: Callable[Concatenate[Session, P], R]) -> Callable[Concatenate[Se
 #: What a failed change puts back (the in-memory state; files on disk are written atomically, manifest last).
 _STATE = (
     *("arms", "notes", "params", "n_clusters", "recordings", "hidden_demos", "skills", "skills_stale"),
-    *("skill_info", "precision", "_files", "_next_id", "objects"),
+    *("skill_info", "precision", "_files", "_next_id", "objects", "thresholds", "generalization"),
 )
 
 
@@ -72,7 +74,7 @@ class Session:
     Attributes:
         name, path: the session's name and folder.
         arms: the taught arm(s).
-        params: the ε thresholds last used; n_clusters: k chosen by hand (None: automatic).
+        params, thresholds, n_clusters, generalization: the learning settings (see :class:`Manifest`).
         recordings: the demonstrations, in order; hidden_demos: names of those hidden from learning.
         skills: arm -> learned :class:`Skill`; skill_info: arm -> what it was learned from and when.
         skills_stale: the demonstrations changed since the skills were learned.
@@ -87,6 +89,8 @@ class Session:
     notes: str = ""
     params: KeypointParams = field(default_factory=KeypointParams)
     n_clusters: int | None = None
+    thresholds: ThresholdSettings = field(default_factory=ThresholdSettings)
+    generalization: str = DEFAULT_GENERALIZATION
     recordings: list[Recording] = field(default_factory=list)
     hidden_demos: set[str] = field(default_factory=set)
     skills: dict[str, Skill] = field(default_factory=dict)
@@ -242,10 +246,16 @@ class Session:
 
     # -- parameters, notes, skills ------------------------------------------------------------------------
     @_locked
-    def set_params(self, params: KeypointParams) -> None:
-        if not isinstance(params, KeypointParams):
-            raise InvalidInput("Key-point thresholds must be a KeypointParams.")
-        self.params = params
+    def set_params(
+        self, params: KeypointParams | None = None, settings: ThresholdSettings | None = None, mode: str | None = None
+    ) -> None:
+        """Keep the ε values with the settings they come from (default: values off the old fixed defaults are the
+        teacher's, the others automatic), and/or the generalisation ``mode`` ("aligned-mean" or "paper")."""
+        if (params is not None and not isinstance(params, KeypointParams)) or mode not in (None, *GENERALIZATIONS):
+            raise InvalidInput('Key-point thresholds must be a KeypointParams, the mode "aligned-mean" or "paper".')
+        if params is not None:
+            self.params, self.thresholds = params, settings or ThresholdSettings.from_params(params)
+        self.generalization = mode or self.generalization
         self._write_manifest()
 
     @_locked
@@ -338,6 +348,8 @@ def _manifest(session: Session) -> Manifest:
         skills=dict(session.skill_info),
         skills_stale=session.skills_stale,
         scene=session.objects.scene,
+        thresholds=session.thresholds,
+        generalization=session.generalization,
     )
 
 
@@ -378,20 +390,6 @@ def new_demo_file(s: Session) -> str:
         if i not in used and not (s.path / rel).exists():
             return rel
     raise InvalidInput("This session has used every demonstration file number; copy it to a new session.")
-
-
-def unique_name(name: str, taken: set[str]) -> str:
-    """``name``, or ``name (2)``, ``name (3)``… whichever is not ``taken``, within the 100-character limit."""
-    if name not in taken:
-        return name
-    i = 2
-    while True:
-        suffix = f" ({i})"
-        # Cut the base so that name and suffix stay within the 100-character limit reload enforces.
-        candidate = f"{name[: 100 - len(suffix)].rstrip()}{suffix}"
-        if candidate not in taken:
-            return check_demo_name(candidate)
-        i += 1
 
 
 def as_stored(precision: str, rec: Recording) -> Recording:

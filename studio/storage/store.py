@@ -16,6 +16,7 @@ from pathlib import Path
 
 from studio.core.arms import normalize_arms
 from studio.core.errors import InvalidInput, SessionFormatError, StorageError
+from studio.core.thresholds import ThresholdSettings
 from studio.core.types import KeypointParams
 from studio.recorder import pending_recordings, recover_recordings
 from studio.storage import archive as _archive
@@ -105,7 +106,15 @@ class SessionStore:
             path.mkdir(parents=True)
         except OSError as exc:
             raise write_failed(path, exc, doing="created") from exc
-        s = Session(name=name, path=path, arms=a, notes=notes, params=params or KeypointParams(), precision=precision)
+        s = Session(
+            name=name,
+            path=path,
+            arms=a,
+            notes=notes,
+            params=params or KeypointParams(),
+            thresholds=ThresholdSettings.from_params(params) if params is not None else ThresholdSettings(),
+            precision=precision,
+        )
         try:
             s._write_manifest()
         except BaseException as exc:

@@ -186,6 +186,15 @@ def test_outlier_demo_is_named():
     v = Q.verdict(r)
     assert v.level == "fair"
     assert "demo 4 differs a lot from the others — re-record or hide it." in v.lines
+    fits = Q.demo_fits(r)  # the Train panel's per-demo list: the odd one fits poorly, the others well
+    assert [(f.name, f.well) for f in fits] == [("demo 1", True), ("demo 2", True), ("demo 3", True), ("demo 4", False)]
+    assert fits[3].note == "It differs a lot from the others." and fits[0].note == ""
+
+
+def test_every_demo_fits_a_good_skill_well():
+    ds = zigzag()
+    fits = Q.demo_fits(Q.assess(learn_skill(ds), ds))
+    assert len(fits) == 3 and all(f.well for f in fits) and all(0 < f.distance < 0.01 for f in fits)
 
 
 def test_start_and_end_away_from_the_demonstrations():
@@ -227,6 +236,21 @@ def test_held_out_misses_the_left_out_demo():
         and line.endswith(" on average: record one or two more demonstrations.")
         for line in v.lines
     )
+
+
+def test_execution_that_strays_a_little_is_not_called_a_share_it_cannot_follow():
+    # Seen in the browser walk: IK reached every sample but one pose was 7 mm off ("cannot follow 0 %" before).
+    from dataclasses import replace
+
+    ds = zigzag()
+    r = Q.assess(learn_skill(ds), ds)
+    r = replace(r, execution=Q.Execution(tracked=1.0, max_error=0.007, worst_time=0.1, duration=r.duration))
+    lines = Q.verdict(r).lines
+    assert (
+        "The robot strays up to 7 mm from it (at 0.1 s) — teach it closer to the robot, with the gripper in a "
+        "direction the arm can hold." in lines
+    )
+    assert not any("cannot follow 0 %" in line for line in lines)
 
 
 @pytest.mark.slow

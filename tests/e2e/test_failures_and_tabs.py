@@ -71,16 +71,18 @@ def test_two_tabs_see_the_same_robot_and_session(browser, studio_factory, shots,
     # A changes a threshold: B's slider shows it.
     ui.tab(a, "Key-points")
     ui.tab(b, "Key-points")
-    ui.set_number(a, "Pause speed (ε2)", 0.02)
-    expect(b.locator("label", has_text="Pause speed (ε2)")).to_be_visible()
-    ui.wait_number(b, "Pause speed (ε2)", 0.02)
-    assert ui.number_value(b, "Pause speed (ε2)") == pytest.approx(0.02)
+    ui.open_folder(a, "All thresholds")
+    ui.open_folder(b, "All thresholds")
+    ui.set_threshold(a, "Pause speed, cm/s (ε2)", 2)
+    expect(b.locator("label", has_text="Pause speed, cm/s (ε2) · yours")).to_be_visible()
+    assert ui.threshold_value(b, "Pause speed, cm/s (ε2)") == pytest.approx(2)
 
     # Reloading B restores the view of the current state, at the step the studio is at (every tab shares it).
     b.reload()
     ui.wait_ready(b)
     assert ui.current_step(b) == "Key-points"
-    assert ui.number_value(b, "Pause speed (ε2)") == pytest.approx(0.02)
+    ui.open_folder(b, "All thresholds")
+    assert ui.threshold_value(b, "Pause speed, cm/s (ε2)") == pytest.approx(2)
     ui.tab(b, "Teach")
     expect(b.locator(".demo-row")).to_have_count(1)
     assert ui.current_step(a) == "Teach"

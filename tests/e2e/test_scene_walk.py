@@ -215,7 +215,7 @@ def test_arrow_keys_on_a_slider_leave_the_camera_alone(browser, sessions) -> Non
     page = None
     try:
         page = ui.open_studio(browser, app.url())
-        page.wait_for_function("() => window.__studioArrowKeys === 1")  # the studio's page has set itself up
+        page.wait_for_function("() => !!window.__studioPage")  # the studio's page has set itself up
         client = next(iter(app.server.get_clients().values()))
         thumb = ui.row(page, "Left gripper width (%)").get_by_role("slider")
         before_value = ui.number_value(page, "Left gripper width (%)")

@@ -163,7 +163,9 @@ def test_teach_a_skill_like_a_user(browser, studio_factory, shots, tmp_path) -> 
     expect(page.locator(".kp-count")).to_have_count(3, timeout=20_000)
     counts0 = ui.keypoint_counts(page)
     shots(page, "key-points default")
-    ui.set_number(page, "Travel distance (ε5)", 0.03)
+    ui.open_folder(page, "All thresholds")
+    eps5 = round(ui.threshold_value(page, "Travel distance, cm (ε5)") / 3, 1)  # a third of the automatic value
+    ui.set_threshold(page, "Travel distance, cm (ε5)", eps5)
     counts1 = ui.wait_keypoint_counts_change(page, counts0)
     assert counts1 != counts0, f"key-point counts did not change: {counts0}"
     assert sum(counts1.values()) > sum(counts0.values())
@@ -175,7 +177,9 @@ def test_teach_a_skill_like_a_user(browser, studio_factory, shots, tmp_path) -> 
     ui.wait_text(page, r"^Trained\.", timeout=120)
     expect(page.locator("svg.heatmap")).to_have_count(1)
     expect(page.locator("svg.position-plot")).to_have_count(4)  # 3 demos + learned path
-    expect(page.locator("tr.loglik-row")).to_have_count(3)
+    expect(page.locator("tr.fit-row")).to_have_count(3)
+    verdict = page.locator(".verdict[data-level]").first
+    expect(verdict).to_contain_text(re.compile("^(Good|Fair|Poor): "), timeout=60_000)
     shots(page, "trained")
 
     # Preview: play and see the robot move along the learned path.
@@ -224,12 +228,13 @@ def test_teach_a_skill_like_a_user(browser, studio_factory, shots, tmp_path) -> 
     ui.tab(page, "Teach")
     expect(page.locator(".demo-row")).to_have_count(3)
     ui.tab(page, "Key-points")
-    assert ui.number_value(page, "Travel distance (ε5)") == pytest.approx(0.03)
+    ui.open_folder(page, "All thresholds")
+    assert ui.threshold_value(page, "Travel distance, cm (ε5)") == pytest.approx(eps5)
     expect(page.locator(".kp-count")).to_have_count(3, timeout=20_000)
     assert ui.keypoint_counts(page) == counts1
     ui.tab(page, "Train")
     expect(page.locator("svg.heatmap")).to_have_count(1)
-    expect(page.locator("tr.loglik-row")).to_have_count(3)
+    expect(page.locator("tr.fit-row")).to_have_count(3)
     shots(page, "after restart: trained skill back")
     ui.tab(page, "Preview")
     shots(page, "after restart: learned path")

@@ -50,6 +50,26 @@ def row(page: Page, label: str) -> Locator:
     return lab.locator("xpath=ancestor::div[contains(@class,'mantine-Flex-root')][1]")
 
 
+def threshold(page: Page, label: str) -> Locator:
+    """The row of a threshold slider by its automatic label (e.g. "Travel distance, cm (ε5)"), also once the
+    teacher set it (then the label ends in "· yours")."""
+    pattern = re.compile(r"^\s*" + re.escape(label) + r"( · yours)?\s*$")
+    lab = page.locator("label").filter(has_text=pattern).first
+    return lab.locator("xpath=ancestor::div[contains(@class,'mantine-Flex-root')][1]")
+
+
+def set_threshold(page: Page, label: str, value: float) -> None:
+    """Type a value into a threshold slider's number box (its folder "All thresholds" must be open)."""
+    box = threshold(page, label).locator("input.mantine-NumberInput-input")
+    box.click()
+    box.fill(str(value))
+    box.press("Enter")
+
+
+def threshold_value(page: Page, label: str) -> float:
+    return float(threshold(page, label).locator("input.mantine-NumberInput-input").input_value())
+
+
 def set_number(page: Page, label: str, value: float) -> None:
     """Type a value into a slider's number box and press Enter (as a person would)."""
     box = row(page, label).locator("input.mantine-NumberInput-input")

@@ -1,0 +1,117 @@
+"""The live learned path: while the thresholds move, the path the robot would learn is recomputed after each
+new key-point view (on the key-point thread, skipped when a newer request already waits) and drawn thin and
+dashed with its fidelity figure."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from studio.controller.context import Context
+from studio.controller.demos import Demos
+from studio.controller.events import Topic
+from studio.controller.learning import KeypointTuning, KeypointView
+
+
+@dataclass(frozen=True)
+class LivePath:
+    """The path learned with one view's thresholds for one arm.
+
+    Attributes:
+        arm: the arm; version: the key-point view it belongs to.
+        position: (M, 3) metres (empty when no path could be made).
+        distance: root-mean-square distance to the shown demonstrations, m.
+        g_over_r: G/R against them (≤ 0.6 is close; NaN with one demonstration).
+        k: the number of clusters used.
+        message: why there is no path, in plain words ("" when there is one).
+    """
+
+    arm: str
+    version: int
+    position: np.ndarray
+    distance: float
+    g_over_r: float
+    k: int
+    message: str = ""
+
+    @property
+    def words(self) -> str:
+        """The fidelity figure in plain words."""
+        from studio.core.quality import length_words
+
+        if self.message:
+            return self.message
+        if not math.isfinite(self.distance):
+            return "The learned path would follow your demonstration."
+        return f"The learned path would stay within {length_words(self.distance)} of your demonstrations on average."
+
+
+class LivePaths:
+    """Follows the key-point view (a :data:`~studio.controller.learning.Follower`) and keeps one live path per
+    taught arm in :attr:`paths`; emits :attr:`Topic.LIVE_PATH` when they are new.
+
+    ``wanted()`` says whether anybody looks at them (the Key-points step): otherwise nothing is computed.
+    """
+
+    def __init__(self, ctx: Context, demos: Demos, tuning: KeypointTuning, wanted: Callable[[], bool]) -> None:
+        from studio.core.pipeline import AlignmentCache
+
+        self.ctx = ctx
+        self.demos = demos
+        self.tuning = tuning
+        self.wanted = wanted
+        self.paths: dict[str, LivePath] = {}
+        self.align_cache = AlignmentCache()
+        self.computed_ms: float = math.nan  # how long the last set of paths took (for the bench)
+        tuning.followers.append(self.follow)
+
+    def follow(self, view: KeypointView, stale: Callable[[], bool]) -> None:
+        """Compute the live path of every arm of ``view`` unless a newer view is coming; :attr:`Topic.LIVE_PATH`
+        is emitted for every view it does not skip, also when no path could be made (the key-points panel
+        draws the view's markers with it)."""
+        import time
+
+        from studio.core.pipeline import preview_path
+
+        if not self.wanted():
+            return
+        t0 = time.perf_counter()
+        mode = self.ctx.session.generalization
+        out: dict[str, LivePath] = {}
+        try:
+            for arm, params in view.params.items():
+                demos = [d for _, d in self.demos.for_arm(arm)]
+                idx = view.indices.get(arm)
+                if stale():
+                    return
+                if not demos or idx is None or len(idx) != len(demos):
+                    continue
+                pp = preview_path(
+                    demos,
+                    params,
+                    n_clusters=view.k.get(arm) if self.tuning.k is not None else None,
+                    generalization=mode,
+                    cache=self.tuning.cache,
+                    align_cache=self.align_cache,
+                    keypoints=idx,
+                )
+                out[arm] = LivePath(arm, view.version, pp.position, pp.distance, pp.g_over_r, pp.n_clusters, pp.message)
+        except Exception:
+            out = {}
+            raise
+        finally:
+            if not stale():
+                self.paths = out
+                self.computed_ms = 1e3 * (time.perf_counter() - t0)
+                self.ctx.emit(Topic.LIVE_PATH)
+
+    def refresh_if_wanted(self) -> None:
+        """The Key-points step opened: bring the paths up to date (a new view is computed first)."""
+        view = self.tuning.view
+        if self.wanted() and (
+            view is None or any(p.version != view.version for p in self.paths.values()) or not self.paths
+        ):
+            self.tuning.request()

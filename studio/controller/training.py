@@ -1,0 +1,245 @@
+"""Training: learn the skill of every taught arm on the work thread, then judge it (the verdict in plain words
+and how well each demonstration fits), and answer what the panels show about the learned skill."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from concurrent.futures import Future
+from dataclasses import dataclass
+
+import numpy as np
+
+from studio.controller.context import Context
+from studio.controller.demos import Demos
+from studio.controller.events import Topic
+from studio.controller.learning import KeypointTuning
+from studio.controller.playback import Player
+from studio.core.errors import NotEnoughData, StudioError
+from studio.core.quality import DemoFit, Verdict
+from studio.core.types import GENERALIZATIONS, Demo, KeypointParams, Skill
+
+#: How each generalisation mode is called in the Train panel.
+MODE_WORDS = {
+    "aligned-mean": "Follow the demonstrations (average of your demonstrations, aligned in time)",
+    "paper": "Paper's spline (a smooth curve through the learned states, as in the paper)",
+}
+
+
+@dataclass(frozen=True)
+class UsedDemo:
+    """A demonstration a skill was learned from: its name then, and its index and Demo now (None when it was
+    renamed or deleted since)."""
+
+    name: str
+    index: int | None
+    demo: Demo | None
+
+
+@dataclass(frozen=True)
+class SkillVerdict:
+    """The judgement of one arm's skill: the verdict (headline and bullets), how well each demonstration fits,
+    or ``message`` when it could not be judged (then ``verdict`` is None)."""
+
+    skill: Skill
+    verdict: Verdict | None
+    fits: tuple[DemoFit, ...] = ()
+    message: str = ""
+
+
+class Training:
+    """Learns the skill of every taught arm on the work thread and judges it; answers what the panels show."""
+
+    def __init__(
+        self, ctx: Context, demos: Demos, tuning: KeypointTuning, arms: Callable[[], tuple[str, ...]], player: Player
+    ) -> None:
+        self.ctx = ctx
+        self.demos = demos
+        self.tuning = tuning
+        self.arms = arms
+        self.player = player
+        self.busy = False
+        self.judging = False
+        self._verdicts: dict[str, SkillVerdict] = {}
+        ctx.events.on(Topic.SESSION, self._on_session)
+
+    def skills(self) -> dict[str, Skill]:
+        return dict(self.ctx.session.skills)
+
+    # -- generalisation mode -------------------------------------------------------------------------------
+    @property
+    def generalization(self) -> str:
+        """The mode the next training uses ("aligned-mean", the default, or "paper")."""
+        return self.ctx.session.generalization
+
+    def set_generalization(self, mode: str) -> None:
+        if mode not in GENERALIZATIONS:
+            raise StudioError(f'Unknown way to generalise "{mode}".')
+        with self.ctx.lock:
+            if mode == self.ctx.session.generalization:
+                return
+            self.ctx.session.set_params(mode=mode)
+        self.ctx.emit(Topic.TRAINING)
+
+    # -- training ------------------------------------------------------------------------------------------
+    def train(self) -> Future[dict[str, Skill] | None]:
+        """Learn the skill of every taught arm from the shown demos on the work thread, then judge it."""
+        from studio.core.pipeline import learn_skill
+
+        with self.ctx.lock:
+            if self.busy:
+                raise StudioError("Training is already running; wait for it to finish.")
+            per_arm = {arm: self.demos.for_arm(arm) for arm in self.arms()}
+            for arm, demos in per_arm.items():
+                if len(demos) < 2:
+                    raise NotEnoughData(
+                        f"The {arm} arm needs at least two shown demonstrations to learn from "
+                        f"(it has {len(demos)}). Record more, or show hidden ones."
+                    )
+            settings, k = self.tuning.settings(), self.tuning.k
+            params = {arm: self.tuning.params(arm, settings) for arm in per_arm}
+            mode = self.ctx.session.generalization
+            session = self.ctx.session  # the skill belongs to the session it was learned from
+            self.busy = True
+        self.ctx.emit(Topic.TRAINING)
+        baxter, cache = self.ctx.baxter, self.tuning.cache
+
+        def job() -> dict[str, Skill]:
+            return {
+                arm: learn_skill(
+                    [d for _, d in demos],
+                    params[arm],
+                    n_clusters=k,
+                    seed=0,
+                    arm=arm,
+                    baxter=baxter,
+                    cache=cache,
+                    generalization=mode,
+                )
+                for arm, demos in per_arm.items()
+            }
+
+        def done(skills: dict[str, Skill]) -> None:
+            names = {arm: [d.name for _, d in per_arm[arm]] for arm in skills}
+            first: KeypointParams | None = next(iter(params.values()), None)
+            with self.ctx.lock:
+                session.set_skills(skills, params=first, demos=names)
+                current = session is self.ctx.session
+                if current:
+                    self._verdicts = {}
+                self.busy = False  # only now: sessions cannot be switched while training
+            self.ctx.emit(Topic.TRAINING)
+            if not current:
+                self.ctx.notify(
+                    "Training finished", f'The skill was learned for session "{session.name}".', kind="info"
+                )
+                return
+            self.tuning.persist(force=True)  # the current settings again (the skill's values replaced them)
+            self.player.unload_preview()  # the loaded preview shows the previous skill
+            self.ctx.emit(Topic.SKILL)
+            self.ctx.notify(
+                "Training finished", "The robot learned the skill: open Preview to watch it.", kind="success"
+            )
+            self.judge()
+
+        fut = self.ctx.submit(job, done=done, title="Training failed")
+        fut.add_done_callback(lambda f: self._finished())
+        return fut
+
+    def _finished(self) -> None:
+        if self.busy:  # the job failed: done() never ran
+            self.busy = False
+            self.ctx.emit(Topic.TRAINING)
+
+    # -- the verdict ---------------------------------------------------------------------------------------
+    def verdicts(self) -> dict[str, SkillVerdict]:
+        """arm -> the judgement of its current skill (only once judged; see :attr:`judging`)."""
+        with self.ctx.lock:
+            skills = self.ctx.session.skills
+            return {arm: v for arm, v in self._verdicts.items() if skills.get(arm) is v.skill}
+
+    def judge(self) -> Future[None]:
+        """Judge every skill of the open session on the work thread (held-out fidelity, the verdict and the
+        per-demo fit); :attr:`Topic.VERDICT` is emitted when it starts and when it is done."""
+        session = self.ctx.session
+        skills = dict(session.skills)
+        with self.ctx.lock:
+            self.judging = bool(skills)
+        self.ctx.emit(Topic.VERDICT)
+        fixed_k = session.n_clusters is not None
+
+        def job() -> None:
+            out = {arm: self._judge_one(arm, skill, fixed_k) for arm, skill in skills.items()}
+            with self.ctx.lock:
+                if session is self.ctx.session:
+                    self._verdicts.update(out)
+
+        def finished(_: Future[None]) -> None:
+            with self.ctx.lock:
+                self.judging = False
+            self.ctx.emit(Topic.VERDICT)
+
+        fut = self.ctx.submit(job, title="Could not judge the skill")
+        fut.add_done_callback(finished)
+        return fut
+
+    def _judge_one(self, arm: str, skill: Skill, fixed_k: bool) -> SkillVerdict:
+        from studio.core.pipeline import judge_skill
+        from studio.core.quality import demo_fits
+
+        used = self.skill_demos(arm)
+        demos = [u.demo for u in used if u.demo is not None]
+        if len(demos) != len(used) or not demos:
+            return SkillVerdict(
+                skill,
+                None,
+                message="Some demonstrations this skill learned from were renamed or deleted since: train again "
+                "to see how good it is.",
+            )
+        if any(len(k) and int(np.max(k)) >= len(d) for k, d in zip(skill.keypoints, demos, strict=False)):
+            return SkillVerdict(
+                skill, None, message="Demonstrations were trimmed since this skill was learned: train again."
+            )
+        report, verdict = judge_skill(skill, demos, fixed_k=fixed_k)
+        return SkillVerdict(skill, verdict, demo_fits(report))
+
+    def _on_session(self) -> None:
+        with self.ctx.lock:
+            self._verdicts = {}
+            has_skills = bool(self.ctx.session.skills)
+        if has_skills:
+            self.judge()
+
+    # -- what the panels show ------------------------------------------------------------------------------
+    def skill_demo_names(self, arm: str) -> list[str]:
+        """Names of the demonstrations the current skill of ``arm`` was learned from, in the skill's order
+        (the order of its log-likelihoods and key-points), as they were called then."""
+        sk = self.ctx.session.skills.get(arm)
+        if sk is None:
+            return []
+        info = self.ctx.session.skill_info.get(arm)
+        return [str(n) for n in (sk.demo_names or (info.demos if info is not None else ()))]
+
+    def skill_demos(self, arm: str) -> list[UsedDemo]:
+        """Every demonstration the current skill of ``arm`` was learned from, in the skill's order."""
+        by_name = {r.name: (i, r) for i, r in enumerate(self.demos.recordings())}
+        out: list[UsedDemo] = []
+        for nm in self.skill_demo_names(arm):
+            hit = by_name.get(nm)
+            if hit is not None and arm in hit[1].arms:
+                out.append(UsedDemo(nm, hit[0], self.demos.demo_of(hit[1], arm)))
+            else:
+                out.append(UsedDemo(nm, None, None))
+        return out
+
+    def ik_failures(self, arm: str) -> np.ndarray:
+        """(n, 3) positions of the learned path the arm cannot reach exactly."""
+        sk = self.ctx.session.skills.get(arm)
+        jt = sk.joint_trajectory if sk is not None else None
+        if sk is None or jt is None:
+            return np.zeros((0, 3))
+        bad = ~np.asarray(jt.converged, dtype=bool)
+        if not bad.any():
+            return np.zeros((0, 3))
+        tr = sk.trajectory
+        pos = np.column_stack([np.interp(jt.t, tr.t, tr.position[:, c]) for c in range(3)])
+        return pos[bad]

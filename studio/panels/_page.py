@@ -1,0 +1,76 @@
+"""Page behaviour the GUI library does not offer, installed once per server as a small script every tab runs.
+
+* **Arrow keys stay in the control that has the focus.** viser's camera orbits on arrow keys pressed anywhere
+  but in a text box; on a focused slider, ArrowRight then both moved the slider and started a camera orbit,
+  and on software WebGL each orbit frame costs 200–700 ms of the page's main thread (measured in headless
+  Chromium, bench/bench_live.py): the slider's answer from the studio waited behind it (median 1.2 s from the
+  key press to the new key-point counts on the page, against 0.1 s with this script). A key event whose
+  target is a slider, an input or a button stops at ``document.body``, before the camera's listener on
+  ``document`` sees it (React handles it first, at its root inside the body).
+* **Every control's hint is on its label too**: the hint (viser shows it when the pointer rests on the
+  control) becomes the ``title`` of the control's label, refreshed when the panel changes.
+
+The script is sent as viser's ``RunJavascriptMessage`` (what viser itself uses to load Plotly), which viser
+replays to every tab that connects later.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+
+import viser
+
+log = logging.getLogger(__name__)
+
+_GUARD_JS = """
+(() => {
+  if (window.__studioPage) return;
+  window.__studioPage = {hints: {}};
+  const inControl = (t) => t && t.closest &&
+    t.closest('[role=slider], input, textarea, select, button, [role=button], [role=option]');
+  const stop = (e) => { if (e.key && e.key.startsWith('Arrow') && inControl(e.target)) e.stopPropagation(); };
+  const attach = () => {
+    document.body.addEventListener('keydown', stop);
+    document.body.addEventListener('keyup', stop);
+    const label = () => {
+      const hints = window.__studioPage.hints;
+      for (const [uuid, hint] of Object.entries(hints)) {
+        const el = document.querySelector('label[for="' + uuid + '"]');
+        if (el && el.title !== hint) el.title = hint;
+      }
+    };
+    let queued = false;
+    new MutationObserver(() => {
+      if (queued) return;
+      queued = true;
+      setTimeout(() => { queued = false; label(); }, 200);
+    }).observe(document.body, {subtree: true, childList: true});
+    label();
+  };
+  if (document.body) attach(); else document.addEventListener('DOMContentLoaded', attach);
+})();
+"""
+
+
+def _send(server: viser.ViserServer, source: str) -> None:
+    from viser import _messages
+
+    server.gui._websock_interface.queue_message(_messages.RunJavascriptMessage(source=source))
+
+
+def install(server: viser.ViserServer) -> None:
+    """Send the script (arrow keys; the hints of every control built so far on its label) to every tab, now and
+    later. Call once, after the panels are built. It uses viser internals (the message queue, the table of
+    controls): if a viser upgrade moved them, the studio still starts, without this behaviour, and says so in
+    its log."""
+    try:
+        hints: dict[str, str] = {}
+        for uid, handle in server.gui._gui_input_handle_from_uuid.items():
+            hint = getattr(handle, "hint", None)
+            if isinstance(hint, str) and hint:
+                hints[uid] = hint
+        _send(server, _GUARD_JS)
+        _send(server, f"Object.assign(window.__studioPage.hints, {json.dumps(hints, ensure_ascii=False)});")
+    except (AttributeError, ImportError, TypeError):
+        log.warning("viser changed: arrow keys on a slider may also turn the camera, and hints stay off the labels")
