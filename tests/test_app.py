@@ -18,7 +18,7 @@ import pytest
 from studio.app import Studio, build_app, exposure_warning, robot_urdf_path
 from studio.controller import PREVIEW, Step, Topic
 from studio.core.errors import StudioError
-from studio.panels.keypoints import LABEL_GAP
+from studio.panels.keypoints import LABEL_GAP, MAX_LABELS
 from studio.recorder import Recorder
 from studio.robot_backend.simulated import SimulatedBaxter
 from studio.storage import RECORDING_DIR, SessionStore
@@ -96,7 +96,7 @@ def test_keypoints_are_drawn(app: Studio) -> None:
     assert not any(lab.visible for lab in panel._labels)  # Teach shows no cluster centres
     app.controller.view.set_step("Key-points")
     shown = [np.asarray(lab.position) for lab in panel._labels if lab.visible]
-    assert 0 < len(shown) <= v1.k["left"]  # numbers that would pile up are left out
+    assert 0 < len(shown) <= min(v1.k["left"], MAX_LABELS)  # numbers that would pile up are left out
     gaps = [np.linalg.norm(a - b) for i, a in enumerate(shown) for b in shown[i + 1 :]]
     assert min(gaps, default=1.0) >= LABEL_GAP - 1e-9
     assert all(n.visible for n in panel._kp_nodes.values())
@@ -468,3 +468,15 @@ def test_markers_go_with_their_live_path_and_never_wait_for_a_failed_one(
     view = ctl.keypoints.view
     assert view is not None and drawn() == [d.count for d in view.demos]  # … and the markers still came
     assert any(title == "Could not draw the learned path" for _, title, _ in notes(app))
+
+
+def test_centroid_numbers_never_pile_up() -> None:
+    from studio.panels.keypoints import spaced
+
+    line = np.column_stack([np.linspace(0.0, 0.6, 40), np.zeros(40), np.zeros(40)])  # 40 centres, 1.5 cm apart
+    room = spaced(line, LABEL_GAP)
+    kept = line[np.asarray(room)]
+    assert 2 <= len(kept) <= MAX_LABELS and room[0]
+    assert np.min(np.diff(kept[:, 0])) >= LABEL_GAP - 1e-9
+    few = line[::8]  # 5 centres, 12 cm apart: every one is numbered
+    assert all(spaced(few, LABEL_GAP))

@@ -21,6 +21,8 @@ from studio.panels._suggest import SuggestControls
 CENTROID_COLOR = (220, 20, 20)
 #: A centroid's number is left out when a shown number is closer than this (m): numbers never pile up.
 LABEL_GAP = 0.035
+#: At most this many centroid numbers per arm (spread along the path); the markers themselves are all drawn.
+MAX_LABELS = 12
 LIVE_PATH_COLOR = (0, 200, 230)  # the learned path's cyan (Preview draws it thick and solid)
 #: Range of the k slider; a session may hold a k outside it (set in code): the slider shows the nearest end.
 K_MIN, K_MAX, K_DEFAULT = 2, 40, 12
@@ -349,13 +351,18 @@ def counts_html(view: KeypointView | None) -> str:
     return '<div class="kp-counts" style="font-size:0.85em">' + "".join(rows) + "</div>"
 
 
-def spaced(points: np.ndarray, gap: float) -> list[bool]:
-    """Which points get a label so that no two labels are closer than ``gap`` (in order: the first wins)."""
-    kept: list[np.ndarray] = []
-    out = []
-    for p in np.asarray(points, dtype=float):
-        ok = all(float(np.linalg.norm(p - k)) >= gap for k in kept)
-        if ok:
-            kept.append(p)
-        out.append(ok)
-    return out
+def spaced(points: np.ndarray, gap: float, most: int = MAX_LABELS) -> list[bool]:
+    """Which points get a label: no two labels closer than ``gap`` (in order: the first wins), and at most
+    ``most`` of them (the gap widens until so few are left): numbers never pile up, whatever the zoom."""
+    pts = np.asarray(points, dtype=float)
+    while True:
+        kept: list[np.ndarray] = []
+        out = []
+        for p in pts:
+            ok = all(float(np.linalg.norm(p - k)) >= gap for k in kept)
+            if ok:
+                kept.append(p)
+            out.append(ok)
+        if len(kept) <= most:
+            return out
+        gap *= 1.25
