@@ -103,6 +103,7 @@ def test_execution_is_recorded_like_a_demonstration_and_compared_with_the_plan(s
     plan = plan_execution({"left": skill.joint_trajectory}, sim.true_state()[0], st.gripper)
     sim.execute(plan)
     started = sim.progress().started_at
+    assert started is not None
     sim.step(len(plan) + 200)
     recording = rec.stop()
     rec.discard()
@@ -237,7 +238,8 @@ def test_both_arms_run_together_and_a_partial_run_is_reported(tmp_path: Path) ->
 
     recs = [recording_from_plan(teach("stack-cup", s, arm="both")) for s in (0, 1)]
     skills = learn_arms(recs)
-    jts = {a: s.joint_trajectory for a, s in skills.items()}
+    jts = {a: s.joint_trajectory for a, s in skills.items() if s.joint_trajectory is not None}
+    assert set(jts) == {"left", "right"}
     sim = SimulatedBaxter()
     st = sim.state()
     plan = plan_execution(jts, st.q, st.gripper)

@@ -36,6 +36,7 @@ import logging
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -81,7 +82,8 @@ class Timing:
         return float(self.t[-1] - self.t[0]) if self.t.shape[0] else 0.0
 
 
-def _toppra():
+def _toppra() -> tuple[ModuleType, ModuleType, ModuleType, type]:
+    """toppra, its algorithms and constraints, and its linear constraint base class (imported on first use)."""
     import toppra as ta
     import toppra.algorithm as algo
     import toppra.constraint as constraint
@@ -94,8 +96,12 @@ def _toppra():
 _PACE_CLASS: type | None = None
 
 
-def pace_constraint(pace: float, dof: int):
-    """A toppra constraint ṡ ≤ ``pace``: the path may not be run faster than it was taught."""
+def pace_constraint(pace: float, dof: int) -> Any:
+    """A toppra constraint ṡ ≤ ``pace``: the path may not be run faster than it was taught.
+
+    Returns:
+        An instance of a subclass of toppra's ``LinearConstraint`` (toppra has no type annotations).
+    """
     global _PACE_CLASS
     if _PACE_CLASS is None:
         base: Any = _toppra()[3]
@@ -108,7 +114,9 @@ def pace_constraint(pace: float, dof: int):
                 self.pace = float(pace)
                 self.dof = int(dof)
 
-            def compute_constraint_params(self, path, gridpoints, *args, **kwargs):
+            def compute_constraint_params(
+                self, path: Any, gridpoints: np.ndarray, *args: Any, **kwargs: Any
+            ) -> tuple[None, None, None, None, None, None, np.ndarray]:
                 xbound = np.zeros((len(gridpoints), 2))
                 xbound[:, 1] = self.pace**2
                 return None, None, None, None, None, None, xbound
@@ -192,7 +200,7 @@ class _SubPath:
         self.path_interval = np.array([a, b])
         self.dof = int(np.asarray(spl(a)).shape[-1])
 
-    def __call__(self, s, order: int = 0):
+    def __call__(self, s: float | np.ndarray, order: int = 0) -> np.ndarray:
         return (self._spl, self._d1, self._d2)[order](s)
 
     def get_dof(self) -> int:
@@ -355,7 +363,13 @@ def limit_ratio(q: np.ndarray, rate_hz: float, vlim: np.ndarray, alim: np.ndarra
     return r
 
 
-def _move(q0: np.ndarray, q1: np.ndarray, s0: float, s1: float, vlim: np.ndarray, alim: np.ndarray, pace: float):
+#: A rest-to-rest straight joint move: (q0, q1, duration, peak speed, acceleration, skill time s0, s1).
+_Move = tuple[np.ndarray, np.ndarray, float, float, float, float, float]
+
+
+def _move(
+    q0: np.ndarray, q1: np.ndarray, s0: float, s1: float, vlim: np.ndarray, alim: np.ndarray, pace: float
+) -> tuple[tuple[str, _Move], float]:
     """A rest-to-rest straight joint move q0 → q1 lasting at least (s1 − s0) / pace (time-scaled trapezoid)."""
     T, v, a = _trapezoid(q1 - q0, vlim, alim)
     T_min = max(0.0, (s1 - s0) / pace)
