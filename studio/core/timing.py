@@ -27,7 +27,8 @@ a straight line under per-joint velocity and acceleration limits, computed in cl
 
 Between grid points toppra's constant-acceleration segments can overshoot a limit slightly; the result is
 checked at the output rate by finite differences (what a 1 kHz controller sees) and, if a limit is
-exceeded, solved again with tighter limits.
+exceeded, solved again with tighter limits (by less than 1 %: on the same grid; otherwise on a finer one too).
+toppra's constraint objects are built once per set of limits (building one formats its limits into strings).
 """
 
 from __future__ import annotations
@@ -125,6 +126,27 @@ def pace_constraint(pace: float, dof: int) -> Any:
     return _PACE_CLASS(pace, dof)
 
 
+_CONSTRAINTS: dict[tuple[bytes, bytes, float], list[Any]] = {}
+
+
+def _constraints(vlim: np.ndarray, alim: np.ndarray, pace: float) -> list[Any]:
+    """toppra's joint velocity and acceleration constraints and the pace constraint, built once per set of limits
+    (they hold no path; building them formats their limits into strings, ~0.2 ms each)."""
+    key = (vlim.tobytes(), alim.tobytes(), float(pace))
+    cons = _CONSTRAINTS.get(key)
+    if cons is None:
+        constraint = _toppra()[2]
+        cons = [
+            constraint.JointVelocityConstraint(vlim),
+            constraint.JointAccelerationConstraint(alim),
+            pace_constraint(pace, vlim.shape[0]),
+        ]
+        if len(_CONSTRAINTS) >= 64:
+            _CONSTRAINTS.clear()
+        _CONSTRAINTS[key] = cons
+    return cons
+
+
 @dataclass(frozen=True)
 class _Segment:
     """Constant path acceleration from (s0, v0) to (s1, v1); or a posture change (kind = -1)."""
@@ -171,16 +193,11 @@ def _window_segments(
     refine: float,
 ) -> list[_Segment] | None:
     """toppra on s in [a, b] with ṡ(a) = v_start, ṡ(b) = v_end; None when infeasible."""
-    _, algo, constraint, _ = _toppra()
+    algo = _toppra()[1]
     grid = _grid(spl, a, b, refine)
     n = grid.shape[0]
     path = _SubPath(spl, a, b)
-    cons = [
-        constraint.JointVelocityConstraint(vlim),
-        constraint.JointAccelerationConstraint(alim),
-        pace_constraint(pace, vlim.shape[0]),
-    ]
-    inst = algo.TOPPRA(cons, path, gridpoints=grid, solver_wrapper="seidel")
+    inst = algo.TOPPRA(_constraints(vlim, alim, pace), path, gridpoints=grid, solver_wrapper="seidel")
     try:
         inst.compute_parameterization(v_start, v_end)
     except Exception:  # toppra raises on some degenerate inputs; treat as "widen the window"
@@ -336,14 +353,16 @@ def retime(
         raise InvalidInput("The rate and the pace must be positive.")
     m = float(margin)
     refine = 1.0
-    for _attempt in range(6):
+    for attempt in range(6):
         timing = _retime_once(pieces, vlim * m, alim * m, rate_hz, pace, refine, s_range)
         ratio = limit_ratio(timing.q, rate_hz, vlim, alim)
         if ratio <= 1.0 + 1e-9:
             return timing
-        # between grid points toppra does not see the limits: a finer grid, and a little more margin
-        log.debug("timing exceeded a limit by %.3f; finer grid, tighter limits", ratio)
-        refine *= 0.5
+        # Between grid points toppra does not see the limits: a little more margin first (a slight excess, the
+        # same grid: half the cost of a finer one), then a finer grid too.
+        log.debug("timing exceeded a limit by %.3f; tighter limits%s", ratio, "" if ratio < 1.01 else ", finer grid")
+        if ratio >= 1.01 or attempt > 0:
+            refine *= 0.5
         m *= min(0.99, 0.995 / ratio) if ratio < 1.2 else 0.99
     raise InvalidInput(
         "The robot's speed and acceleration limits could not be met along this skill; try teaching it more slowly."
