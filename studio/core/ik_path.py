@@ -624,10 +624,19 @@ def _refine(
     return idx, Q, ok, pe, oe
 
 
-def _score(ok: np.ndarray, jumps: int, recoveries: int, Q: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple:
+def _breaks(Q: np.ndarray, arc: np.ndarray) -> int:
+    """How many knot-to-knot joint changes are posture changes (as :attr:`PathSolution.breaks` counts them)."""
+    if Q.shape[0] < 2:
+        return 0
+    return int(np.sum(np.max(np.abs(np.diff(Q, axis=0)), axis=1) > BREAK_RAD + BREAK_RAD_PER_M * np.diff(arc)))
+
+
+def _score(
+    ok: np.ndarray, breaks: int, jumps: int, recoveries: int, Q: np.ndarray, lo: np.ndarray, hi: np.ndarray
+) -> tuple:
     x = (Q - lo) / (hi - lo)
     margin = float(np.min(np.minimum(x, 1.0 - x)))
-    return (int((~ok).sum()), jumps, recoveries, -margin)
+    return (int((~ok).sum()), breaks, jumps, recoveries, -margin)
 
 
 def solve_path(
@@ -690,11 +699,13 @@ def solve_path(
         solver.recoveries, solver.jumps, solver.rescued, solver.posture_failures = 0, 0, 0, 0
         Q, ok, pe, oe = _track(solver, idx, starts[k])
         k += 1
-        score = _score(ok, solver.jumps, solver.recoveries, Q, solver.lo, solver.hi)
+        breaks = _breaks(Q, arc[idx])
+        score = _score(ok, breaks, solver.jumps, solver.recoveries, Q, solver.lo, solver.hi)
         if best is None or score < best[0]:
             best = (score, Q, ok, pe, oe, solver.recoveries, solver.jumps, k)
-        # Another start posture can only help when the path was lost and found again in another posture.
-        if solver.posture_failures == 0 and solver.jumps == 0:
+        # Another start posture can only help when the path was lost and found again in another posture, or
+        # the arm had to change posture on the way (e.g. right after a start from the neutral pose).
+        if solver.posture_failures == 0 and solver.jumps == 0 and breaks == 0:
             break
     if best is None:  # the first pose is out of reach: follow as closely as possible from the best effort
         q0, _, _ = solver.solve(0, seed, 200, pull="mid")
