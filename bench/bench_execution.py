@@ -149,12 +149,18 @@ def demo_sets(count: int, rng: np.random.Generator) -> list[tuple[str, list[Demo
 
 
 def per_sample_errors(b: Baxter, tr: Demo, jt: JointTrajectory) -> tuple[np.ndarray, np.ndarray]:
-    """Position and orientation error at each skill sample: the joint sample executing it (nearest skill time)."""
+    """Position and orientation error at each skill sample: the joints executing that moment of the skill.
+
+    The joint trajectory is interpolated to the skill sample's own time (its samples execute the skill at
+    their own, generally fractional, skill times: at 2–3 m/s the nearest one is up to 1.3 mm along the path).
+    """
     s = jt.skill_time if jt.skill_time is not None else jt.t
     j = np.clip(np.searchsorted(s, tr.t), 0, len(jt) - 1)
     jm = np.clip(j - 1, 0, len(jt) - 1)
     j = np.where(np.abs(s[jm] - tr.t) < np.abs(s[j] - tr.t), jm, j)
-    rot, pos = b.rotations_batch(jt.arm, jt.q[j])
+    keep = np.concatenate([[True], np.diff(s) > 1e-12])  # one sample per skill time (not the posture changes)
+    q = np.column_stack([np.interp(tr.t, s[keep], jt.q[keep, k]) for k in range(jt.q.shape[1])])
+    rot, pos = b.rotations_batch(jt.arm, q)
     pe = np.linalg.norm(pos - tr.position, axis=1)
     oe = rotation_angle(rot, matrix_from_quat_wxyz(tr.orientation))
     # a skill sample executed during a posture change or skipped is not tracked
@@ -212,18 +218,12 @@ def pace_excess(b: Baxter, tr: Demo, jt: JointTrajectory) -> float | None:
     return float(jt.t[-1] - jt.t[0]) - tr.duration - ramps
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--quick", action="store_true", help="30 trajectories instead of 200, fewer repetitions")
-    ap.add_argument("--legacy", type=int, default=12, help="trajectories the old tracker is run on (each seed)")
-    ap.add_argument("--only-30s", action="store_true", help="only part 2 (the 30 s skill timing)")
-    args = ap.parse_args()
-    b = Baxter.load()
-    rng = np.random.default_rng(12)
-    load = Path("/proc/loadavg").read_text().split()[:3] if Path("/proc/loadavg").exists() else ["?"]
-    print(f"machine: load average {' '.join(load)} at start (2 cores shared)")
+def _load() -> str:
+    return " ".join(Path("/proc/loadavg").read_text().split()[:3]) if Path("/proc/loadavg").exists() else "?"
 
-    # 2. the 30 s skill first (quietest moment of the run)
+
+def bench_30s(b: Baxter, quick: bool) -> None:
+    """Part 2: the joint trajectory of a 30 s skill, new against old, both seeds, same run."""
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from bench_pipeline import _demo_of_length
 
@@ -231,9 +231,11 @@ def main() -> None:
     sk30 = learn_skill(demos3)
     tr30 = sk30.trajectory
     joint_trajectory(tr30, "left", b.neutral("left"), b)  # warm-up: toppra's first import
-    rep = 3 if args.quick else 7
+    rep = 3 if quick else 7
     print(f"\n30 s skill ({tr30.duration:.1f} s, {len(tr30)} samples), median of {rep}:")
-    for name, qs in (("reference demo", demos3[sk30.reference].q[0]), ("neutral pose", b.neutral("left"))):
+    q_ref = demos3[sk30.reference].q
+    assert q_ref is not None
+    for name, qs in (("reference demo", q_ref[0]), ("neutral pose", b.neutral("left"))):
         new, old = [], []
         for _ in range(rep):
             t0 = time.perf_counter()
@@ -249,13 +251,53 @@ def main() -> None:
             f"old {mo:6.0f} ms   ×{mo / mn:.1f} faster   tracked {jt.converged.mean() * 100:.2f} %"
         )
 
-    if args.only_30s:
-        return
-    # 1. the 200 trajectories
-    count = 30 if args.quick else 200
-    sets = demo_sets(count, rng)
-    rows = []
-    legacy_rows = []
+
+def _measure(b: Baxter, family: str, seed_name: str, tr: Demo, qs: np.ndarray, rng: np.random.Generator) -> dict:
+    """One joint trajectory of part 1: tracked and reachable samples, time, duration ratio, pace excess."""
+    t0 = time.perf_counter()
+    try:
+        jt = joint_trajectory(tr, "left", qs, b)
+    except Exception as exc:  # IkFailed: the start is out of reach
+        return dict(family=family, seed=seed_name, failed=str(exc), duration=tr.duration)
+    el = time.perf_counter() - t0
+    pe, oe = per_sample_errors(b, tr, jt)
+    ok = (pe <= ACCEPT_POSITION_M) & (oe <= ACCEPT_ORIENTATION_RAD)
+    reachable = ok.sum() + reachable_missed(b, tr, np.flatnonzero(~ok), rng)
+    return dict(
+        family=family,
+        seed=seed_name,
+        samples=len(tr),
+        tracked=int(ok.sum()),
+        reachable=float(reachable),
+        time=el,
+        duration=tr.duration,
+        ratio=(jt.t[-1] - jt.t[0]) / tr.duration,
+        excess=pace_excess(b, tr, jt),
+    )
+
+
+def _legacy(b: Baxter, seed_name: str, tr: Demo, qs: np.ndarray, new: dict) -> dict:
+    """Part 3: the old tracker on the same trajectory and seed (20 s deadline), beside the new one's figures."""
+    t0 = time.perf_counter()
+    row = dict(
+        seed=seed_name,
+        new_tracked=new["tracked"] / new["samples"],
+        new_ratio=new["ratio"],
+        new_time=new["time"],
+    )
+    try:
+        lt, lconv = legacy_joint_trajectory(tr, "left", qs, b, deadline=time.perf_counter() + 20.0)
+    except Timeout:
+        return dict(row, tracked=float("nan"), ratio=float("nan"), time=20.0)
+    return dict(row, tracked=float(np.mean(lconv)), ratio=(lt[-1] - lt[0]) / tr.duration, time=time.perf_counter() - t0)
+
+
+def run_sets(
+    b: Baxter, sets: list[tuple[str, list[Demo], list[Demo] | None]], legacy: int, rng: np.random.Generator
+) -> tuple[list[dict], list[dict]]:
+    """Part 1 (and 3 on the first ``legacy`` sets): rows of figures per joint trajectory."""
+    rows: list[dict] = []
+    legacy_rows: list[dict] = []
     t_start = time.perf_counter()
     for n, (family, ds, withq) in enumerate(sets):
         try:
@@ -265,66 +307,23 @@ def main() -> None:
             continue
         tr = sk.trajectory
         seeds = [("neutral", b.neutral("left"))]
-        if withq is not None and withq[sk.reference].q is not None:
-            seeds.insert(0, ("reference", withq[sk.reference].q[0]))
+        q_ref = withq[sk.reference].q if withq is not None else None
+        if q_ref is not None:
+            seeds.insert(0, ("reference", q_ref[0]))
         for seed_name, qs in seeds:
-            t0 = time.perf_counter()
-            try:
-                jt = joint_trajectory(tr, "left", qs, b)
-            except Exception as exc:  # IkFailed: the start is out of reach
-                rows.append(dict(family=family, seed=seed_name, failed=str(exc), duration=tr.duration))
-                continue
-            el = time.perf_counter() - t0
-            pe, oe = per_sample_errors(b, tr, jt)
-            ok = (pe <= ACCEPT_POSITION_M) & (oe <= ACCEPT_ORIENTATION_RAD)
-            missed = np.flatnonzero(~ok)
-            reachable = ok.sum() + reachable_missed(b, tr, missed, rng)
-            rows.append(
-                dict(
-                    family=family,
-                    seed=seed_name,
-                    samples=len(tr),
-                    tracked=int(ok.sum()),
-                    reachable=float(reachable),
-                    time=el,
-                    duration=tr.duration,
-                    ratio=(jt.t[-1] - jt.t[0]) / tr.duration,
-                    excess=pace_excess(b, tr, jt),
-                )
-            )
-            if n < args.legacy:
-                t0 = time.perf_counter()
-                try:
-                    lt, lconv = legacy_joint_trajectory(tr, "left", qs, b, deadline=time.perf_counter() + 20.0)
-                    legacy_rows.append(
-                        dict(
-                            seed=seed_name,
-                            tracked=float(np.mean(lconv)),
-                            ratio=(lt[-1] - lt[0]) / tr.duration,
-                            time=time.perf_counter() - t0,
-                            new_tracked=ok.mean(),
-                            new_ratio=rows[-1]["ratio"],
-                            new_time=el,
-                        )
-                    )
-                except Timeout:
-                    legacy_rows.append(
-                        dict(
-                            seed=seed_name,
-                            tracked=float("nan"),
-                            ratio=float("nan"),
-                            time=20.0,
-                            new_tracked=ok.mean(),
-                            new_ratio=rows[-1]["ratio"],
-                            new_time=el,
-                        )
-                    )
+            rows.append(_measure(b, family, seed_name, tr, qs, rng))
+            if n < legacy and "failed" not in rows[-1]:
+                legacy_rows.append(_legacy(b, seed_name, tr, qs, rows[-1]))
         if (n + 1) % 20 == 0:
             print(f"  … {n + 1} sets in {time.perf_counter() - t_start:.0f} s")
+    return rows, legacy_rows
 
+
+def report_sets(rows: list[dict], n_sets: int) -> None:
+    """Part 1's figures: tracked/reachable per seed and per family, time, duration beyond the taught pace."""
     good = [r for r in rows if "failed" not in r]
     refused = len(rows) - len(good)
-    print(f"\n{len(sets)} demonstration sets → {len(good)} joint trajectories ({refused} start out of reach)")
+    print(f"\n{n_sets} demonstration sets → {len(good)} joint trajectories ({refused} start out of reach)")
     for seed_name in ("reference", "neutral"):
         rs = [r for r in good if r["seed"] == seed_name]
         if not rs:
@@ -357,27 +356,49 @@ def main() -> None:
             f"  {fam:30s}: {sum(r['tracked'] for r in rs) / sum(r['reachable'] for r in rs) * 100:.3f} % "
             f"of reachable samples tracked, {len(rs)} trajectories"
         )
-    if legacy_rows:
-        print(f"\nold tracker on the first {args.legacy} sets (same trajectories, same seeds):")
-        for seed_name in ("reference", "neutral"):
-            ls = [r for r in legacy_rows if r["seed"] == seed_name]
-            if not ls:
-                continue
-            done = [r for r in ls if not math.isnan(r["tracked"])]
-            nan = float("nan")
-            tr_med = statistics.median([r["tracked"] for r in done]) * 100 if done else nan
-            tr_min = min(r["tracked"] for r in done) * 100 if done else nan
-            ra_med = statistics.median([r["ratio"] for r in done]) if done else nan
-            ra_max = max(r["ratio"] for r in done) if done else nan
-            print(
-                f"  {seed_name:9s}: {len(ls)} runs, {len(ls) - len(done)} past the 20 s deadline; tracked median "
-                f"{tr_med:.1f} % (min {tr_min:.1f} %), duration ratio median {ra_med:.2f} (max {ra_max:.2f}), time "
-                f"median {statistics.median([r['time'] for r in ls]) * 1e3:.0f} ms | new: tracked min "
-                f"{min(r['new_tracked'] for r in ls) * 100:.1f} %, ratio max {max(r['new_ratio'] for r in ls):.2f}, "
-                f"time median {statistics.median([r['new_time'] for r in ls]) * 1e3:.0f} ms"
-            )
-    load = Path("/proc/loadavg").read_text().split()[:3] if Path("/proc/loadavg").exists() else ["?"]
-    print(f"\nmachine: load average {' '.join(load)} at the end")
+
+
+def report_legacy(legacy_rows: list[dict], legacy: int) -> None:
+    """Part 3's figures: the old tracker against the new on the same trajectories and seeds."""
+    if not legacy_rows:
+        return
+    print(f"\nold tracker on the first {legacy} sets (same trajectories, same seeds):")
+    nan = float("nan")
+    for seed_name in ("reference", "neutral"):
+        ls = [r for r in legacy_rows if r["seed"] == seed_name]
+        if not ls:
+            continue
+        done = [r for r in ls if not math.isnan(r["tracked"])]
+        tr_med = statistics.median([r["tracked"] for r in done]) * 100 if done else nan
+        tr_min = min(r["tracked"] for r in done) * 100 if done else nan
+        ra_med = statistics.median([r["ratio"] for r in done]) if done else nan
+        ra_max = max(r["ratio"] for r in done) if done else nan
+        print(
+            f"  {seed_name:9s}: {len(ls)} runs, {len(ls) - len(done)} past the 20 s deadline; tracked median "
+            f"{tr_med:.1f} % (min {tr_min:.1f} %), duration ratio median {ra_med:.2f} (max {ra_max:.2f}), time "
+            f"median {statistics.median([r['time'] for r in ls]) * 1e3:.0f} ms | new: tracked min "
+            f"{min(r['new_tracked'] for r in ls) * 100:.1f} %, ratio max {max(r['new_ratio'] for r in ls):.2f}, "
+            f"time median {statistics.median([r['new_time'] for r in ls]) * 1e3:.0f} ms"
+        )
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--quick", action="store_true", help="30 trajectories instead of 200, fewer repetitions")
+    ap.add_argument("--legacy", type=int, default=12, help="trajectories the old tracker is run on (each seed)")
+    ap.add_argument("--only-30s", action="store_true", help="only part 2 (the 30 s skill timing)")
+    args = ap.parse_args()
+    b = Baxter.load()
+    rng = np.random.default_rng(12)
+    print(f"machine: load average {_load()} at start (2 cores shared)")
+    bench_30s(b, args.quick)  # the 30 s skill first (quietest moment of the run)
+    if args.only_30s:
+        return
+    sets = demo_sets(30 if args.quick else 200, rng)
+    rows, legacy_rows = run_sets(b, sets, args.legacy, rng)
+    report_sets(rows, len(sets))
+    report_legacy(legacy_rows, args.legacy)
+    print(f"\nmachine: load average {_load()} at the end")
 
 
 if __name__ == "__main__":

@@ -281,6 +281,20 @@ def exposure_warning(host: str, port: int) -> str | None:
     )
 
 
+def robot_backend(address: str | None) -> RobotBackend | None:
+    """The robot ``studio serve --robot ADDRESS`` drives: a real Baxter through rosbridge at ``address``, or
+    None (the simulated robot, the default) without one.
+
+    Raises:
+        InvalidInput: ``address`` is not a rosbridge websocket address (``ws://HOST:9090``).
+    """
+    if not address:
+        return None
+    from studio.robot_backend.rosbridge import RosbridgeBaxter
+
+    return RosbridgeBaxter(address)
+
+
 def serve(
     host: str,
     port: int,
@@ -317,6 +331,7 @@ __all__ = [
     "build_app",
     "configure_scene",
     "exposure_warning",
+    "robot_backend",
     "robot_urdf_path",
     "serve",
 ]

@@ -102,13 +102,9 @@ def _dispatch(args: argparse.Namespace) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
         if args.command == "serve":
-            from studio.app import serve
+            from studio.app import robot_backend, serve
 
-            backend = None
-            if args.robot:
-                from studio.robot_backend.rosbridge import RosbridgeBaxter
-
-                backend = RosbridgeBaxter(args.robot)
+            backend = robot_backend(args.robot)  # the app knows the backends; the CLI only parses
             serve(
                 host=args.host,
                 port=args.port,

@@ -196,4 +196,5 @@ def test_exported_skills_respect_velocity_and_acceleration_limits_at_1khz(tmp_pa
     assert np.all(v <= vlim + 1e-4) and np.all(a <= alim + 0.02)
     for arm, cols in (("left", slice(0, 7)), ("right", slice(7, 14))):
         jt = skills[arm].joint_trajectory
+        assert jt is not None
         assert np.allclose(back.q[: len(jt), cols], jt.q, atol=1e-8)

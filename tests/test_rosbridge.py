@@ -95,7 +95,7 @@ class FakeRosbridge:
                 if "/robot/joint_states" in subs:
                     with self.lock:
                         q = dict(zip(ALL_ARM_JOINTS, self.q.tolist(), strict=True))
-                    msg = {
+                    msg: dict[str, Any] = {
                         "header": {"seq": k, "stamp": stamp, "frame_id": ""},
                         "name": BAXTER_NAMES,
                         "position": [q.get(n, 0.0) for n in BAXTER_NAMES],
@@ -235,6 +235,7 @@ def test_gripper_commands_go_to_the_grippers_hardware_id(bridge: FakeRosbridge, 
 def test_executes_a_plan_streaming_commands_and_stops(bridge: FakeRosbridge, robot: RosbridgeBaxter) -> None:
     sk = learn_skill(list(demos("stack-cup")), arm="left")
     jt = sk.joint_trajectory
+    assert jt is not None and jt.gripper is not None and jt.skill_time is not None
     # the first 3 s of the skill is enough to check the streaming
     cut = int(np.searchsorted(jt.t, jt.t[0] + 3.0))
     from studio.core.types import JointTrajectory
@@ -270,6 +271,7 @@ def test_executes_a_plan_streaming_commands_and_stops(bridge: FakeRosbridge, rob
 
 def test_emergency_stop_holds_at_once_and_refuses_motion(bridge: FakeRosbridge, robot: RosbridgeBaxter) -> None:
     sk = learn_skill(list(demos("stack-cup")), arm="left")
+    assert sk.joint_trajectory is not None
     st = robot.state()
     plan = plan_execution({"left": sk.joint_trajectory}, st.q, st.gripper, rate_hz=100.0)
     robot.execute(plan)
@@ -298,6 +300,7 @@ def test_emergency_stop_holds_at_once_and_refuses_motion(bridge: FakeRosbridge, 
 
 def test_controlled_stop_slows_to_rest(bridge: FakeRosbridge, robot: RosbridgeBaxter) -> None:
     sk = learn_skill(list(demos("stack-cup")), arm="left")
+    assert sk.joint_trajectory is not None
     st = robot.state()
     plan = plan_execution({"left": sk.joint_trajectory}, st.q, st.gripper, rate_hz=100.0)
     robot.execute(plan)

@@ -249,7 +249,10 @@ def knot_indices(t: np.ndarray, position: np.ndarray, R: np.ndarray) -> np.ndarr
 
 
 class _PathSolver:
-    """The state of one path solve: the robot model, the targets and a deterministic random generator."""
+    """The state of one path solve — the robot model, the targets, a deterministic random generator, counts
+    of recoveries — and pose solving: one pose (:meth:`solve`, :meth:`advance`) or many at once
+    (:meth:`batch_solve`). Seeding, tracking, recovery and refinement along the path are the functions
+    after it."""
 
     def __init__(self, baxter: Baxter, arm: str, t: np.ndarray, position: np.ndarray, R: np.ndarray) -> None:
         self.b = baxter
@@ -281,14 +284,6 @@ class _PathSolver:
         self.posture_failures = 0  # the path was lost while on it, and found again in another posture
 
     # -- one pose ----------------------------------------------------------------------------------------
-    def _error(self, i: int, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        J = pin.computeFrameJacobian(self.model, self.data, q, self.fid, pin.LOCAL_WORLD_ALIGNED)
-        M = pin.updateFramePlacement(self.model, self.data, self.fid)
-        e = np.empty(6)
-        e[:3] = self.P[i] - M.translation
-        e[3:] = pin.log3(self.R[i] @ M.rotation.T)
-        return J, e
-
     def solve(
         self,
         i: int,
@@ -390,125 +385,7 @@ class _PathSolver:
         db = self.b.elbow_swivel(self.arm, qb)
         return abs(math.remainder(da - db, 2 * math.pi)) <= ELBOW_SIDE_RAD
 
-    def restart(self, i: int, q_prev: np.ndarray) -> np.ndarray | None:
-        """A converged solution of sample ``i`` with the elbow on ``q_prev``'s side, nearest to it; or None.
-
-        Seeds: ``q_prev`` pulled half-way to mid-range, mid-range, the untuck pose and six random ones; each
-        gets 40 iterations, the three closest to the target that have not converged get 120 more.
-        """
-        self.restarts += 1
-        seeds = [q_prev + 0.5 * (self.mid - q_prev), self.mid, self.neutral]
-        seeds += list(self.b.random_configuration(self.arm, self.rng, 6))
-        found: list[np.ndarray] = []
-        pending: list[tuple[float, np.ndarray]] = []
-        for seed in seeds:
-            q, pe, oe = self.solve(i, seed, 40, pull="mid")
-            if self.ok(pe, oe, 5.0):
-                found.append(q)
-                if float(np.abs(q - q_prev).max()) < JUMP_RAD and self.same_elbow_side(q, q_prev):
-                    return q
-            elif pe < 0.05:
-                pending.append((pe + 0.1 * oe, q))
-        pending.sort(key=lambda m: m[0])
-        for _, q0 in pending[:3]:
-            q, pe, oe = self.solve(i, q0, 120, pull="mid")
-            if self.ok(pe, oe, 5.0):
-                found.append(q)
-        best, best_d = None, math.inf
-        for q in found:
-            d = float(np.abs(q - q_prev).max())
-            if d < best_d and self.same_elbow_side(q, q_prev):
-                best, best_d = q, d
-        if best is not None:
-            self.rescued += 1
-        return best
-
-    def first_start(self, q_seed: np.ndarray) -> np.ndarray | None:
-        """The first pose solved from ``q_seed`` itself (the taught posture when the seed is a demo's joints)."""
-        q, pe, oe = self.solve(0, q_seed, 200, pull="none")
-        return q if self.ok(pe, oe, 5.0) else None
-
-    def other_starts(self, q_seed: np.ndarray, exclude: list[np.ndarray], count: int) -> list[np.ndarray]:
-        """Up to ``count`` other solutions of the first pose, farthest from the joint limits first."""
-        sols: list[tuple[float, np.ndarray]] = []
-        seeds = [self.neutral, self.mid, q_seed, *self.b.random_configuration(self.arm, self.rng, 8)]
-        for seed in seeds:
-            q, pe, oe = self.solve(0, seed, 200, pull="mid")
-            if not self.ok(pe, oe, 5.0):
-                continue
-            if any(float(np.max(np.abs(q - s))) < SEED_POSTURE_RAD for s in [*exclude, *(s for _, s in sols)]):
-                continue
-            x = (q - self.lo) / self.range
-            sols.append((-float(np.min(np.minimum(x, 1.0 - x))), q))
-            if len(sols) >= 2 * count:
-                break
-        sols.sort(key=lambda m: m[0])
-        return [q for _, q in sols[:count]]
-
-    # -- the whole path ----------------------------------------------------------------------------------
-    def track(self, idx: np.ndarray, q0: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Knot joints (K, 7), reached flags and errors for knots ``idx`` starting from joints ``q0``."""
-        K = idx.shape[0]
-        Q = np.empty((K, 7))
-        pe = np.empty(K)
-        oe = np.empty(K)
-        Q[0], pe[0], oe[0] = self.solve(int(idx[0]), q0, 50, pull="none")
-        ok = np.zeros(K, dtype=bool)
-        ok[0] = self.ok(pe[0], oe[0], 5.0)
-        t = self.t
-        next_restart = -math.inf  # skill time before which no restart is tried (back-off inside lost stretches)
-        wait = RESTART_BACKOFF_S
-        for j in range(1, K):
-            # Smaller steps help where the path is being lost, not inside a stretch already out of reach.
-            q, p_, o_, good = self.advance(Q[j - 1], int(idx[j - 1]), int(idx[j]), bisect=bool(ok[j - 1]))
-            if good:
-                wait = RESTART_BACKOFF_S
-            # Restarts when the path is lost; inside a stretch out of reach, ever more rarely (they are costly).
-            if not good and (ok[j - 1] or t[idx[j]] >= next_restart):
-                self.recoveries += 1
-                next_restart = t[idx[j]] + wait
-                wait *= 2.0
-                cand = self.restart(int(idx[j]), Q[j - 1])
-                if cand is not None and ok[j - 1]:
-                    self.posture_failures += 1
-                if cand is not None:
-                    q, p_, o_ = self.solve(int(idx[j]), cand, 20, pull="none")
-                    good = True
-                    if float(np.max(np.abs(q - Q[j - 1]))) > JUMP_RAD and ok[j - 1]:
-                        # Another posture: redo the current reached stretch in it, backwards, if it can.
-                        lost = np.flatnonzero(~ok[:j])
-                        j0 = int(lost[-1]) + 1 if lost.shape[0] else 0
-                        back = self._track_back(idx[j0 : j + 1], q)
-                        if back is not None:
-                            Q[j0:j], pe[j0:j], oe[j0:j] = back
-                        else:
-                            self.jumps += 1
-            Q[j], pe[j], oe[j], ok[j] = q, p_, o_, (good and self.ok(p_, o_, 5.0)) or self.accept(p_, o_)
-        # Reachable knots just before a reached stretch, lost going forwards in another posture: go backwards.
-        for jr in np.flatnonzero(ok[1:] & ~ok[:-1]) + 1:
-            q = Q[jr]
-            for k in range(int(jr) - 1, -1, -1):
-                if ok[k]:
-                    break
-                q, p_, o_, good = self.advance(q, int(idx[k + 1]), int(idx[k]))
-                if not good:
-                    break
-                Q[k], pe[k], oe[k], ok[k] = q, p_, o_, True
-        return Q, ok, pe, oe
-
-    def _track_back(self, idx: np.ndarray, q_last: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-        """Knots idx[:-1] solved backwards from ``q_last`` at idx[-1]; None when a knot fails."""
-        n = idx.shape[0] - 1
-        Q, pe, oe = np.empty((n, 7)), np.empty(n), np.empty(n)
-        q = q_last
-        for j in range(n - 1, -1, -1):
-            q, p_, o_, good = self.advance(q, int(idx[j + 1]), int(idx[j]))
-            if not good:
-                return None
-            Q[j], pe[j], oe[j] = q, p_, o_
-        return Q, pe, oe
-
-    # -- refinement --------------------------------------------------------------------------------------
+    # -- many poses at once (refinement) -----------------------------------------------------------------
     def batch_solve(self, idx: np.ndarray, Q: np.ndarray, iterations: int = 8) -> tuple[np.ndarray, np.ndarray]:
         """Vectorised damped least squares for samples ``idx`` from joints Q (n, 7); returns Q and converged."""
         Q = np.clip(Q, self.lo, self.hi)
@@ -540,86 +417,226 @@ class _PathSolver:
         rot, pos = self.b.rotations_batch(self.arm, Q)
         return np.linalg.norm(pos - self.P[idx], axis=1), rotation_angle(rot, self.R[idx])
 
-    def refine(
-        self, idx: np.ndarray, Q: np.ndarray, ok: np.ndarray, pe: np.ndarray, oe: np.ndarray, rounds: int = 16
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Add knots where the spline strays from the path, and locate where reachable stretches end.
 
-        Between two reached knots, a knot is added mid-way where the spline strays (all new knots solved in
-        one batch). Between a reached and an unreached knot, the mid-way sample is solved from the reached
-        side, so the edge of a reachable stretch is found to the sample by bisection. Only intervals not yet
-        checked are checked again, plus one final check of all of them.
-        """
-        t = self.t
-        verified = np.zeros(max(idx.shape[0] - 1, 0), dtype=bool)
-        final_pass = False
-        for _ in range(rounds):
-            if idx.shape[0] < 2:
+# -- start postures and restarts (functions of a _PathSolver) --------------------------------------------
+
+
+def _first_start(S: _PathSolver, q_seed: np.ndarray) -> np.ndarray | None:
+    """The first pose solved from ``q_seed`` itself (the taught posture when the seed is a demo's joints)."""
+    q, pe, oe = S.solve(0, q_seed, 200, pull="none")
+    return q if S.ok(pe, oe, 5.0) else None
+
+
+def _other_starts(S: _PathSolver, q_seed: np.ndarray, exclude: list[np.ndarray], count: int) -> list[np.ndarray]:
+    """Up to ``count`` other solutions of the first pose, farthest from the joint limits first."""
+    sols: list[tuple[float, np.ndarray]] = []
+    seeds = [S.neutral, S.mid, q_seed, *S.b.random_configuration(S.arm, S.rng, 8)]
+    for seed in seeds:
+        q, pe, oe = S.solve(0, seed, 200, pull="mid")
+        if not S.ok(pe, oe, 5.0):
+            continue
+        if any(float(np.max(np.abs(q - s))) < SEED_POSTURE_RAD for s in [*exclude, *(s for _, s in sols)]):
+            continue
+        x = (q - S.lo) / S.range
+        sols.append((-float(np.min(np.minimum(x, 1.0 - x))), q))
+        if len(sols) >= 2 * count:
+            break
+    sols.sort(key=lambda m: m[0])
+    return [q for _, q in sols[:count]]
+
+
+def _restart(S: _PathSolver, i: int, q_prev: np.ndarray) -> np.ndarray | None:
+    """A converged solution of sample ``i`` with the elbow on ``q_prev``'s side, nearest to it; or None.
+
+    Seeds: ``q_prev`` pulled half-way to mid-range, mid-range, the untuck pose and six random ones; each
+    gets 40 iterations, the three closest to the target that have not converged get 120 more.
+    """
+    S.restarts += 1
+    seeds = [q_prev + 0.5 * (S.mid - q_prev), S.mid, S.neutral]
+    seeds += list(S.b.random_configuration(S.arm, S.rng, 6))
+    found: list[np.ndarray] = []
+    pending: list[tuple[float, np.ndarray]] = []
+    for seed in seeds:
+        q, pe, oe = S.solve(i, seed, 40, pull="mid")
+        if S.ok(pe, oe, 5.0):
+            found.append(q)
+            if float(np.abs(q - q_prev).max()) < JUMP_RAD and S.same_elbow_side(q, q_prev):
+                return q
+        elif pe < 0.05:
+            pending.append((pe + 0.1 * oe, q))
+    pending.sort(key=lambda m: m[0])
+    for _, q0 in pending[:3]:
+        q, pe, oe = S.solve(i, q0, 120, pull="mid")
+        if S.ok(pe, oe, 5.0):
+            found.append(q)
+    best, best_d = None, math.inf
+    for q in found:
+        d = float(np.abs(q - q_prev).max())
+        if d < best_d and S.same_elbow_side(q, q_prev):
+            best, best_d = q, d
+    if best is not None:
+        S.rescued += 1
+    return best
+
+
+# -- the whole path: tracking the knots, recovery, refinement ------------------------------------------------
+
+
+def _track(S: _PathSolver, idx: np.ndarray, q0: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Knot joints (K, 7), reached flags and errors for knots ``idx`` starting from joints ``q0``."""
+    K = idx.shape[0]
+    Q = np.empty((K, 7))
+    pe = np.empty(K)
+    oe = np.empty(K)
+    Q[0], pe[0], oe[0] = S.solve(int(idx[0]), q0, 50, pull="none")
+    ok = np.zeros(K, dtype=bool)
+    ok[0] = S.ok(pe[0], oe[0], 5.0)
+    t = S.t
+    next_restart = -math.inf  # skill time before which no restart is tried (back-off inside lost stretches)
+    wait = RESTART_BACKOFF_S
+    for j in range(1, K):
+        # Smaller steps help where the path is being lost, not inside a stretch already out of reach.
+        q, p_, o_, good = S.advance(Q[j - 1], int(idx[j - 1]), int(idx[j]), bisect=bool(ok[j - 1]))
+        if good:
+            wait = RESTART_BACKOFF_S
+        # Restarts when the path is lost; inside a stretch out of reach, ever more rarely (they are costly).
+        if not good and (ok[j - 1] or t[idx[j]] >= next_restart):
+            S.recoveries += 1
+            next_restart = t[idx[j]] + wait
+            wait *= 2.0
+            cand = _restart(S, int(idx[j]), Q[j - 1])
+            if cand is not None and ok[j - 1]:
+                S.posture_failures += 1
+            if cand is not None:
+                q, p_, o_ = S.solve(int(idx[j]), cand, 20, pull="none")
+                good = True
+                if float(np.max(np.abs(q - Q[j - 1]))) > JUMP_RAD and ok[j - 1]:
+                    # Another posture: redo the current reached stretch in it, backwards, if it can.
+                    lost = np.flatnonzero(~ok[:j])
+                    j0 = int(lost[-1]) + 1 if lost.shape[0] else 0
+                    back = _track_back(S, idx[j0 : j + 1], q)
+                    if back is not None:
+                        Q[j0:j], pe[j0:j], oe[j0:j] = back
+                    else:
+                        S.jumps += 1
+        Q[j], pe[j], oe[j], ok[j] = q, p_, o_, (good and S.ok(p_, o_, 5.0)) or S.accept(p_, o_)
+    # Reachable knots just before a reached stretch, lost going forwards in another posture: go backwards.
+    for jr in np.flatnonzero(ok[1:] & ~ok[:-1]) + 1:
+        q = Q[jr]
+        for k in range(int(jr) - 1, -1, -1):
+            if ok[k]:
                 break
-            jump = np.max(np.abs(np.diff(Q, axis=0)), axis=1) > BREAK_RAD + BREAK_RAD_PER_M * np.diff(self.arc[idx])
-            gap = (np.diff(idx) > 1) & ~jump
-            both = ok[:-1] & ok[1:] & gap & ~verified
-            edge = (ok[:-1] != ok[1:]) & (np.diff(idx) > 1)
-            new_parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
-            split = np.zeros(verified.shape[0], dtype=bool)
-            if both.any():
-                spl = CubicSpline(t[idx], Q, axis=0)
-                # check samples: ~1 in 4 of each interval's interior samples, at least 3 per interval
-                segs = np.flatnonzero(both)
-                lens = idx[segs + 1] - idx[segs]
-                m = np.clip(lens // 8, 3, None)
-                rep = np.repeat(segs, m)
-                frac = (np.arange(rep.shape[0]) - np.repeat(np.cumsum(m) - m, m) + 0.5) / np.repeat(m, m)
-                chk = np.clip((idx[rep] + frac * (idx[rep + 1] - idx[rep])).astype(np.int64), 0, t.shape[0] - 1)
-                perr, oerr = self.pose_errors(chk, np.clip(spl(t[chk]), self.lo, self.hi))
-                bad_seg = np.unique(rep[(perr > REFINE_POSITION_M) | (oerr > REFINE_ORIENTATION_RAD)])
-                verified[segs] = True
-                if bad_seg.shape[0]:
-                    verified[bad_seg] = False
-                    split[bad_seg] = True
-                    new = (idx[bad_seg] + idx[bad_seg + 1]) // 2
-                    Qn, conv = self.batch_solve(new, spl(t[new]))
-                    for k in np.flatnonzero(~conv):  # rare: solve from the left knot instead
-                        Qn[k], _, _, conv[k] = self.advance(Q[bad_seg[k]], int(idx[bad_seg[k]]), int(new[k]))
-                    new_parts.append((new, Qn, conv))
-            for j in np.flatnonzero(edge):
-                a = j if ok[j] else j + 1  # the reached end
-                i_new = (int(idx[j]) + int(idx[j + 1])) // 2
-                qn, _, _, good = self.advance(Q[a], int(idx[a]), i_new)
-                split[j] = True
-                new_parts.append((np.array([i_new]), qn[None, :], np.array([good])))
-            if not new_parts:
-                if final_pass or not verified.any():
-                    break
-                final_pass = True  # inserted knots nudge the spline nearby: check every interval once more
-                verified[:] = False
-                continue
-            final_pass = False
-            new = np.concatenate([p[0] for p in new_parts])
-            Qn = np.concatenate([p[1] for p in new_parts])
-            conv = np.concatenate([p[2] for p in new_parts])
-            npe, noe = self.pose_errors(new, Qn)
-            # interval flags: a split interval becomes two unchecked ones
-            ver_new = np.zeros(new.shape[0], dtype=bool)
-            idx = np.concatenate([idx, new])
-            order = np.argsort(idx, kind="stable")
-            idx = idx[order]
-            Q = np.concatenate([Q, Qn])[order]
-            # a new knot counts as reached when it is within the acceptance bar (near the edge of the
-            # workspace the solver may stop short of 20 µm and still be well within 1 mm)
-            ok = np.concatenate([ok, (npe <= ACCEPT_POSITION_M) & (noe <= ACCEPT_ORIENTATION_RAD)])[order]
-            pe = np.concatenate([pe, npe])[order]
-            oe = np.concatenate([oe, noe])[order]
-            # each interval is identified by its left knot: old knots keep their flag unless split
-            left_flag = np.concatenate([np.append(verified & ~split, False), ver_new])[order]
-            verified = left_flag[:-1]
-        return idx, Q, ok, pe, oe
+            q, p_, o_, good = S.advance(q, int(idx[k + 1]), int(idx[k]))
+            if not good:
+                break
+            Q[k], pe[k], oe[k], ok[k] = q, p_, o_, True
+    return Q, ok, pe, oe
 
 
-def _score(ok: np.ndarray, jumps: int, recoveries: int, Q: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple:
+def _track_back(
+    S: _PathSolver, idx: np.ndarray, q_last: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Knots idx[:-1] solved backwards from ``q_last`` at idx[-1]; None when a knot fails."""
+    n = idx.shape[0] - 1
+    Q, pe, oe = np.empty((n, 7)), np.empty(n), np.empty(n)
+    q = q_last
+    for j in range(n - 1, -1, -1):
+        q, p_, o_, good = S.advance(q, int(idx[j + 1]), int(idx[j]))
+        if not good:
+            return None
+        Q[j], pe[j], oe[j] = q, p_, o_
+    return Q, pe, oe
+
+
+def _refine(
+    S: _PathSolver, idx: np.ndarray, Q: np.ndarray, ok: np.ndarray, pe: np.ndarray, oe: np.ndarray, rounds: int = 16
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Add knots where the spline strays from the path, and locate where reachable stretches end.
+
+    Between two reached knots, a knot is added mid-way where the spline strays (all new knots solved in
+    one batch). Between a reached and an unreached knot, the mid-way sample is solved from the reached
+    side, so the edge of a reachable stretch is found to the sample by bisection. Only intervals not yet
+    checked are checked again, plus one final check of all of them.
+    """
+    t = S.t
+    verified = np.zeros(max(idx.shape[0] - 1, 0), dtype=bool)
+    final_pass = False
+    for _ in range(rounds):
+        if idx.shape[0] < 2:
+            break
+        jump = np.max(np.abs(np.diff(Q, axis=0)), axis=1) > BREAK_RAD + BREAK_RAD_PER_M * np.diff(S.arc[idx])
+        gap = (np.diff(idx) > 1) & ~jump
+        both = ok[:-1] & ok[1:] & gap & ~verified
+        edge = (ok[:-1] != ok[1:]) & (np.diff(idx) > 1)
+        new_parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        split = np.zeros(verified.shape[0], dtype=bool)
+        if both.any():
+            spl = CubicSpline(t[idx], Q, axis=0)
+            # check samples: ~1 in 4 of each interval's interior samples, at least 3 per interval
+            segs = np.flatnonzero(both)
+            lens = idx[segs + 1] - idx[segs]
+            m = np.clip(lens // 8, 3, None)
+            rep = np.repeat(segs, m)
+            frac = (np.arange(rep.shape[0]) - np.repeat(np.cumsum(m) - m, m) + 0.5) / np.repeat(m, m)
+            chk = np.clip((idx[rep] + frac * (idx[rep + 1] - idx[rep])).astype(np.int64), 0, t.shape[0] - 1)
+            perr, oerr = S.pose_errors(chk, np.clip(spl(t[chk]), S.lo, S.hi))
+            bad_seg = np.unique(rep[(perr > REFINE_POSITION_M) | (oerr > REFINE_ORIENTATION_RAD)])
+            verified[segs] = True
+            if bad_seg.shape[0]:
+                verified[bad_seg] = False
+                split[bad_seg] = True
+                new = (idx[bad_seg] + idx[bad_seg + 1]) // 2
+                Qn, conv = S.batch_solve(new, spl(t[new]))
+                for k in np.flatnonzero(~conv):  # rare: solve from the left knot instead
+                    Qn[k], _, _, conv[k] = S.advance(Q[bad_seg[k]], int(idx[bad_seg[k]]), int(new[k]))
+                new_parts.append((new, Qn, conv))
+        for j in np.flatnonzero(edge):
+            a = j if ok[j] else j + 1  # the reached end
+            i_new = (int(idx[j]) + int(idx[j + 1])) // 2
+            qn, _, _, good = S.advance(Q[a], int(idx[a]), i_new)
+            split[j] = True
+            new_parts.append((np.array([i_new]), qn[None, :], np.array([good])))
+        if not new_parts:
+            if final_pass or not verified.any():
+                break
+            final_pass = True  # inserted knots nudge the spline nearby: check every interval once more
+            verified[:] = False
+            continue
+        final_pass = False
+        new = np.concatenate([p[0] for p in new_parts])
+        Qn = np.concatenate([p[1] for p in new_parts])
+        conv = np.concatenate([p[2] for p in new_parts])
+        npe, noe = S.pose_errors(new, Qn)
+        # interval flags: a split interval becomes two unchecked ones
+        ver_new = np.zeros(new.shape[0], dtype=bool)
+        idx = np.concatenate([idx, new])
+        order = np.argsort(idx, kind="stable")
+        idx = idx[order]
+        Q = np.concatenate([Q, Qn])[order]
+        # a new knot counts as reached when it is within the acceptance bar (near the edge of the
+        # workspace the solver may stop short of 20 µm and still be well within 1 mm)
+        ok = np.concatenate([ok, (npe <= ACCEPT_POSITION_M) & (noe <= ACCEPT_ORIENTATION_RAD)])[order]
+        pe = np.concatenate([pe, npe])[order]
+        oe = np.concatenate([oe, noe])[order]
+        # each interval is identified by its left knot: old knots keep their flag unless split
+        left_flag = np.concatenate([np.append(verified & ~split, False), ver_new])[order]
+        verified = left_flag[:-1]
+    return idx, Q, ok, pe, oe
+
+
+def _breaks(Q: np.ndarray, arc: np.ndarray) -> int:
+    """How many knot-to-knot joint changes are posture changes (as :attr:`PathSolution.breaks` counts them)."""
+    if Q.shape[0] < 2:
+        return 0
+    return int(np.sum(np.max(np.abs(np.diff(Q, axis=0)), axis=1) > BREAK_RAD + BREAK_RAD_PER_M * np.diff(arc)))
+
+
+def _score(
+    ok: np.ndarray, breaks: int, jumps: int, recoveries: int, Q: np.ndarray, lo: np.ndarray, hi: np.ndarray
+) -> tuple:
     x = (Q - lo) / (hi - lo)
     margin = float(np.min(np.minimum(x, 1.0 - x)))
-    return (int((~ok).sum()), jumps, recoveries, -margin)
+    return (int((~ok).sum()), breaks, jumps, recoveries, -margin)
 
 
 def solve_path(
@@ -665,7 +682,7 @@ def solve_path(
     solver = _PathSolver(b, arm, t, position, R)
     idx = knot_indices(t, position, R)
     arc = solver.arc
-    first = solver.first_start(seed)
+    first = _first_start(solver, seed)
     starts = [first] if first is not None else []
     best: tuple[Any, ...] | None = None
     fetched = False
@@ -675,26 +692,28 @@ def solve_path(
             if fetched:
                 break
             # The first start needed recoveries (or the seed did not reach the start): try other postures.
-            starts += solver.other_starts(seed, starts, max_starts - len(starts))
+            starts += _other_starts(solver, seed, starts, max_starts - len(starts))
             fetched = True
             if k >= len(starts):
                 break
         solver.recoveries, solver.jumps, solver.rescued, solver.posture_failures = 0, 0, 0, 0
-        Q, ok, pe, oe = solver.track(idx, starts[k])
+        Q, ok, pe, oe = _track(solver, idx, starts[k])
         k += 1
-        score = _score(ok, solver.jumps, solver.recoveries, Q, solver.lo, solver.hi)
+        breaks = _breaks(Q, arc[idx])
+        score = _score(ok, breaks, solver.jumps, solver.recoveries, Q, solver.lo, solver.hi)
         if best is None or score < best[0]:
             best = (score, Q, ok, pe, oe, solver.recoveries, solver.jumps, k)
-        # Another start posture can only help when the path was lost and found again in another posture.
-        if solver.posture_failures == 0 and solver.jumps == 0:
+        # Another start posture can only help when the path was lost and found again in another posture, or
+        # the arm had to change posture on the way (e.g. right after a start from the neutral pose).
+        if solver.posture_failures == 0 and solver.jumps == 0 and breaks == 0:
             break
     if best is None:  # the first pose is out of reach: follow as closely as possible from the best effort
         q0, _, _ = solver.solve(0, seed, 200, pull="mid")
-        Q, ok, pe, oe = solver.track(idx, q0)
+        Q, ok, pe, oe = _track(solver, idx, q0)
         best = (None, Q, ok, pe, oe, solver.recoveries, solver.jumps, k + 1)
     assert best is not None
     _, Q, ok, pe, oe, recoveries, jumps, tried = best
-    idx2, Q, ok, pe, oe = solver.refine(idx, Q, ok, pe, oe)
+    idx2, Q, ok, pe, oe = _refine(solver, idx, Q, ok, pe, oe)
     return PathSolution(
         s=readonly(t[idx2]),
         index=readonly(idx2, dtype=np.int64),

@@ -28,7 +28,11 @@ Generalisation ("generalization", recorded in ``Skill.generalization``):
 * ``"aligned-mean"`` (default): every demonstration is aligned to the HMM's reference demonstration by DTW
   and, at each instant of the reference, the demos' (50 ms smoothed) poses at the matched instants are
   averaged. The path keeps the demos' shape between key-points (a spline through ~20 points cuts corners
-  and flattens loops) and starts and ends exactly at their mean start and end. The gripper is paper mode's
+  and flattens loops) and starts and ends exactly at their mean start and end. Each demo's time map is
+  smoothed over two DTW grid steps (:func:`~studio.core.alignment.smooth_warp`; DTW's staircase made the
+  average jump in speed: 440 m/s² on the scripted pick-and-place, whose demos' smoothed series stay under
+  18 m/s², which the joint timing then had to slow down for), and quaternions are averaged on the
+  reference's side instant by instant (:func:`_aligned_mean`). The gripper is paper mode's
   step signal (levels and switch times from the path points). DTW for this mode weights orientation down
   and adds the direction of motion (:data:`DTW_ORIENTATION_WEIGHT`, :data:`DTW_DIRECTION_WEIGHT`).
   Measured by bench/bench_quality.py on 36 shapes × 3 and 7 demos: median F/B1 0.53 against 0.79 for paper
@@ -46,6 +50,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from scipy.interpolate import PchipInterpolator
 
 from studio.core import alignment, hmm, quality
 from studio.core.clustering import FeatureScale, align_hemisphere, cluster, default_n_clusters
@@ -162,8 +167,8 @@ class _Model:
     weights: np.ndarray  # (P,)
 
 
-def _inverse(mapped: np.ndarray, grid: np.ndarray, tau: np.ndarray) -> np.ndarray:
-    return alignment.inverse_time_map(mapped, grid, tau)
+def _inverse(warp: PchipInterpolator, lo: float, hi: float, tau: np.ndarray) -> np.ndarray:
+    return np.asarray(warp(np.clip(tau, lo, hi)), dtype=np.float64)
 
 
 def _fit(
@@ -240,7 +245,11 @@ def _fit(
         mapped = ac.get(ref_demo, d, key, compute)
         aligned.append(np.interp(tk, grids[i], mapped) - ref_demo.t[0])
         g0, m0 = grids[i] - d.t[0], mapped - ref_demo.t[0]
-        inverse.append(functools.partial(_inverse, m0, g0))
+        # The demo's time at each step of the reference's grid, smoothed (a DTW staircase would jerk the
+        # average), monotone C¹ in between (PCHIP).
+        tau = grids[ref] - ref_demo.t[0]
+        warp = PchipInterpolator(tau, alignment.smooth_warp(alignment.inverse_time_map(m0, g0, tau)))
+        inverse.append(functools.partial(_inverse, warp, float(tau[0]), float(tau[-1])))
     # 5. timed path points
     times_all = np.concatenate(aligned)
     labels_all = np.concatenate(cl.labels)
@@ -280,16 +289,24 @@ def _fit(
 
 def _aligned_mean(demos: list[Demo], fm: _Model, t: np.ndarray, cache: KeypointCache) -> np.ndarray:
     """(len(t), 7) position and orientation: at each time of the reference, the mean of all demos (their
-    50 ms smoothed series) at the time DTW matched to it."""
-    ref_q = np.asarray(demos[fm.ref].orientation[0], dtype=np.float64)
+    50 ms smoothed series) at the time DTW matched to it.
+
+    Quaternions are averaged on one side: the reference's (sign-continuous) series keeps its own sign, and
+    each other demo's quaternion takes the sign of the reference's at the same instant. (Against one fixed
+    quaternion instead, a hand that turns past 180° from it flips sign there and the average jumps.)"""
     acc = np.zeros((t.shape[0], 7))
-    for d, demo in enumerate(demos):
+    q_ref: np.ndarray | None = None
+    for d in [fm.ref, *(i for i in range(len(demos)) if i != fm.ref)]:
+        demo = demos[d]
         ser = cache.series(demo)
         td_all = np.asarray(demo.t) - demo.t[0]
         w = np.clip(fm.inverse[d](t), 0.0, td_all[-1])
         pos = np.column_stack([np.interp(w, td_all, ser.position[:, k]) for k in range(3)])
         q = np.column_stack([np.interp(w, td_all, ser.orientation[:, k]) for k in range(4)])
-        q *= np.where(q @ ref_q < 0, -1.0, 1.0)[:, None]
+        if q_ref is None:
+            q_ref = q
+        else:
+            q *= np.where(np.einsum("ij,ij->i", q, q_ref) < 0, -1.0, 1.0)[:, None]
         acc[:, :3] += pos
         acc[:, 3:] += q
     acc /= len(demos)

@@ -27,7 +27,8 @@ a straight line under per-joint velocity and acceleration limits, computed in cl
 
 Between grid points toppra's constant-acceleration segments can overshoot a limit slightly; the result is
 checked at the output rate by finite differences (what a 1 kHz controller sees) and, if a limit is
-exceeded, solved again with tighter limits.
+exceeded, solved again with tighter limits (by less than 1 %: on the same grid; otherwise on a finer one too).
+toppra's constraint objects are built once per set of limits (building one formats its limits into strings).
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ import logging
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -81,7 +83,8 @@ class Timing:
         return float(self.t[-1] - self.t[0]) if self.t.shape[0] else 0.0
 
 
-def _toppra():
+def _toppra() -> tuple[ModuleType, ModuleType, ModuleType, type]:
+    """toppra, its algorithms and constraints, and its linear constraint base class (imported on first use)."""
     import toppra as ta
     import toppra.algorithm as algo
     import toppra.constraint as constraint
@@ -94,8 +97,12 @@ def _toppra():
 _PACE_CLASS: type | None = None
 
 
-def pace_constraint(pace: float, dof: int):
-    """A toppra constraint ṡ ≤ ``pace``: the path may not be run faster than it was taught."""
+def pace_constraint(pace: float, dof: int) -> Any:
+    """A toppra constraint ṡ ≤ ``pace``: the path may not be run faster than it was taught.
+
+    Returns:
+        An instance of a subclass of toppra's ``LinearConstraint`` (toppra has no type annotations).
+    """
     global _PACE_CLASS
     if _PACE_CLASS is None:
         base: Any = _toppra()[3]
@@ -108,13 +115,36 @@ def pace_constraint(pace: float, dof: int):
                 self.pace = float(pace)
                 self.dof = int(dof)
 
-            def compute_constraint_params(self, path, gridpoints, *args, **kwargs):
+            def compute_constraint_params(
+                self, path: Any, gridpoints: np.ndarray, *args: Any, **kwargs: Any
+            ) -> tuple[None, None, None, None, None, None, np.ndarray]:
                 xbound = np.zeros((len(gridpoints), 2))
                 xbound[:, 1] = self.pace**2
                 return None, None, None, None, None, None, xbound
 
         _PACE_CLASS = PaceConstraint
     return _PACE_CLASS(pace, dof)
+
+
+_CONSTRAINTS: dict[tuple[bytes, bytes, float], list[Any]] = {}
+
+
+def _constraints(vlim: np.ndarray, alim: np.ndarray, pace: float) -> list[Any]:
+    """toppra's joint velocity and acceleration constraints and the pace constraint, built once per set of limits
+    (they hold no path; building them formats their limits into strings, ~0.2 ms each)."""
+    key = (vlim.tobytes(), alim.tobytes(), float(pace))
+    cons = _CONSTRAINTS.get(key)
+    if cons is None:
+        constraint = _toppra()[2]
+        cons = [
+            constraint.JointVelocityConstraint(vlim),
+            constraint.JointAccelerationConstraint(alim),
+            pace_constraint(pace, vlim.shape[0]),
+        ]
+        if len(_CONSTRAINTS) >= 64:
+            _CONSTRAINTS.clear()
+        _CONSTRAINTS[key] = cons
+    return cons
 
 
 @dataclass(frozen=True)
@@ -163,16 +193,11 @@ def _window_segments(
     refine: float,
 ) -> list[_Segment] | None:
     """toppra on s in [a, b] with ṡ(a) = v_start, ṡ(b) = v_end; None when infeasible."""
-    _, algo, constraint, _ = _toppra()
+    algo = _toppra()[1]
     grid = _grid(spl, a, b, refine)
     n = grid.shape[0]
     path = _SubPath(spl, a, b)
-    cons = [
-        constraint.JointVelocityConstraint(vlim),
-        constraint.JointAccelerationConstraint(alim),
-        pace_constraint(pace, vlim.shape[0]),
-    ]
-    inst = algo.TOPPRA(cons, path, gridpoints=grid, solver_wrapper="seidel")
+    inst = algo.TOPPRA(_constraints(vlim, alim, pace), path, gridpoints=grid, solver_wrapper="seidel")
     try:
         inst.compute_parameterization(v_start, v_end)
     except Exception:  # toppra raises on some degenerate inputs; treat as "widen the window"
@@ -192,7 +217,7 @@ class _SubPath:
         self.path_interval = np.array([a, b])
         self.dof = int(np.asarray(spl(a)).shape[-1])
 
-    def __call__(self, s, order: int = 0):
+    def __call__(self, s: float | np.ndarray, order: int = 0) -> np.ndarray:
         return (self._spl, self._d1, self._d2)[order](s)
 
     def get_dof(self) -> int:
@@ -328,14 +353,16 @@ def retime(
         raise InvalidInput("The rate and the pace must be positive.")
     m = float(margin)
     refine = 1.0
-    for _attempt in range(6):
+    for attempt in range(6):
         timing = _retime_once(pieces, vlim * m, alim * m, rate_hz, pace, refine, s_range)
         ratio = limit_ratio(timing.q, rate_hz, vlim, alim)
         if ratio <= 1.0 + 1e-9:
             return timing
-        # between grid points toppra does not see the limits: a finer grid, and a little more margin
-        log.debug("timing exceeded a limit by %.3f; finer grid, tighter limits", ratio)
-        refine *= 0.5
+        # Between grid points toppra does not see the limits: a little more margin first (a slight excess, the
+        # same grid: half the cost of a finer one), then a finer grid too.
+        log.debug("timing exceeded a limit by %.3f; tighter limits%s", ratio, "" if ratio < 1.01 else ", finer grid")
+        if ratio >= 1.01 or attempt > 0:
+            refine *= 0.5
         m *= min(0.99, 0.995 / ratio) if ratio < 1.2 else 0.99
     raise InvalidInput(
         "The robot's speed and acceleration limits could not be met along this skill; try teaching it more slowly."
@@ -355,7 +382,13 @@ def limit_ratio(q: np.ndarray, rate_hz: float, vlim: np.ndarray, alim: np.ndarra
     return r
 
 
-def _move(q0: np.ndarray, q1: np.ndarray, s0: float, s1: float, vlim: np.ndarray, alim: np.ndarray, pace: float):
+#: A rest-to-rest straight joint move: (q0, q1, duration, peak speed, acceleration, skill time s0, s1).
+_Move = tuple[np.ndarray, np.ndarray, float, float, float, float, float]
+
+
+def _move(
+    q0: np.ndarray, q1: np.ndarray, s0: float, s1: float, vlim: np.ndarray, alim: np.ndarray, pace: float
+) -> tuple[tuple[str, _Move], float]:
     """A rest-to-rest straight joint move q0 → q1 lasting at least (s1 − s0) / pace (time-scaled trapezoid)."""
     T, v, a = _trapezoid(q1 - q0, vlim, alim)
     T_min = max(0.0, (s1 - s0) / pace)

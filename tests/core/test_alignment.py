@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from studio.core.alignment import accumulated_cost, dtw, dtw_distance, time_map, warping_path
+from studio.core.alignment import accumulated_cost, dtw, dtw_distance, smooth_warp, time_map, warping_path
 from studio.core.errors import InvalidInput
 
 
@@ -74,6 +74,19 @@ def test_time_map_is_monotone():
     m = time_map(path, np.arange(80) * 0.1, np.arange(60) * 0.1)
     assert np.all(np.diff(m) >= 0) and 0.0 <= m[0] < m[-1] <= 7.9
     assert m[0] == pytest.approx(np.mean(path[path[:, 1] == 0, 0]) * 0.1)
+
+
+def test_smoothed_warp_keeps_its_ends_order_and_straight_stretches():
+    # a DTW staircase: the test series waits (slope 0), then hurries (slope 3), then keeps pace
+    x = np.arange(200.0)
+    w = np.concatenate([np.full(50, 10.0), 10.0 + 3.0 * np.arange(1, 51), 160.0 + np.arange(1, 101)])
+    s = smooth_warp(w, 2.0)
+    assert s[0] == pytest.approx(w[0]) and s[-1] == pytest.approx(w[-1])
+    assert np.all(np.diff(s) >= -1e-12)
+    assert np.abs(np.diff(s, 2)).max() < 0.5 * np.abs(np.diff(w, 2)).max()  # no abrupt change of speed
+    assert np.abs(s - w).max() < 3.0  # moved by about a grid step at most
+    assert np.allclose(smooth_warp(2.0 * x + 1.0, 2.0), 2.0 * x + 1.0)
+    assert np.array_equal(smooth_warp(w, 0.0), w)
 
 
 def test_long_series_memory_is_bounded():

@@ -12,9 +12,11 @@ from studio.core import Demo, KeypointParams, Skill, extract_keypoints, learn_sk
 from studio.core.alignment import common_rate, dtw_distance, resample, time_grid
 from studio.core.clustering import FeatureScale
 from studio.core.errors import InvalidInput, NotEnoughData, StudioError
+from studio.core.keypoints import precompute
 from studio.core.kinematics import Baxter, quat_angle
 from studio.core.pipeline import demo_from_recording, learn_arms
 from studio.teacher import recording_from_plan, teach
+from tests.core.execution_demos import cartesian_pick_place
 from tests.core.teacher_demos import demos, plans
 
 CASES = [("stack-cup", (0, 1, 2)), ("pick-place", (0, 1, 2)), ("stack-cup", (3, 4, 5)), ("pick-place", (3, 4, 5))]
@@ -101,6 +103,30 @@ def test_joint_trajectory_tracks_the_skill_within_a_millimetre():
     # starts near the reference demo's joints (seeded from them)
     q_ref = ds[sk.reference].q
     assert q_ref is not None and np.linalg.norm(jt.q[0] - q_ref[0]) < 0.2
+
+
+def _largest_acceleration(t: np.ndarray, p: np.ndarray) -> float:
+    return float(np.linalg.norm(np.gradient(np.gradient(p, t, axis=0), t, axis=0), axis=1).max())
+
+
+def _largest_turn_rate(t: np.ndarray, wxyz: np.ndarray) -> float:
+    return float((quat_angle(wxyz[1:], wxyz[:-1]) / np.diff(t)).max())
+
+
+@pytest.mark.parametrize("which", ["teacher", "cartesian"])
+def test_the_aligned_mean_moves_as_smoothly_as_the_demonstrations(which):
+    """The average along the DTW alignment neither jerks harder nor turns faster than the demos it averages.
+
+    Before: DTW's staircase time maps made the scripted pick-and-place jump in speed (440 m/s² where the demos'
+    smoothed series reach 18), and the Cartesian pick-and-place, whose wrist turns past 180° from its start,
+    flipped quaternion signs mid-way (the gripper turned at 250 rad/s); both slowed the joint trajectory down."""
+    ds = list(demos("pick-place")) if which == "teacher" else list(cartesian_pick_place(0))
+    tr = learn_skill(ds).trajectory
+    series = [precompute(d) for d in ds]
+    demo_acc = max(_largest_acceleration(d.t, s.position) for d, s in zip(ds, series, strict=True))
+    demo_turn = max(_largest_turn_rate(d.t, d.orientation) for d in ds)
+    assert _largest_acceleration(tr.t, tr.position) <= 1.5 * demo_acc
+    assert _largest_turn_rate(tr.t, tr.orientation) <= 1.5 * demo_turn
 
 
 def test_skill_carries_what_the_panels_draw():
