@@ -467,7 +467,8 @@ def test_markers_go_with_their_live_path_and_never_wait_for_a_failed_one(
     assert wait_for(lambda: ctl.live.paths == {}, 30)  # the failure was told; no path …
     view = ctl.keypoints.view
     assert view is not None and drawn() == [d.count for d in view.demos]  # … and the markers still came
-    assert any(title == "Could not draw the learned path" for _, title, _ in notes(app))
+    # told right after the paths were emptied (the failure leaves the follower, then it is reported)
+    assert wait_for(lambda: any(title == "Could not draw the learned path" for _, title, _ in notes(app)), 10)
 
 
 def test_centroid_numbers_never_pile_up() -> None:
