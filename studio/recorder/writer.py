@@ -124,6 +124,13 @@ class Recorder:
             return max(0.0, float(last - t0))
 
     @property
+    def first_time(self) -> float | None:
+        """Stream time (s, the backend's clock) of the first sample received, or None before it: the recording's
+        ``t = 0`` (a robot's run is compared with its plan on that clock)."""
+        with self._lock:
+            return self._rows.t0 if self._rows.t0 is not None else self._first_seen
+
+    @property
     def recording(self) -> bool:
         return self.state == "recording"
 
