@@ -248,8 +248,9 @@ def plan_execution(
     g_first = g_now.copy()
     for a in arms:
         q_first[cols[a]] = joint_trajectories[a].q[0]
-        if joint_trajectories[a].gripper is not None:
-            g_first[0 if a == "left" else 1] = float(np.clip(joint_trajectories[a].gripper[0], 0.0, 100.0))
+        g_jt = joint_trajectories[a].gripper
+        if g_jt is not None:
+            g_first[0 if a == "left" else 1] = float(np.clip(g_jt[0], 0.0, 100.0))
     dq = q_first - q_now
     dg = g_first - g_now
     vlim = np.concatenate([b.velocity_limits(a) for a in ARMS]) * approach_speed
