@@ -16,6 +16,7 @@ runs and is tested without a browser. One module per concern:
     sessions.py   SessionActions: open, new, save, duplicate, zip, CSV; switching sessions
     scene.py      SceneActions: the objects on the table, the live world, replay/preview objects, task result
     execution.py  ExecutionActions: Run on robot, Stop, Emergency stop, the last run against its plan
+    run.py        Run, RunStatus: one run on the robot (recording, progress, judgement) and its words
     view.py       View: the step the teacher is at and which scene layers are drawn
 
 Threads: the backend's thread delivers joint states (only the newest is kept); one *work* thread runs heavy
@@ -34,11 +35,12 @@ import numpy as np
 from studio.controller.context import Context, Kind, LogNotifier, Notifier
 from studio.controller.demos import PALETTE, Demos, DemoSummary
 from studio.controller.events import Events, Topic
-from studio.controller.execution import ExecutionActions, RunPaths, RunStatus
+from studio.controller.execution import ExecutionActions
 from studio.controller.learning import KeypointItem, KeypointTuning, KeypointView
 from studio.controller.livepath import LivePath, LivePaths
 from studio.controller.playback import PREVIEW, REPLAY, Playback, PlaybackKind, Player
 from studio.controller.pose import Display, PoseSource
+from studio.controller.run import RunPaths, RunStatus
 from studio.controller.scene import SceneActions
 from studio.controller.sessions import RECOVERED, SessionActions, open_or_create
 from studio.controller.suggest import Suggesting, SuggestState

@@ -70,9 +70,8 @@ class Teaching:
         self._session: Session = ctx.session
         self._unsubscribe: Callable[[], None] | None = None
         self.takes: Takes | None = None
-        #: Refuses, in plain words, to move the robot by hand or record ("before {doing}") while it runs a skill
-        #: or the emergency stop is on (set by the controller: ``ExecutionActions.check_free``).
-        self.motion_guard: Callable[[str], None] | None = None
+        #: Refuses moving by hand or recording ("before {doing}") during a run or an emergency stop (the controller's).
+        self.motion_guard: Callable[[str], None] = lambda doing: None
         self._owner: object | None = None  # the browser tab that started the running take
         self._discard_asked: float | None = None
 
@@ -137,7 +136,7 @@ class Teaching:
         An unreachable target still moves the arm to the closest pose found; :attr:`reach` says so
         (:attr:`Topic.REACH`). Returns the IK result.
         """
-        self._may_move("moving the robot by hand")
+        self.motion_guard("moving the robot by hand")
         self.display.show_live()
         with self._ik_lock[arm]:  # one solve per arm at a time (a drag sends many updates)
             res = self.ctx.baxter.ik(arm, position, wxyz, self._target_arm(arm), max_iterations=60)
@@ -185,7 +184,7 @@ class Teaching:
 
     def move_joint(self, index: int, value: float) -> None:
         """Move one of the 14 joints (order ALL_ARM_JOINTS) to ``value`` radians, the others held."""
-        self._may_move("moving the robot by hand")
+        self.motion_guard("moving the robot by hand")
         self.display.show_live()
         arm = arm_of_joint(index)
         self.forget_reach((arm,))
@@ -195,13 +194,9 @@ class Teaching:
 
     def set_gripper(self, arm: str, width: float) -> None:
         """Gripper opening in percent (0 = closed, 100 = open)."""
-        self._may_move("moving the gripper by hand")
+        self.motion_guard("moving the gripper by hand")
         self.display.show_live()
         self.backend.command_gripper(arm, float(width))
-
-    def _may_move(self, doing: str) -> None:
-        if self.motion_guard is not None:
-            self.motion_guard(doing)
 
     def forget_targets(self) -> None:
         """The robot moved by itself (a run on the robot): the next move by hand starts from where it is."""
@@ -227,7 +222,7 @@ class Teaching:
         with self.ctx.lock:
             if self._recorder is not None:
                 raise StudioError("A recording is already running (maybe in another tab). Stop it first.")
-            self._may_move("recording")
+            self.motion_guard("recording")
             self.display.show_live()
             session = self.ctx.session
             rec = Recorder(self.backend, session.recording_dir, self.selected_arms, name=self._next_demo_name())

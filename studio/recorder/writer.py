@@ -123,12 +123,8 @@ class Recorder:
                 return 0.0
             return max(0.0, float(last - t0))
 
-    @property
-    def first_time(self) -> float | None:
-        """Stream time (s, the backend's clock) of the first sample received, or None before it: the recording's
-        ``t = 0`` (a robot's run is compared with its plan on that clock)."""
-        with self._lock:
-            return self._rows.t0 if self._rows.t0 is not None else self._first_seen
+    #: Stream time (s, the backend's clock) of the first sample written, the recording's ``t = 0`` (None before).
+    first_time = property(lambda self: self._rows.t0)
 
     @property
     def recording(self) -> bool:
