@@ -195,8 +195,12 @@ class PreviewPanel:
 
 def _info(duration: float, feasibility: dict[str, Feasibility]) -> str:
     bad = [f.message for f in feasibility.values() if not f.ok]
-    note = f" In red: {' '.join(bad)}" if bad else " The arm can follow all of it."
-    return f"Learned path ({duration:.1f} s) in cyan.{note} Press **Play** to watch it, or **Run on robot**."
+    if bad:
+        return f"Learned path ({duration:.1f} s) in cyan. In red: {' '.join(bad)} Press **Play** to watch it."
+    return (
+        f"Learned path ({duration:.1f} s) in cyan. The arm can follow all of it. "
+        "Press **Play** to watch it, or **Run on robot**."
+    )
 
 
 def _swatch(rgb: tuple[int, int, int]) -> str:
