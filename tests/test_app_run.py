@@ -67,8 +67,9 @@ def test_the_run_is_shown_while_it_runs_and_after(app: Studio) -> None:
     assert 'data-phase="running"' in run_panel.status.content
     assert run_panel.stop_btn.visible and preview.run_btn.disabled and preview.time.disabled
     assert wait_for(lambda: len(app.panels.run._nodes) > 0, timeout=10)  # the executed path grows meanwhile
-    assert wait_for(lambda: not ctl.execution.running, timeout=60)
-    assert 'data-phase="done"' in run_panel.status.content and not run_panel.stop_btn.visible
+    assert wait_for(lambda: 'data-phase="done"' in run_panel.status.content, timeout=60)  # every tab is told
+    assert wait_for(lambda: 'data-ok="true"' in preview.run_result.content, timeout=5)
+    assert not run_panel.stop_btn.visible
     assert run_panel.progress.value == 100.0
     assert 'class="run-result" data-ok="true"' in preview.run_result.content
     assert not preview.run_btn.disabled
