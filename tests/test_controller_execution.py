@@ -122,7 +122,7 @@ def test_run_on_robot_follows_the_plan_and_moves_the_block_onto_the_pad(rig, tmp
     drive(ctl, sim)
     st = ctl.execution.status
     assert st.phase == "done" and st.ok is True and not st.active
-    assert topics[0] == "running" and topics[-1] == "done"
+    assert topics[0] == "running" and wait_for(lambda: topics[-1] == "done", timeout=5)  # told just after it ends
     m = re.fullmatch(
         r"The robot followed the plan within ([\d.]+) mm; the block ended ([\d.]+ cm|less than 1 mm) from where you "
         r"put it — the skill works\.",
@@ -130,7 +130,7 @@ def test_run_on_robot_follows_the_plan_and_moves_the_block_onto_the_pad(rig, tmp
     )
     assert m, st.result
     assert st.message == f"The robot finished the skill ({st.duration:.1f} s)."
-    assert ("success", "The robot finished the skill", st.result) in notes.notes
+    assert wait_for(lambda: ("success", "The robot finished the skill", st.result) in notes.notes, timeout=5)
     report = ctl.execution.report
     assert report is not None and report.completed == pytest.approx(1.0, abs=1e-3)
     assert report.max_path_error < 1e-3 and report.max_position_error < 1e-3  # the simulator follows exactly
@@ -207,7 +207,7 @@ def test_stop_slows_the_robot_down_to_rest_within_the_limits(rig) -> None:
     alim = np.concatenate([b.acceleration_limits(a) for a in ("left", "right")])
     assert limit_ratio(q, 1000.0, vlim, alim) <= 1.0 + 1e-6
     assert np.abs(q[-1] - q[-2]).max() == 0.0  # at rest
-    assert any(title == "The robot stopped" for _, title, _ in notes.notes)
+    assert wait_for(lambda: any(title == "The robot stopped" for _, title, _ in notes.notes), timeout=5)
     # Moving by hand works again and starts from where the robot stopped (not from an old target).
     here = sim.true_state()[0]
     ctl.teaching.move_joint(0, float(here[0]) + 0.05)
@@ -244,7 +244,7 @@ def test_emergency_stop_halts_within_one_control_cycle_and_refuses_motion_until_
             st.message,
         ), st.message
         assert st.result.startswith("Up to there (")
-        assert any(title == "Emergency stop" for _, title, _ in notes.notes)
+        assert wait_for(lambda: any(title == "Emergency stop" for _, title, _ in notes.notes), timeout=5)
         # Nothing moves the robot until the emergency stop is released, in plain words.
         assert ctl.execution.why_not().startswith("The emergency stop is on.")
         with pytest.raises(StudioError, match="emergency stop is on"):
