@@ -10,6 +10,9 @@ result of the learned skill in plain words.
 * **Replay and preview**: a world of their own, started from the demonstration's recorded start (or the
   scene's set-up for the preview) and played up to the moment shown (forward by feeding, backward by
   starting over), so a seek, a pause or a speed change always shows the objects as they were.
+* **A run on the robot** (:mod:`studio.controller.execution`): the objects go back to the set-up when it starts
+  and again when the skill itself starts (:meth:`SceneActions.begin_run`); the live world responds to the real
+  joint states; :meth:`SceneActions.end_run` judges what it did against the demonstrations.
 * **Task result**: the preview played through the scene (:func:`~studio.world.simulate`) against what the
   shown demonstrations did (:func:`~studio.world.task_goal`), recomputed when a skill is learned or the
   scene or demonstrations change (:attr:`Topic.TASK`).
