@@ -326,3 +326,24 @@ def test_refusals_are_plain(rig, trained: Path) -> None:
         "There is no learned skill to run yet: record demonstrations and press Train first."
     )
     assert ctl.execution.status.phase == "idle"  # the last run belonged to the other session
+
+
+def test_both_arms_run_together_when_both_are_taught(rig) -> None:
+    from studio.core.pipeline import learn_arms
+    from studio.teacher import recording_from_plan, teach
+
+    ctl, sim, _ = rig
+    recs = [recording_from_plan(teach("stack-cup", s, arm="both")) for s in (0, 1)]
+    ctl.session.set_skills(learn_arms(recs))
+    ctl.events.emit(Topic.SKILL)
+    assert ctl.execution.why_not() == ""
+    ctl.execution.run()
+    plan = ctl.execution.plan
+    assert plan is not None and plan.arms == ("left", "right")
+    drive(ctl, sim)
+    st, report = ctl.execution.status, ctl.execution.report
+    assert st.phase == "done" and report is not None and set(report.path_error) == {"left", "right"}
+    assert report.max_path_error < 1e-3 and report.completed == pytest.approx(1.0, abs=1e-3)
+    paths = ctl.execution.paths()
+    assert set(paths.executed) == {"left", "right"} and all(len(p) > 100 for p in paths.executed.values())
+    assert st.result.startswith("The robot followed the plan within 0.1 mm")
