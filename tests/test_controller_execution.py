@@ -347,3 +347,24 @@ def test_both_arms_run_together_when_both_are_taught(rig) -> None:
     paths = ctl.execution.paths()
     assert set(paths.executed) == {"left", "right"} and all(len(p) > 100 for p in paths.executed.values())
     assert st.result.startswith("The robot followed the plan within 0.1 mm")
+
+
+def test_a_run_pressed_while_an_arm_moved_by_hand_still_moves_starts_from_rest_there(
+    trained: Path, tmp_path: Path
+) -> None:
+    ctl, sim, _ = make(trained, tmp_path)  # real time: the arm is on its way when Run is pressed
+    try:
+        q = ctl.teaching.arm_q("left")
+        ctl.teaching.command_arm("left", q + 0.5)
+        time.sleep(0.1)
+        assert sim.state().moving
+        ctl.execution.run()  # the arm holds where it is, at rest, and the plan approaches the skill from there
+        time.sleep(1.5)
+        ctl.execution.stop()
+        assert wait_for(lambda: not ctl.execution.running, timeout=10)
+        report = ctl.execution.report
+        assert ctl.execution.status.phase == "stopped" and report is not None
+        assert report.max_path_error < 1e-3, report.max_path_error  # (it overshot by 0.7 m when planned moving)
+    finally:
+        ctl.close()
+        ctl.shutdown()
