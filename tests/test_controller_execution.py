@@ -368,3 +368,18 @@ def test_a_run_pressed_while_an_arm_moved_by_hand_still_moves_starts_from_rest_t
     finally:
         ctl.close()
         ctl.shutdown()
+
+
+def test_stopping_the_studio_mid_run_stops_the_robot_and_leaves_no_file(rig, tmp_path, monkeypatch) -> None:
+    ctl, sim, _ = rig
+    (tmp_path / "tmp").mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "tmp"))
+    ctl.execution.run()
+    sim.step(3000)
+    ctl.close()
+    ctl.shutdown()
+    assert sim.progress().state == "stopping"  # slowing down to rest along the path
+    sim.step(3000)
+    assert sim.progress().state == "stopped"
+    assert not any((tmp_path / "tmp").iterdir())
+    assert len(ctl.session.recordings) == 3

@@ -306,10 +306,15 @@ class ExecutionActions:
         self.ctx.emit(Topic.EXECUTION)
 
     def close(self) -> None:
-        """The studio stops: abandon a run in progress (its recording is deleted)."""
+        """The studio stops: the robot stops (controlled) and a run in progress is abandoned (its recording is
+        deleted)."""
         run = self._run
         if run is None:
             return
+        try:
+            self.backend.stop_motion()
+        except Exception:  # the connection to the robot may already be gone
+            log.exception("stopping the robot's run at shutdown")
         run.cancel.set()
         if run.thread is not None and run.thread is not threading.current_thread():
             run.thread.join(timeout=2.0)
