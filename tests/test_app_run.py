@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -28,7 +29,7 @@ def app(sessions: Path) -> Iterator[Studio]:
     a.stop()
 
 
-def nodes(app: Studio) -> dict[str, object]:
+def nodes(app: Studio) -> dict[str, Any]:
     return dict(app.server.scene._handle_from_node_name)
 
 
@@ -41,6 +42,7 @@ def test_a_skill_the_arm_cannot_follow_is_drawn_red_and_not_run(app: Studio) -> 
     tr = skill.trajectory
     bump = np.exp(-(((tr.t - tr.t[0]) - 6.0) ** 2) / (2 * 0.4**2))  # 6 s in, the path goes 60 cm out
     far = dataclasses.replace(tr, position=tr.position + np.outer(bump, [0.6, 0.0, 0.0]))
+    assert skill.joint_trajectory is not None
     jt = joint_trajectory(far, "left", skill.joint_trajectory.q[0], ctl.baxter)
     ctl.session.set_skills({"left": dataclasses.replace(skill, trajectory=far, joint_trajectory=jt)})
     ctl.events.emit(Topic.SKILL)
@@ -48,14 +50,14 @@ def test_a_skill_the_arm_cannot_follow_is_drawn_red_and_not_run(app: Studio) -> 
     assert preview.run_btn.disabled
     assert "does not run a skill it cannot follow" in preview.run_reason.content
     red = nodes(app)["/preview/left/unreachable"]
-    pts = np.asarray(red.points, dtype=np.float64).reshape(-1, 3)  # type: ignore[attr-defined]
-    assert tuple(np.asarray(red.colors).reshape(-1, 3)[0]) == (230, 30, 30)  # type: ignore[attr-defined]
+    pts = np.asarray(red.points, dtype=np.float64).reshape(-1, 3)
+    assert tuple(np.asarray(red.colors).reshape(-1, 3)[0]) == (230, 30, 30)
     # drawn where the path goes out of reach: every red point is a point of that stretch of the learned path
     span = ctl.execution.unreachable_paths()["left"][0]
     assert np.min(np.linalg.norm(pts[:, None, :] - span[None, :, :], axis=2), axis=1).max() < 1e-6
     assert pts[:, 0].max() > tr.position[:, 0].max() + 0.3
     ctl.view.set_shown(Layer.LEARNED_PATH, False)  # it goes with the learned path
-    assert not red.visible  # type: ignore[attr-defined]
+    assert not red.visible
 
 
 def test_the_run_is_shown_while_it_runs_and_after(app: Studio) -> None:
@@ -77,17 +79,17 @@ def test_the_run_is_shown_while_it_runs_and_after(app: Studio) -> None:
     plan = ctl.execution.plan
     assert plan is not None
     drawn = nodes(app)["/run/left/executed"]
-    assert tuple(np.asarray(drawn.colors).reshape(-1, 3)[0]) == EXECUTED_COLOR  # type: ignore[attr-defined]
-    pts = np.asarray(drawn.points, dtype=np.float64).reshape(-1, 3)  # type: ignore[attr-defined]
+    assert tuple(np.asarray(drawn.colors).reshape(-1, 3)[0]) == EXECUTED_COLOR
+    pts = np.asarray(drawn.points, dtype=np.float64).reshape(-1, 3)
     planned = ctl.baxter.fk_batch("left", plan.q[::5, :7])[0]
     assert len(pts) > 500
     assert np.min(np.linalg.norm(pts[::5, None, :] - planned[None, :, :], axis=2), axis=1).max() < 3e-3
     # The "Robot's run" layer hides and shows it.
     ctl.view.set_shown(Layer.EXECUTION, False)
-    assert not drawn.visible  # type: ignore[attr-defined]
+    assert not drawn.visible
     ctl.view.set_step(Step.TEACH)
     ctl.view.set_step(Step.PREVIEW)
-    assert drawn.visible  # type: ignore[attr-defined]
+    assert drawn.visible
     # A new skill: the last run was of the old one, so its drawing and words go.
     ctl.training.train().result()
     assert wait_for(lambda: "/run/left/executed" not in nodes(app), timeout=10)
