@@ -30,7 +30,6 @@ from __future__ import annotations
 import dataclasses
 import logging
 import threading
-import time
 
 import numpy as np
 
@@ -38,7 +37,18 @@ from studio.controller.context import Context, Kind
 from studio.controller.events import Topic
 from studio.controller.playback import Player
 from studio.controller.pose import Display
-from studio.controller.run import HELD, IDLE, RELEASED, TITLES, Run, RunPaths, RunStatus, ended, judgement
+from studio.controller.run import (
+    HELD,
+    IDLE,
+    RELEASED,
+    TITLES,
+    Run,
+    RunPaths,
+    RunStatus,
+    ended,
+    hold_still,
+    judgement,
+)
 from studio.controller.scene import SceneActions
 from studio.controller.teaching import Teaching
 from studio.controller.training import Training
@@ -51,8 +61,6 @@ from studio.robot_backend.base import ExecutionProgress, RobotBackend
 from studio.world import TaskResult
 
 log = logging.getLogger(__name__)
-#: Longest wait (s) for a robot moved by hand a moment ago to hold still before a run is planned.
-HOLD_S = 0.3
 
 
 class ExecutionActions:
@@ -177,7 +185,7 @@ class ExecutionActions:
             jts = {arm: s.joint_trajectory for arm, s in skills.items() if s.joint_trajectory is not None}
             self.player.unload()
             self.display.show_live()  # the drawn robot is the real one during the run
-            self._hold_still()
+            hold_still(self.backend)
             st = self.backend.state()
             plan = plan_execution(jts, st.q, st.gripper, self.ctx.baxter, rate_hz=self.backend.rate_hz)
             run = Run.start(plan, self.backend, self.scene, self.ctx.baxter)
@@ -188,24 +196,6 @@ class ExecutionActions:
             run.thread = threading.Thread(target=self._follow, args=(run,), name="studio-run", daemon=True)
             run.thread.start()
         self.ctx.emit(Topic.EXECUTION)
-
-    def _hold_still(self) -> None:
-        """A robot still going where it was moved by hand holds where it is, at rest for a few control cycles,
-        so the plan starts from rest there; refused in plain words when it does not settle (0.3 s)."""
-        if not self.backend.state().moving:
-            return
-        self.backend.stop_motion()
-        t_hold = self.backend.state().t
-        deadline = time.monotonic() + HOLD_S
-        while time.monotonic() < deadline:
-            st = self.backend.state()
-            if not st.moving and st.t >= t_hold + 3.0 / self.backend.rate_hz:
-                return
-            time.sleep(0.005)
-        raise StudioError(
-            "The robot is still moving to where you moved it by hand: wait until it stands still, then press "
-            "Run on robot again."
-        )
 
     def stop(self) -> None:
         """Controlled stop: the robot slows down along the skill's path to rest."""

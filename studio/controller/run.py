@@ -20,6 +20,7 @@ import logging
 import shutil
 import tempfile
 import threading
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from studio.controller.scene import SceneActions
+from studio.core.errors import StudioError
 from studio.core.execution import ExecutionPlan, TrackingReport, compare_execution
 from studio.core.kinematics import Baxter
 from studio.core.types import Recording
@@ -42,6 +44,8 @@ POLL_S = 0.02
 PATH_RATE_HZ = 100.0
 #: Longest wait (s) for the run's last joint states to arrive once the robot reports the end.
 TAIL_WAIT_S = 1.0
+#: Longest wait (s) for a robot moved by hand a moment ago to hold still before a run is planned.
+HOLD_S = 0.3
 IDLE = "Nothing has run on the robot yet."
 HELD = "Emergency stop: the robot is held where it is. Release the emergency stop to move it again."
 RELEASED = "the emergency stop is released: the robot can move again."
@@ -225,6 +229,25 @@ class Run:
             shutil.rmtree(self.folder, ignore_errors=True)
 
 
+def hold_still(backend: RobotBackend) -> None:
+    """A robot still going where it was moved by hand holds where it is, at rest for a few control cycles, so a
+    plan starts from rest there; refused in plain words when it does not settle within :data:`HOLD_S`."""
+    if not backend.state().moving:
+        return
+    backend.stop_motion()
+    t_hold = backend.state().t
+    deadline = time.monotonic() + HOLD_S
+    while time.monotonic() < deadline:
+        st = backend.state()
+        if not st.moving and st.t >= t_hold + 3.0 / backend.rate_hz:
+            return
+        time.sleep(0.005)
+    raise StudioError(
+        "The robot is still moving to where you moved it by hand: wait until it stands still, then press "
+        "Run on robot again."
+    )
+
+
 # -- the run in words ----------------------------------------------------------------------------------------
 def ended(p: ExecutionProgress, estop: bool) -> str:
     """How the run ended, in plain words (``estop``: the emergency stop is still engaged)."""
@@ -260,4 +283,4 @@ def judgement(p: ExecutionProgress, report: TrackingReport, task: TaskResult | N
     return head + (f" {task.text}" if task is not None else "")
 
 
-__all__ = ["Judged", "Run", "RunPaths", "RunStatus", "Trace", "ended", "judgement", "tracking_words"]
+__all__ = ["Judged", "Run", "RunPaths", "RunStatus", "Trace", "ended", "hold_still", "judgement", "tracking_words"]
