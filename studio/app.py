@@ -96,20 +96,21 @@ class _Tab(Protocol):
 class BrowserNotifier:
     """Notifications in the browser tabs (one tab, or all); logged until the server is attached.
 
-    The same message again within 5 s (e.g. from a slider being dragged) is shown once.
+    The same message again within 5 s to the same tabs (e.g. from a slider or a handle being dragged while the
+    robot runs a skill) is shown once.
     """
 
     def __init__(self) -> None:
         self.server: viser.ViserServer | None = None
-        self._recent: dict[tuple[str, str], float] = {}
+        self._recent: dict[tuple[str, str, int | None], float] = {}
 
     def notify(self, title: str, body: str, *, kind: Kind = "error", client: object | None = None) -> None:
         if self.server is None:
             LogNotifier().notify(title, body, kind=kind)
             return
-        key = (title, body)
+        key = (title, body, id(client) if client is not None else None)
         now = time.monotonic()
-        if client is None and now - self._recent.get(key, -1e9) < 5.0:
+        if now - self._recent.get(key, -1e9) < 5.0:
             return
         self._recent[key] = now
         if kind == "error":

@@ -15,6 +15,8 @@ runs and is tested without a browser. One module per concern:
     playback.py   Player, Playback: preview of the skill and replay of a demo, one mechanism
     sessions.py   SessionActions: open, new, save, duplicate, zip, CSV; switching sessions
     scene.py      SceneActions: the objects on the table, the live world, replay/preview objects, task result
+    execution.py  ExecutionActions: Run on robot, Stop, Emergency stop, the last run against its plan
+    run.py        Run, RunStatus: one run on the robot (recording, progress, judgement) and its words
     view.py       View: the step the teacher is at and which scene layers are drawn
 
 Threads: the backend's thread delivers joint states (only the newest is kept); one *work* thread runs heavy
@@ -33,10 +35,12 @@ import numpy as np
 from studio.controller.context import Context, Kind, LogNotifier, Notifier
 from studio.controller.demos import PALETTE, Demos, DemoSummary
 from studio.controller.events import Events, Topic
+from studio.controller.execution import ExecutionActions
 from studio.controller.learning import KeypointItem, KeypointTuning, KeypointView
 from studio.controller.livepath import LivePath, LivePaths
 from studio.controller.playback import PREVIEW, REPLAY, Playback, PlaybackKind, Player
 from studio.controller.pose import Display, PoseSource
+from studio.controller.run import RunPaths, RunStatus
 from studio.controller.scene import SceneActions
 from studio.controller.sessions import RECOVERED, SessionActions, open_or_create
 from studio.controller.suggest import Suggesting, SuggestState
@@ -58,8 +62,8 @@ class Controller:
     """The studio without its GUI: a thin composition of the parts, each an attribute a panel uses.
 
     Attributes:
-        teaching, demos, keypoints, live, suggest, training, playback, sessions, scene, view: the parts (see the
-            module docstring).
+        teaching, demos, keypoints, live, suggest, training, playback, sessions, scene, execution, view: the
+            parts (see the module docstring).
         display: the pose the scene draws; events: the topics to subscribe to; baxter: the kinematic model.
 
     Start it with :meth:`start` (robot streaming, key-point thread) and stop it with :meth:`shutdown`.
@@ -89,6 +93,11 @@ class Controller:
         self.training = Training(self.ctx, self.demos, self.keypoints, arms, self.playback)
         self.scene = SceneActions(self.ctx, backend, self.display, self.playback, arms, lambda: self.teaching.recording)
         self.teaching.takes = self.scene
+        self.execution = ExecutionActions(
+            self.ctx, backend, self.display, self.playback, self.teaching, self.training, self.scene
+        )
+        self.teaching.motion_guard = self.execution.check_free
+        self.playback.guard = self.execution.check_not_running
         self.sessions = SessionActions(
             self.ctx, self.display, self.teaching, self.demos, self.keypoints, self.training, self.playback, self.scene
         )
@@ -158,6 +167,7 @@ class Controller:
 
     def shutdown(self) -> None:
         """Stop following the robot, stop it, unload playback and drop queued work."""
+        self.execution.close()
         self.playback.unload()
         self.teaching.stop_robot()
         self.scene.close()
@@ -177,6 +187,7 @@ __all__ = [
     "Demos",
     "Display",
     "Events",
+    "ExecutionActions",
     "KeypointItem",
     "KeypointTuning",
     "KeypointView",
@@ -191,6 +202,8 @@ __all__ = [
     "Player",
     "PoseSource",
     "Reach",
+    "RunPaths",
+    "RunStatus",
     "Scene",
     "SceneActions",
     "SessionActions",

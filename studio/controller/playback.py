@@ -89,6 +89,9 @@ class Player:
         self.display = display
         self.robot_pose = robot_pose
         self._loaded: Playback | None = None
+        #: Refuses to show a playback while the robot runs a skill: the scene shows the real robot then (set by
+        #: the controller: ``ExecutionActions.check_not_running``).
+        self.guard: Callable[[], None] | None = None
 
     # -- state -----------------------------------------------------------------------------------------------
     @property
@@ -122,6 +125,8 @@ class Player:
     # -- actions ---------------------------------------------------------------------------------------------
     def play(self, kind: PlaybackKind, key: object, make: Callable[[], Recording], speed: float = 1.0) -> Playback:
         """Play (resume when the ``kind`` playback of ``key`` is loaded, from the start once it finished)."""
+        if self.guard is not None:
+            self.guard()
         pb = self._get(kind)
         if pb is not None and pb.key is key:
             if pb.finished:
@@ -148,6 +153,8 @@ class Player:
         self, kind: PlaybackKind, t: float, key: object = None, make: Callable[[], Recording] | None = None
     ) -> None:
         """Show the moment ``t`` s; loads the playback paused when ``make`` is given and it is not loaded."""
+        if self.guard is not None:
+            self.guard()
         pb = self._get(kind)
         if pb is None:
             if make is None:

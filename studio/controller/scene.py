@@ -10,6 +10,9 @@ result of the learned skill in plain words.
 * **Replay and preview**: a world of their own, started from the demonstration's recorded start (or the
   scene's set-up for the preview) and played up to the moment shown (forward by feeding, backward by
   starting over), so a seek, a pause or a speed change always shows the objects as they were.
+* **A run on the robot** (:mod:`studio.controller.execution`): the objects go back to the set-up when it starts
+  and again when the skill itself starts (:meth:`SceneActions.begin_run`); the live world responds to the real
+  joint states; :meth:`SceneActions.end_run` judges what it did against the demonstrations.
 * **Task result**: the preview played through the scene (:func:`~studio.world.simulate`) against what the
   shown demonstrations did (:func:`~studio.world.task_goal`), recomputed when a skill is learned or the
   scene or demonstrations change (:attr:`Topic.TASK`).
@@ -29,7 +32,7 @@ from studio.controller.events import Topic
 from studio.controller.playback import Playback, Player
 from studio.controller.pose import Display
 from studio.core.errors import StudioError
-from studio.core.types import Recording
+from studio.core.types import ARMS, Recording
 from studio.robot_backend.base import RobotBackend
 from studio.world import (
     KINDS,
@@ -39,6 +42,7 @@ from studio.world import (
     TaskResult,
     World,
     WorldEvent,
+    WorldRun,
     bounded,
     on_clock,
     preset,
@@ -208,14 +212,19 @@ class SceneActions:
             self._result = None
             self.ctx.emit(Topic.TASK)
 
+    def _shown_events(self) -> list[tuple[WorldEvent, ...]]:
+        """The object events of every shown demonstration (what the task goal is read from)."""
+        session = self.ctx.session
+        shown = [i for i, r in enumerate(session.recordings) if r.name not in session.hidden_demos]
+        return [session.objects.events(session.demo_files[i]) for i in shown if i < len(session.demo_files)]
+
     def _update_result(self) -> None:
         session = self.ctx.session
         if not session.skills:
             result = None
             key: object = None
         else:
-            shown = [i for i, r in enumerate(session.recordings) if r.name not in session.hidden_demos]
-            events = [session.objects.events(session.demo_files[i]) for i in shown if i < len(session.demo_files)]
+            events = self._shown_events()
             key = (id(session), tuple(id(s) for s in session.skills.values()), self.scene, tuple(map(id, events)))
             if key == self._result_key:
                 return
@@ -224,6 +233,42 @@ class SceneActions:
             result = task_result(run, task_goal(events))
         self._result, self._result_key = result, key
         self.ctx.emit(Topic.TASK)
+
+    # -- a run on the robot (studio.controller.execution) ------------------------------------------------
+    def begin_run(
+        self, t: np.ndarray | None = None, q: np.ndarray | None = None, gripper: np.ndarray | None = None
+    ) -> int:
+        """A run on the robot starts: every object goes back to the set-up, and the live world (which the robot's
+        joint states drive) records what happens from here; returns the bookmark for :meth:`end_run`.
+
+        Called when the run starts (the objects are drawn at the set-up during the approach), and again from
+        the robot's stream when the skill itself starts, with the samples ``t``, ``q``, ``gripper`` from that
+        moment on: the grippers' close/open detection then starts from the skill's first openings, as in the
+        preview, whatever the grippers did on the way there.
+        """
+        t0 = float(t[0]) if t is not None and len(t) else self.live.last_time
+        self.live.reset(self.scene)
+        mark = self.live.mark()
+        self.live.snapshot("start", t0)
+        if t is not None and q is not None and gripper is not None and len(t):
+            self.live.feed(t, q, gripper)
+        return mark
+
+    def end_run(self, mark: int, recording: Recording, t0: float) -> TaskResult | None:
+        """The task result of the run since ``mark``: what the live world did with the objects as the robot's
+        real joint states grasped and released them, against what the shown demonstrations did (None when they
+        moved no object). ``recording``: the run's joint states (times from 0 at stream time ``t0``), for the
+        gripper path the wording uses."""
+        self.live.snapshot("end")
+        events = tuple(self.live.events_since(mark))
+        goal = task_goal(self._shown_events())
+        if not goal.objects:
+            return None
+        step = max(1, round(len(recording) / max(recording.duration * 100.0, 1.0)))  # ~100 Hz, as simulate()
+        q = recording.q[::step]
+        path = {arm: self.ctx.baxter.fk_batch(arm, q[:, :7] if arm == "left" else q[:, 7:])[0] for arm in ARMS}
+        run = WorldRun(events, self.live.poses(), recording.t[::step] + t0, path)
+        return task_result(run, goal)
 
     def close(self) -> None:
         self._unsubscribe()

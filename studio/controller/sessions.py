@@ -86,6 +86,8 @@ class SessionActions:
             raise StudioError(f"Stop the recording before {doing}.")
         if self.training.busy:
             raise StudioError(f"Wait for the training to finish before {doing}.")
+        if self.teaching.backend.progress().active:
+            raise StudioError(f"Wait for the robot's run to end (or press Stop) before {doing}.")
 
     def open(self, name: str) -> None:
         self._check_can_switch("opening another session")

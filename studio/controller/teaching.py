@@ -70,6 +70,8 @@ class Teaching:
         self._session: Session = ctx.session
         self._unsubscribe: Callable[[], None] | None = None
         self.takes: Takes | None = None
+        #: Refuses moving by hand or recording ("before {doing}") during a run or an emergency stop (the controller's).
+        self.motion_guard: Callable[[str], None] = lambda doing: None
         self._owner: object | None = None  # the browser tab that started the running take
         self._discard_asked: float | None = None
 
@@ -134,6 +136,7 @@ class Teaching:
         An unreachable target still moves the arm to the closest pose found; :attr:`reach` says so
         (:attr:`Topic.REACH`). Returns the IK result.
         """
+        self.motion_guard("moving the robot by hand")
         self.display.show_live()
         with self._ik_lock[arm]:  # one solve per arm at a time (a drag sends many updates)
             res = self.ctx.baxter.ik(arm, position, wxyz, self._target_arm(arm), max_iterations=60)
@@ -181,6 +184,7 @@ class Teaching:
 
     def move_joint(self, index: int, value: float) -> None:
         """Move one of the 14 joints (order ALL_ARM_JOINTS) to ``value`` radians, the others held."""
+        self.motion_guard("moving the robot by hand")
         self.display.show_live()
         arm = arm_of_joint(index)
         self.forget_reach((arm,))
@@ -190,8 +194,14 @@ class Teaching:
 
     def set_gripper(self, arm: str, width: float) -> None:
         """Gripper opening in percent (0 = closed, 100 = open)."""
+        self.motion_guard("moving the gripper by hand")
         self.display.show_live()
         self.backend.command_gripper(arm, float(width))
+
+    def forget_targets(self) -> None:
+        """The robot moved by itself (a run on the robot): the next move by hand starts from where it is."""
+        with self.ctx.lock:
+            self._targets.clear()
 
     def gripper_width(self, arm: str) -> float:
         return float(self.robot_gripper()[gripper_column(arm)])
@@ -212,6 +222,7 @@ class Teaching:
         with self.ctx.lock:
             if self._recorder is not None:
                 raise StudioError("A recording is already running (maybe in another tab). Stop it first.")
+            self.motion_guard("recording")
             self.display.show_live()
             session = self.ctx.session
             rec = Recorder(self.backend, session.recording_dir, self.selected_arms, name=self._next_demo_name())

@@ -41,6 +41,12 @@ START_ORIENTATION_RAD = 0.1
 APPROACH_SPEED = 0.3
 #: Arms closer than this (rad, every joint) to the skill's start need no approach.
 AT_START_RAD = 1e-9
+#: During the approach the grippers move to the skill's first openings at this speed (percent per second, half
+#: of Baxter's electric gripper), so that the skill starts with them where it starts (a gripper still closing
+#: from fully open when the skill begins would count as a grasp of nothing).
+APPROACH_GRIPPER_SPEED = 100.0
+#: Grippers closer than this (percent) to the skill's first openings need no approach.
+AT_START_PERCENT = 1e-6
 
 
 def _pose_at(trajectory: Demo, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -223,7 +229,8 @@ def plan_execution(
         approach_speed: fraction of the joint velocity and acceleration limits used for the approach.
 
     Returns:
-        An :class:`ExecutionPlan` that starts at ``q_now`` at rest and ends at rest.
+        An :class:`ExecutionPlan` that starts at ``q_now`` at rest and ends at rest; the approach also brings
+        the grippers to the skill's first openings (at :data:`APPROACH_GRIPPER_SPEED`).
     """
     if not joint_trajectories:
         raise NotEnoughData("There is no learned joint trajectory to run yet; learn the skill first.")
@@ -238,18 +245,24 @@ def plan_execution(
         check_arm(a)
     # approach: every arm that runs a skill moves (rest to rest, straight in joint space) to its first sample
     q_first = q_now.copy()
+    g_first = g_now.copy()
     for a in arms:
         q_first[cols[a]] = joint_trajectories[a].q[0]
+        g_jt = joint_trajectories[a].gripper
+        if g_jt is not None:
+            g_first[0 if a == "left" else 1] = float(np.clip(g_jt[0], 0.0, 100.0))
     dq = q_first - q_now
+    dg = g_first - g_now
     vlim = np.concatenate([b.velocity_limits(a) for a in ARMS]) * approach_speed
     alim = np.concatenate([b.acceleration_limits(a) for a in ARMS]) * approach_speed
     T, v, acc = _trapezoid(dq, vlim, alim) if np.max(np.abs(dq)) > AT_START_RAD else (0.0, 0.0, 1.0)
-    na = math.ceil(T * rate_hz) if T > 0 else 0
+    Tg = float(np.max(np.abs(dg))) / APPROACH_GRIPPER_SPEED if np.max(np.abs(dg)) > AT_START_PERCENT else 0.0
+    na = math.ceil(max(T, Tg) * rate_hz) if max(T, Tg) > 0 else 0
     ta = np.arange(na) / rate_hz
     L = float(np.max(np.abs(dq)))
-    lam = _trapezoid_progress(ta, T, v, acc, L) / max(L, 1e-300) if na else np.zeros(0)
+    lam = _trapezoid_progress(np.minimum(ta, T), T, v, acc, L) / max(L, 1e-300) if na and T > 0 else np.zeros(na)
     q_app = q_now + np.outer(lam, dq)
-    g_app = np.tile(g_now, (na, 1))
+    g_app = g_now + np.outer(np.clip(ta / Tg, 0.0, 1.0) if Tg > 0 else np.ones(na), dg)
     # the skills, on one time line at the plan rate (sample-and-hold of each arm's own samples)
     dur = max(float(jt.t[-1] - jt.t[0]) for jt in joint_trajectories.values())
     ns = math.floor(dur * rate_hz + 1e-9) + 1

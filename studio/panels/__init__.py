@@ -18,6 +18,7 @@ from studio.panels.demos import DemosPanel
 from studio.panels.keypoints import KeypointsPanel
 from studio.panels.preview import PreviewPanel
 from studio.panels.robot import RobotPanel
+from studio.panels.run import RunPanel
 from studio.panels.scene import ScenePanel
 from studio.panels.sessions import SessionsPanel
 from studio.panels.steps import StepPanel
@@ -28,6 +29,7 @@ from studio.panels.train import TrainPanel
 @dataclass
 class Panels:
     robot: RobotPanel
+    run: RunPanel
     teach: TeachPanel
     demos: DemosPanel
     keypoints: KeypointsPanel
@@ -40,6 +42,7 @@ class Panels:
     def tick(self, now: float) -> None:
         """Periodic refresh from the pose pump thread (timers, handles following the robot, playback)."""
         self.robot.tick(now)
+        self.run.tick(now)
         self.scene.tick(now)
         self.teach.tick(now)
         self.preview.tick(now)
@@ -50,8 +53,9 @@ class Panels:
 
 
 def build_panels(ctl: Controller, server: viser.ViserServer, urdf_path: Path) -> Panels:
-    """The robot panel, the step buttons, then one section per step: Teach, Key-points, Train, Preview, Sessions
-    (only the current step's is shown; see :mod:`studio.panels.steps`)."""
+    """The robot panel, the robot's run (status, Stop, Emergency stop), the step buttons, then one section per
+    step: Teach, Key-points, Train, Preview, Sessions (only the current step's is shown; see
+    :mod:`studio.panels.steps`)."""
     gui = server.gui
     gui.add_markdown(
         "Teach Baxter a skill by showing it a few times: guide the arm, record three demonstrations, "
@@ -59,6 +63,7 @@ def build_panels(ctl: Controller, server: viser.ViserServer, urdf_path: Path) ->
         order=-1,
     )
     robot = RobotPanel(ctl, server, urdf_path)
+    run = RunPanel(ctl, server)  # on every step: the robot's run, Stop and the Emergency stop
     sections = {step: gui.add_folder(None, order=10 + i, visible=step == ctl.view.step) for i, step in enumerate(Step)}
     with sections[Step.TEACH]:
         teach = TeachPanel(ctl, server)
@@ -73,4 +78,4 @@ def build_panels(ctl: Controller, server: viser.ViserServer, urdf_path: Path) ->
     with sections[Step.SESSIONS]:
         sessions = SessionsPanel(ctl, server)
     steps = StepPanel(ctl, server, sections)
-    return Panels(robot, teach, demos, keypoints, train, preview, sessions, scene, steps)
+    return Panels(robot, run, teach, demos, keypoints, train, preview, sessions, scene, steps)

@@ -108,6 +108,12 @@ def position_plot_svg(
     return "".join(parts)
 
 
+#: The robot's run in the scene (:mod:`studio.panels.run`), told in Preview's legend: where the gripper really went
+#: (the plan, the learned path, is cyan) and the planned way from where the robot was to the skill's start.
+EXECUTED_COLOR = (200, 0, 170)
+APPROACH_COLOR = (120, 120, 140)
+
+
 def downsample_path(points: np.ndarray, max_points: int = 600) -> np.ndarray:
     """Every k-th point of a (N, 3) path (keeping the last) so a 30,000-sample demo draws quickly."""
     n = len(points)

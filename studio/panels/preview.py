@@ -1,4 +1,6 @@
-"""Preview panel: the generalized trajectory in cyan and the robot executing it (IK joint trajectory)."""
+"""Preview panel: the generalized trajectory in cyan (the stretches the arm cannot follow in red), the drawn robot
+playing its joint trajectory, the task result, and "Run on robot" with the judgement of the robot's run (its
+status, Stop and Emergency stop are on every step: :mod:`studio.panels.run`)."""
 
 from __future__ import annotations
 
@@ -8,8 +10,9 @@ import numpy as np
 import viser
 
 from studio.controller import PREVIEW, Controller, Layer, Topic
+from studio.core.ik_path import Feasibility
 from studio.core.types import ARMS
-from studio.panels._charts import downsample_path, segments
+from studio.panels._charts import APPROACH_COLOR, EXECUTED_COLOR, downsample_path, segments
 
 CYAN = (0, 200, 230)
 IK_FAIL = (230, 30, 30)
@@ -31,6 +34,14 @@ class PreviewPanel:
         self.time = gui.add_slider("Time (s)", min=0.0, max=1.0, step=0.01, initial_value=0.0)
         self.show_path = gui.add_checkbox("Show the learned path", initial_value=ctl.view.shown(Layer.LEARNED_PATH))
         self.task = gui.add_html(self._task_html())  # the task result in words (see _task_html)
+        self.run_btn = gui.add_button(
+            "Run on robot",
+            icon=viser.Icon.ROBOT,
+            hint="Send the learned skill to the robot: it moves to the skill's start, then does the skill while the "
+            "studio records what it really does and compares it with the plan.",
+        )
+        self.run_reason = gui.add_html("")
+        self.run_result = gui.add_html("")
         self._nodes: dict[str, viser.SceneNodeHandle] = {}
         self._last_time_sync = 0.0
 
@@ -38,10 +49,13 @@ class PreviewPanel:
         self.speed.on_update(ctl.guarded("Could not change the speed")(self._on_speed))
         self.time.on_update(ctl.guarded("Could not move to that time")(self._on_time))
         self.show_path.on_update(ctl.guarded()(self._on_show))
+        self.run_btn.on_click(ctl.guarded("Could not run the skill on the robot")(self._on_run))
         ctl.events.on(Topic.SKILL, self.refresh)
         ctl.events.on(Topic.SESSION, self.refresh)
         ctl.events.on(Topic.TASK, self._on_task)
         ctl.events.on(Topic.VIEW, self._apply_view)
+        for topic in (Topic.EXECUTION, Topic.RECORDING, Topic.TRAINING):
+            ctl.events.on(topic, self._on_run_state)
         self.refresh()
 
     def refresh(self) -> None:
@@ -50,7 +64,8 @@ class PreviewPanel:
             for n in self._nodes.values():
                 n.remove()
             self._nodes.clear()
-            fails = 0
+            feasibility = self.ctl.execution.feasibility()
+            unreachable = self.ctl.execution.unreachable_paths()
             for arm in ARMS:
                 skill = skills.get(arm)
                 if skill is None:
@@ -64,15 +79,14 @@ class PreviewPanel:
                     thickness_units="screen",
                     visible=self.ctl.view.shown(Layer.LEARNED_PATH),
                 )
-                bad = self.ctl.training.ik_failures(arm)
-                fails += len(bad)
-                if len(bad):
-                    self._nodes[f"fail_{arm}"] = self.scene.add_point_cloud(
-                        f"/preview/{arm}/ik_failed",
-                        points=bad.astype(np.float32),
+                spans = [segments(downsample_path(p, 200)) for p in unreachable.get(arm, []) if len(p) > 1]
+                if spans:  # the feasibility check's stretches the arm cannot follow, red over the cyan
+                    self._nodes[f"fail_{arm}"] = self.scene.add_line_segments(
+                        f"/preview/{arm}/unreachable",
+                        np.concatenate(spans),
                         colors=IK_FAIL,
-                        point_size=0.03,
-                        point_shape="diamond",
+                        thickness=10.0,
+                        thickness_units="screen",
                         visible=self.ctl.view.shown(Layer.LEARNED_PATH),
                     )
             duration = self.ctl.playback.preview_duration()
@@ -80,7 +94,48 @@ class PreviewPanel:
             self.time.value = 0.0
             for h in (self.speed, self.time):
                 h.disabled = not skills
-            self.info.content = _info(duration, fails) if skills else NOT_TRAINED
+            self.info.content = _info(duration, feasibility) if skills else NOT_TRAINED
+        self._on_run_state()
+
+    # -- Run on robot ------------------------------------------------------------------------------------------
+    def _on_run(self, event: viser.GuiEvent) -> None:
+        self.ctl.execution.run()
+
+    def _on_run_state(self) -> None:
+        """Whether "Run on robot" can start (and why not), and the last run's judgement, on every tab."""
+        execution = self.ctl.execution
+        reason = execution.why_not()
+        running = execution.running
+        if any(not f.ok for f in execution.feasibility().values()):  # its words are above, with the red path
+            reason = "The robot does not run a skill it cannot follow: see what is red on the learned path."
+        quiet = running or reason.startswith("The emergency stop")  # the run's status says so, on every step
+        with self.server.atomic():
+            self.run_btn.disabled = bool(reason)
+            self.run_reason.content = (
+                ""
+                if not reason or quiet
+                else f'<div class="run-reason" style="font-size:0.85em;color:#92400e">{html.escape(reason)}</div>'
+            )
+            self.run_result.content = self._run_html()
+            self.time.disabled = running or not self.ctl.training.skills()  # the scene shows the real robot then
+
+    def _run_html(self) -> str:
+        st = self.ctl.execution.status
+        if not st.result and st.phase == "idle":
+            return ""
+        color = "#15803d" if st.ok else ("#1d4ed8" if st.ok is None else "#b91c1c")
+        head = {True: "On the robot: the skill does the task.", False: "On the robot:", None: "On the robot:"}[st.ok]
+        body = st.result or "the robot is running the skill; the result follows when it ends."
+        legend = (
+            f'<div class="run-legend" style="color:#555;margin-top:2px">{_swatch(CYAN)} the plan (learned path) '
+            f"{_swatch(EXECUTED_COLOR)} where the robot's gripper went {_swatch(APPROACH_COLOR)} the way to the "
+            "skill's start</div>"
+        )
+        return (
+            f'<div class="run-result" data-ok="{str(st.ok).lower()}" data-phase="{st.phase}" style="font-size:0.9em;'
+            f'border-left:4px solid {color};padding:2px 8px;margin:4px 0"><b style="color:{color}">{head}</b> '
+            f"{html.escape(body)}{legend}</div>"
+        )
 
     def _on_controls(self, event: viser.GuiEvent) -> None:
         playback = self.ctl.playback
@@ -138,10 +193,15 @@ class PreviewPanel:
             self.time.value = round(min(pos, self.time.max), 2)
 
 
-def _info(duration: float, fails: int) -> str:
-    note = (
-        f" **{fails} points** of the path cannot be reached exactly (red diamonds)."
-        if fails
-        else " Every point of the path is reachable."
+def _info(duration: float, feasibility: dict[str, Feasibility]) -> str:
+    bad = [f.message for f in feasibility.values() if not f.ok]
+    if bad:
+        return f"Learned path ({duration:.1f} s) in cyan. In red: {' '.join(bad)} Press **Play** to watch it."
+    return (
+        f"Learned path ({duration:.1f} s) in cyan. The arm can follow all of it. "
+        "Press **Play** to watch it, or **Run on robot**."
     )
-    return f"Learned path ({duration:.1f} s) in cyan.{note} Press **Play**."
+
+
+def _swatch(rgb: tuple[int, int, int]) -> str:
+    return f'<span style="color:rgb{rgb};font-weight:900">━━</span>'

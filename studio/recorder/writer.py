@@ -123,6 +123,9 @@ class Recorder:
                 return 0.0
             return max(0.0, float(last - t0))
 
+    #: Stream time (s, the backend's clock) of the first sample written, the recording's ``t = 0`` (None before).
+    first_time = property(lambda self: self._rows.t0)
+
     @property
     def recording(self) -> bool:
         return self.state == "recording"

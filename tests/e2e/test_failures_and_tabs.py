@@ -63,7 +63,7 @@ def test_two_tabs_see_the_same_robot_and_session(browser, studio_factory, shots,
     ui.wait_arm_settled(a)
     ui.click_in_row(a, "Left gripper", "Open")
     ui.wait_status(b, "s.open > 99")
-    b.get_by_role("button", name="Stop").click()  # either tab can stop it
+    b.get_by_role("button", name="Stop", exact=True).click()  # either tab can stop it
     expect(a.locator(".demo-row")).to_have_count(1, timeout=15_000)
     expect(b.locator(".demo-row")).to_have_count(1)
     expect(a.get_by_role("button", name="Record")).to_be_enabled()

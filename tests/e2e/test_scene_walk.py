@@ -106,7 +106,7 @@ def record_demo(page: Page, wp: dict[str, np.ndarray], variant: int) -> None:
     ui.click_in_row(page, "Left gripper", "Open")
     ui.wait_status(page, "s.open > 99")
     set_joints(page, wp["home"])
-    page.get_by_role("button", name="Stop").click()
+    page.get_by_role("button", name="Stop", exact=True).click()
     ui.wait_text(page, "Not recording")
 
 

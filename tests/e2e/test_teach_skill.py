@@ -111,7 +111,7 @@ def teach_one_demo(page: Page, variant: int) -> None:
     ui.set_number(page, "Left shoulder turn (s0) °", 0 - dv)
     ui.set_number(page, "Left shoulder lift (s1) °", -55)
     ui.wait_arm_settled(page)
-    page.get_by_role("button", name="Stop").click()
+    page.get_by_role("button", name="Stop", exact=True).click()
     ui.wait_text(page, "Not recording")
 
 

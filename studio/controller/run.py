@@ -1,0 +1,286 @@
+"""One run of a plan on the robot (what :class:`~studio.controller.execution.ExecutionActions` starts): its
+recording, its trace, following its progress, judging it at the end; and the run's status in plain words.
+
+* :meth:`Run.start` puts the objects back to the set-up, starts a :class:`~studio.recorder.Recorder` (the same as
+  for a demonstration, written to disk as the joint states arrive) in a temporary folder of the run's own — never
+  the session's demonstration folder, whose leftovers crash recovery turns into demonstrations — and sends the
+  plan to the robot. Once the approach is over and the skill itself starts, the objects' world starts again
+  from the set-up with the samples from that moment on (:meth:`SceneActions.begin_run`), so the grippers'
+  close/open detection starts from the skill's first openings, as in the preview.
+* :meth:`Run.follow` reads the robot's progress until it reports the end (or the run is abandoned);
+  :meth:`Run.judge` reads the recording back, compares it with the plan
+  (:func:`~studio.core.execution.compare_execution`) and measures the task result on what the objects did
+  (:meth:`SceneActions.end_run`); :meth:`Run.release` deletes the recorder file and its folder.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import shutil
+import tempfile
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from studio.controller.scene import SceneActions
+from studio.core.errors import StudioError
+from studio.core.execution import ExecutionPlan, TrackingReport, compare_execution
+from studio.core.kinematics import Baxter
+from studio.core.types import Recording
+from studio.recorder import Recorder
+from studio.robot_backend.base import ExecutionProgress, JointStateBatch, RobotBackend
+from studio.world import TaskResult, format_distance
+
+log = logging.getLogger(__name__)
+
+#: How often (s) the run's thread reads the robot's progress.
+POLL_S = 0.02
+#: Samples per second of the drawn paths (planned and executed).
+PATH_RATE_HZ = 100.0
+#: Longest wait (s) for the run's last joint states to arrive once the robot reports the end.
+TAIL_WAIT_S = 1.0
+#: Longest wait (s) for a robot moved by hand a moment ago to hold still before a run is planned.
+HOLD_S = 0.3
+IDLE = "Nothing has run on the robot yet."
+HELD = "Emergency stop: the robot is held where it is. Release the emergency stop to move it again."
+RELEASED = "the emergency stop is released: the robot can move again."
+#: Notification titles at the end of a run.
+TITLES = {
+    "done": "The robot finished the skill",
+    "stopped": "The robot stopped",
+    "emergency-stopped": "Emergency stop",
+    "failed": "The run on the robot failed",
+}
+
+
+@dataclass(frozen=True)
+class RunStatus:
+    """The robot's run in plain words.
+
+    Attributes:
+        phase: "idle" (nothing ran since the skill was learned or the session opened), "running", "stopping",
+            "done", "stopped", "emergency-stopped" or "failed" (see
+            :data:`~studio.robot_backend.base.EXECUTION_STATES`).
+        t, duration: plan time reached and the plan's duration (s).
+        message: what the robot is doing or did, for every tab.
+        result: after the run, how closely it followed the plan and what happened to the objects ("" before).
+        ok: the run ended and did the task (None until judged).
+        estop: the emergency stop is engaged.
+    """
+
+    phase: str = "idle"
+    t: float = 0.0
+    duration: float = 0.0
+    message: str = IDLE
+    result: str = ""
+    ok: bool | None = None
+    estop: bool = False
+
+    @property
+    def active(self) -> bool:
+        """The robot is moving under a plan (running, or slowing down to stop)."""
+        return self.phase in ("running", "stopping")
+
+    @property
+    def fraction(self) -> float:
+        return min(max(self.t / self.duration, 0.0), 1.0) if self.duration > 0 else 0.0
+
+
+@dataclass(frozen=True)
+class RunPaths:
+    """What the scene draws of the last run, per arm (each (n, 3) m, about 100 points a second): ``approach``,
+    the planned way from where the robot was to the skill's start (the rest of the plan is the learned path);
+    ``executed``, where the gripper really went. ``key`` changes whenever they do."""
+
+    key: tuple[int, ...] = ()
+    approach: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
+    executed: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
+
+
+class Trace:
+    """A backend listener during a run: keeps the joint states at about :data:`PATH_RATE_HZ` (to draw where the
+    gripper went) and the newest sample's time, and calls ``begin`` with the samples from the skill's start
+    (stream time ``skill_at``, set once the robot says when the plan started); ``mark`` is what it returned."""
+
+    def __init__(self, begin: Callable[[np.ndarray, np.ndarray, np.ndarray], int] | None = None) -> None:
+        self._lock = threading.Lock()
+        self._q: list[np.ndarray] = []
+        self._bucket = -np.inf
+        self.count = 0
+        self.last_t = -np.inf
+        self._begin = begin
+        self.skill_at: float | None = None
+        self.mark: int | None = None
+
+    def __call__(self, batch: JointStateBatch) -> None:
+        t = np.asarray(batch.t)
+        bucket = np.floor(t * PATH_RATE_HZ)
+        with self._lock:
+            keep = bucket > np.concatenate([[self._bucket], bucket[:-1]])
+            if keep.any():
+                self._q.append(np.array(batch.q[keep], dtype=np.float64))
+                self._bucket = float(bucket[-1])
+                self.count += int(keep.sum())
+            if len(t):
+                self.last_t = float(t[-1])
+        at = self.skill_at
+        if self._begin is not None and at is not None and len(t) and t[-1] >= at - 1e-9:
+            k = int(np.searchsorted(t, at - 1e-9))
+            begin, self._begin = self._begin, None
+            self.mark = begin(t[k:], np.asarray(batch.q)[k:], np.asarray(batch.gripper)[k:])
+
+    def joints(self) -> np.ndarray:
+        with self._lock:
+            return np.concatenate(self._q) if self._q else np.zeros((0, 14))
+
+
+@dataclass(frozen=True)
+class Judged:
+    """A finished run: its recording (times from 0 at the first sample), tracking report and task result."""
+
+    recording: Recording
+    report: TrackingReport
+    task: TaskResult | None
+
+
+class Run:
+    """One plan executed by the robot (see the module docstring); :meth:`start` makes one."""
+
+    def __init__(self, plan: ExecutionPlan, backend: RobotBackend, scene: SceneActions, baxter: Baxter) -> None:
+        self.plan = plan
+        self.backend = backend
+        self.scene = scene
+        self.baxter = baxter
+        self.folder = Path(tempfile.mkdtemp(prefix="teaching-studio-run-"))
+        self.recorder = Recorder(backend, self.folder, plan.arms, name="run on the robot", baxter=baxter)
+        self.trace = Trace(scene.begin_run)
+        self.mark = 0
+        self.cancel = threading.Event()
+        self.thread: threading.Thread | None = None
+        self._unsubscribe: Callable[[], None] | None = None
+
+    @classmethod
+    def start(cls, plan: ExecutionPlan, backend: RobotBackend, scene: SceneActions, baxter: Baxter) -> Run:
+        """Objects to the set-up, the recorder on, the plan sent to the robot (all undone if the robot refuses)."""
+        run = cls(plan, backend, scene, baxter)
+        try:
+            run.mark = scene.begin_run()
+            run.recorder.start()
+            run._unsubscribe = backend.subscribe(run.trace)
+            t_now = backend.state().t
+            backend.execute(plan)
+            started = backend.progress().started_at
+            run.trace.skill_at = (started if started is not None else t_now) + plan.skill_start
+        except BaseException:
+            run.release()
+            raise
+        return run
+
+    def follow(self, on_progress: Callable[[ExecutionProgress], None]) -> ExecutionProgress | None:
+        """Read the robot's progress until it reports the end (returned) or the run is abandoned (None)."""
+        while not self.cancel.wait(POLL_S):
+            p = self.backend.progress()
+            on_progress(p)
+            if not p.active:
+                return p
+        return None
+
+    def judge(self, p: ExecutionProgress) -> Judged:
+        """The robot reports the end ``p``: the recording's tail, the comparison with the plan, the task result."""
+        end = (p.started_at or 0.0) + p.t
+        for _ in range(int(TAIL_WAIT_S / POLL_S)):  # the recorder has every sample the trace has seen
+            if self.trace.last_t >= end - 1e-6:
+                break
+            self.cancel.wait(POLL_S)
+        recording = self.recorder.stop()
+        t0 = self.recorder.first_time or 0.0
+        start = p.started_at - t0 if p.started_at is not None else None
+        report = compare_execution(self.plan, recording, self.baxter, start_time=start)
+        mark = self.trace.mark if self.trace.mark is not None else self.mark  # the skill began, or only the approach
+        return Judged(recording, report, self.scene.end_run(mark, recording, t0))
+
+    def paths(self) -> RunPaths:
+        """The planned approach and the executed path so far (see :class:`RunPaths`)."""
+        plan, b = self.plan, self.baxter
+        cols = {"left": slice(0, 7), "right": slice(7, 14)}
+        step = max(1, round(plan.rate_hz / PATH_RATE_HZ))
+        n_app = round(plan.skill_start * plan.rate_hz) + 1
+        approach = {a: b.fk_batch(a, plan.q[:n_app:step, cols[a]])[0] for a in plan.arms} if n_app > step else {}
+        q = self.trace.joints()
+        executed = {a: b.fk_batch(a, q[:, cols[a]])[0] for a in plan.arms} if len(q) else {}
+        return RunPaths((id(self), self.trace.count), approach, executed)
+
+    def release(self) -> None:
+        """The run is over (or abandoned): stop listening, delete its recorder file and folder."""
+        unsubscribe, self._unsubscribe = self._unsubscribe, None
+        if unsubscribe is not None:
+            try:
+                unsubscribe()
+            except Exception:  # the backend may be gone at shutdown
+                log.debug("unsubscribing the run's trace", exc_info=True)
+        try:
+            self.recorder.discard()
+        finally:
+            shutil.rmtree(self.folder, ignore_errors=True)
+
+
+def hold_still(backend: RobotBackend) -> None:
+    """A robot still going where it was moved by hand holds where it is, at rest for a few control cycles, so a
+    plan starts from rest there; refused in plain words when it does not settle within :data:`HOLD_S`."""
+    if not backend.state().moving:
+        return
+    backend.stop_motion()
+    t_hold = backend.state().t
+    deadline = time.monotonic() + HOLD_S
+    while time.monotonic() < deadline:
+        st = backend.state()
+        if not st.moving and st.t >= t_hold + 3.0 / backend.rate_hz:
+            return
+        time.sleep(0.005)
+    raise StudioError(
+        "The robot is still moving to where you moved it by hand: wait until it stands still, then press "
+        "Run on robot again."
+    )
+
+
+# -- the run in words ----------------------------------------------------------------------------------------
+def ended(p: ExecutionProgress, estop: bool) -> str:
+    """How the run ended, in plain words (``estop``: the emergency stop is still engaged)."""
+    when = f"{p.t:.1f} s of {p.duration:.1f} s"
+    if p.state == "done":
+        return f"The robot finished the skill ({p.duration:.1f} s)."
+    if p.state == "stopped":
+        return f"The robot stopped at {when}, as you asked."
+    if p.state == "emergency-stopped":
+        if not estop:  # released while the run was being judged
+            return f"The run ended with an emergency stop at {when}; {RELEASED}"
+        return f"Emergency stop: the robot halted at {when}. Release the emergency stop to move it again."
+    return p.message or "The run on the robot ended."
+
+
+def tracking_words(d: float) -> str:
+    """A tracking error in words: "0.1 mm" at least, tenths of a millimetre below 1 cm, then centimetres."""
+    if d < 0.01:
+        return f"{max(d, 0.0001) * 1000:.1f} mm"
+    return format_distance(d)
+
+
+def judgement(p: ExecutionProgress, report: TrackingReport, task: TaskResult | None) -> str:
+    """The run in one or two sentences: how closely it followed the plan, then what happened to the objects."""
+    within = f"within {tracking_words(report.max_path_error)}"
+    if p.state == "done":
+        head = f"The robot followed the plan {within}"
+        if task is None:
+            return head + "."
+        return f"{head}; {task.text[:1].lower()}{task.text[1:]}"
+    pct = round(report.completed * 100)
+    head = f"Up to there ({pct}% of the run) the robot followed the plan {within}."
+    return head + (f" {task.text}" if task is not None else "")
+
+
+__all__ = ["Judged", "Run", "RunPaths", "RunStatus", "Trace", "ended", "hold_still", "judgement", "tracking_words"]

@@ -1,0 +1,96 @@
+"""The robot's run in the panels, with a server and no browser: Preview's "Run on robot" and its reason, the
+stretches the arm cannot follow drawn red where they are, the "Robot's run" status and buttons, and the executed
+path drawn on the plan with the "Robot's run" layer. (In Chromium: tests/e2e/test_execution_browser.py.)"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from studio.app import Studio, build_app
+from studio.controller import Layer, Step, Topic
+from studio.core.execution import joint_trajectory
+from studio.panels._charts import EXECUTED_COLOR
+from studio.robot_backend.simulated import SimulatedBaxter
+from tests.conftest import free_port, wait_for
+
+
+@pytest.fixture
+def app(sessions: Path) -> Iterator[Studio]:
+    """The stack-cup example, trained, on a simulated robot 8× faster than real time."""
+    a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions, backend=SimulatedBaxter(time_scale=8))
+    a.controller.training.train().result()
+    yield a
+    a.stop()
+
+
+def nodes(app: Studio) -> dict[str, Any]:
+    return dict(app.server.scene._handle_from_node_name)
+
+
+def test_a_skill_the_arm_cannot_follow_is_drawn_red_and_not_run(app: Studio) -> None:
+    ctl, preview = app.controller, app.panels.preview
+    assert not preview.run_btn.disabled and preview.run_reason.content == ""
+    assert "The arm can follow all of it." in preview.info.content
+    assert "/preview/left/unreachable" not in nodes(app)
+    skill = ctl.session.skills["left"]
+    tr = skill.trajectory
+    bump = np.exp(-(((tr.t - tr.t[0]) - 6.0) ** 2) / (2 * 0.4**2))  # 6 s in, the path goes 60 cm out
+    far = dataclasses.replace(tr, position=tr.position + np.outer(bump, [0.6, 0.0, 0.0]))
+    assert skill.joint_trajectory is not None
+    jt = joint_trajectory(far, "left", skill.joint_trajectory.q[0], ctl.baxter)
+    ctl.session.set_skills({"left": dataclasses.replace(skill, trajectory=far, joint_trajectory=jt)})
+    ctl.events.emit(Topic.SKILL)
+    assert "In red: The left gripper cannot reach" in preview.info.content
+    assert preview.run_btn.disabled
+    assert "does not run a skill it cannot follow" in preview.run_reason.content
+    red = nodes(app)["/preview/left/unreachable"]
+    pts = np.asarray(red.points, dtype=np.float64).reshape(-1, 3)
+    assert tuple(np.asarray(red.colors).reshape(-1, 3)[0]) == (230, 30, 30)
+    # drawn where the path goes out of reach: every red point is a point of that stretch of the learned path
+    span = ctl.execution.unreachable_paths()["left"][0]
+    assert np.min(np.linalg.norm(pts[:, None, :] - span[None, :, :], axis=2), axis=1).max() < 1e-6
+    assert pts[:, 0].max() > tr.position[:, 0].max() + 0.3
+    ctl.view.set_shown(Layer.LEARNED_PATH, False)  # it goes with the learned path
+    assert not red.visible
+
+
+def test_the_run_is_shown_while_it_runs_and_after(app: Studio) -> None:
+    ctl, run_panel, preview = app.controller, app.panels.run, app.panels.preview
+    ctl.view.set_step(Step.PREVIEW)
+    assert 'data-phase="idle"' in run_panel.status.content and not run_panel.stop_btn.visible
+    assert run_panel.estop_btn.visible and not run_panel.release_btn.visible
+    ctl.execution.run()
+    assert 'data-phase="running"' in run_panel.status.content
+    assert run_panel.stop_btn.visible and preview.run_btn.disabled and preview.time.disabled
+    assert wait_for(lambda: len(app.panels.run._nodes) > 0, timeout=10)  # the executed path grows meanwhile
+    assert wait_for(lambda: 'data-phase="done"' in run_panel.status.content, timeout=60)  # every tab is told
+    assert wait_for(lambda: 'data-ok="true"' in preview.run_result.content, timeout=5)
+    assert not run_panel.stop_btn.visible
+    assert run_panel.progress.value == 100.0
+    assert 'class="run-result" data-ok="true"' in preview.run_result.content
+    assert not preview.run_btn.disabled
+    # The executed path, drawn in its colour, lies on the plan (what was computed is what is drawn).
+    plan = ctl.execution.plan
+    assert plan is not None
+    drawn = nodes(app)["/run/left/executed"]
+    assert tuple(np.asarray(drawn.colors).reshape(-1, 3)[0]) == EXECUTED_COLOR
+    pts = np.asarray(drawn.points, dtype=np.float64).reshape(-1, 3)
+    planned = ctl.baxter.fk_batch("left", plan.q[::5, :7])[0]
+    assert len(pts) > 500
+    assert np.min(np.linalg.norm(pts[::5, None, :] - planned[None, :, :], axis=2), axis=1).max() < 3e-3
+    # The "Robot's run" layer hides and shows it.
+    ctl.view.set_shown(Layer.EXECUTION, False)
+    assert not drawn.visible
+    ctl.view.set_step(Step.TEACH)
+    ctl.view.set_step(Step.PREVIEW)
+    assert drawn.visible
+    # A new skill: the last run was of the old one, so its drawing and words go.
+    ctl.training.train().result()
+    assert wait_for(lambda: "/run/left/executed" not in nodes(app), timeout=10)
+    assert 'data-phase="idle"' in run_panel.status.content and preview.run_result.content == ""
