@@ -16,4 +16,5 @@ echo "==> lint (ruff) and types (mypy)"
 .venv/bin/ruff check studio tests bench scripts
 .venv/bin/mypy
 echo "==> tests"
-exec .venv/bin/python -m pytest "$@"
+# Two workers (the machine has two cores): the browser tests one after another on one, the rest on the other.
+exec .venv/bin/python -m pytest -n 2 --dist loadgroup "$@"
