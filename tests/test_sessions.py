@@ -591,3 +591,22 @@ def test_invalid_n_clusters_in_the_manifest_is_named(store: SessionStore, three,
     m["n_clusters"] = value
     (three.path / "session.json").write_text(json.dumps(m))
     _expect_error(store, "three demos", '"session.json".*invalid "n_clusters"')
+
+
+def test_a_change_that_would_make_the_manifest_unopenable_is_refused_and_nothing_is_lost(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import studio.storage.manifest as manifest
+
+    store = SessionStore(tmp_path)
+    s = store.create("big")
+    monkeypatch.setattr(manifest, "MAX_MANIFEST_BYTES", 2500)  # a few demonstrations' worth
+    kept = 0
+    with pytest.raises(InvalidInput, match="nothing was changed"):
+        for i in range(50):
+            s.add_recording(make_rec(seed=i, name=f"d{i}"))
+            kept += 1
+    assert 0 < kept < 50 and len(s.recordings) == kept  # the refused one is undone in memory too
+    assert (s.path / "session.json").stat().st_size <= 2500
+    again = store.open("big")  # opens with every demonstration saved before the refusal
+    assert [r.name for r in again.recordings] == [f"d{i}" for i in range(kept)]

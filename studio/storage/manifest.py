@@ -171,7 +171,15 @@ class Manifest:
         return out
 
     def to_bytes(self) -> bytes:
-        return json.dumps(self.to_json(), indent=2, ensure_ascii=False).encode("utf-8") + b"\n"
+        """The file's bytes; refused if it could not be opened again (the reading limit), so nothing is written."""
+        data = json.dumps(self.to_json(), indent=2, ensure_ascii=False).encode("utf-8") + b"\n"
+        if len(data) > MAX_MANIFEST_BYTES:
+            raise InvalidInput(
+                f"This change would make the session's description {len(data) / 2**20:.1f} MB, more than the "
+                f"{MAX_MANIFEST_BYTES / 2**20:.0f} MB a session can be opened with; nothing was changed. Delete "
+                "demonstrations you no longer need or remove objects from the table, or start a new session."
+            )
+        return data
 
     # -- reading ----------------------------------------------------------------------------------------------
     @classmethod
