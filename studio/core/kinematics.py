@@ -139,6 +139,16 @@ def dh_fk(q: np.ndarray, table: np.ndarray = DH_TABLE) -> np.ndarray:
     return T
 
 
+
+def _mix(row: list[Any], col: np.ndarray) -> Any:
+    """Σ_k row[k]·col[k], skipping the zero entries of ``col`` (the placements are mostly axis permutations)."""
+    out: Any = 0.0
+    for k in range(3):
+        if col[k] != 0.0:
+            out = out + row[k] * col[k]
+    return out
+
+
 class _ArmChain:
     """One arm as seven z-axis revolute joints with fixed placements: FK vectorised over N configurations."""
 
@@ -171,32 +181,7 @@ class _ArmChain:
         machine this is 3-5x faster than stacked (N,3,3) matrix products, whose BLAS threads contend
         with other work.
         """
-        n = Q.shape[0]
-        c, s = np.cos(Q).T.copy(), np.sin(Q).T.copy()
-        B = self.base
-        R: list[list[Any]] = [[np.full(n, B[r, k]) for k in range(3)] for r in range(3)]
-        p: list[Any] = [np.full(n, B[r, 3]) for r in range(3)]
-
-        def mix(row: list[Any], col: np.ndarray) -> Any:
-            out: Any = 0.0
-            for k in range(3):
-                if col[k] != 0.0:
-                    out = out + row[k] * col[k]
-            return out
-
-        for i in range(7):
-            P = self.placements[i]
-            p = [p[r] + mix(R[r], P[:3, 3]) for r in range(3)]
-            A = [[mix(R[r], P[:3, j]) for j in range(3)] for r in range(3)]
-            ci, si = c[i], s[i]
-            # A · Rz(q_i): only the first two columns mix.
-            R = [[ci * A[r][0] + si * A[r][1], ci * A[r][1] - si * A[r][0], A[r][2]] for r in range(3)]
-        E = self.ee
-        pos = np.column_stack([p[r] + mix(R[r], E[:3, 3]) for r in range(3)])
-        rot = np.empty((n, 3, 3))
-        for r in range(3):
-            for j in range(3):
-                rot[:, r, j] = mix(R[r], E[:3, j])
+        rot, pos, _, _ = self._chain(Q, joints=False)
         return rot, pos
 
     def pose_jacobian_columns(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -207,34 +192,8 @@ class _ArmChain:
         so column i is (z_i × (p − o_i), z_i) with o_i, z_i that joint's origin and axis — the same
         element-wise arithmetic as :meth:`pose_columns`, vectorised over N.
         """
+        rot, pos, origins, axes = self._chain(Q, joints=True)
         n = Q.shape[0]
-        c, s = np.cos(Q).T.copy(), np.sin(Q).T.copy()
-        B = self.base
-        R: list[list[Any]] = [[np.full(n, B[r, k]) for k in range(3)] for r in range(3)]
-        p: list[Any] = [np.full(n, B[r, 3]) for r in range(3)]
-
-        def mix(row: list[Any], col: np.ndarray) -> Any:
-            out: Any = 0.0
-            for k in range(3):
-                if col[k] != 0.0:
-                    out = out + row[k] * col[k]
-            return out
-
-        origins, axes = [], []
-        for i in range(7):
-            P = self.placements[i]
-            p = [p[r] + mix(R[r], P[:3, 3]) for r in range(3)]
-            A = [[mix(R[r], P[:3, j]) for j in range(3)] for r in range(3)]
-            origins.append(p)
-            axes.append([A[r][2] for r in range(3)])
-            ci, si = c[i], s[i]
-            R = [[ci * A[r][0] + si * A[r][1], ci * A[r][1] - si * A[r][0], A[r][2]] for r in range(3)]
-        E = self.ee
-        pos = np.column_stack([p[r] + mix(R[r], E[:3, 3]) for r in range(3)])
-        rot = np.empty((n, 3, 3))
-        for r in range(3):
-            for j in range(3):
-                rot[:, r, j] = mix(R[r], E[:3, j])
         J = np.empty((n, 6, 7))
         for i in range(7):
             z, o = axes[i], origins[i]
@@ -246,6 +205,35 @@ class _ArmChain:
             J[:, 4, i] = z[1]
             J[:, 5, i] = z[2]
         return rot, pos, J
+
+    def _chain(self, Q: np.ndarray, *, joints: bool) -> tuple[np.ndarray, np.ndarray, list[Any], list[Any]]:
+        """Gripper rotation (N, 3, 3) and position (N, 3) by the element-wise product chain of
+        :meth:`pose_columns`; with ``joints``, also each joint's origin and z axis (3 columns each, for the
+        Jacobian)."""
+        n = Q.shape[0]
+        c, s = np.cos(Q).T.copy(), np.sin(Q).T.copy()
+        B = self.base
+        R: list[list[Any]] = [[np.full(n, B[r, k]) for k in range(3)] for r in range(3)]
+        p: list[Any] = [np.full(n, B[r, 3]) for r in range(3)]
+        origins: list[Any] = []
+        axes: list[Any] = []
+        for i in range(7):
+            P = self.placements[i]
+            p = [p[r] + _mix(R[r], P[:3, 3]) for r in range(3)]
+            A = [[_mix(R[r], P[:3, j]) for j in range(3)] for r in range(3)]
+            if joints:
+                origins.append(p)
+                axes.append([A[r][2] for r in range(3)])
+            ci, si = c[i], s[i]
+            # A · Rz(q_i): only the first two columns mix.
+            R = [[ci * A[r][0] + si * A[r][1], ci * A[r][1] - si * A[r][0], A[r][2]] for r in range(3)]
+        E = self.ee
+        pos = np.column_stack([p[r] + _mix(R[r], E[:3, 3]) for r in range(3)])
+        rot = np.empty((n, 3, 3))
+        for r in range(3):
+            for j in range(3):
+                rot[:, r, j] = _mix(R[r], E[:3, j])
+        return rot, pos, origins, axes
 
     def transforms(self, Q: np.ndarray) -> np.ndarray:
         """(N, 4, 4) world transforms of the gripper frame for joint angles Q (N, 7)."""
