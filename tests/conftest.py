@@ -6,14 +6,17 @@ from __future__ import annotations
 import os
 import shutil
 import socket
+import threading
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import numpy as np
 import pytest
 
 from studio.controller import Kind, Notifier
+from studio.robot_backend.base import JointStateBatch
 
 if TYPE_CHECKING:
     from playwright.sync_api import Browser
@@ -92,3 +95,24 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     for item in items:
         if "tests/e2e/" in item.nodeid.replace("\\", "/") or item.nodeid.startswith("e2e/"):
             item.add_marker(pytest.mark.xdist_group("browser"))
+
+
+class Collector:
+    """A robot backend listener keeping every joint-state batch (thread-safe); ``arrays()``: t, q, gripper."""
+
+    def __init__(self) -> None:
+        self.batches: list[JointStateBatch] = []
+        self.lock = threading.Lock()
+
+    def __call__(self, b: JointStateBatch) -> None:
+        with self.lock:
+            self.batches.append(b)
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        with self.lock:
+            bs = list(self.batches)
+        return (
+            np.concatenate([b.t for b in bs]),
+            np.concatenate([b.q for b in bs]),
+            np.concatenate([b.gripper for b in bs]),
+        )

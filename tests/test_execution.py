@@ -4,7 +4,6 @@ demonstration and compared with the plan."""
 
 from __future__ import annotations
 
-import threading
 import time
 from pathlib import Path
 
@@ -18,9 +17,9 @@ from studio.core.pipeline import learn_skill
 from studio.core.timing import limit_ratio
 from studio.core.types import Recording
 from studio.recorder import Recorder
-from studio.robot_backend.base import JointStateBatch
 from studio.robot_backend.replay import ReplayBackend
 from studio.robot_backend.simulated import SimulatedBaxter
+from tests.conftest import Collector
 from tests.core.teacher_demos import demos
 
 
@@ -28,20 +27,6 @@ from tests.core.teacher_demos import demos
 def skill():
     return learn_skill(list(demos("stack-cup")), arm="left")
 
-
-class Collector:
-    def __init__(self) -> None:
-        self.batches: list[JointStateBatch] = []
-        self.lock = threading.Lock()
-
-    def __call__(self, b: JointStateBatch) -> None:
-        with self.lock:
-            self.batches.append(b)
-
-    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        with self.lock:
-            bs = list(self.batches)
-        return tuple(np.concatenate([getattr(b, f) for b in bs]) for f in ("t", "q", "gripper"))  # type: ignore[return-value]
 
 
 def _limits() -> tuple[np.ndarray, np.ndarray]:

@@ -15,25 +15,7 @@ from studio.robot_backend._clock import BatchClock
 from studio.robot_backend.base import JointStateBatch, RobotBackend
 from studio.robot_backend.replay import ReplayBackend
 from studio.robot_backend.simulated import SimulatedBaxter, rate_limited, rate_limited_series
-
-
-class Collector:
-    def __init__(self) -> None:
-        self.batches: list[JointStateBatch] = []
-        self.lock = threading.Lock()
-
-    def __call__(self, b: JointStateBatch) -> None:
-        with self.lock:
-            self.batches.append(b)
-
-    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        with self.lock:
-            bs = list(self.batches)
-        return (
-            np.concatenate([b.t for b in bs]),
-            np.concatenate([b.q for b in bs]),
-            np.concatenate([b.gripper for b in bs]),
-        )
+from tests.conftest import Collector
 
 
 def _busy(stop: threading.Event) -> None:
