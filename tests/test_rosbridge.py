@@ -200,6 +200,16 @@ def test_joint_states_reach_the_subscribers_by_name(bridge: FakeRosbridge, robot
     assert _wait(lambda: robot.state().gripper[0] == 100.0)
 
 
+def test_joint_states_arrive_while_a_command_holds_the_robot(bridge: FakeRosbridge, robot: RosbridgeBaxter) -> None:
+    """roslibpy calls the state callbacks holding its own event lock; if they waited for the command lock, a
+    command publishing through roslibpy (start's advertise did, in CI) would wait for them: a deadlock."""
+    got: list[JointStateBatch] = []
+    robot.subscribe(got.append)
+    with robot._lock:  # what start, execute and every command tick hold while they publish
+        assert _wait(lambda: len(got) >= 10), "joint states stopped while a command was being sent"
+        assert robot.has_state and robot.state().q.shape == (14,)
+
+
 def test_joint_commands_are_position_mode_by_name_at_100_hz(bridge: FakeRosbridge, robot: RosbridgeBaxter) -> None:
     target = robot.state().q[:7] + 0.05
     robot.command_joints("left", target)
@@ -223,7 +233,7 @@ def test_joint_commands_are_position_mode_by_name_at_100_hz(bridge: FakeRosbridg
 
 
 def test_gripper_commands_go_to_the_grippers_hardware_id(bridge: FakeRosbridge, robot: RosbridgeBaxter) -> None:
-    assert _wait(lambda: robot._gripper_id[1] == 65665)  # learned from the gripper's state messages
+    assert _wait(lambda: robot._state.hardware_id(1) == 65665)  # learned from the gripper's state messages
     robot.command_gripper("right", 35.0)
     assert _wait(lambda: bridge.by_op("publish", "/robot/end_effector/right_gripper/command"))
     m = bridge.by_op("publish", "/robot/end_effector/right_gripper/command")[-1][1]["msg"]

@@ -150,8 +150,7 @@ class RosbridgeBaxter(RobotBackend):
         self._link = RosLink(self.url, self.connect_timeout, ros_factory)
         self._hub = ListenerHub()
         self._lock = threading.RLock()
-        self._state = StateReader()
-        self._gripper_id = self._state.gripper_id  # the grippers' hardware ids (from their state messages)
+        self._state = StateReader()  # its own lock: the state callbacks never wait for ``_lock``
         self._seq = 0
         # commands
         self._target: dict[str, np.ndarray] = {}
@@ -208,14 +207,12 @@ class RosbridgeBaxter(RobotBackend):
 
     # -- incoming ---------------------------------------------------------------------------------------------
     def _on_joint_state(self, msg: dict[str, Any]) -> None:
-        with self._lock:
-            batch = self._state.on_joint_state(msg)
+        batch = self._state.on_joint_state(msg)
         if batch is not None:
             self._hub.deliver(batch)
 
     def _on_gripper_state(self, i: int, msg: dict[str, Any]) -> None:
-        with self._lock:
-            self._state.on_gripper_state(i, msg)
+        self._state.on_gripper_state(i, msg)
 
     # -- commands ---------------------------------------------------------------------------------------------
     def _joint_command(self, arm: str, q: np.ndarray) -> None:
@@ -224,7 +221,7 @@ class RosbridgeBaxter(RobotBackend):
 
     def _gripper_command(self, i: int, width: float) -> None:
         self._seq += 1
-        msg = gripper_command(self._state.gripper_id[i], width, self._seq)
+        msg = gripper_command(self._state.hardware_id(i), width, self._seq)
         self._link.publish(GRIPPER_COMMAND.format(arm=ARMS[i]), GRIPPER_COMMAND_TYPE, msg)
         self._last_grip_cmd[i] = width
 
@@ -263,17 +260,14 @@ class RosbridgeBaxter(RobotBackend):
             self._gripper_command(i, w)
 
     def state(self) -> RobotState:
-        with self._lock:
-            s = self._state
-            q = np.where(np.isnan(s.q), 0.0, s.q)
-            g = np.where(np.isnan(s.g), 100.0, s.g)
-            return RobotState(s.t, _ro(q), _ro(g), moving=self._run is not None)
+        t, q, g = self._state.measured()
+        q, g = np.where(np.isnan(q), 0.0, q), np.where(np.isnan(g), 100.0, g)
+        return RobotState(t, _ro(q), _ro(g), moving=self._run is not None)
 
     @property
     def has_state(self) -> bool:
         """True once every arm joint has been heard from the robot."""
-        with self._lock:
-            return self._state.complete
+        return self._state.complete
 
     # -- execution --------------------------------------------------------------------------------------------
     def execute(self, plan: ExecutionPlan) -> None:
@@ -285,13 +279,14 @@ class RosbridgeBaxter(RobotBackend):
                 raise StudioError("The robot is already running a skill: stop it first.")
             if not self.has_state:
                 raise StudioError("No joint states from the robot yet; check that it is on and enabled.")
-            off = float(np.max(np.abs(np.asarray(plan.q[0]) - self._state.q)))
+            t, q, _ = self._state.measured()
+            off = float(np.max(np.abs(np.asarray(plan.q[0]) - q)))
             if off > 0.02:
                 raise StudioError(
                     f"The robot moved since the run was planned (by {math.degrees(off):.0f}° at one joint); "
                     "press Run again to plan from where it is now."
                 )
-            self._run = _Run(plan, self._state.t)
+            self._run = _Run(plan, t)
             self._last_grip_cmd[:] = np.nan
             self._exec = self._run.progress
 
@@ -310,10 +305,11 @@ class RosbridgeBaxter(RobotBackend):
             was_running = self._run is not None
             self._run = None
             self._target.clear()
-            if self._link.open and self.has_state:
+            q = self._state.measured()[1]
+            if self._link.open and not np.any(np.isnan(q)):
                 for arm in ARMS:
                     try:
-                        self._joint_command(arm, self._state.q[_cols(arm)])
+                        self._joint_command(arm, q[_cols(arm)])
                     except Exception:  # the connection dropped: nothing more can be sent
                         log.exception("emergency hold could not be sent")
             if was_running or self._exec.active:

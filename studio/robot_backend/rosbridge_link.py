@@ -23,6 +23,7 @@ from __future__ import annotations
 import json
 import logging
 import math
+import threading
 import time
 from collections.abc import Callable
 from typing import Any
@@ -120,9 +121,15 @@ def gripper_state(msg: dict[str, Any]) -> tuple[float | None, int | None]:
 
 class StateReader:
     """The robot's state as its messages tell it: joint angles matched by name, gripper openings and hardware
-    ids, time stamps (s since the first message, increasing). Not thread-safe: the backend holds its lock."""
+    ids, time stamps (s since the first message, increasing).
+
+    Thread-safe with a lock of its own that is never held while calling out. roslibpy calls the state callbacks
+    while holding its event lock, and the backend publishes through roslibpy while holding its command lock, so
+    the callbacks must not wait on the command lock: they did, and ``start`` deadlocked in CI (2026-11-23).
+    """
 
     def __init__(self) -> None:
+        self._lock = threading.Lock()
         self._names = {n: i for i, n in enumerate(ALL_ARM_JOINTS)}
         self.q = np.full(14, np.nan)
         self.g = np.full(2, np.nan)
@@ -134,7 +141,21 @@ class StateReader:
     @property
     def complete(self) -> bool:
         """True once every arm joint has been heard."""
+        with self._lock:
+            return self._complete()
+
+    def _complete(self) -> bool:
         return not np.any(np.isnan(self.q))
+
+    def measured(self) -> tuple[float, np.ndarray, np.ndarray]:
+        """(t, q (14,), gripper (2,)) as last heard, copies; NaN where not heard yet."""
+        with self._lock:
+            return self.t, self.q.copy(), self.g.copy()
+
+    def hardware_id(self, i: int) -> int:
+        """Gripper ``i``'s hardware id (for its commands)."""
+        with self._lock:
+            return self.gripper_id[i]
 
     def on_joint_state(self, msg: dict[str, Any]) -> JointStateBatch | None:
         """Take in a ``sensor_msgs/JointState``; the sample to stream, or None (malformed, not every arm joint
@@ -143,12 +164,15 @@ class StateReader:
         if fields is None:
             log.warning("ignoring a malformed joint state message")
             return None
-        names, pos, st = fields
+        with self._lock:
+            return self._take(*fields)
+
+    def _take(self, names: list[Any], pos: list[Any], st: float) -> JointStateBatch | None:
         for n, v in zip(names, pos, strict=False):
             i = self._names.get(n)
             if i is not None and isinstance(v, int | float) and math.isfinite(v):
                 self.q[i] = float(v)
-        if not self.complete:
+        if not self._complete():
             return None
         if st <= 0.0:
             st = time.monotonic()
@@ -164,10 +188,11 @@ class StateReader:
     def on_gripper_state(self, i: int, msg: dict[str, Any]) -> None:
         """Take in gripper ``i``'s ``baxter_core_msgs/EndEffectorState``."""
         position, hardware_id = gripper_state(msg)
-        if position is not None:
-            self.g[i] = position
-        if hardware_id is not None:
-            self.gripper_id[i] = hardware_id
+        with self._lock:
+            if position is not None:
+                self.g[i] = position
+            if hardware_id is not None:
+                self.gripper_id[i] = hardware_id
 
 
 def _ro(a: np.ndarray) -> np.ndarray:
