@@ -194,13 +194,26 @@ def test_teach_with_objects_to_the_task_result(browser, tmp_path) -> None:
         (out / "task-result.txt").write_text(text + "\n")
         # Halfway through the preview the block is where the world has it (drawn), and it moved.
         duration = app.controller.playback.preview_duration()
-        ui.set_number(page, "Time (s)", round(duration * 0.5, 1))
-        deadline = time.monotonic() + 10
-        while time.monotonic() < deadline and app.controller.playback.kind != "preview":
+        half = round(duration * 0.5, 1)
+        ui.set_number(page, "Time (s)", half)
+
+        def at_half() -> bool:  # the number typed has reached the server and the preview was moved there
+            pb = app.controller.playback.loaded
+            return pb is not None and pb.kind == "preview" and abs(pb.position - half) < 0.15
+
+        deadline = time.monotonic() + 30  # a loaded machine (CI) is slow to pass the number on
+        while time.monotonic() < deadline and not at_half():
             time.sleep(0.1)
-        _, poses = app.controller.scene.shown()
-        world = next(p for p in poses if p.name == "block")
-        assert np.allclose(drawn_block(app), world.position, atol=1e-6) or app.panels.scene._drawn is None
+        assert at_half(), "the preview did not move to the time typed"
+
+        def block_in_world():
+            return next(p for p in app.controller.scene.shown()[1] if p.name == "block")
+
+        deadline = time.monotonic() + 10  # the scene panel draws on its own loop: give it time for one frame
+        while time.monotonic() < deadline and not np.allclose(drawn_block(app), block_in_world().position, atol=1e-6):
+            time.sleep(0.05)
+        world = block_in_world()
+        assert np.allclose(drawn_block(app), world.position, atol=1e-6)
         views(app, page, out, "5-preview-halfway")
         assert result.get_attribute("data-ok") == "true", text  # the demonstrations agree: the skill works
         assert np.linalg.norm(world.position - start) > 0.05
