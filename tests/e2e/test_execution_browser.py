@@ -106,7 +106,7 @@ def test_run_on_robot_follows_the_plan_and_does_the_task(browser, tmp_path) -> N
         expect(page.get_by_text("The arm can follow all of it.")).to_be_visible()
         expect(run_btn).to_be_enabled()
         run_btn.click()
-        expect(page.locator('.run-status[data-phase="running"]')).to_be_attached(timeout=10_000)
+        expect(page.locator('.run-status[data-phase="running"]')).to_be_attached(timeout=30_000)
         expect(page.get_by_role("button", name="Stop", exact=True).first).to_be_visible()
         expect(page.get_by_role("button", name="Emergency stop")).to_be_visible()
         expect(run_btn).to_be_disabled()
@@ -128,7 +128,7 @@ def test_run_on_robot_follows_the_plan_and_does_the_task(browser, tmp_path) -> N
         expect(page.locator('.run-status[data-phase="done"]')).to_be_attached(timeout=60_000)
         expect(page.locator(".run-status")).to_have_text(re.compile(r"The robot finished the skill \([\d.]+ s\)\."))
         result = page.locator(".run-result").first
-        expect(result).to_have_attribute("data-ok", "true", timeout=10_000)
+        expect(result).to_have_attribute("data-ok", "true", timeout=30_000)
         text = result.inner_text()
         m = re.search(
             r"On the robot: the skill does the task\. The robot followed the plan within ([\d.]+) mm; the block ended "
@@ -154,7 +154,7 @@ def test_run_on_robot_follows_the_plan_and_does_the_task(browser, tmp_path) -> N
             "([x, y, z]) => { const e = document.querySelector('.gripper-status[data-arm=\"left\"]');"
             " return e && Math.hypot(e.dataset.x - x, e.dataset.y - y, e.dataset.z - z) < 0.006; }",
             arg=[float(end[0]), float(end[1]), float(end[2])],
-            timeout=10_000,
+            timeout=30_000,
         )
         block = next(p for p in ctl.scene.live.poses() if p.name == "block")
         assert np.allclose(drawn_block(app), block.position, atol=1e-6)

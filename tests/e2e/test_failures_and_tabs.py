@@ -40,7 +40,7 @@ def test_corrupt_upload_shows_error_and_changes_nothing(browser, studio_factory,
     assert page.locator("text=Open session:").first.inner_text() == names_before
     ui.tab(page, "Teach")
     ui.click_in_row(page, "Left gripper", "Close")
-    expect(page.locator('.gripper-status[data-arm="left"][data-open="0"]')).to_have_count(1, timeout=15_000)
+    expect(page.locator('.gripper-status[data-arm="left"][data-open="0"]')).to_have_count(1, timeout=30_000)
     page.close()
 
 
@@ -51,7 +51,7 @@ def test_two_tabs_see_the_same_robot_and_session(browser, studio_factory, shots,
 
     # A moves the gripper: B sees it.
     ui.click_in_row(a, "Left gripper", "Close")
-    expect(b.locator('.gripper-status[data-arm="left"][data-open="0"]')).to_have_count(1, timeout=15_000)
+    expect(b.locator('.gripper-status[data-arm="left"][data-open="0"]')).to_have_count(1, timeout=30_000)
 
     # A records: B sees the recording and cannot start a second one.
     a.get_by_role("button", name="Record").click()
@@ -64,7 +64,7 @@ def test_two_tabs_see_the_same_robot_and_session(browser, studio_factory, shots,
     ui.click_in_row(a, "Left gripper", "Open")
     ui.wait_status(b, "s.open > 99")
     b.get_by_role("button", name="Stop", exact=True).click()  # either tab can stop it
-    expect(a.locator(".demo-row")).to_have_count(1, timeout=15_000)
+    expect(a.locator(".demo-row")).to_have_count(1, timeout=30_000)
     expect(b.locator(".demo-row")).to_have_count(1)
     expect(a.get_by_role("button", name="Record")).to_be_enabled()
 

@@ -38,7 +38,7 @@ def test_live_path_suggest_and_verdict(browser, studio_factory, shots, sessions)
 
     # Every control's hint is on its label too (a person hovering the words reads what the slider does).
     label = page.locator("label").filter(has_text=re.compile(r"^\s*" + re.escape(EPS5) + r"\s*$")).first
-    expect(label).to_have_attribute("title", re.compile("Moving this far from the last key-point"), timeout=10_000)
+    expect(label).to_have_attribute("title", re.compile("Moving this far from the last key-point"), timeout=30_000)
 
     # One arrow-key step on the focused ε5 slider: new key-points, and the live path (thin, dashed) is
     # recomputed and redrawn with its figure.

@@ -103,7 +103,7 @@ def test_a_page_at_another_origin_cannot_connect(browser, studio_factory, shots,
     # The studio is untouched and its own page still works.
     assert probe(page, server.port) == "open"
     ui.click_in_row(page, "Left gripper", "Close")
-    expect(page.locator('.gripper-status[data-arm="left"][data-open="0"]')).to_have_count(1, timeout=15_000)
+    expect(page.locator('.gripper-status[data-arm="left"][data-open="0"]')).to_have_count(1, timeout=30_000)
     assert "refused a connection to the studio (foreign origin" in server.read_output()
     context.close()
 

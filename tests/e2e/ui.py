@@ -11,7 +11,7 @@ VIEWPORT = {"width": 1280, "height": 800}
 
 def open_studio(browser, url: str) -> Page:
     page = browser.new_page(viewport=VIEWPORT)
-    page.set_default_timeout(20_000)
+    page.set_default_timeout(30_000)  # CI runs the other tests beside the browser: slow, not broken
     page.goto(url)
     wait_ready(page)
     return page
@@ -131,7 +131,7 @@ def keypoint_counts(page: Page) -> dict[str, int]:
     return out
 
 
-def wait_number(page: Page, label: str, value: float, timeout: float = 15.0) -> None:
+def wait_number(page: Page, label: str, value: float, timeout: float = 30.0) -> None:
     """Wait until the number box of the slider ``label`` shows ``value`` (e.g. a change made in another tab)."""
     box = row(page, label).locator("input.mantine-NumberInput-input")
     expect(box).to_have_value(re.compile(rf"^{re.escape(str(value))}0*$"), timeout=timeout * 1000)
@@ -149,7 +149,7 @@ _SETTLED_JS = """([arm, quietMs]) => {
 }"""
 
 
-def wait_arm_settled(page: Page, arm: str = "left", quiet_s: float = 0.6, timeout: float = 20.0) -> None:
+def wait_arm_settled(page: Page, arm: str = "left", quiet_s: float = 0.6, timeout: float = 40.0) -> None:
     """Wait until the robot's status (gripper position and opening) has not changed for ``quiet_s`` seconds:
     the arm arrived where it was sent, as a teacher waits before the next step."""
     page.evaluate("arm => { delete window['__settled_' + arm]; }", arm)
@@ -164,7 +164,7 @@ _STATUS_JS = """([arm, expr]) => {
 }"""
 
 
-def wait_status(page: Page, expr: str, arm: str = "left", timeout: float = 15.0) -> None:
+def wait_status(page: Page, expr: str, arm: str = "left", timeout: float = 30.0) -> None:
     """Wait until the JavaScript expression ``expr`` over the robot status ``s`` (s.x, s.y, s.z in m, s.open in
     percent) holds, e.g. ``"s.open < 1"``."""
     page.wait_for_function(_STATUS_JS, arg=[arm, expr], polling=100, timeout=timeout * 1000)
@@ -180,7 +180,7 @@ _COUNTS_JS = """before => {
 }"""
 
 
-def wait_keypoint_counts_change(page: Page, before: dict[str, int], timeout: float = 15.0) -> dict[str, int]:
+def wait_keypoint_counts_change(page: Page, before: dict[str, int], timeout: float = 30.0) -> dict[str, int]:
     """Wait until the key-point counts shown differ from ``before``; returns the new counts."""
     page.wait_for_function(_COUNTS_JS, arg=before, polling=100, timeout=timeout * 1000)
     return keypoint_counts(page)

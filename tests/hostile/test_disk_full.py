@@ -177,7 +177,12 @@ def test_stopping_a_recording_on_a_full_disk_keeps_the_take(disk: Path) -> None:
     ctl.start()
     try:
         ctl.teaching.start_recording()
-        time.sleep(0.8)
+        rec = ctl.teaching.recorder
+        assert rec is not None
+        deadline = time.monotonic() + 20  # a loaded machine (CI) may start the stream late: wait for 1 s of it
+        while rec.elapsed < 1.0 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        time.sleep(0.6)  # two of the writer's 0.25 s flushes: that second is on disk
         filler = fill(disk)
         time.sleep(0.3)
         with pytest.raises(StudioError, match=r"(?i)no space left.*kept and is added"):
