@@ -93,6 +93,32 @@ def test_flushes_to_disk_while_recording(tmp_path: Path) -> None:
         rec.discard()
 
 
+def test_a_full_disk_at_stop_keeps_what_was_written(tmp_path: Path) -> None:
+    """Closing the file flushes its buffer; on a full disk that raises (CI, 2026-11-23). Stopping still
+    returns the samples on disk, and says in words that the disk was full."""
+    sim = SimulatedBaxter()
+    rec = Recorder(sim, tmp_path, arms="left")
+    rec.start()
+    sim.step(500)
+    rec.flush()
+    real = rec._file
+    assert real is not None
+
+    class FullDisk:
+        def fileno(self) -> int:
+            return real.fileno()
+
+        def close(self) -> None:
+            real.close()  # a buffered file is closed even when its last flush fails
+            raise OSError(28, "No space left on device")
+
+    rec._file = FullDisk()  # type: ignore[assignment]
+    r = rec.stop()
+    assert len(r) == 500 and real.closed
+    assert rec.error is not None and "disk could not take more data" in rec.error
+    rec.discard()
+
+
 def test_nan_and_out_of_order_samples_are_skipped_with_a_message(tmp_path: Path) -> None:
     fb = FakeBackend()
     rec = Recorder(fb, tmp_path, arms="left")

@@ -227,7 +227,14 @@ class Recorder:
             if self._file is not None:
                 with contextlib.suppress(OSError):
                     fcntl.flock(self._file.fileno(), fcntl.LOCK_UN)
-                self._file.close()
+                try:
+                    self._file.close()  # closed even when this raises
+                except OSError as exc:  # a full disk: the last buffered rows could not be written
+                    log.error("recorder close failed: %s", exc)
+                    self.error = self.error or (
+                        f"Recording stopped: the disk could not take more data ({exc.strerror}). "
+                        "Everything recorded until then is kept."
+                    )
                 self._file = None
         self.state = "stopped"
 
