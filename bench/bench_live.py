@@ -11,7 +11,9 @@ Per step, from the key press (the key event's own time stamp, taken by the brows
   * server got the change — the slider's callback runs in the studio;
   * server queued the markers — key-points and centroids (sent with the live path, one scene batch);
   * page shows the counts — the per-demo key-point counts changed in the page (sent at once, GUI only);
-  * frame with the markers — two animation frames after that: the frame that draws the new markers is done;
+  * frame after the counts — two animation frames after that. It draws the new markers only where they are
+    sent with the counts (the baselines); the studio sends them with the live path (next line), so its frame
+    after the counts has no 3-D change (this bench called it "frame with the markers" until 2026-11-23: wrong);
   * live path shown — the live path's figure (sent with its dashed path and the markers, one batch) changed
     in the page, and its frame (two animation frames later).
 
@@ -283,13 +285,16 @@ def _fmt(xs: list[float]) -> str:
     return f"median {statistics.median(xs):5.0f} ms (range {min(xs):.0f}–{max(xs):.0f}, n = {len(xs)})"
 
 
-def report(name: str, r: dict[str, list[float]]) -> None:
+def report(name: str, r: dict[str, list[float]], batched: bool = True) -> None:
+    """``batched``: the markers travel with the live path (the studio), else with the counts (baselines)."""
     print(f"  server got the change:                 {_fmt(r['got'])}")
     print(f"  server queued key-points + centroids:  {_fmt(r['queued'])}")
     print(f"  page shows the new key-point counts:   {_fmt(r['counts'])}")
-    print(f"  frame with the new markers done:       {_fmt(r['frame'])}")
+    after = "frame after the counts (no 3-D change)" if batched else "frame with the new markers drawn"
+    print(f"  {after + ':':39s}{_fmt(r['frame'])}")
     print(f"  page shows the live path's figure:     {_fmt(r['path'])}")
-    print(f"  frame with the new live path done:     {_fmt(r['path_frame'])}")
+    both = "frame with the markers + live path drawn" if batched else "frame with the new live path drawn"
+    print(f"  {both + ':':39s}{_fmt(r['path_frame'])}")
     live = [x for x in r["live_ms"] if x == x]
     if live:
         print(f"  (live path computed in {statistics.median(live):.0f} ms median on the server)")
@@ -324,7 +329,7 @@ def main() -> int:
                     with studio(tmp, session, guard, batched) as (app, stamps):
                         r = measure(browser, app, stamps, args.steps)
                     print(f"[{which_one}] {label}, ε5 one step, from the key press:")
-                    report(which_one, r)
+                    report(which_one, r, batched)
                 finally:
                     shutil.rmtree(tmp, ignore_errors=True)
         if args.server:
