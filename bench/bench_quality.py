@@ -117,8 +117,8 @@ def evaluate(demos: list[Demo], *, suggest: bool) -> dict[str, dict]:
     return res
 
 
-def shape_cases(quick: bool):
-    sizes = (0.15,) if quick else (0.03, 0.15, 0.6)
+def shape_cases(quick: bool, sizes: tuple[float, ...] | None = None):
+    sizes = sizes or ((0.15,) if quick else (0.03, 0.15, 0.6))
     durs = (2.0,) if quick else (2.0, 20.0)
     counts = (3,) if quick else (3, 7)
     for shape, size, dur, n in itertools.product(SHAPES, sizes, durs, counts):
@@ -140,14 +140,14 @@ def _fmt(x: float, spec: str = ".2f") -> str:
     return "—" if x is None or not math.isfinite(x) else format(x, spec)
 
 
-def quality_suite(quick: bool, suggest: bool) -> None:
+def quality_suite(quick: bool, suggest: bool, sizes: tuple[float, ...] | None = None, tasks: bool = True) -> None:
     methods = [m for m in METHODS if suggest or m != "suggest"]
     rows: list[tuple[str, float | None, dict]] = []
     print("\n== quality: G/R (lower is better; exact mean of n noisy copies: (n−1)/2n) and F/B1 (B1 = 1) ==")
     head = f"{'case':<34}" + "".join(f"{m:>16}" for m in methods) + f"{'corner mm':>11}{'ends mm':>9}{'grip mm':>9}"
     print(head)
     t0 = time.perf_counter()
-    for label, size, demos in itertools.chain(shape_cases(quick), task_cases(quick)):
+    for label, size, demos in itertools.chain(shape_cases(quick, sizes), task_cases(quick) if tasks else ()):
         res = evaluate(demos, suggest=suggest)
         rows.append((label, size, res))
         d = res["default"]
@@ -283,12 +283,14 @@ def main() -> None:
     ap.add_argument("--no-suggest", action="store_true", help="skip Suggest in the quality suite")
     ap.add_argument("--skip-timing", action="store_true")
     ap.add_argument("--skip-quality", action="store_true")
+    ap.add_argument("--sizes", type=float, nargs="+", help="shape sizes in metres (default 0.03 0.15 0.6)")
+    ap.add_argument("--no-tasks", action="store_true", help="only the shapes (e.g. with --sizes 1.0)")
     args = ap.parse_args()
     print(f"machine: {_load()} at start (2 cores shared)")
     if not args.skip_timing:
         timing(args.quick)
     if not args.skip_quality:
-        quality_suite(args.quick, not args.no_suggest)
+        quality_suite(args.quick, not args.no_suggest, tuple(args.sizes) if args.sizes else None, not args.no_tasks)
     autotune.shutdown()
 
 

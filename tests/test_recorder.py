@@ -103,13 +103,14 @@ def test_a_full_disk_at_stop_keeps_what_was_written(tmp_path: Path) -> None:
     rec.flush()
     real = rec._file
     assert real is not None
+    fd, close = real.fileno(), real.close
 
     class FullDisk:
         def fileno(self) -> int:
-            return real.fileno()
+            return fd
 
         def close(self) -> None:
-            real.close()  # a buffered file is closed even when its last flush fails
+            close()  # a buffered file is closed even when its last flush fails
             raise OSError(28, "No space left on device")
 
     rec._file = FullDisk()  # type: ignore[assignment]
