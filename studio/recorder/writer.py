@@ -225,17 +225,8 @@ class Recorder:
         # state check before the unsubscribe) then finds no file instead of writing into a closed one.
         with self._write_lock:
             if self._file is not None:
-                with contextlib.suppress(OSError):
-                    fcntl.flock(self._file.fileno(), fcntl.LOCK_UN)
-                try:
-                    self._file.close()  # closed even when this raises
-                except OSError as exc:  # a full disk: the last buffered rows could not be written
-                    log.error("recorder close failed: %s", exc)
-                    self.error = self.error or (
-                        f"Recording stopped: the disk could not take more data ({exc.strerror}). "
-                        "Everything recorded until then is kept."
-                    )
-                self._file = None
+                why, self._file = _close(self._file), None  # closed first: `or` would skip it after an error
+                self.error = self.error or why
         self.state = "stopped"
 
     def _on_batch(self, batch: JointStateBatch) -> None:
@@ -292,10 +283,7 @@ class Recorder:
                 if time.monotonic() - self._last_sync >= 0.9:
                     self._sync()
             except OSError as exc:
-                self.error = (
-                    f"Recording stopped: the disk could not take more data ({exc.strerror}). "
-                    "Everything recorded until then is kept."
-                )
+                self.error = _disk_full(exc)
                 log.error("recorder write failed: %s", exc)
                 self._halt()
                 return False
@@ -319,6 +307,25 @@ class Recorder:
         unsub, self._unsubscribe = self._unsubscribe, None
         if unsub is not None:
             unsub()
+
+
+def _disk_full(exc: OSError) -> str:
+    return (
+        f"Recording stopped: the disk could not take more data ({exc.strerror}). "
+        "Everything recorded until then is kept."
+    )
+
+
+def _close(f: IO[bytes]) -> str | None:
+    """Unlock and close a recording file; None, or why its last buffered rows could not be written (in words)."""
+    with contextlib.suppress(OSError):
+        fcntl.flock(f.fileno(), fcntl.LOCK_UN)
+    try:
+        f.close()
+    except OSError as exc:
+        log.error("recorder close failed: %s", exc)
+        return _disk_full(exc)
+    return None
 
 
 def _chunks(batches: list[JointStateBatch], size: int = DRAIN_CHUNK) -> Iterator[list[JointStateBatch]]:
