@@ -13,7 +13,6 @@ import dataclasses
 import re
 import shutil
 import tempfile
-import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -26,12 +25,11 @@ from studio.core.errors import StudioError
 from studio.core.execution import joint_trajectory
 from studio.core.kinematics import Baxter
 from studio.core.timing import limit_ratio
-from studio.robot_backend.base import JointStateBatch
 from studio.robot_backend.simulated import SimulatedBaxter
 from studio.storage import SessionStore
 from studio.teacher import PICK_PLACE_A, PICK_PLACE_B
 from studio.world import simulate
-from tests.conftest import ROOT, RecordingNotifier, wait_for
+from tests.conftest import ROOT, Collector, RecordingNotifier, wait_for
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
@@ -50,23 +48,6 @@ def trained(tmp_path_factory: pytest.TempPathFactory) -> Path:
         ctl.close()
         ctl.shutdown()
     return root
-
-
-class Stream:
-    """Every joint state the robot streams (a backend listener)."""
-
-    def __init__(self) -> None:
-        self.batches: list[JointStateBatch] = []
-        self.lock = threading.Lock()
-
-    def __call__(self, b: JointStateBatch) -> None:
-        with self.lock:
-            self.batches.append(b)
-
-    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
-        with self.lock:
-            bs = list(self.batches)
-        return np.concatenate([b.t for b in bs]), np.concatenate([b.q for b in bs])
 
 
 def make(trained: Path, tmp_path: Path, **sim_args: object) -> tuple[Controller, SimulatedBaxter, RecordingNotifier]:
@@ -104,7 +85,7 @@ def test_run_on_robot_follows_the_plan_and_moves_the_block_onto_the_pad(rig, tmp
     demos_before = list(session.demo_files)
     topics: list[str] = []
     ctl.events.on(Topic.EXECUTION, lambda: topics.append(ctl.execution.status.phase))
-    stream = Stream()
+    stream = Collector()
     sim.subscribe(stream)
     assert ctl.execution.why_not() == ""
     assert all(f.ok for f in ctl.execution.feasibility().values())
@@ -156,7 +137,7 @@ def test_run_on_robot_follows_the_plan_and_moves_the_block_onto_the_pad(rig, tmp
     b = Baxter.load()
     vlim = np.concatenate([b.velocity_limits(a) for a in ("left", "right")])
     alim = np.concatenate([b.acceleration_limits(a) for a in ("left", "right")])
-    t, q = stream.arrays()
+    t, q, _ = stream.arrays()
     assert np.allclose(np.diff(t), 1e-3)
     assert limit_ratio(q, 1000.0, vlim, alim) <= 1.0 + 1e-9
     assert limit_ratio(rec.q, 1000.0, vlim, alim) <= 1.0 + 1e-9
@@ -189,7 +170,7 @@ def test_a_sensor_like_a_real_robot_s_gives_a_small_tracking_error(trained: Path
 
 def test_stop_slows_the_robot_down_to_rest_within_the_limits(rig) -> None:
     ctl, sim, notes = rig
-    stream = Stream()
+    stream = Collector()
     sim.subscribe(stream)
     ctl.execution.run()
     drive(ctl, sim, until_fraction=0.3)
@@ -201,7 +182,7 @@ def test_stop_slows_the_robot_down_to_rest_within_the_limits(rig) -> None:
     assert re.fullmatch(r"The robot stopped at [\d.]+ s of [\d.]+ s, as you asked\.", st.message), st.message
     assert re.match(r"Up to there \((3\d)% of the run\) the robot followed the plan within [\d.]+ mm\. ", st.result)
     assert "block" in st.result  # what happened to the block, in words (it was not put on the pad)
-    _, q = stream.arrays()
+    _, q, _ = stream.arrays()
     b = Baxter.load()
     vlim = np.concatenate([b.velocity_limits(a) for a in ("left", "right")])
     alim = np.concatenate([b.acceleration_limits(a) for a in ("left", "right")])
@@ -220,7 +201,7 @@ def test_emergency_stop_halts_within_one_control_cycle_and_refuses_motion_until_
 ) -> None:
     ctl, sim, notes = make(trained, tmp_path)  # streaming in real time, as in the studio
     try:
-        stream = Stream()
+        stream = Collector()
         sim.subscribe(stream)
         ctl.execution.run()
         assert wait_for(lambda: ctl.execution.status.t > 2.0, timeout=20)
@@ -229,7 +210,7 @@ def test_emergency_stop_halts_within_one_control_cycle_and_refuses_motion_until_
         assert ctl.execution.status.estop
         assert wait_for(lambda: not ctl.execution.running, timeout=10)
         time.sleep(0.3)
-        t, q = stream.arrays()
+        t, q, _ = stream.arrays()
         moving = np.flatnonzero(np.abs(np.diff(q, axis=0)).max(axis=1) > 0)
         assert moving.size and t[moving[0]] < t_call  # it was moving when the button was pressed
         last_change = t[moving[-1] + 1]  # the last sample that differs from the one before it
