@@ -218,23 +218,17 @@ def bench_browser(root: Path, seconds: float = 5.0, session: str = "bench") -> d
             time.sleep(3.0)  # the initial scene (meshes) arrives first
 
             # Move the left arm back and forth continuously.
-            stop = threading.Event()
+            q0 = app.controller.teaching.arm_q("left")
 
-            def mover() -> None:
-                q0 = app.controller.teaching.arm_q("left")
-                k = 0
-                while not stop.is_set():
-                    q = q0.copy()
-                    q[0] += 0.6 * np.sin(k * 0.05)
-                    q[3] += 0.4 * np.sin(k * 0.03)
-                    app.controller.teaching.command_arm("left", q)
-                    k += 1
-                    time.sleep(0.01)
+            def step(k: int) -> None:
+                q = q0.copy()
+                q[0] += 0.6 * np.sin(k * 0.05)
+                q[3] += 0.4 * np.sin(k * 0.03)
+                app.controller.teaching.command_arm("left", q)
 
-            th = threading.Thread(target=mover, daemon=True)
             pushes0 = app.panels.robot.updates
             t_start = time.perf_counter()
-            th.start()
+            th, stop = _moving(step, rate_hz=100.0)
             out["render_fps_moving"] = float(page.evaluate(_FPS_JS, 0.8 * seconds * 1000))  # drawn frames
             time.sleep(max(0.0, seconds - (time.perf_counter() - t_start)))
             stop.set()
