@@ -283,8 +283,8 @@ def main() -> None:
     ap.add_argument("--no-suggest", action="store_true", help="skip Suggest in the quality suite")
     ap.add_argument("--skip-timing", action="store_true")
     ap.add_argument("--skip-quality", action="store_true")
-    ap.add_argument("--sizes", type=float, nargs="+", help="shape sizes in metres (default 0.03 0.15 0.6)")
-    ap.add_argument("--no-tasks", action="store_true", help="only the shapes (e.g. with --sizes 1.0)")
+    ap.add_argument("--sizes", type=float, nargs="+", help="shape sizes in metres, 0.005-0.8 (default 0.03 0.15 0.6)")
+    ap.add_argument("--no-tasks", action="store_true", help="only the shapes (e.g. with --sizes 0.8)")
     args = ap.parse_args()
     print(f"machine: {_load()} at start (2 cores shared)")
     if not args.skip_timing:
