@@ -41,7 +41,7 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
-def wait_for(pred: Callable[[], bool], timeout: float = 10.0) -> bool:
+def wait_for(pred: Callable[[], bool], timeout: float = 30.0) -> bool:
     """Poll ``pred`` until it holds (True) or ``timeout`` seconds passed (its last value)."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:

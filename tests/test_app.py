@@ -468,7 +468,7 @@ def test_markers_go_with_their_live_path_and_never_wait_for_a_failed_one(
     view = ctl.keypoints.view
     assert view is not None and drawn() == [d.count for d in view.demos]  # … and the markers still came
     # told right after the paths were emptied (the failure leaves the follower, then it is reported)
-    assert wait_for(lambda: any(title == "Could not draw the learned path" for _, title, _ in notes(app)), 10)
+    assert wait_for(lambda: any(title == "Could not draw the learned path" for _, title, _ in notes(app)), 30)
 
 
 def test_centroid_numbers_never_pile_up() -> None:

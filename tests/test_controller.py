@@ -323,7 +323,7 @@ def test_teachers_values_are_kept_and_detail_moves_the_others(ctl: Controller, s
 def test_thresholds_are_written_once_they_rest(ctl: Controller, sessions: Path) -> None:
     ctl.keypoints.set_param("eps5", 0.05)
     assert SessionStore(sessions).open("stack-cup").params.eps5 != 0.05  # not per slider step
-    assert wait_for(lambda: SessionStore(sessions).open("stack-cup").params.eps5 == 0.05, 10)
+    assert wait_for(lambda: SessionStore(sessions).open("stack-cup").params.eps5 == 0.05, 30)
 
 
 def test_suggest_applies_one_change_that_can_be_undone(ctl: Controller) -> None:

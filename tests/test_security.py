@@ -32,7 +32,7 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
-def wait_for(pred, timeout: float = 10.0) -> Any:
+def wait_for(pred, timeout: float = 30.0) -> Any:
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         out = pred()
@@ -80,13 +80,13 @@ def attack(app: Studio, *, origin: str | None, cookie: str | None = None, url: s
     try:
         c.wait_gui("Demo action")
         c.set_value("Demo", before[0])
-        wait_for(lambda: app.panels.demos.demo_pick.value == before[0], 5)
+        wait_for(lambda: app.panels.demos.demo_pick.value == before[0], 30)
         c.set_value("Demo action", "Delete")
         time.sleep(0.3)
         c.set_value("Demo action", "Delete")
         c.set_value("Download session (.zip)", True)
         c.wait_for(lambda _m: c.downloads(), 20)
-        wait_for(lambda: len(app.controller.demos.names()) < len(before), 5)
+        wait_for(lambda: len(app.controller.demos.names()) < len(before), 30)
         return {
             "refused": None,
             "gui": c.gui_count(),
@@ -390,7 +390,7 @@ def test_an_upload_within_the_limit_still_works(app: Studio) -> None:
         assert wait_for(lambda: len(names()) == 2, 30), (names(), c.notifications())
         assert not refusals(c)
         # viser keeps the last file as the button's value; once imported the studio lets it go
-        assert wait_for(lambda: app.panels.sessions.upload.value.content == b"", 10)
+        assert wait_for(lambda: app.panels.sessions.upload.value.content == b"", 30)
     finally:
         c.close()
 
@@ -455,7 +455,7 @@ def test_the_studio_refuses_to_start_unprotected(sessions: Path, monkeypatch: py
     with pytest.raises(StudioError, match="protect"):
         build_app(port=port, session="stack-cup", sessions_dir=sessions)
     monkeypatch.setattr(infra, "websockets", real)
-    assert wait_for(lambda: _port_free(port), 10)
+    assert wait_for(lambda: _port_free(port), 30)
 
 
 def _port_free(port: int) -> bool:

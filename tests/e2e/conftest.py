@@ -17,8 +17,14 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from playwright.sync_api import expect
 
 from tests.conftest import free_port
+
+# Every page assertion waits up to 30 s (Playwright's default is 5 s): CI runs the other tests beside the browser
+# on a slower machine, where a frame of the software renderer alone can take a second. A passing check returns
+# as soon as it holds, so this only changes how long a real failure takes to report.
+expect.set_options(timeout=30_000)
 
 ROOT = Path(__file__).resolve().parents[2]
 ARTIFACTS = ROOT / "test-artifacts"
