@@ -10,12 +10,19 @@ so the server's side of each step is timed too, on the same clock as the page (e
 Per step, from the key press (the key event's own time stamp, taken by the browser when the key went down):
   * server got the change — the slider's callback runs in the studio;
   * server queued the markers — key-points and centroids (sent with the live path, one scene batch);
-  * page shows the counts — the per-demo key-point counts changed in the page (sent at once, GUI only);
-  * frame after the counts — two animation frames after that. It draws the new markers only where they are
-    sent with the counts (the baselines); the studio sends them with the live path (next line), so its frame
-    after the counts has no 3-D change (this bench called it "frame with the markers" until 2026-11-23: wrong);
-  * live path shown — the live path's figure (sent with its dashed path and the markers, one batch) changed
-    in the page, and its frame (two animation frames later).
+  * page shows the counts — the per-demo key-point counts changed in the page (sent at once, GUI only: viser
+    applies a GUI-only batch without drawing the 3-D scene);
+  * first frame drawn after the counts — the first WebGL frame that draws after the counts changed has
+    completed (every draw call is watched; the animation frame after it starts once that frame's task is
+    over). Where the markers travel with the counts (the baselines) it shows them; in the studio it is the
+    frame of the batch below unless viser's 1 Hz safety-net frame comes first;
+  * live path shown — the live path's figure changed in the page: the batch with the dashed path, its figure
+    and the markers arrived (viser applies a batch with scene updates inside its render loop, so this is
+    also when the frame that draws it starts, once the page is free);
+  * markers and live path drawn — the first frame drawn after that has completed.
+Until 2026-11-25 "drawn" was taken two animation frames after the change: one frame too late whenever the change
+arrives inside a frame (viser keeps drawing for 250 ms after each scene update), so the 2026-11-23 "drawn"
+rows overstate by about one frame (bench/README.md).
 
 Baselines in the same run: the same steps (1) with the key-point markers sent as soon as they are computed,
 apart from their live path (two scene updates a step, as first written), and (2) also without the page script
@@ -67,14 +74,39 @@ _INSTALL_JS = """() => {
         [...document.querySelectorAll(".kp-count")].map(e => e.dataset.count).join(","),
         [...document.querySelectorAll(".live-path")].map(e => e.dataset.version).join(","),
     ];
-    const twoFrames = (list) => requestAnimationFrame(() => requestAnimationFrame(
-        () => list.push(epoch(performance.now()))));
+    // "Drawn": the end of the first WebGL frame that draws with the change. Every draw call is seen (the
+    // context's prototype methods are wrapped). viser applies a batch with scene updates inside its render
+    // loop, before that frame's draw calls, and React writes its GUI part into the page later in the same
+    // task: a change made in a task that already drew is in that frame. Otherwise the next frame that draws
+    // has it. Either way the animation frame after that drawing starts once its task (and read-back) is over.
+    let waiting = [], drewThisTask = false;
+    const stamp = (lists) => requestAnimationFrame(() => {
+        const t = epoch(performance.now());
+        for (const l of lists) l.push(t);
+    });
+    const onDraw = () => {
+        if (!drewThisTask) {
+            drewThisTask = true;
+            const ch = new MessageChannel();  // a task of its own: runs once this one is over
+            ch.port1.onmessage = () => { drewThisTask = false; };
+            ch.port2.postMessage(0);
+        }
+        if (waiting.length) { stamp(waiting); waiting = []; }
+    };
+    for (const P of [WebGLRenderingContext.prototype, WebGL2RenderingContext.prototype]) {
+        for (const m of ["drawElements", "drawArrays", "drawElementsInstanced", "drawArraysInstanced"]) {
+            const f = P[m];
+            if (!f) continue;
+            P[m] = function (...a) { onDraw(); return f.apply(this, a); };
+        }
+    }
+    const drawn = (list) => { if (drewThisTask) stamp([list]); else waiting.push(list); };
     let [lastCounts, lastPath] = read();
     new MutationObserver(() => {
         const [c, p] = read();
         const now = epoch(performance.now());
-        if (c !== lastCounts) { lastCounts = c; L.counts.push(now); twoFrames(L.countsFrame); }
-        if (p !== lastPath) { lastPath = p; L.path.push(now); twoFrames(L.pathFrame); }
+        if (c !== lastCounts) { lastCounts = c; L.counts.push(now); drawn(L.countsFrame); }
+        if (p !== lastPath) { lastPath = p; L.path.push(now); drawn(L.pathFrame); }
     }).observe(document.body, {subtree: true, childList: true, characterData: true, attributes: true});
 }"""
 
@@ -290,10 +322,10 @@ def report(name: str, r: dict[str, list[float]], batched: bool = True) -> None:
     print(f"  server got the change:                 {_fmt(r['got'])}")
     print(f"  server queued key-points + centroids:  {_fmt(r['queued'])}")
     print(f"  page shows the new key-point counts:   {_fmt(r['counts'])}")
-    after = "frame after the counts (no 3-D change)" if batched else "frame with the new markers drawn"
+    after = "first frame drawn after the counts" if batched else "new markers drawn"
     print(f"  {after + ':':39s}{_fmt(r['frame'])}")
     print(f"  page shows the live path's figure:     {_fmt(r['path'])}")
-    both = "frame with the markers + live path drawn" if batched else "frame with the new live path drawn"
+    both = "markers + live path drawn" if batched else "new live path drawn"
     print(f"  {both + ':':39s}{_fmt(r['path_frame'])}")
     live = [x for x in r["live_ms"] if x == x]
     if live:

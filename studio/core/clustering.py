@@ -65,7 +65,7 @@ class FeatureScale:
         """The scale for these demonstrations: 5 cm of position, or a quarter of their size (median largest
         side of the bounding box) when that is smaller, at least 2 mm — a 3 cm gesture's key-points would
         otherwise all look alike next to the orientation's and the gripper's units."""
-        sizes = [float(np.max(np.ptp(d.position, axis=0))) for d in demos if len(d)]
+        sizes = [d.extent for d in demos if len(d)]
         size = float(np.median(sizes)) if sizes else 0.2
         return cls(position=float(min(0.05, max(0.002, size / 4.0))))
 

@@ -140,7 +140,7 @@ def time_normalised_mean(demos: Sequence[Demo], n: int = 2000) -> np.ndarray:
 
 def extent(demos: Sequence[Demo]) -> float:
     """Size of what was shown: the median over demos of the largest side of the position bounding box, m."""
-    return float(np.median([np.max(np.ptp(d.position, axis=0)) for d in demos]))
+    return float(np.median([d.extent for d in demos]))
 
 
 # -- results -----------------------------------------------------------------------------------------------------

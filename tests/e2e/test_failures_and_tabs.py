@@ -28,7 +28,7 @@ def test_corrupt_upload_shows_error_and_changes_nothing(browser, studio_factory,
     bad.write_bytes(b"PK\x03\x04 this is not really a zip archive" + bytes(range(256)) * 4)
     page.locator("input[type=file]").first.set_input_files(str(bad))
     note = page.locator(".mantine-Notification-root").filter(has_text="The upload did not work")
-    expect(note.first).to_be_visible(timeout=20_000)
+    expect(note.first).to_be_visible(timeout=30_000)
     text = note.first.inner_text()
     assert "not a session archive" in text or "Nothing was imported" in text, text
     assert "Traceback" not in text

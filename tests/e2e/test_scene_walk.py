@@ -83,7 +83,7 @@ def set_joints(page: Page, deg: np.ndarray) -> None:
             if attempt == 0 or abs(ui.number_value(page, LABELS[j]) - float(v)) > 0.25:
                 ui.set_number(page, LABELS[j], float(v))
         try:
-            ui.wait_status(page, there, timeout=25)
+            ui.wait_status(page, there, timeout=30)
             break
         except PlaywrightTimeout:
             if attempt == 2:

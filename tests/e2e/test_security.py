@@ -123,7 +123,7 @@ def test_an_oversize_upload_is_refused_in_plain_words(browser, shots, tmp_path, 
         big.write_bytes(b"PK\x03\x04" + bytes(3 * 1024 * 1024))
         page.locator("input[type=file]").first.set_input_files(str(big))
         note = page.locator(".mantine-Notification-root").filter(has_text="too large")
-        expect(note.first).to_be_visible(timeout=20_000)
+        expect(note.first).to_be_visible(timeout=30_000)
         text = note.first.inner_text()
         assert '"big-session.zip" is too large (3 MB)' in text and "up to 1 MB" in text, text
         assert "Nothing was imported" in text

@@ -160,7 +160,7 @@ def test_teach_a_skill_like_a_user(browser, studio_factory, shots, tmp_path) -> 
 
     # Key-points: counts per demo change when an ε slider moves.
     ui.tab(page, "Key-points")
-    expect(page.locator(".kp-count")).to_have_count(3, timeout=20_000)
+    expect(page.locator(".kp-count")).to_have_count(3, timeout=30_000)
     counts0 = ui.keypoint_counts(page)
     shots(page, "key-points default")
     ui.open_folder(page, "All thresholds")
@@ -230,7 +230,7 @@ def test_teach_a_skill_like_a_user(browser, studio_factory, shots, tmp_path) -> 
     ui.tab(page, "Key-points")
     ui.open_folder(page, "All thresholds")
     assert ui.threshold_value(page, "Travel distance, cm (ε5)") == pytest.approx(eps5)
-    expect(page.locator(".kp-count")).to_have_count(3, timeout=20_000)
+    expect(page.locator(".kp-count")).to_have_count(3, timeout=30_000)
     assert ui.keypoint_counts(page) == counts1
     ui.tab(page, "Train")
     expect(page.locator("svg.heatmap")).to_have_count(1)
