@@ -102,3 +102,16 @@ def test_the_sklearn_backend_finds_as_good_a_codebook():
     assert sk.n_clusters == ours.n_clusters
     # two local optima of the same distortion (k-means++ restarts differ): within 10 % of each other
     assert sk.inertia <= ours.inertia * 1.10 and ours.inertia <= sk.inertia * 1.10
+
+
+def test_the_feature_scale_follows_the_demos_size_computed_once_per_demo() -> None:
+    t = np.arange(4) / 10.0
+    ori = np.tile([1.0, 0.0, 0.0, 0.0], (4, 1))
+    small = Demo(t, np.array([[0, 0, 0], [0.02, 0, 0], [0.02, 0.03, 0], [0, 0.03, 0.01]]), ori, np.zeros(4))
+    big = Demo(t, np.array([[0, 0, 0], [0.6, 0, 0], [0.6, 0.2, 0], [0, 0.2, 0]]), ori, np.zeros(4))
+    assert small.extent == pytest.approx(0.03) and big.extent == pytest.approx(0.6)
+    assert "extent" in vars(small)  # kept with the demo: a slider step does not scan 30,000 samples again
+    assert FeatureScale.for_demos([small, small]).position == pytest.approx(0.03 / 4)
+    assert FeatureScale.for_demos([big]).position == 0.05
+    empty = Demo(np.zeros(0), np.zeros((0, 3)), np.zeros((0, 4)), np.zeros(0))
+    assert empty.extent == 0.0 and FeatureScale.for_demos([empty]).position == 0.05
