@@ -18,5 +18,5 @@ echo "==> lint (ruff) and types (mypy)"
 echo "==> tests"
 # Two workers (the machine has two cores): the browser tests one after another on one, the rest on the other.
 # A test that fails runs once more (a test failing twice fails the run); "RERUN" in the summary names every test
-# that needed it: CI machines are slower and busier than ours, and twice CI failed on timing we could not see.
+# that needed it: CI machines are slower and busier than ours (CI failed on timing there that never showed here).
 exec .venv/bin/python -m pytest -n 2 --dist loadgroup --reruns 1 --reruns-delay 2 -raR "$@"
