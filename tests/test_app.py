@@ -452,7 +452,7 @@ def test_markers_go_with_their_live_path_and_never_wait_for_a_failed_one(
     def drawn() -> list[int]:
         return [len(n.points) for n in kp._kp_nodes.values()]
 
-    assert wait_for(lambda: ctl.keypoints.view is not None and ctl.keypoints.view.params["left"].eps5 == 0.02, 30)
+    assert wait_for(lambda: ctl.keypoints.view is not None and ctl.keypoints.view.params["left"].eps5 == 0.02)
     view = ctl.keypoints.view
     assert view is not None
     version = view.version
@@ -464,11 +464,11 @@ def test_markers_go_with_their_live_path_and_never_wait_for_a_failed_one(
 
     monkeypatch.setattr(pipeline, "preview_path", broken)
     ctl.keypoints.set_param("eps5", 0.2)
-    assert wait_for(lambda: ctl.live.paths == {}, 30)  # the failure was told; no path …
+    assert wait_for(lambda: ctl.live.paths == {})  # the failure was told; no path …
     view = ctl.keypoints.view
     assert view is not None and drawn() == [d.count for d in view.demos]  # … and the markers still came
     # told right after the paths were emptied (the failure leaves the follower, then it is reported)
-    assert wait_for(lambda: any(title == "Could not draw the learned path" for _, title, _ in notes(app)), 30)
+    assert wait_for(lambda: any(title == "Could not draw the learned path" for _, title, _ in notes(app)))
 
 
 def test_centroid_numbers_never_pile_up() -> None:

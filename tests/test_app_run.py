@@ -68,9 +68,9 @@ def test_the_run_is_shown_while_it_runs_and_after(app: Studio) -> None:
     ctl.execution.run()
     assert 'data-phase="running"' in run_panel.status.content
     assert run_panel.stop_btn.visible and preview.run_btn.disabled and preview.time.disabled
-    assert wait_for(lambda: len(app.panels.run._nodes) > 0, timeout=30)  # the executed path grows meanwhile
+    assert wait_for(lambda: len(app.panels.run._nodes) > 0)  # the executed path grows meanwhile
     assert wait_for(lambda: 'data-phase="done"' in run_panel.status.content, timeout=60)  # every tab is told
-    assert wait_for(lambda: 'data-ok="true"' in preview.run_result.content, timeout=30)
+    assert wait_for(lambda: 'data-ok="true"' in preview.run_result.content)
     assert not run_panel.stop_btn.visible
     assert run_panel.progress.value == 100.0
     assert 'class="run-result" data-ok="true"' in preview.run_result.content
@@ -92,5 +92,5 @@ def test_the_run_is_shown_while_it_runs_and_after(app: Studio) -> None:
     assert drawn.visible
     # A new skill: the last run was of the old one, so its drawing and words go.
     ctl.training.train().result()
-    assert wait_for(lambda: "/run/left/executed" not in nodes(app), timeout=30)
+    assert wait_for(lambda: "/run/left/executed" not in nodes(app))
     assert 'data-phase="idle"' in run_panel.status.content and preview.run_result.content == ""

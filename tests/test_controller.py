@@ -114,7 +114,7 @@ def test_the_keypoint_thread_serves_the_newest_request(ctl: Controller) -> None:
 
     ctl.events.on(Topic.KEYPOINTS, drawn)
     ctl.keypoints.set_param("eps5", 0.03)
-    assert wait_for(lambda: bool(views) and views[-1] == sum(d.count for d in ctl.keypoints.compute().demos), 30)
+    assert wait_for(lambda: bool(views) and views[-1] == sum(d.count for d in ctl.keypoints.compute().demos))
 
 
 def test_train_preview_replay_export(ctl: Controller) -> None:
@@ -323,7 +323,7 @@ def test_teachers_values_are_kept_and_detail_moves_the_others(ctl: Controller, s
 def test_thresholds_are_written_once_they_rest(ctl: Controller, sessions: Path) -> None:
     ctl.keypoints.set_param("eps5", 0.05)
     assert SessionStore(sessions).open("stack-cup").params.eps5 != 0.05  # not per slider step
-    assert wait_for(lambda: SessionStore(sessions).open("stack-cup").params.eps5 == 0.05, 30)
+    assert wait_for(lambda: SessionStore(sessions).open("stack-cup").params.eps5 == 0.05)
 
 
 def test_suggest_applies_one_change_that_can_be_undone(ctl: Controller) -> None:

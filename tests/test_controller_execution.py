@@ -74,7 +74,7 @@ def drive(ctl: Controller, sim: SimulatedBaxter, until_fraction: float = 2.0, st
     while sim.progress().active and sim.progress().fraction < until_fraction:
         sim.step(step)
     if until_fraction > 1.0:
-        assert wait_for(lambda: not ctl.execution.running, timeout=30), ctl.execution.status
+        assert wait_for(lambda: not ctl.execution.running), ctl.execution.status
 
 
 def test_run_on_robot_follows_the_plan_and_moves_the_block_onto_the_pad(rig, tmp_path, monkeypatch) -> None:
@@ -103,7 +103,7 @@ def test_run_on_robot_follows_the_plan_and_moves_the_block_onto_the_pad(rig, tmp
     drive(ctl, sim)
     st = ctl.execution.status
     assert st.phase == "done" and st.ok is True and not st.active
-    assert topics[0] == "running" and wait_for(lambda: topics[-1] == "done", timeout=30)  # told just after it ends
+    assert topics[0] == "running" and wait_for(lambda: topics[-1] == "done")  # told just after it ends
     m = re.fullmatch(
         r"The robot followed the plan within ([\d.]+) mm; the block ended ([\d.]+ cm|less than 1 mm) from where you "
         r"put it — the skill works\.",
@@ -111,7 +111,7 @@ def test_run_on_robot_follows_the_plan_and_moves_the_block_onto_the_pad(rig, tmp
     )
     assert m, st.result
     assert st.message == f"The robot finished the skill ({st.duration:.1f} s)."
-    assert wait_for(lambda: ("success", "The robot finished the skill", st.result) in notes.notes, timeout=30)
+    assert wait_for(lambda: ("success", "The robot finished the skill", st.result) in notes.notes)
     report = ctl.execution.report
     assert report is not None and report.completed == pytest.approx(1.0, abs=1e-3)
     assert report.max_path_error < 1e-3 and report.max_position_error < 1e-3  # the simulator follows exactly
@@ -188,7 +188,7 @@ def test_stop_slows_the_robot_down_to_rest_within_the_limits(rig) -> None:
     alim = np.concatenate([b.acceleration_limits(a) for a in ("left", "right")])
     assert limit_ratio(q, 1000.0, vlim, alim) <= 1.0 + 1e-6
     assert np.abs(q[-1] - q[-2]).max() == 0.0  # at rest
-    assert wait_for(lambda: any(title == "The robot stopped" for _, title, _ in notes.notes), timeout=30)
+    assert wait_for(lambda: any(title == "The robot stopped" for _, title, _ in notes.notes))
     # Moving by hand works again and starts from where the robot stopped (not from an old target).
     here = sim.true_state()[0]
     ctl.teaching.move_joint(0, float(here[0]) + 0.05)
@@ -208,7 +208,7 @@ def test_emergency_stop_halts_within_one_control_cycle_and_refuses_motion_until_
         t_call = sim._clock.now()
         ctl.execution.emergency_stop()
         assert ctl.execution.status.estop
-        assert wait_for(lambda: not ctl.execution.running, timeout=30)
+        assert wait_for(lambda: not ctl.execution.running)
         time.sleep(0.3)
         t, q, _ = stream.arrays()
         moving = np.flatnonzero(np.abs(np.diff(q, axis=0)).max(axis=1) > 0)
@@ -225,7 +225,7 @@ def test_emergency_stop_halts_within_one_control_cycle_and_refuses_motion_until_
             st.message,
         ), st.message
         assert st.result.startswith("Up to there (")
-        assert wait_for(lambda: any(title == "Emergency stop" for _, title, _ in notes.notes), timeout=30)
+        assert wait_for(lambda: any(title == "Emergency stop" for _, title, _ in notes.notes))
         # Nothing moves the robot until the emergency stop is released, in plain words.
         assert ctl.execution.why_not().startswith("The emergency stop is on.")
         with pytest.raises(StudioError, match="emergency stop is on"):
@@ -241,7 +241,7 @@ def test_emergency_stop_halts_within_one_control_cycle_and_refuses_motion_until_
         assert ctl.execution.why_not() == ""
         here = ctl.teaching.robot_q()
         ctl.teaching.move_joint(0, float(here[0]) + 0.05)  # moves again, from where it halted
-        assert wait_for(lambda: abs(ctl.teaching.robot_q()[0] - (here[0] + 0.05)) < 1e-3, timeout=30)
+        assert wait_for(lambda: abs(ctl.teaching.robot_q()[0] - (here[0] + 0.05)) < 1e-3)
         print(f"\nemergency stop: joint states stopped changing {halt * 1000:.2f} ms after the call")
     finally:
         ctl.close()
@@ -342,7 +342,7 @@ def test_a_run_pressed_while_an_arm_moved_by_hand_still_moves_starts_from_rest_t
         ctl.execution.run()  # the arm holds where it is, at rest, and the plan approaches the skill from there
         time.sleep(1.5)
         ctl.execution.stop()
-        assert wait_for(lambda: not ctl.execution.running, timeout=30)
+        assert wait_for(lambda: not ctl.execution.running)
         report = ctl.execution.report
         assert ctl.execution.status.phase == "stopped" and report is not None
         assert report.max_path_error < 1e-3, report.max_path_error  # (it overshot by 0.7 m when planned moving)

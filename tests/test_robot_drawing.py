@@ -81,7 +81,7 @@ def test_every_drawn_link_is_where_fk_puts_it(app) -> None:
     baxter = app.controller.baxter
     spy = _Spy(app.panels.robot)
     app.controller.display.live.touch()  # make the pump draw once more, through the spy
-    assert wait_for(lambda: spy.calls > 0, 30.0)
+    assert wait_for(lambda: spy.calls > 0)
     q, g, drawn = spy.snapshot(app.server)
     _check(baxter, q, g, drawn, "at start")
     # The link count: every URDF link (57 in Baxter's) is drawn.
@@ -101,15 +101,15 @@ def test_every_drawn_link_is_where_fk_puts_it(app) -> None:
         app.controller.teaching.set_gripper("right", float(grip[1]))
         # While moving: what was drawn matches FK of what was drawn.
         n0 = spy.calls
-        assert wait_for(_calls_above(spy, n0 + 3), 30.0)
+        assert wait_for(_calls_above(spy, n0 + 3))
         q, g, drawn = spy.snapshot(app.server)
         _check(baxter, q, g, drawn, f"configuration {k}, moving")
         # Arrived: the drawn robot is the commanded configuration.
-        assert wait_for(_near(app.controller.teaching.robot_q, target), 30.0)
-        assert wait_for(_near(app.controller.teaching.robot_gripper, grip), 30.0)
+        assert wait_for(_near(app.controller.teaching.robot_q, target))
+        assert wait_for(_near(app.controller.teaching.robot_gripper, grip))
         n1 = spy.calls
         app.controller.display.live.touch()
-        assert wait_for(_calls_above(spy, n1), 30.0)
+        assert wait_for(_calls_above(spy, n1))
         time.sleep(0.05)
         q, g, drawn = spy.snapshot(app.server)
         assert np.max(np.abs(q - target)) < 1e-6

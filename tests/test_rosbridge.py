@@ -20,6 +20,7 @@ from studio.core.pipeline import learn_skill
 from studio.core.types import ALL_ARM_JOINTS, ARM_JOINTS
 from studio.robot_backend.base import JointStateBatch
 from studio.robot_backend.rosbridge import RosbridgeBaxter, parse_robot_url
+from tests.conftest import wait_for
 from tests.core.teacher_demos import demos
 
 EXPECTED_TYPES = {
@@ -148,25 +149,13 @@ def bridge():
 def robot(bridge: FakeRosbridge):
     r = RosbridgeBaxter(bridge.url, connect_timeout=10.0)
     r.start()
-    deadline = time.monotonic() + 30
-    while not r.has_state and time.monotonic() < deadline:
-        time.sleep(0.02)
-    assert r.has_state, "no joint states from the fake rosbridge"
+    assert wait_for(lambda: r.has_state), "no joint states from the fake rosbridge"
     yield r
     r.stop()
 
 
-def _wait(cond, timeout: float = 30.0) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if cond():
-            return True
-        time.sleep(0.01)
-    return False
-
-
 def test_speaks_baxters_topics_with_the_right_types_and_op_codes(bridge: FakeRosbridge, robot: RosbridgeBaxter) -> None:
-    assert _wait(lambda: len(bridge.by_op("publish", "/robot/set_super_enable")) == 1)
+    assert wait_for(lambda: len(bridge.by_op("publish", "/robot/set_super_enable")) == 1)
     with bridge.lock:
         ops = [o for _, o in bridge.ops]
     assert {o["op"] for o in ops} <= {"advertise", "subscribe", "publish", "unadvertise", "unsubscribe"}
@@ -190,14 +179,14 @@ def test_speaks_baxters_topics_with_the_right_types_and_op_codes(bridge: FakeRos
 def test_joint_states_reach_the_subscribers_by_name(bridge: FakeRosbridge, robot: RosbridgeBaxter) -> None:
     got: list[JointStateBatch] = []
     robot.subscribe(got.append)
-    assert _wait(lambda: len(got) >= 30)
+    assert wait_for(lambda: len(got) >= 30)
     t = np.concatenate([b.t for b in got])
     q = np.concatenate([b.q for b in got])
     assert np.all(np.diff(t) > 0)
     rate = (len(t) - 1) / (t[-1] - t[0])
     assert 40 < rate < 140  # the robot's 100 Hz
     np.testing.assert_allclose(q[-1], bridge.q)  # joints matched by name (the message is alphabetical)
-    assert _wait(lambda: robot.state().gripper[0] == 100.0)
+    assert wait_for(lambda: robot.state().gripper[0] == 100.0)
 
 
 def test_joint_states_arrive_while_a_command_holds_the_robot(bridge: FakeRosbridge, robot: RosbridgeBaxter) -> None:
@@ -206,7 +195,7 @@ def test_joint_states_arrive_while_a_command_holds_the_robot(bridge: FakeRosbrid
     got: list[JointStateBatch] = []
     robot.subscribe(got.append)
     with robot._lock:  # what start, execute and every command tick hold while they publish
-        assert _wait(lambda: len(got) >= 10), "joint states stopped while a command was being sent"
+        assert wait_for(lambda: len(got) >= 10), "joint states stopped while a command was being sent"
         assert robot.has_state and robot.state().q.shape == (14,)
 
 
@@ -224,7 +213,7 @@ def test_joint_commands_are_position_mode_by_name_at_100_hz(bridge: FakeRosbridg
     rate = (len(times) - 1) / (times[-1] - times[0])
     # republished at 100 Hz (Baxter drops a command after 0.2 s); a loaded machine (CI) may drop a few ticks
     assert 50 < rate < 130, rate
-    assert _wait(lambda: np.allclose(robot.state().q[:7], target))
+    assert wait_for(lambda: np.allclose(robot.state().q[:7], target))
     # after the hold time the arm is no longer commanded (it can be guided by hand again)
     time.sleep(1.3)
     n = len(bridge.by_op("publish", "/robot/limb/left/joint_command"))
@@ -234,13 +223,13 @@ def test_joint_commands_are_position_mode_by_name_at_100_hz(bridge: FakeRosbridg
 
 
 def test_gripper_commands_go_to_the_grippers_hardware_id(bridge: FakeRosbridge, robot: RosbridgeBaxter) -> None:
-    assert _wait(lambda: robot._state.hardware_id(1) == 65665)  # learned from the gripper's state messages
+    assert wait_for(lambda: robot._state.hardware_id(1) == 65665)  # learned from the gripper's state messages
     robot.command_gripper("right", 35.0)
-    assert _wait(lambda: bridge.by_op("publish", "/robot/end_effector/right_gripper/command"))
+    assert wait_for(lambda: bool(bridge.by_op("publish", "/robot/end_effector/right_gripper/command")))
     m = bridge.by_op("publish", "/robot/end_effector/right_gripper/command")[-1][1]["msg"]
     assert m["id"] == 65665 and m["command"] == "go" and json.loads(m["args"]) == {"position": 35.0}
     assert isinstance(m["sequence"], int) and m["sender"]
-    assert _wait(lambda: robot.state().gripper[1] == 35.0)
+    assert wait_for(lambda: robot.state().gripper[1] == 35.0)
 
 
 def test_executes_a_plan_streaming_commands_and_stops(bridge: FakeRosbridge, robot: RosbridgeBaxter) -> None:
@@ -266,17 +255,17 @@ def test_executes_a_plan_streaming_commands_and_stops(bridge: FakeRosbridge, rob
     n0 = len(bridge.by_op("publish", "/robot/limb/left/joint_command"))
     robot.execute(plan)
     assert robot.progress().state == "running"
-    assert _wait(lambda: robot.progress().fraction > 0.5, timeout=plan.duration + 30)
+    assert wait_for(lambda: robot.progress().fraction > 0.5, timeout=plan.duration + 30)
     with pytest.raises(StudioError, match="already running"):
         robot.execute(plan)
-    assert _wait(lambda: robot.progress().state == "done", timeout=plan.duration + 30)
+    assert wait_for(lambda: robot.progress().state == "done", timeout=plan.duration + 30)
     cmds = bridge.by_op("publish", "/robot/limb/left/joint_command")[n0:]
     times = np.array([t for t, _ in cmds])
     rate = (len(times) - 1) / (times[-1] - times[0])
     assert 50 < rate < 130, rate
     # the commands walk along the plan and end at its last pose; the fake robot followed
     np.testing.assert_allclose(cmds[-1][1]["msg"]["command"], plan.q[-1, :7], atol=1e-9)
-    assert _wait(lambda: np.allclose(robot.state().q[:7], plan.q[-1, :7]))
+    assert wait_for(lambda: np.allclose(robot.state().q[:7], plan.q[-1, :7]))
     assert not bridge.by_op("publish", "/robot/limb/right/joint_command")  # only the planned arm moves
 
 
@@ -309,7 +298,7 @@ def test_emergency_stop_holds_at_once_and_refuses_motion(
     assert sorted(sent) == ["left", "right"]
     assert robot.progress().state == "emergency-stopped"
     np.testing.assert_allclose(sent["left"], held, atol=0.05)
-    assert _wait(lambda: sent["left"] in [m["msg"]["command"] for _, m in bridge.by_op("publish", LEFT_CMD)], 30)
+    assert wait_for(lambda: sent["left"] in [m["msg"]["command"] for _, m in bridge.by_op("publish", LEFT_CMD)])
     time.sleep(0.5)
     after = [m["msg"]["command"] for _, m in bridge.by_op("publish", LEFT_CMD)[n_before:]]
     # Commands already on their way arrive before the hold (the websocket keeps the order); after it, nothing.
@@ -321,7 +310,7 @@ def test_emergency_stop_holds_at_once_and_refuses_motion(
         robot.execute(plan)
     robot.clear_emergency_stop()
     robot.command_joints("left", held + 0.01)
-    assert _wait(lambda: np.allclose(robot.state().q[:7], held + 0.01))
+    assert wait_for(lambda: np.allclose(robot.state().q[:7], held + 0.01))
 
 
 def test_controlled_stop_slows_to_rest(bridge: FakeRosbridge, robot: RosbridgeBaxter) -> None:
@@ -333,7 +322,7 @@ def test_controlled_stop_slows_to_rest(bridge: FakeRosbridge, robot: RosbridgeBa
     time.sleep(1.5)
     robot.stop_motion()
     assert robot.progress().state == "stopping"
-    assert _wait(lambda: robot.progress().state == "stopped", timeout=30)
+    assert wait_for(lambda: robot.progress().state == "stopped")
     p = robot.progress()
     assert 0 < p.fraction < 0.5 and "stopped" in p.message
 

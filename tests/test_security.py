@@ -14,32 +14,16 @@ import shutil
 import socket
 import time
 from pathlib import Path
-from typing import Any
 
 import pytest
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 
 from studio.app import Studio, build_app
+from tests.conftest import free_port, wait_for
 from tests.viser_client import ViserClient
 
 ROOT = Path(__file__).resolve().parent.parent
 MiB = 1024 * 1024
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-def wait_for(pred, timeout: float = 30.0) -> Any:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        out = pred()
-        if out:
-            return out
-        time.sleep(0.05)
-    return pred()
 
 
 @pytest.fixture
@@ -80,13 +64,13 @@ def attack(app: Studio, *, origin: str | None, cookie: str | None = None, url: s
     try:
         c.wait_gui("Demo action")
         c.set_value("Demo", before[0])
-        wait_for(lambda: app.panels.demos.demo_pick.value == before[0], 30)
+        wait_for(lambda: app.panels.demos.demo_pick.value == before[0])
         c.set_value("Demo action", "Delete")
         time.sleep(0.3)
         c.set_value("Demo action", "Delete")
         c.set_value("Download session (.zip)", True)
         c.wait_for(lambda _m: c.downloads(), 20)
-        wait_for(lambda: len(app.controller.demos.names()) < len(before), 30)
+        wait_for(lambda: len(app.controller.demos.names()) < len(before))
         return {
             "refused": None,
             "gui": c.gui_count(),
@@ -387,10 +371,10 @@ def test_an_upload_within_the_limit_still_works(app: Studio) -> None:
         for i in range(n):
             send_part(c, uuid, "t-ok", i, data[i * chunk : (i + 1) * chunk])
         names = app.controller.sessions.names
-        assert wait_for(lambda: len(names()) == 2, 30), (names(), c.notifications())
+        assert wait_for(lambda: len(names()) == 2), (names(), c.notifications())
         assert not refusals(c)
         # viser keeps the last file as the button's value; once imported the studio lets it go
-        assert wait_for(lambda: app.panels.sessions.upload.value.content == b"", 30)
+        assert wait_for(lambda: app.panels.sessions.upload.value.content == b"")
     finally:
         c.close()
 
@@ -455,7 +439,7 @@ def test_the_studio_refuses_to_start_unprotected(sessions: Path, monkeypatch: py
     with pytest.raises(StudioError, match="protect"):
         build_app(port=port, session="stack-cup", sessions_dir=sessions)
     monkeypatch.setattr(infra, "websockets", real)
-    assert wait_for(lambda: _port_free(port), 30)
+    assert wait_for(lambda: _port_free(port))
 
 
 def _port_free(port: int) -> bool:

@@ -119,10 +119,10 @@ def test_two_websocket_clients_racing_open_and_record(two: Path) -> None:
             b.set_value("Session action", "Open")
             time.sleep(delay_ms / 1000)
             a.set_value("Record", True)
-            assert wait_for(lambda: bool(started_in), 30), "the recording did not start"
+            assert wait_for(lambda: bool(started_in)), "the recording did not start"
             time.sleep(0.5)
             a.set_value("Stop", True)
-            assert wait_for(lambda: not ctl.teaching.recording, 30)
+            assert wait_for(lambda: not ctl.teaching.recording)
             time.sleep(0.5)
             after = demo_counts(two)
             where = started_in[0]
