@@ -64,6 +64,7 @@ class Controller:
         display: the pose the scene draws; events: the topics to subscribe to; baxter: the kinematic model.
 
     Start it with :meth:`start` (robot streaming, key-point thread) and stop it with :meth:`shutdown`.
+    ``headless``: for commands without a GUI (``studio learn``): a failed job raises from its future.
     """
 
     def __init__(
@@ -74,10 +75,11 @@ class Controller:
         backend: RobotBackend,
         baxter: Baxter | None = None,
         notifier: Notifier | None = None,
+        headless: bool = False,
     ) -> None:
         baxter = baxter if baxter is not None else Baxter.load()
         opened = session if isinstance(session, Session) else open_or_create(store, session)
-        self.ctx = ctx = Context(store, opened, baxter, notifier or LogNotifier())
+        self.ctx = ctx = Context(store, opened, baxter, notifier or LogNotifier(), headless=headless)
         # Each part gets the context and narrow callables or protocols for what it asks of the others (late
         # bound: a part is asked only once all exist); it subscribes to the events it follows itself.
         self.view = View(ctx.events)

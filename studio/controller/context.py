@@ -54,9 +54,13 @@ class Context:
         events: the topics the views subscribe to.
         lock: guards the state the parts share (session switches, the recorder, training).
         display: which robot pose the scene draws (the live robot, or a replay's or preview's).
+        headless: a failed job on the work thread stays in its future (the caller raises it) instead of
+            becoming a notification.
     """
 
-    def __init__(self, store: SessionStore, session: Session, baxter: Baxter, notifier: Notifier) -> None:
+    def __init__(
+        self, store: SessionStore, session: Session, baxter: Baxter, notifier: Notifier, *, headless: bool = False
+    ) -> None:
         self.store = store
         self.session = session
         self.baxter = baxter
@@ -64,6 +68,7 @@ class Context:
         self.events = Events()
         self.lock = threading.RLock()
         self.display = Display()
+        self.headless = headless
         self._leaving: list[Callable[[str], None]] = []
         self._work = ThreadPoolExecutor(max_workers=1, thread_name_prefix="studio-work")
 
@@ -127,7 +132,7 @@ class Context:
         title: str = "That did not work",
     ) -> Future[R | None]:
         """Run ``job`` on the work thread (one job at a time); ``done(result)`` runs there too. A failure is a
-        notification and the future's result is None."""
+        notification and the future's result is None (:attr:`headless`: the future holds the failure)."""
 
         def run() -> R | None:
             try:
@@ -136,14 +141,12 @@ class Context:
                     done(result)
                 return result
             except Exception as exc:
+                if self.headless:
+                    raise
                 self.report(exc, title=title)
                 return None
 
         return self._work.submit(run)
-
-    def idle(self) -> None:
-        """Wait until the work queued so far on the work thread is done (headless use)."""
-        self._work.submit(lambda: None).result()
 
     def shutdown(self) -> None:
         """Drop queued work (a running job finishes on its own)."""

@@ -73,14 +73,15 @@ class Suggesting:
             self.state = replace(self.state, **changes)  # type: ignore[arg-type]
         self.ctx.emit(Topic.SUGGEST)
 
-    def start(self) -> Future[None]:
-        """Start a search (on the work thread); the result is applied as one change when it completes."""
+    def start(self, arm: str | None = None) -> Future[None]:
+        """Start a search on the demonstrations of ``arm`` (default: the arm the sliders show) on the work
+        thread; the result is applied as one change when it completes."""
         from studio.core import autotune
 
         with self.ctx.lock:
             if self.state.running:
                 raise StudioError("Suggest is already running.")
-            arm = self.tuning.shown_arm()
+            arm = arm or self.tuning.shown_arm()
             demos = [d for _, d in self.demos.for_arm(arm)] if arm else []
             if len(demos) < 2:
                 raise NotEnoughData(

@@ -77,6 +77,8 @@ class Training:
         self.tuning = tuning
         self.busy = False
         self.judging = False
+        #: The newest judgement under way or done (training starts one when it finishes).
+        self.judgement: Future[None] | None = None
         self._verdicts: dict[str, SkillVerdict] = {}
         ctx.on_leave(self._check_leave)
         ctx.events.on(Topic.SESSION, self._on_session)
@@ -203,6 +205,7 @@ class Training:
 
         fut = self.ctx.submit(job, title="Could not judge the skill")
         fut.add_done_callback(finished)
+        self.judgement = fut
         return fut
 
     def _judge_one(self, arm: str, skill: Skill, fixed_k: bool) -> SkillVerdict:
