@@ -1,8 +1,5 @@
-"""Headless commands behind ``studio learn | import-csv | export-csv | make-examples``.
-
-Each takes the parsed ``argparse`` namespace (see :mod:`studio.cli`), prints plain-words output and returns
-an exit code; :class:`StudioError` propagates to the CLI, which prints its message.
-"""
+"""Headless commands behind ``studio learn | import-csv | export-csv | make-examples``: each takes the parsed
+``argparse`` namespace (:mod:`studio.cli`), prints plain words and returns an exit code (errors: the CLI)."""
 
 from __future__ import annotations
 
@@ -23,8 +20,11 @@ import numpy as np
 from studio.core import sampling
 from studio.core.arms import normalize_arms
 from studio.core.errors import InvalidInput, NotEnoughData, StudioError
+from studio.core.quality import Remedy
 from studio.core.types import Recording, Skill
 from studio.storage import DEFAULT_ROOT, Session, SessionStore
+from studio.words import SHARED_REMEDIES, Remedies, tune_summary
+from studio.words import verdict_lines as verdict_words
 
 if TYPE_CHECKING:
     from studio.controller import Controller
@@ -112,8 +112,9 @@ def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
     if hidden:
         print(f"Left out (hidden in the studio): {', '.join(hidden)}.", file=out)
     t0 = time.perf_counter()
+    auto = bool(getattr(args, "auto", False))
     with headless(store, session) as ctl:
-        if getattr(args, "auto", False):
+        if auto:
             arm = next((a for a in arms if len(ctl.demos.for_arm(a)) >= 2), arms[0])
             ctl.suggest.start(arm).result()
             res = ctl.suggest.state.result
@@ -121,7 +122,7 @@ def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
                 print(
                     f"{arm.capitalize()} arm — suggested thresholds (Detail {res.settings.detail:+.1f}, "
                     f"k = {res.n_clusters or 'mean key-points per demonstration'}) in {res.seconds:.1f} s. "
-                    f"{res.summary}",
+                    f"{tune_summary(res)}",
                     file=out,
                 )
         skills = train(ctl, arms)
@@ -130,12 +131,20 @@ def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
     print(report(session, skills, elapsed), file=out)
     for arm in skills:
         v = verdicts.get(arm)
-        lines = list(v.verdict.lines) if v is not None and v.verdict is not None else []
+        lines = verdict_words(v.verdict, cli_remedies(session.name, auto)) if v and v.verdict else ()
         if lines:
             print(f"\nHow good is the {arm} arm's skill?", file=out)
             for line in lines:
                 print(f"  {line}", file=out)
     return 0
+
+
+def cli_remedies(session: str, auto: bool) -> Remedies:
+    """The knob that would help, said with ``studio learn``'s options (it has no Suggest or Detail)."""
+    again = f'learn again with `studio learn "{session}" --auto`, which searches for better thresholds'
+    search = "record one or two more demonstrations (--auto already chose the thresholds)" if auto else again
+    redo = "re-record it, or hide it in the studio"
+    return {**SHARED_REMEDIES, Remedy.MORE_KEYPOINTS: search, Remedy.SHARPER_CORNERS: search, Remedy.REDO_DEMO: redo}
 
 
 def _fmt(x: float, spec: str = ".3g") -> str:
@@ -362,8 +371,7 @@ def make_examples(args: argparse.Namespace, out: TextIO | None = None) -> int:
             raise InvalidInput(f'Unknown example "{task}": choose one of {", ".join(EXAMPLES)}.')
         t0 = time.perf_counter()
         print(f'Making example session "{task}"...', file=out)
-        # The committed examples hold demonstrations only: the skill is learned in seconds (``studio learn``
-        # or the Train panel), and a stored skill would tie the examples to today's skill file format.
+        # demonstrations only: a stored skill would tie the examples to today's skill file format
         s = build_example(store, task, learn_skill=bool(getattr(args, "learn", False)), out=out)
         size = sum(p.stat().st_size for p in s.path.rglob("*") if p.is_file())
         print(f"  done in {time.perf_counter() - t0:.1f} s: {s.path} ({size / 1e6:.1f} MB)", file=out)
@@ -373,6 +381,7 @@ def make_examples(args: argparse.Namespace, out: TextIO | None = None) -> int:
 __all__ = [
     "EXAMPLES",
     "build_example",
+    "cli_remedies",
     "export_csv",
     "headless",
     "import_csv",

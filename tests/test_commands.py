@@ -10,6 +10,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from studio import commands
 from studio.cli import main
 from studio.commands import EXAMPLES, build_example
 from studio.core.types import Demo, KeypointParams, Recording
@@ -161,7 +162,9 @@ def test_learn_uses_the_sessions_k_and_remembers_each_arms_demos(
         return FakeSkill(tuple(d.name for d in demos))
 
     monkeypatch.setattr(pipeline, "learn_skill", fake_learn_skill)
-    monkeypatch.setattr(pipeline, "judge_skill", lambda skill, demos, fixed_k: (None, SimpleNamespace(lines=("fits",))))
+    verdict = SimpleNamespace(level="fake")
+    monkeypatch.setattr(pipeline, "judge_skill", lambda skill, demos, fixed_k: (None, verdict))
+    monkeypatch.setattr(commands, "verdict_words", lambda v, remedies: ("fits",) if v is verdict else ())
     monkeypatch.setattr(quality, "demo_fits", lambda report: ())
     store = SessionStore(tmp_path)
     s = store.create("both arms", arms=("left", "right"))

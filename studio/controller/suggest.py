@@ -14,6 +14,7 @@ from studio.controller.events import Topic
 from studio.controller.learning import ShownDemos
 from studio.core.errors import NotEnoughData, StudioError
 from studio.core.thresholds import ThresholdSettings
+from studio.words import tune_summary
 
 if TYPE_CHECKING:
     from studio.core.autotune import TuneResult
@@ -124,7 +125,7 @@ class Suggesting:
                 running=False,
                 fraction=1.0,
                 step="Done",
-                summary=f"Suggested{words}: {_detail_words(res.settings.detail)}. {res.summary}",
+                summary=f"Suggested{words}: {_detail_words(res.settings.detail)}. {tune_summary(res)}",
                 can_undo=True,
                 seconds=res.seconds,
                 result=res,
