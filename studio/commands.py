@@ -125,8 +125,10 @@ def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
                     f"{tune_summary(res)}",
                     file=out,
                 )
-        skills = train(ctl, arms)
+        skills = ctl.training.train(arms).result()
         elapsed = time.perf_counter() - t0
+        assert skills is not None and ctl.training.judgement is not None  # a headless controller raises failures
+        ctl.training.judgement.result()
         verdicts = ctl.training.verdicts()
     print(report(session, skills, elapsed), file=out)
     for arm in skills:
