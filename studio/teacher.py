@@ -30,7 +30,7 @@ from scipy.interpolate import CubicSpline
 from studio.core.errors import InvalidInput
 from studio.core.kinematics import Baxter
 from studio.core.rotations import matrix_from_quat_wxyz, quat_angle, quat_wxyz_from_matrix, rotvec_matrix, slerp
-from studio.core.types import Recording, check_arm, readonly
+from studio.core.types import ARMS, Arm, Recording, check_arm, readonly
 
 TASKS: tuple[str, ...] = ("stack-cup", "pick-place")
 
@@ -63,7 +63,7 @@ class GripperEvent(NamedTuple):
     """One gripper action of a plan: when it starts, which arm, "close" or "open", and the gripper pose."""
 
     time: float
-    arm: str
+    arm: Arm
     action: str
     position: np.ndarray
     wxyz: np.ndarray
@@ -88,7 +88,7 @@ class TeacherPlan:
     t: np.ndarray
     q: np.ndarray
     gripper: np.ndarray
-    arms: tuple[str, ...]
+    arms: tuple[Arm, ...]
     task: str
     seed: int
     events: list[GripperEvent]
@@ -99,7 +99,7 @@ class TeacherPlan:
     def duration(self) -> float:
         return float(self.t[-1] - self.t[0])
 
-    def event_poses(self, action: str, arm: str | None = None) -> list[GripperEvent]:
+    def event_poses(self, action: str, arm: Arm | None = None) -> list[GripperEvent]:
         """The events of one kind ("close" or "open"), optionally for one arm, in time order."""
         return [e for e in self.events if e.action == action and (arm is None or e.arm == arm)]
 
@@ -211,7 +211,7 @@ class _Segment:
 
 
 def _plan_arm(
-    task: str, arm: str, rng: np.random.Generator, baxter: Baxter
+    task: str, arm: Arm, rng: np.random.Generator, baxter: Baxter
 ) -> tuple[list[tuple[str, float, object]], np.ndarray]:
     """Timeline of one arm: list of ("move", t0, _Segment) / ("hold", t0, duration) and the start q."""
     q_home = baxter.neutral(arm)
@@ -250,7 +250,7 @@ def _plan_arm(
     return items, q_home
 
 
-def _ik_segment(baxter: Baxter, arm: str, seg: _Segment, q_start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _ik_segment(baxter: Baxter, arm: Arm, seg: _Segment, q_start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """IK knots (times (K,), joints (K, 7)) along a segment, each solve seeded by the previous one."""
     n = max(3, math.ceil(seg.duration * _IK_RATE_HZ) + 1)
     tk = seg.t0 + np.linspace(0.0, seg.duration, n)
@@ -270,7 +270,7 @@ def _ik_segment(baxter: Baxter, arm: str, seg: _Segment, q_start: np.ndarray) ->
 
 
 def _arm_joints(
-    items: list[tuple[str, float, object]], q_home: np.ndarray, arm: str, baxter: Baxter, t: np.ndarray
+    items: list[tuple[str, float, object]], q_home: np.ndarray, arm: Arm, baxter: Baxter, t: np.ndarray
 ) -> tuple[np.ndarray, list[tuple[float, float, str]], float]:
     """(N, 7) joint targets at times ``t``, the gripper actions (t_start, hold length, action), end time."""
     vmax = baxter.velocity_limits(arm) * _VELOCITY_MARGIN
@@ -310,7 +310,7 @@ def _arm_joints(
 
 
 @lru_cache(maxsize=64)
-def teach(task: str, seed: int, arm: str = "left", rate_hz: float = 1000.0, noise: bool = True) -> TeacherPlan:
+def teach(task: str, seed: int, arm: Arm = "left", rate_hz: float = 1000.0, noise: bool = True) -> TeacherPlan:
     """A human-like scripted demonstration of ``task`` (20–30 s, varied speed, pauses, jitter).
 
     Args:
@@ -338,8 +338,8 @@ def teach(task: str, seed: int, arm: str = "left", rate_hz: float = 1000.0, nois
     q = np.empty((t.shape[0], 14))
     grip = np.empty((t.shape[0], 2))
     ends = []
-    grip_actions: dict[str, list[tuple[float, float, str]]] = {}
-    for i_arm, a in enumerate(("left", "right")):
+    grip_actions: dict[Arm, list[tuple[float, float, str]]] = {}
+    for i_arm, a in enumerate(ARMS):
         cols = slice(0, 7) if a == "left" else slice(7, 14)
         if a not in timelines:
             q[:, cols] = baxter.neutral(a)

@@ -16,6 +16,7 @@ from studio.controller.pose import Display
 from studio.core.arms import normalize_arms
 from studio.core.errors import InvalidInput, StudioError
 from studio.core.kinematics import Baxter
+from studio.core.types import Arm
 from studio.storage import Session, SessionStore
 
 log = logging.getLogger(__name__)
@@ -73,7 +74,7 @@ class Context:
         self._work = ThreadPoolExecutor(max_workers=1, thread_name_prefix="studio-work")
 
     @property
-    def arms(self) -> tuple[str, ...]:
+    def arms(self) -> tuple[Arm, ...]:
         """The arm(s) taught in the open session."""
         return taught_arms(self.session)
 
@@ -153,7 +154,7 @@ class Context:
         self._work.shutdown(wait=False, cancel_futures=True)
 
 
-def taught_arms(session: Session) -> tuple[str, ...]:
+def taught_arms(session: Session) -> tuple[Arm, ...]:
     """The arm(s) ``session`` teaches ("left" when it names none that is valid)."""
     try:
         return normalize_arms(tuple(session.arms))

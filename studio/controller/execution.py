@@ -54,7 +54,7 @@ from studio.core import sampling
 from studio.core.errors import StudioError
 from studio.core.execution import ExecutionPlan, TrackingReport, plan_execution, skill_feasibility
 from studio.core.ik_path import Feasibility
-from studio.core.types import Recording, Skill
+from studio.core.types import Arm, Recording, Skill
 from studio.robot_backend.base import ExecutionProgress, RobotBackend
 from studio.world import TaskResult
 
@@ -104,7 +104,7 @@ class ExecutionActions:
         self._status = RunStatus()
         self._run: Run | None = None
         self._last: Run | None = None
-        self._feasible: dict[str, tuple[Skill, Feasibility]] = {}
+        self._feasible: dict[Arm, tuple[Skill, Feasibility]] = {}
         self._paths = RunPaths()
         self.plan: ExecutionPlan | None = None
         self.recording: Recording | None = None
@@ -130,7 +130,7 @@ class ExecutionActions:
     def running(self) -> bool:
         return self._run is not None
 
-    def feasibility(self) -> dict[str, Feasibility]:
+    def feasibility(self) -> dict[Arm, Feasibility]:
         """arm -> whether the robot can follow its learned skill, in plain words (computed once per skill)."""
         out = {}
         for arm, skill in sampling.executable(self.ctx.session.skills).items():
@@ -144,10 +144,10 @@ class ExecutionActions:
             out[arm] = hit[1]
         return out
 
-    def unreachable_paths(self) -> dict[str, list[np.ndarray]]:
+    def unreachable_paths(self) -> dict[Arm, list[np.ndarray]]:
         """arm -> the stretches (each (n, 3) m) of its learned path the robot cannot follow, to draw in red."""
         skills = self.ctx.session.skills
-        out: dict[str, list[np.ndarray]] = {}
+        out: dict[Arm, list[np.ndarray]] = {}
         for arm, f in self.feasibility().items():
             pos = np.asarray(skills[arm].trajectory.position)
             out[arm] = [pos[s.i_start : s.i_end + 2] for s in f.spans]

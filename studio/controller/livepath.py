@@ -15,6 +15,7 @@ from studio.controller.context import Context
 from studio.controller.events import Topic
 from studio.controller.learning import Follower, KeypointView, ShownDemos
 from studio.core.keypoints import KeypointCache
+from studio.core.types import Arm
 
 
 @dataclass(frozen=True)
@@ -30,7 +31,7 @@ class LivePath:
         message: why there is no path, in plain words ("" when there is one).
     """
 
-    arm: str
+    arm: Arm
     version: int
     position: np.ndarray
     distance: float
@@ -77,7 +78,7 @@ class LivePaths:
         self.demos = demos
         self.tuning = tuning
         self.wanted = wanted
-        self.paths: dict[str, LivePath] = {}
+        self.paths: dict[Arm, LivePath] = {}
         self.align_cache = AlignmentCache()
         self.computed_ms: float = math.nan  # how long the last set of paths took (for the bench)
         tuning.add_follower(self.follow)
@@ -95,7 +96,7 @@ class LivePaths:
             return
         t0 = time.perf_counter()
         mode = self.ctx.session.generalization
-        out: dict[str, LivePath] = {}
+        out: dict[Arm, LivePath] = {}
         try:
             for arm, params in view.params.items():
                 demos = [d for _, d in self.demos.for_arm(arm)]

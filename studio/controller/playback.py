@@ -8,7 +8,7 @@ playback is loaded; the scene follows it while it is shown (:class:`~studio.cont
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Literal
+from enum import StrEnum
 
 import numpy as np
 
@@ -21,9 +21,16 @@ from studio.core.types import Recording
 from studio.robot_backend.base import JointStateBatch
 from studio.robot_backend.replay import ReplayBackend
 
-PlaybackKind = Literal["preview", "replay"]
-PREVIEW: PlaybackKind = "preview"
-REPLAY: PlaybackKind = "replay"
+
+class PlaybackKind(StrEnum):
+    """What a playback plays: the learned skill, or a recorded demonstration."""
+
+    PREVIEW = "preview"
+    REPLAY = "replay"
+
+
+PREVIEW = PlaybackKind.PREVIEW
+REPLAY = PlaybackKind.REPLAY
 #: Samples per second of the preview recording.
 PREVIEW_RATE_HZ = 100.0
 

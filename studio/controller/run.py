@@ -31,7 +31,7 @@ import numpy as np
 from studio.core.errors import StudioError
 from studio.core.execution import ExecutionPlan, TrackingReport, compare_execution
 from studio.core.kinematics import Baxter
-from studio.core.types import Recording
+from studio.core.types import Arm, Recording
 from studio.recorder import Recorder
 from studio.robot_backend.base import ExecutionProgress, JointStateBatch, RobotBackend
 from studio.world import TaskResult, format_distance
@@ -98,8 +98,8 @@ class RunPaths:
     ``executed``, where the gripper really went. ``key`` changes whenever they do."""
 
     key: tuple[int, ...] = ()
-    approach: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
-    executed: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
+    approach: dict[Arm, np.ndarray] = dataclasses.field(default_factory=dict)
+    executed: dict[Arm, np.ndarray] = dataclasses.field(default_factory=dict)
 
 
 class Trace:

@@ -14,6 +14,7 @@ from studio.controller.events import Topic
 from studio.controller.learning import ShownDemos
 from studio.core.errors import NotEnoughData, StudioError
 from studio.core.thresholds import ThresholdSettings
+from studio.core.types import Arm
 from studio.words import tune_summary
 
 if TYPE_CHECKING:
@@ -50,7 +51,7 @@ class Thresholds(Protocol):
     @property
     def k(self) -> int | None: ...
     def settings(self) -> ThresholdSettings: ...
-    def shown_arm(self) -> str | None: ...
+    def shown_arm(self) -> Arm | None: ...
     def restore(self, settings: ThresholdSettings, k: int | None) -> None: ...
 
 
@@ -74,7 +75,7 @@ class Suggesting:
             self.state = replace(self.state, **changes)  # type: ignore[arg-type]
         self.ctx.emit(Topic.SUGGEST)
 
-    def start(self, arm: str | None = None) -> Future[None]:
+    def start(self, arm: Arm | None = None) -> Future[None]:
         """Start a search on the demonstrations of ``arm`` (default: the arm the sliders show) on the work
         thread; the result is applied as one change when it completes."""
         from studio.core import autotune

@@ -10,7 +10,7 @@ import viser
 
 from studio.controller import MODE_WORDS, Controller, SkillVerdict, Step, Topic, UsedDemo
 from studio.core.quality import Remedy
-from studio.core.types import DEFAULT_GENERALIZATION, Skill
+from studio.core.types import DEFAULT_GENERALIZATION, Arm, Skill
 from studio.panels._charts import heatmap_svg, position_plot_svg
 from studio.words import SHARED_REMEDIES, Remedies, fit_note, verdict_lines
 
@@ -119,7 +119,7 @@ class TrainPanel:
             self.mode.value = MODE_WORDS[self.ctl.training.generalization]
 
     # -- the verdict ---------------------------------------------------------------------------------------
-    def _verdict_html(self, verdicts: dict[str, SkillVerdict]) -> str:
+    def _verdict_html(self, verdicts: dict[Arm, SkillVerdict]) -> str:
         skills = self.ctl.training.skills()
         if not skills:
             return ""
@@ -147,7 +147,7 @@ class TrainPanel:
         return "".join(blocks)
 
     # -- what it learned -----------------------------------------------------------------------------------
-    def _summary_html(self, arm: str, skill: Skill, used: list[UsedDemo], verdict: SkillVerdict | None) -> str:
+    def _summary_html(self, arm: Arm, skill: Skill, used: list[UsedDemo], verdict: SkillVerdict | None) -> str:
         names = [u.name if u.index is not None else f"{u.name} (renamed or deleted since)" for u in used]
         ref = int(skill.reference)
         zero = [int(z) for z in np.atleast_1d(skill.zero_points)]
@@ -204,7 +204,7 @@ class TrainPanel:
             f"{''.join(rows)}</table>{ik_note}</div>"
         )
 
-    def _plots(self, arm: str, skill: Skill, used: list[UsedDemo]) -> list[str]:
+    def _plots(self, arm: Arm, skill: Skill, used: list[UsedDemo]) -> list[str]:
         plots = []
         for j, u in enumerate(used):
             kps = skill.keypoints[j] if j < len(skill.keypoints) else np.zeros(0, dtype=int)

@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from studio.core.errors import InvalidInput, StudioError
-from studio.core.types import ARMS, check_arm
+from studio.core.types import ARMS, Arm, check_arm
 from studio.robot_backend.base import (
     ExecutionProgress,
     ListenerHub,
@@ -74,7 +74,7 @@ log = logging.getLogger(__name__)
 COMMAND_HOLD_S = 1.0
 
 
-def _cols(arm: str) -> slice:
+def _cols(arm: Arm) -> slice:
     return slice(0, 7) if arm == "left" else slice(7, 14)
 
 
@@ -153,8 +153,8 @@ class RosbridgeBaxter(RobotBackend):
         self._state = StateReader()  # its own lock: the state callbacks never wait for ``_lock``
         self._seq = 0
         # commands
-        self._target: dict[str, np.ndarray] = {}
-        self._target_until: dict[str, float] = {}
+        self._target: dict[Arm, np.ndarray] = {}
+        self._target_until: dict[Arm, float] = {}
         self._run: _Run | None = None
         self._last_grip_cmd = np.full(2, np.nan)
         self._exec = ExecutionProgress()
@@ -215,7 +215,7 @@ class RosbridgeBaxter(RobotBackend):
         self._state.on_gripper_state(i, msg)
 
     # -- commands ---------------------------------------------------------------------------------------------
-    def _joint_command(self, arm: str, q: np.ndarray) -> None:
+    def _joint_command(self, arm: Arm, q: np.ndarray) -> None:
         self._link.publish(JOINT_COMMAND.format(arm=arm), JOINT_COMMAND_TYPE, joint_command(arm, q))
         self.commands_sent += 1
 
@@ -229,7 +229,7 @@ class RosbridgeBaxter(RobotBackend):
         if not self._link.open:
             raise StudioError("The robot is not connected; start the studio with the robot reachable.")
 
-    def command_joints(self, arm: str, q: np.ndarray) -> None:
+    def command_joints(self, arm: Arm, q: np.ndarray) -> None:
         """Move ``arm`` to ``q`` (7,) rad: republished at the command rate for :data:`COMMAND_HOLD_S`."""
         check_arm(arm)
         qa = np.asarray(q, dtype=np.float64)
@@ -243,11 +243,11 @@ class RosbridgeBaxter(RobotBackend):
             self._hold(arm, qa.copy())
             self._joint_command(arm, qa)
 
-    def _hold(self, arm: str, q: np.ndarray) -> None:
+    def _hold(self, arm: Arm, q: np.ndarray) -> None:
         self._target[arm] = q
         self._target_until[arm] = time.monotonic() + COMMAND_HOLD_S
 
-    def command_gripper(self, arm: str, width: float) -> None:
+    def command_gripper(self, arm: Arm, width: float) -> None:
         i = ARMS.index(check_arm(arm))
         w = float(width)
         if not math.isfinite(w):

@@ -21,7 +21,16 @@ import numpy as np
 from studio.core.arms import normalize_arms
 from studio.core.errors import InvalidInput, StorageError
 from studio.core.thresholds import ThresholdSettings
-from studio.core.types import ARMS, DEFAULT_GENERALIZATION, GENERALIZATIONS, KeypointParams, Recording, Skill
+from studio.core.types import (
+    ARMS,
+    DEFAULT_GENERALIZATION,
+    GENERALIZATIONS,
+    Arm,
+    Generalization,
+    KeypointParams,
+    Recording,
+    Skill,
+)
 from studio.storage.atomic import atomic_write_bytes, atomic_write_npz
 from studio.storage.format import (
     DEMO_DIR,
@@ -84,19 +93,19 @@ class Session:
 
     name: str
     path: Path
-    arms: tuple[str, ...] = ("left",)
+    arms: tuple[Arm, ...] = ("left",)
     created: str = field(default_factory=now)
     notes: str = ""
     params: KeypointParams = field(default_factory=KeypointParams)
     n_clusters: int | None = None
     thresholds: ThresholdSettings = field(default_factory=ThresholdSettings)
-    generalization: str = DEFAULT_GENERALIZATION
+    generalization: Generalization = DEFAULT_GENERALIZATION
     recordings: list[Recording] = field(default_factory=list)
     hidden_demos: set[str] = field(default_factory=set)
-    skills: dict[str, Skill] = field(default_factory=dict)
+    skills: dict[Arm, Skill] = field(default_factory=dict)
     precision: str = "float64"
     skills_stale: bool = False
-    skill_info: dict[str, SkillEntry] = field(default_factory=dict)
+    skill_info: dict[Arm, SkillEntry] = field(default_factory=dict)
     problems: list[str] = field(default_factory=list)
     recovery_message: str = ""
     objects: SessionObjects = field(default_factory=SessionObjects)
@@ -247,7 +256,10 @@ class Session:
     # -- parameters, notes, skills ------------------------------------------------------------------------
     @_locked
     def set_params(
-        self, params: KeypointParams | None = None, settings: ThresholdSettings | None = None, mode: str | None = None
+        self,
+        params: KeypointParams | None = None,
+        settings: ThresholdSettings | None = None,
+        mode: Generalization | str | None = None,
     ) -> None:
         """Keep the ε values with the settings they come from (default: values off the old fixed defaults are the
         teacher's, the others automatic), and/or the generalisation ``mode`` ("aligned-mean" or "paper")."""
@@ -255,7 +267,7 @@ class Session:
             raise InvalidInput('Key-point thresholds must be a KeypointParams, the mode "aligned-mean" or "paper".')
         if params is not None:
             self.params, self.thresholds = params, settings or ThresholdSettings.from_params(params)
-        self.generalization = mode or self.generalization
+        self.generalization = Generalization(mode) if mode is not None else self.generalization
         self._write_manifest()
 
     @_locked
@@ -279,7 +291,7 @@ class Session:
     @_locked
     def set_skills(
         self,
-        skills: Mapping[str, Skill],
+        skills: Mapping[Arm, Skill],
         params: KeypointParams | None = None,
         demos: Iterable[str] | Mapping[str, Iterable[str]] | None = None,
     ) -> None:
