@@ -18,7 +18,7 @@ Measures (studio.core.quality): G/R (paper's squared DTW, normalised), F/B1 (dis
 shared-corner distance, start/end error, grasp/release error.
 
 Timing (3 demos × 30,000 samples): slider re-extract + re-cluster (this module's k-means vs scikit-learn's, same
-run), the live preview path, learn_skill, Suggest (in-process, worker pool cold and warm).
+run), the live preview path, learn_skill, Suggest (in the calling thread, 2 threads, 2 spawned processes).
 --quick: 15 cm shapes drawn in 2 s with 3 demos, the tasks with 3 demos, fewer timing repeats (~1–2 min).
 """
 
@@ -26,11 +26,14 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import logging
 import math
+import multiprocessing
 import statistics
 import sys
 import time
 import warnings
+from concurrent.futures import Executor, ProcessPoolExecutor, ThreadPoolExecutor, wait
 from dataclasses import replace
 from pathlib import Path
 
@@ -256,25 +259,44 @@ def timing(quick: bool) -> None:
     print(f"live preview path (preview_path, warm caches): median {_median_ms(prev, rep):6.1f} ms  (budget 150 ms)")
     ms = _median_ms(lambda: learn_skill(demos, base, cache=cache), max(3, rep // 3))
     print(f"learn_skill (warm key-point cache):            median {ms:6.1f} ms")
-    results = {}
-    for label, w in (
-        ("in this process (1 core)", 1),
-        (f"{autotune.WORKERS} forked worker processes", autotune.WORKERS),
-    ):
-        autotune.shutdown()  # forget the demos: a first search
-        t0 = time.perf_counter()
-        autotune.suggest(demos, workers=w)
-        first = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        r = autotune.suggest(demos, workers=w)
-        again = time.perf_counter() - t0
-        results[label] = (first, again)
+    _suggest_timing(demos)
+
+
+def _quiet() -> None:
+    logging.getLogger("hmmlearn").setLevel(logging.ERROR)  # as the studio's processes (studio/cli.py)
+
+
+def _suggest_timing(demos: list[Demo]) -> None:
+    """Suggest where the studio runs it (the calling thread, or an executor the caller gives): a first search
+    (new demos) and the same demos again, alternately, against the calling thread alone in the same run."""
+    spawn = multiprocessing.get_context("spawn")
+    with ThreadPoolExecutor(2) as threads, ProcessPoolExecutor(2, mp_context=spawn, initializer=_quiet) as processes:
+        wait([processes.submit(autotune.warm_up) for _ in range(2)])  # warm: started, the pipeline loaded
+        where: dict[str, Executor | None] = {
+            "in the calling thread": None,
+            "2 threads (the studio's helpers)": threads,
+            "2 spawned processes (warm)": processes,
+        }
+        firsts: dict[str, list[float]] = {k: [] for k in where}
+        agains: dict[str, list[float]] = {k: [] for k in where}
+        for rep in range(3):
+            for label, ex in where.items():
+                renamed = [
+                    Demo(d.t, d.position, d.orientation, d.gripper, name=f"{d.name}-{label}-{rep}") for d in demos
+                ]
+                t0 = time.perf_counter()
+                autotune.suggest(renamed, executor=ex)
+                firsts[label].append(time.perf_counter() - t0)
+                t0 = time.perf_counter()
+                r = autotune.suggest(renamed, executor=ex)
+                agains[label].append(time.perf_counter() - t0)
+    base = statistics.median(firsts["in the calling thread"])
+    for label in where:
+        first, again = statistics.median(firsts[label]), statistics.median(agains[label])
         print(
-            f"Suggest, {label}: first search {first:5.2f} s, same demos again {again:5.2f} s  (budget 5 s; "
-            f"{r.evaluated} candidates × {min(3, len(demos))} folds)"
+            f"Suggest, {label:<33}: first search {first:5.2f} s (×{first / base:4.2f}), same demos again {again:5.2f} s"
+            f"  (median of 3; budget 5 s; {r.evaluated} candidates × {min(3, len(demos))} folds)"
         )
-    (f1, _), (f2, _) = results.values()
-    print(f"  workers ÷ one process, first search: ×{f1 / f2:.2f}")
 
 
 def main() -> None:
@@ -286,6 +308,7 @@ def main() -> None:
     ap.add_argument("--sizes", type=float, nargs="+", help="shape sizes in metres, 0.005-0.8 (default 0.03 0.15 0.6)")
     ap.add_argument("--no-tasks", action="store_true", help="only the shapes (e.g. with --sizes 0.8)")
     args = ap.parse_args()
+    _quiet()
     print(f"machine: {_load()} at start (2 cores shared)")
     if not args.skip_timing:
         timing(args.quick)

@@ -63,7 +63,8 @@ class Suggesting:
         self.demos = demos
         self.tuning = tuning
         self.state = SuggestState()
-        #: Worker processes for the search (the auto-tune's default: both cores).
+        #: Where the search runs: None, the work thread and the helper threads (``ctx.helpers``); 1, the work
+        #: thread alone.
         self.workers: int | None = None
         self._cancel = threading.Event()
         self._undo: tuple[ThresholdSettings, int | None] | None = None
@@ -102,7 +103,7 @@ class Suggesting:
                 self._set(fraction=float(fraction), step=step)
 
         def job() -> None:
-            kwargs = {} if self.workers is None else {"workers": self.workers}
+            executor = self.ctx.helpers if self.workers != 1 else None
             res = autotune.suggest(
                 demos,
                 current=settings,
@@ -110,7 +111,7 @@ class Suggesting:
                 generalization=mode,
                 progress=progress,
                 cancel=self._cancel,
-                **kwargs,
+                executor=executor,
             )
             if res.cancelled:
                 self._set(running=False, summary="Suggest was stopped: your thresholds are unchanged.")
