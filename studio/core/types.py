@@ -14,6 +14,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from studio.core.errors import InvalidInput
+from studio.core.frames import ObjectFrames
 
 ARMS: tuple[str, str] = ("left", "right")
 JOINT_SUFFIXES: tuple[str, ...] = ("s0", "s1", "e0", "e1", "w0", "w1", "w2")
@@ -343,6 +344,10 @@ class Skill:
         generalization: how the trajectory was made: "paper" (the spline through the timed states) or
             "aligned-mean" (the demos averaged along their DTW alignment to the reference); skills saved before the
             mode existed were paper mode.
+        frames: for a skill that follows the objects (:mod:`studio.core.segments`), its segments in their
+            objects' frames and the places the demonstrations covered; then ``trajectory``, ``joint_trajectory``,
+            ``centroids`` and ``path_points`` are placed where the objects were when it was placed last. None: the
+            path is in the robot's frame (the paper's way).
     """
 
     trajectory: Demo
@@ -367,6 +372,7 @@ class Skill:
     spline_through: str = "state-means"
     demo_names: tuple[str, ...] = ()
     generalization: str = "paper"
+    frames: ObjectFrames | None = None
 
     def __post_init__(self) -> None:
         for name in (
@@ -418,6 +424,8 @@ class Skill:
             "demo_names": np.array(list(self.demo_names), dtype=str),
             "generalization": np.array(self.generalization),
         }
+        if self.frames is not None:
+            d.update(self.frames.to_arrays())
         _pack_list(d, "keypoints", self.keypoints, np.int64)
         _pack_list(d, "labels", self.labels, np.int64)
         _pack_list(d, "paths", self.paths, np.int64)
@@ -486,6 +494,7 @@ class Skill:
                 spline_through=str(d["spline_through"]),
                 demo_names=tuple(str(x) for x in np.asarray(d["demo_names"]).reshape(-1)),
                 generalization=str(d["generalization"]) if "generalization" in d else "paper",
+                frames=ObjectFrames.from_arrays(d),
             )
         except KeyError as exc:
             raise InvalidInput(f"The saved skill is incomplete: {exc.args[0]} is missing.") from exc
