@@ -98,8 +98,10 @@ def judge(task: str, skill, goal, pl: Places, b: Baxter, relative: bool) -> dict
         ok_count = len(rels) == len(og.releases)
         e_final = float(np.linalg.norm(np.asarray(fp.position) - np.asarray(og.final)))
         e_rel = max(
-            (float(np.linalg.norm(np.asarray(r.pose(og.name).position) - np.asarray(t_)))
-             for r, t_ in zip(rels, og.releases, strict=False)),
+            (
+                float(np.linalg.norm(np.asarray(r.pose(og.name).position) - np.asarray(t_)))
+                for r, t_ in zip(rels, og.releases, strict=False)
+            ),
             default=math.inf,
         )
         errs.append(max(e_final, e_rel) if ok_count and fp.held_by is None else math.inf)
@@ -128,8 +130,10 @@ def run_task(task: str, args: argparse.Namespace, b: Baxter) -> None:
     ab = learn_skill(demos, arm="left", baxter=b)
     t_abs = time.perf_counter() - t0
     goal = task_goal(events)
-    print(f"\n== {task}: {n} demonstrations ({t_demo:.0f} s to make); learned in {t_rel:.1f} s (objects), "
-          f"{t_abs:.1f} s (paper)")
+    print(
+        f"\n== {task}: {n} demonstrations ({t_demo:.0f} s to make); learned in {t_rel:.1f} s (objects), "
+        f"{t_abs:.1f} s (paper)"
+    )
     print("   frames:", ", ".join(f"{x.kind} {x.object} in {x.role}" for x in rel.frames.borders))
     inside = [_inside(used, rng) for _ in range(args.inside)]
     out = [_outside(task, rel, rng) for _ in range(args.outside)]
@@ -143,12 +147,13 @@ def run_task(task: str, args: argparse.Namespace, b: Baxter) -> None:
             warned = sum(r["warned"] for r in rows)
             finite = err[np.isfinite(err)]
             worst = f"{finite.max() * 100:.1f} cm" if len(finite) else "-"
+            ik = [r["ik"] for r in rows]
+            missing = "" if len(finite) == len(err) else f" ({len(err) - len(finite)} not placed)"
             print(
                 f"   {label:7s} {mode:7s}: success {ok.mean() * 100:5.1f} % ({ok.sum()}/{len(rows)}), "
-                f"worst {worst}{'' if len(finite) == len(err) else f' ({len(err) - len(finite)} not placed)'}, "
-                f"IK tracked {np.mean([r['ik'] for r in rows]) * 100:5.1f} % (min {min(r['ik'] for r in rows) * 100:.1f} %), "
-                f"border step {max(r['border'] for r in rows):.3f} rad / max step {max(r['step'] for r in rows):.3f} rad, "
-                f"said outside {warned}/{len(rows)}, {dt:.2f} s each"
+                f"worst {worst}{missing}, IK tracked {np.mean(ik) * 100:5.1f} % (min {min(ik) * 100:.1f} %), "
+                f"border step {max(r['border'] for r in rows):.3f} rad / max step "
+                f"{max(r['step'] for r in rows):.3f} rad, said outside {warned}/{len(rows)}, {dt:.2f} s each"
             )
 
 

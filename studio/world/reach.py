@@ -77,7 +77,7 @@ def suggestion(frames: ObjectFrames | None, scene: Scene) -> str:
     comfort = np.array([_COMFORT[0], m * _COMFORT[1]])
     if len(p) >= 2 and _spread(r) >= 0.02:
         c = np.cov((p - centre).T)
-        w, v = np.linalg.eigh(c)
+        _, v = np.linalg.eigh(c)
         axis = v[:, 0]  # the direction the demonstrations covered least
     else:
         axis = comfort - centre
