@@ -26,6 +26,10 @@ ALL_ARM_JOINTS: tuple[str, ...] = ARM_JOINTS["left"] + ARM_JOINTS["right"]
 #: importing the pipeline.
 GENERALIZATIONS: tuple[str, str] = ("aligned-mean", "paper")
 DEFAULT_GENERALIZATION = "aligned-mean"
+#: Where a skill keeps its path (see :mod:`studio.core.segments`): "objects" (each stretch in the frame of the
+#: object it acts on; the default) or "robot" (the paper's: one path in the robot's frame).
+FRAMES: tuple[str, str] = ("objects", "robot")
+DEFAULT_FRAMES = "objects"
 
 
 def readonly(a: np.ndarray | list | tuple, dtype: type = np.float64) -> np.ndarray:
