@@ -38,6 +38,7 @@ from studio.controller.events import Events, Topic
 from studio.controller.execution import ExecutionActions
 from studio.controller.learning import KeypointItem, KeypointTuning, KeypointView
 from studio.controller.livepath import LivePath, LivePaths
+from studio.controller.placed import PlacedSkills
 from studio.controller.playback import PREVIEW, REPLAY, Playback, PlaybackKind, Player
 from studio.controller.pose import Display, PoseSource
 from studio.controller.run import RunPaths, RunStatus
@@ -45,7 +46,7 @@ from studio.controller.scene import SceneActions
 from studio.controller.sessions import RECOVERED, SessionActions, open_or_create
 from studio.controller.suggest import Suggesting, SuggestState
 from studio.controller.teaching import Reach, Teaching
-from studio.controller.training import MODE_WORDS, SkillVerdict, Training, UsedDemo
+from studio.controller.training import FRAME_WORDS, MODE_WORDS, SkillVerdict, Training, UsedDemo
 from studio.controller.view import Layer, Step, View
 from studio.core.kinematics import Baxter
 from studio.robot_backend.base import RobotBackend
@@ -98,6 +99,9 @@ class Controller:
         )
         self.teaching.motion_guard = self.execution.check_free
         self.playback.guard = self.execution.check_not_running
+        self.placed = PlacedSkills(self.ctx)
+        self.playback.skills = self.placed.get
+        self.execution.warnings = self.placed.warnings
         self.sessions = SessionActions(
             self.ctx, self.display, self.teaching, self.demos, self.keypoints, self.training, self.playback, self.scene
         )
@@ -175,6 +179,7 @@ class Controller:
 
 
 __all__ = [
+    "FRAME_WORDS",
     "MODE_WORDS",
     "PALETTE",
     "PREVIEW",

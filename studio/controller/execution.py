@@ -30,6 +30,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import threading
+from collections.abc import Callable
 
 import numpy as np
 
@@ -99,6 +100,8 @@ class ExecutionActions:
         self.recording: Recording | None = None
         self.report: TrackingReport | None = None
         self.task: TaskResult | None = None
+        #: Objects where no demonstration put them, in words (set by the controller; told when a run starts).
+        self.warnings: Callable[[], list[str]] = list
         ctx.events.on(Topic.SKILL, self._forget_last_run)
         ctx.events.on(Topic.SESSION, self._forget_last_run)
 
@@ -121,7 +124,7 @@ class ExecutionActions:
     def feasibility(self) -> dict[str, Feasibility]:
         """arm -> whether the robot can follow its learned skill, in plain words (computed once per skill)."""
         out = {}
-        for arm, skill in sampling.executable(self.ctx.session.skills).items():
+        for arm, skill in sampling.executable(self.player.skills()).items():
             with self._lock:
                 hit = self._feasible.get(arm)
             if hit is None or hit[0] is not skill:
@@ -134,7 +137,7 @@ class ExecutionActions:
 
     def unreachable_paths(self) -> dict[str, list[np.ndarray]]:
         """arm -> the stretches (each (n, 3) m) of its learned path the robot cannot follow, to draw in red."""
-        skills = self.ctx.session.skills
+        skills = self.player.skills()
         out: dict[str, list[np.ndarray]] = {}
         for arm, f in self.feasibility().items():
             pos = np.asarray(skills[arm].trajectory.position)
@@ -151,7 +154,7 @@ class ExecutionActions:
             return "Stop the recording before running the skill on the robot."
         if self.training.busy:
             return "Wait for the training to finish before running the skill on the robot."
-        if not sampling.executable(self.ctx.session.skills):
+        if not sampling.executable(self.player.skills()):
             return "There is no learned skill to run yet: record demonstrations and press Train first."
         bad = [f.message for f in self.feasibility().values() if not f.ok]
         if bad:
@@ -181,7 +184,7 @@ class ExecutionActions:
             reason = self.why_not()
             if reason:
                 raise StudioError(reason)
-            skills = sampling.executable(self.ctx.session.skills)
+            skills = sampling.executable(self.player.skills())
             jts = {arm: s.joint_trajectory for arm, s in skills.items() if s.joint_trajectory is not None}
             self.player.unload()
             self.display.show_live()  # the drawn robot is the real one during the run
@@ -195,7 +198,10 @@ class ExecutionActions:
                 self._status = RunStatus("running", 0.0, plan.duration, "The robot is running the skill.")
             run.thread = threading.Thread(target=self._follow, args=(run,), name="studio-run", daemon=True)
             run.thread.start()
+            said = self.warnings()
         self.ctx.emit(Topic.EXECUTION)
+        if said:
+            self.ctx.notify("The objects are somewhere new", " ".join(said), kind="warning")
 
     def stop(self) -> None:
         """Controlled stop: the robot slows down along the skill's path to rest."""
