@@ -78,7 +78,8 @@ def test_the_papers_fixed_places_stay_a_choice(rig) -> None:
     ctl.training.set_frames("robot")
     train(ctl)
     assert ctl.session.skills["left"].frames is None
-    assert ctl.scene.task_result() is not None and ctl.scene.task_result().ok  # type: ignore[union-attr]
+    first = ctl.scene.task_result()
+    assert first is not None and first.ok
     bottom = ctl.scene.scene.object("bottom cup")
     ctl.scene.move("bottom cup", (bottom.position[0], bottom.position[1] - 0.06, bottom.position[2]))
     assert wait_for(lambda: (r := ctl.scene.task_result()) is not None and not r.ok)
