@@ -172,7 +172,6 @@ def test_learn_uses_the_sessions_k_and_remembers_each_arms_demos(
 
 def test_learn_auto_suggests_thresholds_first_and_keeps_them(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
 
-
     store = SessionStore(tmp_path)
     src = SessionStore(DEFAULT_ROOT).open("stack-cup", recover=False)
     s = store.create("auto", precision="float32")

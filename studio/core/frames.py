@@ -391,7 +391,7 @@ def adapt(frames: ObjectFrames, now: Sequence[ObjectAt], rate_hz: float = 100.0)
             fade = (1.0 - u**3 * (10 - 15 * u + 6 * u * u))[:, None]
             pos = pos + fade * gap_p
             ori = _compose(_quat_from_rotvec(fade * gap_q), ori)
-            t, pos, ori, g = t[1:], pos[1:], ori[1:], seg.gripper[1:]
+            t, pos, ori, g = t[1:], pos[1:], ori[1:], _continued(seg.gripper, float(gs[-1][-1]))[1:]
             borders.append(t0)
         else:
             g = seg.gripper
@@ -404,6 +404,16 @@ def adapt(frames: ObjectFrames, now: Sequence[ObjectAt], rate_hz: float = 100.0)
     q = np.concatenate(qs)
     q = _sign_continuous(q / np.linalg.norm(q, axis=1, keepdims=True))
     return AdaptedPath(t, np.concatenate(ps), q, np.concatenate(gs), np.array(borders), F)
+
+
+def _continued(g: np.ndarray, before: float) -> np.ndarray:
+    """A segment's gripper levels with its first level replaced by the one it follows (a segment cut in the middle
+    of a close or an open starts half-way: that half-way level is not an action of its own)."""
+    g = np.array(g, dtype=np.float64)
+    change = np.flatnonzero(g != g[0])
+    if len(change):
+        g[: change[0]] = before
+    return g
 
 
 # -- small quaternion helpers (w, x, y, z) -------------------------------------------------------------------
