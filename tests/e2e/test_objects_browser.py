@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from playwright.sync_api import Page, expect
 from viser import _messages
+from viser.infra import ClientId
 
 from studio.app import Studio, build_app
 from tests.e2e import ui
@@ -46,7 +47,7 @@ def views(app: Studio, page: Page, out: Path, step: str) -> None:
 def drag_handle(app: Studio, position: tuple[float, float, float], wxyz: tuple[float, float, float, float]) -> None:
     """What the page sends when the object's handle is dragged to ``position`` and let go."""
     scene = app.server.scene
-    client_id = next(iter(app.server.get_clients()))
+    client_id = ClientId(next(iter(app.server.get_clients())))
     loop = app.server._event_loop
     update = _messages.TransformControlsUpdateMessage("/objects_handle", wxyz, position)
     end = _messages.TransformControlsDragEndMessage("/objects_handle")
@@ -89,7 +90,8 @@ def test_move_the_cup_and_the_skill_follows_it(browser, tmp_path) -> None:
         assert wait(lambda: handle.visible)
         before = np.array(handle.position, dtype=float)
         target = (float(before[0]), float(before[1] - 0.06), float(before[2]))
-        drag_handle(app, target, tuple(float(v) for v in handle.wxyz))  # type: ignore[arg-type]
+        w = [float(v) for v in handle.wxyz]
+        drag_handle(app, target, (w[0], w[1], w[2], w[3]))
         moved = lambda: app.controller.scene.scene.object("bottom cup")  # noqa: E731
         assert wait(lambda: abs(moved().position[1] - (before[1] - 0.06)) < 1e-6)
         bottom = moved()
