@@ -35,6 +35,7 @@ from studio.controller.events import Events, Topic
 from studio.controller.execution import ExecutionActions
 from studio.controller.learning import KeypointItem, KeypointTuning, KeypointView
 from studio.controller.livepath import LivePath, LivePaths
+from studio.controller.placed import PlacedSkills
 from studio.controller.playback import PREVIEW, REPLAY, Playback, PlaybackKind, Player
 from studio.controller.pose import Display, PoseSource
 from studio.controller.run import RunPaths, RunStatus
@@ -42,7 +43,7 @@ from studio.controller.scene import SceneActions
 from studio.controller.sessions import RECOVERED, SessionActions, open_or_create
 from studio.controller.suggest import Suggesting, SuggestState
 from studio.controller.teaching import Reach, Teaching
-from studio.controller.training import MODE_WORDS, SkillVerdict, Training, UsedDemo
+from studio.controller.training import FRAME_WORDS, MODE_WORDS, SkillVerdict, Training, UsedDemo
 from studio.controller.view import Layer, Step, View
 from studio.core.kinematics import Baxter
 from studio.robot_backend.base import RobotBackend
@@ -84,7 +85,8 @@ class Controller:
         # bound: a part is asked only once all exist); it subscribes to the events it follows itself.
         self.view = View(ctx.events)
         self.demos = Demos(ctx)
-        self.playback = Player(ctx, guard=lambda: self.execution.check_not_running())
+        self.placed = PlacedSkills(ctx)  # the skills where the objects are now: what preview and runs play
+        self.playback = Player(ctx, guard=lambda: self.execution.check_not_running(), skills=self.placed.get)
         self.scene = SceneActions(ctx, backend, player=self.playback)
         self.teaching = Teaching(ctx, backend, takes=self.scene, motion_guard=lambda d: self.execution.check_free(d))
         self.keypoints = KeypointTuning(ctx, self.demos)
@@ -98,6 +100,8 @@ class Controller:
             hands=self.teaching,
             training_busy=lambda: self.training.busy,
             unload_playback=self.playback.unload,
+            skills=self.placed.get,
+            warnings=self.placed.warnings,
         )
         self.sessions = SessionActions(ctx, persist=self.keypoints.persist)
 
@@ -173,6 +177,7 @@ class Controller:
 
 
 __all__ = [
+    "FRAME_WORDS",
     "MODE_WORDS",
     "PALETTE",
     "PREVIEW",

@@ -14,11 +14,18 @@ from studio.controller.context import Context
 from studio.controller.events import Topic
 from studio.controller.learning import ShownDemos
 from studio.core.errors import NotEnoughData, StudioError
+from studio.core.frames import DemoObjects
 from studio.core.keypoints import KeypointCache
 from studio.core.quality import DemoFit, Verdict
 from studio.core.thresholds import ThresholdSettings
-from studio.core.types import Arm, Demo, Generalization, KeypointParams, Recording, Skill
+from studio.core.types import FRAMES, Arm, Demo, Generalization, KeypointParams, Recording, Skill
+from studio.world.relative import demo_objects, objects_now
 
+#: How each choice of frames is called in the Train panel.
+FRAME_WORDS = {
+    "objects": "Follow the objects (each part learned relative to the object it acts on)",
+    "robot": "Fixed places (the paper: one path in the robot's frame)",
+}
 #: How each generalisation mode is called in the Train panel.
 MODE_WORDS: dict[Generalization, str] = {
     Generalization.ALIGNED_MEAN: "Follow the demonstrations (average of your demonstrations, aligned in time)",
@@ -100,6 +107,20 @@ class Training:
             self.ctx.session.set_params(mode=mode)
         self.ctx.emit(Topic.TRAINING)
 
+    @property
+    def frames(self) -> str:
+        """Where the next training keeps the skill's path: "objects" (it follows them) or "robot" (the paper)."""
+        return self.ctx.session.frames
+
+    def set_frames(self, frames: str) -> None:
+        if frames not in FRAMES:
+            raise StudioError(f'Unknown way to place the skill "{frames}".')
+        with self.ctx.lock:
+            if frames == self.ctx.session.frames:
+                return
+            self.ctx.session.set_params(mode=frames)
+        self.ctx.emit(Topic.TRAINING)
+
     def _check_leave(self, doing: str) -> None:
         if self.busy:
             raise StudioError(f"Wait for the training to finish before {doing}.")
@@ -109,6 +130,7 @@ class Training:
         """Learn the skill of every taught arm (or of ``arms``) from the shown demos on the work thread, then
         judge it."""
         from studio.core.pipeline import learn_skill
+        from studio.core.segments import learn_relative
 
         with self.ctx.lock:
             if self.busy:
@@ -122,15 +144,27 @@ class Training:
                     )
             settings, k = self.tuning.settings(), self.tuning.k
             params = {arm: self.tuning.params(arm, settings) for arm in per_arm}
-            mode = self.ctx.session.generalization
+            mode, frames = self.ctx.session.generalization, self.ctx.session.frames
             session = self.ctx.session  # the skill belongs to the session it was learned from
             self.busy = True
         self.ctx.emit(Topic.TRAINING)
         baxter, cache = self.ctx.baxter, self.tuning.cache
 
+        relative = {arm: self._objects(arm, demos) for arm, demos in per_arm.items()} if frames == "objects" else {}
+        now = objects_now(session.objects.scene)
+
         def job() -> dict[Arm, Skill]:
-            return {
-                arm: learn_skill(
+            out: dict[Arm, Skill] = {}
+            for arm, demos in per_arm.items():
+                objs = relative.get(arm)
+                if objs is not None and not isinstance(objs, str):
+                    out[arm] = learn_relative(
+                        [d for _, d in demos], objs, params[arm], now=now, arm=arm, baxter=baxter, generalization=mode
+                    )
+                    continue
+                if isinstance(objs, str):
+                    self.ctx.notify("The skill follows fixed places", objs, kind="info")
+                out[arm] = learn_skill(
                     [d for _, d in demos],
                     params[arm],
                     n_clusters=k,
@@ -140,8 +174,7 @@ class Training:
                     cache=cache,
                     generalization=mode,
                 )
-                for arm, demos in per_arm.items()
-            }
+            return out
 
         def done(skills: dict[Arm, Skill]) -> None:
             names = {arm: [d.name for _, d in per_arm[arm]] for arm in skills}
@@ -168,6 +201,21 @@ class Training:
         fut = self.ctx.submit(job, done=done, title="Training failed")
         fut.add_done_callback(lambda f: self._finished())
         return fut
+
+    def _objects(self, arm: Arm, demos: list[tuple[int, Demo]]) -> list[DemoObjects] | str:
+        """The objects and ``arm``'s contacts of each demonstration, or why the skill cannot follow them."""
+        from studio.core.segments import plan
+
+        session = self.ctx.session
+        out = []
+        for i, _ in demos:
+            events = session.objects.events(session.demo_files[i]) if i < len(session.demo_files) else ()
+            objs = demo_objects(events, arm)
+            if objs is None:
+                return "Some demonstrations were recorded without objects, so the skill follows fixed places."
+            out.append(objs)
+        _, why = plan(out)
+        return why or out
 
     def _finished(self) -> None:
         if self.busy:  # the job failed: done() never ran

@@ -16,6 +16,7 @@ from typing import Literal, TypeGuard
 import numpy as np
 
 from studio.core.errors import InvalidInput
+from studio.core.frames import ObjectFrames
 
 #: One of Baxter's arms.
 Arm = Literal["left", "right"]
@@ -46,6 +47,10 @@ class Generalization(StrEnum):
 
 GENERALIZATIONS: tuple[Generalization, ...] = tuple(Generalization)
 DEFAULT_GENERALIZATION = Generalization.ALIGNED_MEAN
+#: Where a skill keeps its path (see :mod:`studio.core.segments`): "objects" (each stretch in the frame of the
+#: object it acts on; the default) or "robot" (the paper's: one path in the robot's frame).
+FRAMES: tuple[str, str] = ("objects", "robot")
+DEFAULT_FRAMES = "objects"
 
 
 def readonly(a: np.ndarray | list | tuple, dtype: type = np.float64) -> np.ndarray:
@@ -369,6 +374,10 @@ class Skill:
         generalization: how the trajectory was made: "paper" (the spline through the timed states) or
             "aligned-mean" (the demos averaged along their DTW alignment to the reference); skills saved before the
             mode existed were paper mode.
+        frames: for a skill that follows the objects (:mod:`studio.core.segments`), its segments in their
+            objects' frames and the places the demonstrations covered; then ``trajectory``, ``joint_trajectory``,
+            ``centroids`` and ``path_points`` are placed where the objects were when it was placed last. None: the
+            path is in the robot's frame (the paper's way).
     """
 
     trajectory: Demo
@@ -393,6 +402,7 @@ class Skill:
     spline_through: str = "state-means"
     demo_names: tuple[str, ...] = ()
     generalization: Generalization = Generalization.PAPER
+    frames: ObjectFrames | None = None
 
     def __post_init__(self) -> None:
         for name in (
@@ -444,6 +454,8 @@ class Skill:
             "demo_names": np.array(list(self.demo_names), dtype=str),
             "generalization": np.array(self.generalization),
         }
+        if self.frames is not None:
+            d.update(self.frames.to_arrays())
         _pack_list(d, "keypoints", self.keypoints, np.int64)
         _pack_list(d, "labels", self.labels, np.int64)
         _pack_list(d, "paths", self.paths, np.int64)
@@ -512,9 +524,8 @@ class Skill:
                 params=params,
                 spline_through=str(d["spline_through"]),
                 demo_names=tuple(str(x) for x in np.asarray(d["demo_names"]).reshape(-1)),
-                generalization=Generalization.of(str(d["generalization"]))
-                if "generalization" in d
-                else Generalization.PAPER,
+                generalization=Generalization.of(str(d.get("generalization", Generalization.PAPER))),
+                frames=ObjectFrames.from_arrays(d),
             )
         except KeyError as exc:
             raise InvalidInput(f"The saved skill is incomplete: {exc.args[0]} is missing.") from exc

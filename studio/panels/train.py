@@ -8,9 +8,9 @@ import html
 import numpy as np
 import viser
 
-from studio.controller import MODE_WORDS, Controller, SkillVerdict, Step, Topic, UsedDemo
+from studio.controller import FRAME_WORDS, MODE_WORDS, Controller, SkillVerdict, Step, Topic, UsedDemo
 from studio.core.quality import Remedy
-from studio.core.types import DEFAULT_GENERALIZATION, Arm, Skill
+from studio.core.types import DEFAULT_FRAMES, DEFAULT_GENERALIZATION, Arm, Skill
 from studio.panels._charts import heatmap_svg, position_plot_svg
 from studio.words import SHARED_REMEDIES, Remedies, fit_note, verdict_lines
 
@@ -54,6 +54,14 @@ class TrainPanel:
                 "default) keeps their shape between key-points; 'Paper's spline' is the paper's method, for the "
                 "curious. Press Train again after changing it.",
             )
+            self.frames = gui.add_dropdown(
+                "Places",
+                options=tuple(FRAME_WORDS.values()),
+                initial_value=FRAME_WORDS[ctl.training.frames],
+                hint="'Follow the objects' (the default) learns each part of the task relative to the object it acts "
+                "on, so the skill still works when you move the objects; 'Fixed places' is the paper's method: the "
+                "robot goes where your demonstrations went. Press Train again after changing it.",
+            )
         with gui.add_folder("What the robot learned"):
             self.summary = gui.add_html("")
             self.heatmap = gui.add_html("")
@@ -61,6 +69,7 @@ class TrainPanel:
             self.plots = gui.add_html("")
         self.train_btn.on_click(ctl.guarded("Could not start training")(self._on_train))
         self.mode.on_update(ctl.guarded("Could not change how the skill is made")(self._on_mode))
+        self.frames.on_update(ctl.guarded("Could not change how the skill is made")(self._on_frames))
         ctl.events.on(Topic.SKILL, self.refresh)
         ctl.events.on(Topic.SESSION, self.refresh)
         ctl.events.on(Topic.DEMOS, self.refresh)  # renamed / deleted / trimmed demos: labels, plots and status
@@ -92,6 +101,12 @@ class TrainPanel:
         mode = next((m for m, words in MODE_WORDS.items() if words == self.mode.value), DEFAULT_GENERALIZATION)
         self.ctl.training.set_generalization(mode)
 
+    def _on_frames(self, event: viser.GuiEvent) -> None:
+        if event.client is None:
+            return
+        frames = next((f for f, words in FRAME_WORDS.items() if words == self.frames.value), DEFAULT_FRAMES)
+        self.ctl.training.set_frames(frames)
+
     def _on_training(self) -> None:
         busy = self.ctl.training.busy
         with self.server.atomic():
@@ -100,6 +115,7 @@ class TrainPanel:
             self.progress.value = 100.0 if busy else 0.0
             self.status.content = self._status_text()
             self.mode.value = MODE_WORDS[self.ctl.training.generalization]
+            self.frames.value = FRAME_WORDS[self.ctl.training.frames]
 
     def refresh(self) -> None:
         """Redraw the verdict and the results of the current skill(s)."""
