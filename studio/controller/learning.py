@@ -212,6 +212,8 @@ class KeypointTuning:
     def _on_session(self) -> None:
         """Another session is open: take its settings and k (the old ones were kept before it changed)."""
         with self.ctx.lock:
+            if self.ctx.session is self._session:  # the same session again: its settings here are the newest
+                return
             session = self._session = self.ctx.session
             self._settings = session.thresholds
             self._k = session.n_clusters

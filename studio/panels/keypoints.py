@@ -177,7 +177,7 @@ class KeypointsPanel:
         self.counts.content = counts_html(view)
         self.thresholds.show_counts()
         arm = self.ctl.keypoints.shown_arm()
-        if arm in view.params:
+        if arm in view.params and view.settings == self.ctl.keypoints.settings():  # a stale view: the next one shows
             self.thresholds.sync(params=view.params[arm])
         self._sync_k(view)
 
