@@ -1,18 +1,9 @@
 """Session archives (.zip) for download and upload: export what loads, import only what validates.
 
-An uploaded archive is someone else's file, so what it may cost is bounded before anything is unpacked:
-
-1. its directory: one session folder, every name on the allow-list (matched whole), stored or deflated only;
-2. its manifest, read (at most 4 MB) and validated first;
-3. sizes, as the directory declares them (reading never yields more than declared): each listed file against
-   what the manifest allows it (a demo of N samples, a skill), the total against the disk space free and
-   against :data:`~studio.storage.format.ARCHIVE_DISK_PER_BYTE` times the upload (beyond a floor), the memory
-   the session would take against :data:`~studio.storage.format.ARCHIVE_MEMORY_PER_BYTE` times the upload;
-4. then only the files the manifest lists are unpacked into a temporary folder, the session is loaded with
-   full validation, and only then moved into place.
-
-On any problem nothing is added and the message names the archive and the problem.
-"""
+An uploaded archive is someone else's file: its directory, then its manifest, then the sizes it declares
+(against the manifest, the free disk and a multiple of the upload) are checked before anything is unpacked;
+then only the listed files are unpacked into a temporary folder, loaded with full validation and moved into
+place. On any problem nothing is added (docs/decisions/024)."""
 
 from __future__ import annotations
 

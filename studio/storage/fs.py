@@ -1,13 +1,9 @@
 """The session folder on disk, treated as someone else may have left it: links, special files, leftovers.
 
-* :func:`read_capped` reads a session file only if it is a regular file (not a link, a FIFO or a device) and
-  at most so many bytes, checked before reading: ``session.json → /dev/zero`` or a FIFO never hangs the studio.
-* :func:`linked_folder` finds a folder of the session that is a link (or not a folder): the studio would write
-  and delete through it, outside the session. Loading refuses such a session; every change checks again.
-* :func:`changing` is held (an exclusive ``flock`` on the session folder) while a session's files change, by
-  any process; :func:`clean_leftovers` removes what a kill -9 left (temporary files, demo and skill files the
-  manifest does not list) only when no one holds it, so a save in progress elsewhere is never cleaned away.
-"""
+:func:`read_capped` reads only a regular file, at most so many bytes (a link to ``/dev/zero`` or a FIFO never
+hangs the studio); :func:`linked_folder` finds a session folder that is a link; :func:`changing` holds an
+exclusive ``flock`` while files change, and :func:`clean_leftovers` removes what a kill -9 left only when no
+one holds it."""
 
 from __future__ import annotations
 

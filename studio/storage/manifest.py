@@ -1,22 +1,9 @@
 """``session.json``: the session's manifest as frozen dataclasses, validated when read from JSON.
 
-Versioning and extending (read before adding anything to the format):
-
-* ``version`` is :data:`~studio.storage.format.FORMAT_VERSION`. A studio refuses, in plain words, a
-  manifest written by a newer one (a higher version) and reads every older one.
-* **Adding an optional field** (the usual case): add it to the dataclass with a default, read it in
-  ``from_json`` with that default when it is absent (older files), write it in ``to_json``. No version change:
-  an older studio ignores keys it does not know. ``n_clusters``, ``hidden``, ``skills_stale``, ``thresholds``
-  and ``generalization`` were added this way.
-* **A change an older studio would misread** (a field changing meaning, data moving between files): bump
-  ``FORMAT_VERSION`` and register ``UPGRADES[old_version]``, a function turning the raw JSON of version
-  ``old_version`` into ``old_version + 1``; :meth:`Manifest.from_json` applies them in order before validating,
-  so the validation below only ever sees the current version. Version 2 added the task scene (``scene``) and
-  each demonstration's object events (``objects``): ``UPGRADES[1]`` reads a version-1 session as one on an
-  empty table, whose demonstrations have no object events.
-
-Loading never writes: an upgraded manifest is written in the new version the next time the session changes.
-"""
+To extend the format: an optional field gets a default, is read with it when absent and always written (no
+version change: an older studio ignores unknown keys). A change an older studio would misread bumps
+:data:`~studio.storage.format.FORMAT_VERSION` and adds ``UPGRADES[old]`` (raw JSON of ``old`` to ``old + 1``),
+applied before validation. A newer manifest is refused in plain words; loading never writes (docs/decisions/023)."""
 
 from __future__ import annotations
 
