@@ -41,7 +41,7 @@ DH_TABLE: np.ndarray = readonly(
 DH_TABLE_EXACT_ALPHA: np.ndarray = readonly(
     np.column_stack([DH_TABLE[:, :2], np.round(DH_TABLE[:, 2] / 1.571) * math.pi / 2])
 )
-#: Joint offset that maps URDF joint angles onto the table's θ (measured: only s1 differs, by +π/2).
+#: Joint offset that maps URDF joint angles onto the table's θ (only s1 differs, by +π/2).
 DH_JOINT_OFFSET: np.ndarray = readonly([0.0, math.pi / 2, 0.0, 0.0, 0.0, 0.0, 0.0])
 #: Constant translation from ``<arm>_arm_mount`` to the DH base frame, metres.
 DH_BASE_OFFSET: np.ndarray = readonly([0.055695, 0.0, 0.011038])
@@ -55,10 +55,8 @@ EE_FRAME = "{arm}_gripper"
 #: (moveit_robots) and 1.0 rad/s² (RethinkRobotics/baxter_simulator) for every joint — and would slow down
 #: every demonstration, which the robot itself made under a person's hand. CoppeliaSim's Baxter model
 #: (PyRep ``BaxterLeft``) uses 4 rad/s². We take 4 rad/s² for the shoulder and elbow (s0–e1, URDF speed
-#: 1.5 rad/s reached in 0.375 s) and 8 rad/s² for the lighter wrist (w0–w2, 4 rad/s in 0.5 s). Measured
-#: on the scripted teacher's pick-and-place demonstrations (minimum-jerk human reaching): peaks of
-#: 1.5–2.5 rad/s² at the shoulder and up to 5 rad/s² at e1, so a skill's smoothed path keeps the taught
-#: pace except in its fastest reaches, which are slowed just enough.
+#: 1.5 rad/s reached in 0.375 s) and 8 rad/s² for the lighter wrist (w0–w2, 4 rad/s in 0.5 s); the scripted
+#: teacher's demonstrations stay below them except in their fastest reaches (docs/decisions/010).
 ACCELERATION_LIMITS: np.ndarray = readonly([4.0, 4.0, 4.0, 4.0, 8.0, 8.0, 8.0])
 
 

@@ -1,35 +1,10 @@
 """Timing a joint path within Baxter's joint velocity and acceleration limits (toppra), at the taught pace.
 
-The joint path comes from :mod:`studio.core.ik_path` as a function q(s) of the skill's own time s (what
-the demonstrations' pace says). Executing it at that pace (ṡ = 1) is the goal; where a joint would exceed
-its velocity limit (URDF) or acceleration limit (:data:`~studio.core.kinematics.ACCELERATION_LIMITS`),
-the motion must slow down along the same path, and no more than needed.
-
-**toppra** (time-optimal path parametrisation by reachability analysis, Pham & Pham 2018) does exactly that:
-it finds the fastest ṡ(s) along a fixed geometric path under joint velocity and acceleration limits.
-Adding the constraint ṡ ≤ 1 (a :class:`PaceConstraint`, toppra's canonical form with only the bound
-ṡ² ≤ 1) turns "fastest" into "the taught pace wherever it is feasible, slower only where a limit requires".
-**ruckig** was considered and not used: it generates time-optimal *point-to-point* (state-to-state) motions
-and, in its open-source version, cannot follow intermediate waypoints, so it would leave the taught
-Cartesian path between them; a path parametrisation keeps the path exactly.
-
-toppra's solver loop is Python (about 70–150 µs a grid point on this 2-core machine, measured: 1000 grid
-points of a 23 s path took 140–175 ms). So toppra runs only on the windows that need it: the taught pace is
-checked at every sample (vectorised); each stretch where a limit would be exceeded (or where the robot
-must start from rest or come to rest) is padded by :data:`WINDOW_PAD_S` on each side, and toppra times that
-window with ṡ = 1 at both ends (0 at a rest end), on a grid of ≤ :data:`MAX_GRID` points. Everywhere else
-ṡ = 1 exactly, so a skill within the limits keeps its duration to the millisecond. A window whose ends toppra
-cannot join (e.g. too little room to slow down) is widened and solved again.
-
-Between two pieces of a path (where the arm has to change posture, see ``PathSolution.breaks``) the
-robot comes to rest, moves in a straight joint-space line (a trapezoidal speed profile, time-optimal for
-a straight line under per-joint velocity and acceleration limits, computed in closed form) and goes on.
-
-Between grid points toppra's constant-acceleration segments can overshoot a limit slightly; the result is
-checked at the output rate by finite differences (what a 1 kHz controller sees) and, if a limit is
-exceeded, solved again with tighter limits (by less than 1 %: on the same grid; otherwise on a finer one too).
-toppra's constraint objects are built once per set of limits (building one formats its limits into strings).
-"""
+The joint path q(s) from :mod:`studio.core.ik_path` runs at the skill's own pace (ṡ = 1) wherever that is
+within the limits; toppra (with the :class:`PaceConstraint` ṡ ≤ 1) slows it along the same path only in the
+windows where a limit requires, and between pieces of a path the arm rests and moves in a straight joint-space
+line (trapezoidal profile). The result is checked at the output rate and solved again with tighter limits if
+needed. Why toppra, and why in windows: docs/decisions/010."""
 
 from __future__ import annotations
 
@@ -131,7 +106,7 @@ _CONSTRAINTS: dict[tuple[bytes, bytes, float], list[Any]] = {}
 
 def _constraints(vlim: np.ndarray, alim: np.ndarray, pace: float) -> list[Any]:
     """toppra's joint velocity and acceleration constraints and the pace constraint, built once per set of limits
-    (they hold no path; building them formats their limits into strings, ~0.2 ms each)."""
+    (they hold no path; building them formats their limits into strings)."""
     key = (vlim.tobytes(), alim.tobytes(), float(pace))
     cons = _CONSTRAINTS.get(key)
     if cons is None:

@@ -113,7 +113,7 @@ class Demo:
     @functools.cached_property
     def extent(self) -> float:
         """The largest side of the positions' bounding box, m (0 when empty); computed once (the arrays are
-        read-only), since every slider step of the studio asks for it (3 ms a demo of 30,000 samples)."""
+        read-only), since every slider step of the studio asks for it."""
         return float(np.max(np.ptp(self.position, axis=0))) if len(self) else 0.0
 
     @property
