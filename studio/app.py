@@ -1,17 +1,9 @@
 """The browser studio: builds the viser server, the robot backend, the controller and the panels.
 
-Everything a user sees is shared by all browser tabs (viser's server-level GUI and scene are broadcast),
-so two tabs show the same robot and session and a reloaded page gets the current state replayed.
-
-The state and every action live in the :class:`~studio.controller.Controller` (no viser); :class:`Studio`
-*has* one and adds the viser parts: the server and its scene, the panels, notifications in the tabs, and the
-pose pump.
-
-Threads (besides the controller's, see :mod:`studio.controller`):
-    * viser's thread pool runs GUI callbacks; each is wrapped by ``controller.guarded`` so a failure is a
-      notification in plain words and never stops the studio;
-    * one *pose pump* thread pushes the latest robot pose to the scene at ~60 Hz (never per 1 kHz sample).
-"""
+Everything a user sees is shared by all browser tabs (viser's server-level GUI and scene are broadcast), so two
+tabs show the same robot and session and a reloaded page gets the current state replayed. :class:`Studio`
+has a :class:`~studio.controller.Controller` (no viser) and adds the server and its scene, the panels,
+notifications in the tabs, and the pose pump (one thread pushing the latest robot pose at up to 60 Hz)."""
 
 from __future__ import annotations
 

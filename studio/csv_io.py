@@ -1,12 +1,8 @@
 """Baxter SDK joint-recorder CSV: import real-robot recordings, export learned joint trajectories.
 
-The Baxter SDK's ``joint_recorder.py`` example writes one header line
-``time,left_s0,…,left_w2,left_gripper,right_s0,…,right_w2,right_gripper`` and then one line per sample:
-seconds since the start, 7 left joint angles (rad), the left gripper position (percent, 0 = closed ..
-100 = open), the same for the right arm. Its ``joint_trajectory_file_playback.py`` example reads the same
-format (columns by header name, first column time) and sends it as a joint trajectory, so an exported
-skill can be run on a real Baxter with it.
-"""
+The SDK's ``joint_recorder.py`` writes a header ``time,left_s0,…,left_w2,left_gripper,right_s0,…,right_gripper``
+and one line per sample (seconds, radians, gripper percent 0 = closed … 100 = open); its
+``joint_trajectory_file_playback.py`` reads the same format, so an exported skill runs on a real Baxter."""
 
 from __future__ import annotations
 
