@@ -69,8 +69,8 @@ def configure_scene(server: viser.ViserServer) -> None:
     s.initial_camera.look_at = CAMERA_LOOK_AT
     s.initial_camera.fov = math.radians(CAMERA_FOV_DEG)
     s.scene.set_up_direction("+z")
-    # Software WebGL (no GPU) spends most of each frame on image-based lighting and shadow maps: without
-    # them the studio draws ~20x faster and, with plain lights, Baxter still looks like Baxter.
+    # Software WebGL (no GPU) spends most of each frame on image-based lighting and shadow maps; with plain
+    # lights Baxter still looks like Baxter (frame rates: bench/README.md, "Browser studio").
     s.scene.configure_environment_map(hdri=None)
     s.scene.configure_default_lights(enabled=True, cast_shadow=False)
     s.scene.add_light_hemisphere("/lights/sky", sky_color=(255, 255, 255), ground_color=(90, 90, 100), intensity=1.6)

@@ -366,7 +366,7 @@ def _item_len(item: tuple[str, float, object]) -> float:
 def _gripper_signal(
     t: np.ndarray, grips: list[tuple[float, float, str]], task: str, rng: np.random.Generator
 ) -> np.ndarray:
-    """Opening (percent) over time: open at the start, a ~0.5 s ramp at 30 % into each action's pause."""
+    """Opening (percent) over time: open at the start, a 0.5 s ramp at 30 % into each action's pause."""
     g = np.full(t.shape[0], OPEN_WIDTH[task])
     level = OPEN_WIDTH[task]
     for t0, hold, action in grips:

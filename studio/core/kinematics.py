@@ -175,9 +175,8 @@ class _ArmChain:
         """Gripper rotation (N, 3, 3) and position (N, 3) in the world for joint angles Q (N, 7).
 
         Works on the nine rotation entries as separate (N,) arrays with plain element-wise arithmetic and
-        skips the placements' zero entries (they are axis permutations). Measured on the shared 2-core
-        machine this is 3-5x faster than stacked (N,3,3) matrix products, whose BLAS threads contend
-        with other work.
+        skips the placements' zero entries (they are axis permutations), rather than stacked (N,3,3) matrix
+        products, whose BLAS threads contend with other work (bench/README.md, "Kinematics").
         """
         rot, pos, _, _ = self._chain(Q, joints=False)
         return rot, pos
@@ -401,10 +400,9 @@ class Baxter:
     ) -> IkResult:
         """Full 6-D pose IK by damped least squares, clamped to the URDF joint limits at every step.
 
-        Damped least squares (Levenberg–Marquardt with adaptive damping on the SE(3) log error) is used
-        rather than a QP (pink): it needs no extra solver package, converges in a handful of iterations from
-        a nearby seed (the studio always warm-starts from the current pose), and limit clamping keeps every
-        iterate valid. A target the arm cannot reach ends at the closest pose found, ``converged=False``.
+        Damped least squares (Levenberg–Marquardt with adaptive damping on the SE(3) log error); clamping keeps
+        every iterate within the limits. Meant to be warm-started from a nearby pose (how it compares with pink:
+        docs/decisions/009). A target the arm cannot reach ends at the closest pose found, ``converged=False``.
 
         Args:
             arm: "left" or "right".

@@ -37,7 +37,7 @@ log = logging.getLogger(__name__)
 MAX_SECONDS = 4 * 3600.0
 #: Samples the writer turns into rows at once (FK temporaries stay a few MB).
 DRAIN_CHUNK = 32_768
-#: Samples allowed to wait for the writer before the producer is made to wait (~100 s at 1 kHz).
+#: Samples allowed to wait for the writer before the producer is made to wait (100 s of the stream at 1 kHz).
 MAX_PENDING = 100_000
 
 

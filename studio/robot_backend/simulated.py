@@ -41,7 +41,7 @@ from studio.robot_backend.plan_follower import PLAN_START_TOLERANCE, PlanFollowe
 if TYPE_CHECKING:  # pragma: no cover
     from studio.core.execution import ExecutionPlan
 
-#: Gripper travel speed, percent of the full stroke per second (Baxter's electric gripper: ~0.5 s stroke).
+#: Gripper travel speed, percent of the full stroke per second (Baxter's electric gripper: half a second a stroke).
 GRIPPER_SPEED = 200.0
 #: Largest batch handed to listeners at once (a long stall is delivered as several batches).
 MAX_BATCH = 1000
@@ -173,7 +173,7 @@ class SimulatedBaxter(RobotBackend):
             self._arms.last_target = self._arms.q.copy()
 
     def stop_motion(self) -> None:
-        """Slow the plan down to rest along its path (about 0.1–1.5 s); without a plan, hold still."""
+        """Slow the plan down to rest along its path (0.1–1.5 s); without a plan, hold still."""
         with self._lock:
             a = self._arms
             if self._plan is None:
