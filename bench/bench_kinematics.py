@@ -229,6 +229,7 @@ def paths(b: Baxter, count: int, solvers: dict[str, Solver]) -> None:
     from studio.core.ik_path import solve_path
 
     arm = "left"
+    vmax = b.velocity_limits(arm)
     print(f"\n== paths: {count} learned skills at 50 Hz (bench_execution's families), pose by pose vs whole path ==")
     rows: dict[tuple[str, str], list[tuple[float, float, float, float]]] = {}
     for _family, t, P, W, q_ref in _paths(count):
@@ -250,17 +251,21 @@ def paths(b: Baxter, count: int, solvers: dict[str, Solver]) -> None:
             for name, (Q, took) in results.items():
                 pe, oe = _errors(b, arm, Q, P, W)
                 ok = float(np.mean((pe < POS_OK) & (oe < ROT_OK)))
-                jump = float(np.max(np.abs(np.diff(Q, axis=0)))) if len(Q) > 1 else 0.0
-                rows.setdefault((seed_name, name), []).append((ok, float(pe.max()), jump, took / len(t)))
+                dq = np.abs(np.diff(Q, axis=0))
+                jump = float(dq.max()) if len(Q) > 1 else 0.0
+                # steps faster than the joints' velocity limits: the timing must slow the skill down there
+                fast = int(np.count_nonzero(np.any(dq / np.diff(t)[:, None] > vmax, axis=1)))
+                rows.setdefault((seed_name, name), []).append((ok, float(pe.max()), jump, took / len(t), fast))
     print(
         f"{'seed':<11}{'solver':<22}{'paths':>6}{'within 1 mm (median, worst)':>30}{'worst pos err':>15}"
-        f"{'largest joint step':>20}{'time per pose':>15}"
+        f"{'largest joint step':>20}{'steps over the velocity limit':>32}{'time per pose':>15}"
     )
     for (seed_name, name), r in rows.items():
         a = np.array(r)
+        over = f"{int(a[:, 4].sum())} in {int((a[:, 4] > 0).sum())} paths"
         print(
             f"{seed_name:<11}{name:<22}{len(r):6d}{100 * np.median(a[:, 0]):15.1f}%{100 * a[:, 0].min():12.1f}%"
-            f"{a[:, 1].max() * 1e3:12.1f} mm{a[:, 2].max():15.2f} rad{np.median(a[:, 3]) * 1e3:12.3f} ms"
+            f"{a[:, 1].max() * 1e3:12.1f} mm{a[:, 2].max():15.2f} rad{over:>32}{np.median(a[:, 3]) * 1e3:12.3f} ms"
         )
 
 
