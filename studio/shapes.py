@@ -146,7 +146,7 @@ def _progress(rng: np.random.Generator, u_nodes: np.ndarray, corner_u: np.ndarra
 
 
 def shape_demo(spec: ShapeSpec, seed: int, *, rate_hz: float = 1000.0, name: str | None = None) -> Demo:
-    """One human-like demonstration of ``spec`` (see module docstring); deterministic for a given seed.
+    """One human-like demonstration of ``spec`` (its variation: docs/decisions/026); deterministic for a given seed.
 
     Returns:
         A :class:`Demo`: rest, stroke, rest; about ``spec.duration`` × (0.85–1.15) s of stroke plus 0.2–0.5 s

@@ -339,7 +339,7 @@ def suggest(
     workers: int = WORKERS,
     budget_s: float = 5.0,
 ) -> TuneResult:
-    """Search ``detail`` and k for the best held-out fidelity (module docstring).
+    """Search ``detail`` and k for the best held-out fidelity (module docstring; docs/decisions/011).
 
     Args:
         demos: the shown demonstrations (at least two).

@@ -16,7 +16,7 @@ import numpy as np
 from studio.core.errors import InvalidInput, NotEnoughData
 from studio.core.types import Demo, readonly
 
-#: k-means implementation: "numpy" (this module's Lloyd iterations, default: see the module docstring) or
+#: k-means implementation: "numpy" (this module's Lloyd iterations, default: docs/decisions/006) or
 #: "sklearn" (scikit-learn ``KMeans``).
 BACKEND = "numpy"
 

@@ -87,7 +87,7 @@ def generalize(
         t_start, t_end: sampled interval (default the first and last point); outside the points the
             trajectory holds the end values.
         rate_hz: output rate.
-        smoothing: λ / h³ (see module docstring).
+        smoothing: λ / h³ (docs/decisions/015).
 
     Returns:
         A :class:`Demo` (t, position, unit sign-continuous orientation, step gripper).

@@ -39,7 +39,7 @@ PRIOR_EPS = 1e-6
 def bakis_init(
     sequences: Sequence[np.ndarray], n_states: int, n_symbols: int | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Left–right initial model from the codebook's segmentation (module docstring).
+    """Left–right initial model from the codebook's segmentation (docs/decisions/014).
 
     Args:
         sequences: one int array of symbols (cluster labels, time-ordered codebook) per demonstration.

@@ -619,7 +619,7 @@ def solve_path(
     *,
     max_starts: int = 3,
 ) -> PathSolution:
-    """Joint knots that follow a Cartesian gripper path (see the module docstring for the method).
+    """Joint knots that follow a Cartesian gripper path (the method: docs/decisions/008).
 
     Args:
         t: (N,) seconds, increasing (the skill's time line).

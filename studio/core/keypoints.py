@@ -329,7 +329,7 @@ def _next_keypoint(pos: _Tests, ori: _Tests, tau: int, ub: int, chunk: int) -> i
 
 
 def extract_from_series(s: KeypointSeries, params: KeypointParams) -> np.ndarray:
-    """The fast path: key-point indices from precomputed series (see module docstring).
+    """The fast path: key-point indices from precomputed series (the tests: :func:`extract_keypoints`).
 
     Per call, the ε-dependent masks (corners, stillness) are thresholded once over the whole demonstration;
     the sequential part then evaluates all six tests together on chunks of samples after the last key-point

@@ -4,7 +4,7 @@ The end-effector frame is ``<arm>_gripper``: the point between the fingertips, 0
 It is the frame the Baxter SDK reports as the endpoint pose and the one its IK service (which the paper
 uses for execution) solves for, so demonstrations, the learned skill and execution all speak of it.
 
-Poses are expressed in the URDF root frame ``base`` (Baxter's torso base), positions in metres and
+Poses are given in the URDF root frame ``base`` (Baxter's torso base), positions in metres and
 orientations as unit quaternions w, x, y, z.
 """
 
@@ -184,7 +184,7 @@ class _ArmChain:
     def pose_jacobian_columns(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Gripper rotation (N, 3, 3), position (N, 3) and the 6×7 Jacobian (N, 6, 7) for joint angles Q (N, 7).
 
-        The Jacobian is expressed in the world-aligned frame at the gripper point (pinocchio's
+        The Jacobian is given in the world-aligned frame at the gripper point (pinocchio's
         ``LOCAL_WORLD_ALIGNED``): rows vx, vy, vz, wx, wy, wz. Each joint turns about its frame's z axis,
         so column i is (z_i × (p − o_i), z_i) with o_i, z_i that joint's origin and axis — the same
         element-wise arithmetic as :meth:`pose_columns`, vectorised over N.

@@ -330,8 +330,8 @@ def learn_skill(
         seed: seed for k-means and hmmlearn.
         arm: if given, also solve IK for ``skill.joint_trajectory``, seeded by the reference demo's joints.
         baxter: the robot model (default :meth:`Baxter.load`).
-        spline_through: paper mode's path points, "state-means" (default) or "centroids" (module docstring).
-        generalization: "aligned-mean" (default) or "paper" (module docstring).
+        spline_through: paper mode's path points, "state-means" (default) or "centroids" (docs/decisions/004).
+        generalization: "aligned-mean" (default) or "paper" (docs/decisions/003).
         smoothing: spline smoothing (see :mod:`studio.core.generalize`).
         scale: feature scaling for clustering and DTW (default :meth:`FeatureScale.for_demos`).
         keypoints: precomputed key-point indices per demo (e.g. from the slider's cache).

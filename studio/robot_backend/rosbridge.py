@@ -99,7 +99,7 @@ class _Run:
 
 
 class RosbridgeBaxter(RobotBackend):
-    """A real Baxter over rosbridge (see the module docstring for the topics and the behaviour).
+    """A real Baxter over rosbridge (topics: :mod:`.rosbridge_link`; commands: docs/decisions/022).
 
     Args:
         url: the rosbridge websocket, e.g. ``ws://baxter.local:9090``.

@@ -160,7 +160,7 @@ class SimulatedBaxter(RobotBackend):
 
     # -- executing a plan ------------------------------------------------------------------------------------
     def execute(self, plan: ExecutionPlan) -> None:
-        """Follow ``plan`` from the next sample on (see the module docstring); returns at once."""
+        """Follow ``plan`` from the next sample on, within the velocity and acceleration limits; returns at once."""
         q_plan, g_plan = plan_targets(plan, self.rate_hz)
         with self._lock:
             if self._estopped:
