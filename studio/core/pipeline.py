@@ -55,7 +55,7 @@ from scipy.interpolate import PchipInterpolator
 from studio.core import alignment, hmm, quality
 from studio.core.clustering import FeatureScale, align_hemisphere, cluster, default_n_clusters
 from studio.core.errors import InvalidInput, NotEnoughData
-from studio.core.generalize import SMOOTHING, generalize, joint_trajectory
+from studio.core.generalize import SMOOTHING, demo_pins, generalize, joint_trajectory, pin_poses
 from studio.core.keypoints import KeypointCache
 from studio.core.kinematics import Baxter, make_sign_continuous
 from studio.core.thresholds import ThresholdSettings
@@ -128,20 +128,24 @@ class AlignmentCache:
 
     def __init__(self, size: int = 64) -> None:
         self.size = size
-        self._maps: dict[tuple, tuple[weakref.ref, weakref.ref, np.ndarray]] = {}
+        self._maps: dict[tuple, tuple[tuple[weakref.ref, ...], Any]] = {}
 
-    def get(self, ref: Demo, demo: Demo, key: tuple, compute: Callable[[], np.ndarray]) -> np.ndarray:
-        k = (id(ref), id(demo), *key)
+    def get(self, ref: Demo, demo: Demo, key: tuple, compute: Callable[[], Any]) -> Any:
+        return self.get_set((ref, demo), key, compute)
+
+    def get_set(self, demos: Sequence[Demo], key: tuple, compute: Callable[[], Any]) -> Any:
+        """The value for these demos (in this order) and key, computed once while they all live."""
+        k = (*(id(d) for d in demos), len(demos), *key)
         hit = self._maps.get(k)
-        if hit is not None and hit[0]() is ref and hit[1]() is demo:
-            return hit[2]
+        if hit is not None and len(hit[0]) == len(demos) and all(r() is d for r, d in zip(hit[0], demos, strict=True)):
+            return hit[1]
         value = compute()
         if len(self._maps) >= self.size:
             try:
                 self._maps.pop(next(iter(self._maps)), None)
             except (StopIteration, RuntimeError):
                 pass
-        self._maps[k] = (weakref.ref(ref), weakref.ref(demo), value)
+        self._maps[k] = (tuple(weakref.ref(d) for d in demos), value)
         return value
 
 
@@ -169,6 +173,28 @@ class _Model:
 
 def _inverse(warp: PchipInterpolator, lo: float, hi: float, tau: np.ndarray) -> np.ndarray:
     return np.asarray(warp(np.clip(tau, lo, hi)), dtype=np.float64)
+
+
+def _dtw_series(X: np.ndarray, scale: FeatureScale, ref_quat: np.ndarray, dtw_features: str) -> np.ndarray:
+    """The DTW features of a resampled (N, 8) series: scaled; for "shape", orientation weighted down and the
+    direction of motion added, faded out where the hand is slower than usual (at rest it is only noise)."""
+    X = _scaled(X, scale, ref_quat)
+    if dtw_features == "paper":
+        return X
+    X[:, 3:7] *= DTW_ORIENTATION_WEIGHT
+    v = np.gradient(X[:, :3], axis=0)
+    n = np.linalg.norm(v, axis=1, keepdims=True)
+    tan = v / np.maximum(n, 1e-12) * np.minimum(1.0, n / max(float(np.median(n)), 1e-12))
+    return np.column_stack([X, DTW_DIRECTION_WEIGHT * tan])
+
+
+def _warp_to(
+    mapped: np.ndarray, grid: np.ndarray, t0: float, tau: np.ndarray, tau_t0: float
+) -> Callable[[np.ndarray], np.ndarray]:
+    """The smoothed, monotone inverse of a DTW time map: time on the average's line (from its start) -> demo time
+    (from its start)."""
+    warp = PchipInterpolator(tau, alignment.smooth_warp(alignment.inverse_time_map(mapped - tau_t0, grid - t0, tau)))
+    return functools.partial(_inverse, warp, float(tau[0]), float(tau[-1]))
 
 
 def _fit(
@@ -219,15 +245,7 @@ def _fit(
     ac = align_cache or _ALIGN_CACHE
 
     def series(i: int) -> np.ndarray:
-        X = _scaled(alignment.resample(demos[i].t, demos[i].features, grids[i]), scale, ref_quat)
-        if dtw_features == "paper":
-            return X
-        X[:, 3:7] *= DTW_ORIENTATION_WEIGHT
-        # direction of motion, faded out where the hand is slower than usual (at rest it is only noise)
-        v = np.gradient(X[:, :3], axis=0)
-        n = np.linalg.norm(v, axis=1, keepdims=True)
-        tan = v / np.maximum(n, 1e-12) * np.minimum(1.0, n / max(float(np.median(n)), 1e-12))
-        return np.column_stack([X, DTW_DIRECTION_WEIGHT * tan])
+        return _dtw_series(alignment.resample(demos[i].t, demos[i].features, grids[i]), scale, ref_quat, dtw_features)
 
     aligned: list[np.ndarray] = []
     inverse: list[Callable[[np.ndarray], np.ndarray]] = []
@@ -244,12 +262,9 @@ def _fit(
 
         mapped = ac.get(ref_demo, d, key, compute)
         aligned.append(np.interp(tk, grids[i], mapped) - ref_demo.t[0])
-        g0, m0 = grids[i] - d.t[0], mapped - ref_demo.t[0]
         # The demo's time at each step of the reference's grid, smoothed (a DTW staircase would jerk the
         # average), monotone C¹ in between (PCHIP).
-        tau = grids[ref] - ref_demo.t[0]
-        warp = PchipInterpolator(tau, alignment.smooth_warp(alignment.inverse_time_map(m0, g0, tau)))
-        inverse.append(functools.partial(_inverse, warp, float(tau[0]), float(tau[-1])))
+        inverse.append(_warp_to(mapped, grids[i], float(d.t[0]), grids[ref] - ref_demo.t[0], float(ref_demo.t[0])))
     # 5. timed path points
     times_all = np.concatenate(aligned)
     labels_all = np.concatenate(cl.labels)
@@ -287,20 +302,23 @@ def _fit(
     )
 
 
-def _aligned_mean(demos: list[Demo], fm: _Model, t: np.ndarray, cache: KeypointCache) -> np.ndarray:
-    """(len(t), 7) position and orientation: at each time of the reference, the mean of all demos (their
-    50 ms smoothed series) at the time DTW matched to it.
+def _mean_pose(
+    demos: list[Demo], inverse: list[Callable[[np.ndarray], np.ndarray]], ref: int, t: np.ndarray, cache: KeypointCache
+) -> tuple[np.ndarray, np.ndarray]:
+    """(len(t), 7) position and orientation and (len(t),) gripper: at each time of the reference, the mean of all
+    demos (their 50 ms smoothed series) at the time DTW matched to it.
 
     Quaternions are averaged on one side: the reference's (sign-continuous) series keeps its own sign, and
     each other demo's quaternion takes the sign of the reference's at the same instant. (Against one fixed
     quaternion instead, a hand that turns past 180° from it flips sign there and the average jumps.)"""
     acc = np.zeros((t.shape[0], 7))
+    grip = np.zeros(t.shape[0])
     q_ref: np.ndarray | None = None
-    for d in [fm.ref, *(i for i in range(len(demos)) if i != fm.ref)]:
+    for d in [ref, *(i for i in range(len(demos)) if i != ref)]:
         demo = demos[d]
         ser = cache.series(demo)
         td_all = np.asarray(demo.t) - demo.t[0]
-        w = np.clip(fm.inverse[d](t), 0.0, td_all[-1])
+        w = np.clip(inverse[d](t), 0.0, td_all[-1])
         pos = np.column_stack([np.interp(w, td_all, ser.position[:, k]) for k in range(3)])
         q = np.column_stack([np.interp(w, td_all, ser.orientation[:, k]) for k in range(4)])
         if q_ref is None:
@@ -309,9 +327,15 @@ def _aligned_mean(demos: list[Demo], fm: _Model, t: np.ndarray, cache: KeypointC
             q *= np.where(np.einsum("ij,ij->i", q, q_ref) < 0, -1.0, 1.0)[:, None]
         acc[:, :3] += pos
         acc[:, 3:] += q
+        grip += np.interp(w, td_all, np.asarray(demo.gripper, dtype=np.float64))
     acc /= len(demos)
     acc[:, 3:] /= np.linalg.norm(acc[:, 3:], axis=1, keepdims=True)
-    return acc
+    return acc, grip / len(demos)
+
+
+def _aligned_mean(demos: list[Demo], fm: _Model, t: np.ndarray, cache: KeypointCache) -> np.ndarray:
+    """(len(t), 7) position and orientation of the aligned mean (:func:`_mean_pose`)."""
+    return _mean_pose(demos, fm.inverse, fm.ref, t, cache)[0]
 
 
 def _trajectory(
@@ -337,8 +361,11 @@ def _trajectory(
     )
     if generalization == "paper":
         return traj
-    pose = _aligned_mean(demos, fm, np.asarray(traj.t), cache)
-    return Demo(traj.t, pose[:, :3], make_sign_continuous(pose[:, 3:]), traj.gripper, name="learned skill")
+    t = np.asarray(traj.t)
+    pose = _aligned_mean(demos, fm, t, cache)
+    pins = demo_pins(demos, t, traj.gripper)
+    pos, ori = pin_poses(t, pose[:, :3], make_sign_continuous(pose[:, 3:]), pins)
+    return Demo(traj.t, pos, ori, traj.gripper, name="learned skill")
 
 
 def learn_skill(
