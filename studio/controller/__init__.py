@@ -87,7 +87,13 @@ class Controller:
         self.playback = Player(self.ctx, self.display, self._robot_pose)
         arms = self._arms
         self.keypoints = KeypointTuning(self.ctx, self.demos, arms)
-        self.live = LivePaths(self.ctx, self.demos, self.keypoints, lambda: self.view.shown(Layer.KEYPOINTS))
+        self.live = LivePaths(
+            self.ctx,
+            self.demos,
+            self.keypoints,
+            lambda: self.view.shown(Layer.KEYPOINTS),
+            lambda arm: self.training.chosen_route(arm),
+        )
         self.events.on(Topic.VIEW, self.live.refresh_if_wanted)
         self.suggest = Suggesting(self.ctx, self.demos, self.keypoints)
         self.training = Training(self.ctx, self.demos, self.keypoints, arms, self.playback)

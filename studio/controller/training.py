@@ -60,6 +60,7 @@ class Training:
         self.busy = False
         self.judging = False
         self._verdicts: dict[str, SkillVerdict] = {}
+        self._routes: dict[str, int] = {}
         ctx.events.on(Topic.SESSION, self._on_session)
 
     def skills(self) -> dict[str, Skill]:
@@ -80,10 +81,24 @@ class Training:
             self.ctx.session.set_params(mode=mode)
         self.ctx.emit(Topic.TRAINING)
 
+    # -- which way, when the demonstrations go several ways ---------------------------------------------------
+    def chosen_route(self, arm: str) -> int | None:
+        """The way the teacher chose for ``arm`` (index into its skill's ``routes``), or None for the default."""
+        return self._routes.get(arm)
+
+    def set_route(self, arm: str, route: int) -> Future[dict[str, Skill] | None]:
+        """Learn ``arm``'s skill from the demonstrations of another way (see :attr:`Skill.routes`), at once."""
+        sk = self.ctx.session.skills.get(arm)
+        if sk is None or not 0 <= int(route) < len(sk.routes):
+            raise StudioError("Your demonstrations go only one way: there is no other way to choose.")
+        with self.ctx.lock:
+            self._routes[arm] = int(route)
+        return self.train()
+
     # -- training ------------------------------------------------------------------------------------------
     def train(self) -> Future[dict[str, Skill] | None]:
         """Learn the skill of every taught arm from the shown demos on the work thread, then judge it."""
-        from studio.core.pipeline import learn_skill
+        from studio.core.pipeline import learn_skill, routes_of
 
         with self.ctx.lock:
             if self.busy:
@@ -98,10 +113,15 @@ class Training:
             settings, k = self.tuning.settings(), self.tuning.k
             params = {arm: self.tuning.params(arm, settings) for arm in per_arm}
             mode = self.ctx.session.generalization
+            routes = dict(self._routes)
             session = self.ctx.session  # the skill belongs to the session it was learned from
             self.busy = True
         self.ctx.emit(Topic.TRAINING)
         baxter, cache = self.ctx.baxter, self.tuning.cache
+
+        def way(arm: str, demos: list[Demo]) -> int | None:
+            r = routes.get(arm)
+            return r if r is not None and r < len(routes_of(demos)) else None  # the demos changed since
 
         def job() -> dict[str, Skill]:
             return {
@@ -114,6 +134,7 @@ class Training:
                     baxter=baxter,
                     cache=cache,
                     generalization=mode,
+                    route=way(arm, [d for _, d in demos]),
                 )
                 for arm, demos in per_arm.items()
             }
@@ -205,6 +226,7 @@ class Training:
     def _on_session(self) -> None:
         with self.ctx.lock:
             self._verdicts = {}
+            self._routes = {}
             has_skills = bool(self.ctx.session.skills)
         if has_skills:
             self.judge()

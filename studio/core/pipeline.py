@@ -58,6 +58,7 @@ from studio.core.errors import InvalidInput, NotEnoughData
 from studio.core.generalize import SMOOTHING, demo_pins, generalize, joint_trajectory, pin_poses
 from studio.core.keypoints import KeypointCache
 from studio.core.kinematics import Baxter, make_sign_continuous
+from studio.core.routes import Routes, find_routes
 from studio.core.thresholds import ThresholdSettings
 from studio.core.types import (
     ARMS,
@@ -67,6 +68,7 @@ from studio.core.types import (
     KeypointParams,
     Recording,
     Skill,
+    SkillRoute,
     check_arm,
 )
 
@@ -151,6 +153,26 @@ class AlignmentCache:
 
 _SERIES_CACHE = KeypointCache()
 _ALIGN_CACHE = AlignmentCache()
+_ROUTES_CACHE = AlignmentCache(16)
+
+
+def routes_of(demos: Sequence[Demo]) -> Routes:
+    """Which demonstrations go which way (:func:`studio.core.routes.find_routes`, remembered per set of demos)."""
+    demos = list(demos)
+    return _ROUTES_CACHE.get_set(demos, ("routes",), lambda: find_routes(demos))
+
+
+def _route_demos(demos: list[Demo], route: int | None) -> tuple[Routes, int, list[Demo]]:
+    """(the routes, the one to learn, its demonstrations): all demos when they go one way."""
+    found = routes_of(demos)
+    if not found:
+        if route not in (None, 0):
+            raise InvalidInput("Your demonstrations all go the same way: there is no other way to choose.")
+        return found, 0, demos
+    r = found.default if route is None else int(route)
+    if not 0 <= r < len(found):
+        raise InvalidInput(f"Your demonstrations go {len(found)} ways: choose one of them (got way {r + 1}).")
+    return found, r, [demos[i] for i in found.routes[r].demos]
 
 
 @dataclass(frozen=True, eq=False)
@@ -383,6 +405,7 @@ def learn_skill(
     keypoints: Sequence[np.ndarray] | None = None,
     cache: KeypointCache | None = None,
     align_cache: AlignmentCache | None = None,
+    route: int | None = None,
 ) -> Skill:
     """Learn a skill from demonstrations (paper § Task Learning).
 
@@ -400,6 +423,8 @@ def learn_skill(
         keypoints: precomputed key-point indices per demo (e.g. from the slider's cache).
         cache: a :class:`KeypointCache` to reuse derived series.
         align_cache: an :class:`AlignmentCache` to reuse DTW maps (default: a process-wide one).
+        route: when the demos go several ways (:func:`routes_of`), which one to learn (index into
+            ``skill.routes``; default: the way most demos go). The skill learns from that way's demos only.
 
     Returns:
         The :class:`Skill`.
@@ -409,7 +434,8 @@ def learn_skill(
         InvalidInput: malformed input (NaN, mismatched lengths are rejected when the Demo is built).
         IkFailed: with ``arm``, the skill's start is out of reach.
     """
-    demos = _validate(demos)
+    everyone = demos = _validate(demos)
+    found, chosen, demos = _route_demos(demos, route)
     if params is None:
         from studio.core.thresholds import auto_params
 
@@ -473,6 +499,9 @@ def learn_skill(
         spline_through=spline_through,
         demo_names=tuple(d.name for d in demos),
         generalization=generalization,
+        routes=tuple(SkillRoute(tuple(everyone[i].name for i in r.demos), r.at) for r in found.routes),
+        route=chosen,
+        route_where=found.where,
     )
 
 
@@ -487,11 +516,19 @@ def learn_path(
     cache: KeypointCache | None = None,
     align_cache: AlignmentCache | None = None,
     keypoints: Sequence[np.ndarray] | None = None,
+    route: int | None = None,
 ) -> Demo:
     """The generalized trajectory only, sampled at ``rate_hz`` (no IK, no :class:`Skill`): what the auto-tune
     scores and the live preview draws. Same stages and results as :func:`learn_skill` at a lower rate
-    (``keypoints``: the key-point indices per demo for ``params``, when already extracted)."""
-    demos = _validate(demos)
+    (``keypoints``: the key-point indices per demo for ``params``, when already extracted; ``route``: as for
+    :func:`learn_skill`)."""
+    everyone = _validate(demos)
+    found, _, demos = _route_demos(everyone, route)
+    if keypoints is not None and found:
+        if len(keypoints) != len(everyone):
+            raise InvalidInput("There must be one list of key-points per demonstration.")
+        keep = {id(d) for d in demos}
+        keypoints = [k for d, k in zip(everyone, keypoints, strict=True) if id(d) in keep]
     if params is None:
         from studio.core.thresholds import auto_params
 
@@ -526,6 +563,8 @@ class PreviewPath:
         g_over_r: in-sample fidelity G/R against the shown demos (NaN with one demo).
         distance: root-mean-square distance to the demos, m (the "within … on average" figure).
         message: plain words when no path could be made (too few key-points, …), else "".
+        routes: the ways the demos go when more than one; the path follows ``routes[route]`` and the figures
+            are against that way's demos.
     """
 
     t: np.ndarray
@@ -535,6 +574,8 @@ class PreviewPath:
     g_over_r: float
     distance: float
     message: str = ""
+    routes: tuple[SkillRoute, ...] = ()
+    route: int = 0
 
 
 class _DemoCurves:
@@ -574,6 +615,7 @@ def preview_path(
     align_cache: AlignmentCache | None = None,
     rate_hz: float = 50.0,
     keypoints: Sequence[np.ndarray] | None = None,
+    route: int | None = None,
 ) -> PreviewPath:
     """Re-extract key-points, re-cluster, re-train the HMM and regenerate the path for the live preview.
 
@@ -588,6 +630,9 @@ def preview_path(
     demos = _validate(demos)
     kc = cache or _SERIES_CACHE
     kps = [kc.extract(d, params) for d in demos] if keypoints is None else [np.asarray(k) for k in keypoints]
+    found = routes_of(demos)
+    way = found.default if found and (route is None or not 0 <= route < len(found)) else int(route or 0)
+    ways = tuple(SkillRoute(tuple(demos[i].name for i in r.demos), r.at) for r in found.routes)
     try:
         traj = learn_path(
             demos,
@@ -598,13 +643,18 @@ def preview_path(
             cache=kc,
             align_cache=align_cache,
             keypoints=kps,
+            route=way if found else None,
         )
     except StudioError as exc:
-        return PreviewPath(np.zeros(0), np.zeros((0, 3)), kps, 0, float("nan"), float("nan"), str(exc))
+        return PreviewPath(np.zeros(0), np.zeros((0, 3)), kps, 0, float("nan"), float("nan"), str(exc), ways, way)
+    used = kps
+    if found:
+        demos = [demos[i] for i in found.routes[way].demos]
+        used = [kps[i] for i in found.routes[way].demos]
     curves, r = _PREVIEW_CURVES.get(demos)
     c = quality.curve(traj, 300)
     g = float(np.mean([quality.ndtw(c, x) for x in curves]))
-    k = default_n_clusters(kps) if n_clusters is None else int(n_clusters)
+    k = default_n_clusters(used) if n_clusters is None else int(n_clusters)
     return PreviewPath(
         t=np.asarray(traj.t),
         position=np.asarray(traj.position),
@@ -612,6 +662,8 @@ def preview_path(
         n_clusters=k,
         g_over_r=g / r if r and r > 0 else float("nan"),
         distance=float(np.sqrt(g)),
+        routes=ways,
+        route=way,
     )
 
 
