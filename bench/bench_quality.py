@@ -205,7 +205,7 @@ def evaluate(demos: list[Demo], *, suggest: bool, held: bool = True) -> dict[str
         sk2 = learn_skill(demos, tr.params, n_clusters=tr.n_clusters)
         res["suggest"] = ref.score(np.asarray(sk2.trajectory.position))
         res["suggest"].update(
-            changed=getattr(tr, "changed", True),
+            changed=tr.changed,
             seconds=time.perf_counter() - t0,
             before=tr.before.g_over_r,
             after=tr.after.g_over_r,
@@ -262,7 +262,8 @@ def _fmt(x: float | None, spec: str = ".2f") -> str:
 def route_check(res: dict, demos: list[Demo], truth: tuple[int, ...]) -> dict:
     """Were the routes found (the same grouping as the teacher's), does the learned path follow one route?"""
     sk = res["default"]["skill"]
-    groups = [tuple(r.demos) for r in getattr(sk, "routes", ())]
+    index = {d.name: i for i, d in enumerate(demos)}
+    groups = [tuple(index[n] for n in r.demos) for r in sk.routes]
     want = sorted(tuple(i for i, t in enumerate(truth) if t == r) for r in sorted(set(truth)))
     found = sorted(groups) == want
     # the learned path is on one route: much closer to that route's demos than to any other route's

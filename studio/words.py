@@ -165,6 +165,11 @@ def fit_note(fit: DemoFit) -> str:
 def tune_summary(result: TuneResult) -> str:
     """Suggest's before and after figures in plain words."""
     b, a = result.before, result.after
+    if not result.changed:
+        return (
+            "Your thresholds are already good: learned without each demonstration in turn, the skill misses it by "
+            f"{length_words(b.distance)} on average, and no other thresholds did better."
+        )
     if not math.isfinite(b.distance):
         return (
             "Suggested: learned without each demonstration in turn, the skill misses it by "
