@@ -11,8 +11,8 @@ out, lower is better). With more than :data:`MAX_FOLDS` demos, that many evenly 
 Search: the current settings ("before"), then Detail −2, −1, 0, 1, 2 with the default k, then ±0.5 around the
 best and k × 0.75 and × 1.3 at the best (about 10 candidates × 3 folds). A candidate must be better by 2 % to
 displace one with less detail (fewer key-points generalise better when the figures tie). The current
-thresholds stay (``changed`` False, "already good") when the best is not better than them — by 2 % when they
-are the defaults: a suggestion never makes the held-out figure worse.
+thresholds stay (``changed`` False, "already good") when they are the defaults and nothing is 2 % better, or
+they are the teacher's own and nothing is as good: a suggestion never makes the held-out figure worse.
 
 Speed: "before" is scored in this process first, which derives the demos' series and DTW maps; the other
 candidates are then evaluated in :data:`WORKERS` worker processes **forked** for the search, which inherit all
@@ -401,8 +401,9 @@ def suggest(
     finally:
         search.close()
     defaults = n_clusters is None and (current is None or current == ThresholdSettings())
-    need = 1.0 - MARGIN if defaults else 1.0  # the defaults stay unless something is clearly better
-    keep = math.isfinite(before.g_over_r) and not best.g_over_r < before.g_over_r * need
+    # the defaults stay unless something is clearly better; the teacher's own values unless something is as good
+    better = best.g_over_r < before.g_over_r * (1.0 - MARGIN) if defaults else best.g_over_r <= before.g_over_r
+    keep = math.isfinite(before.g_over_r) and not better
     if search.cancelled or keep:  # keep what the teacher has
         settings = current if isinstance(current, ThresholdSettings) else ThresholdSettings()
         params, k = _params(before_c, stats), n_clusters
