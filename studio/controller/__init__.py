@@ -89,7 +89,13 @@ class Controller:
         self.scene = SceneActions(ctx, backend, player=self.playback)
         self.teaching = Teaching(ctx, backend, takes=self.scene, motion_guard=lambda d: self.execution.check_free(d))
         self.keypoints = KeypointTuning(ctx, self.demos)
-        self.live = LivePaths(ctx, self.demos, self.keypoints, wanted=lambda: self.view.shown(Layer.KEYPOINTS))
+        self.live = LivePaths(
+            ctx,
+            self.demos,
+            self.keypoints,
+            wanted=lambda: self.view.shown(Layer.KEYPOINTS),
+            route=lambda arm: self.training.chosen_route(arm),
+        )
         self.suggest = Suggesting(ctx, self.demos, self.keypoints)
         self.training = Training(ctx, self.demos, self.keypoints)
         self.execution = ExecutionActions(

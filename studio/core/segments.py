@@ -236,9 +236,10 @@ def _learn_segment(
         parts.append((_in_frame(d, c[k], c[k + 1], fp), _in_frame(d, c[k], c[k + 1], fo)))
     seg_demos = [p[0] for p in parts]
     try:
-        sk = learn_skill(seg_demos, params, seed=seed, generalization=generalization)
+        sk = learn_skill(seg_demos, params, seed=seed, generalization=generalization, split_routes=False)
     except NotEnoughData:
-        sk = learn_skill(seg_demos, auto_params(seg_demos), seed=seed, generalization=generalization)
+        auto = auto_params(seg_demos)
+        sk = learn_skill(seg_demos, auto, seed=seed, generalization=generalization, split_routes=False)
     t, pos, q, g = _resampled(sk.trajectory)
     mp, mo, qp, qo, vp, vo = _statistics(t, pos, parts)
     pi_end = _minjerk(t / max(t[-1], 1e-9))
