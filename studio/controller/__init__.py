@@ -18,6 +18,7 @@ from studio.controller.events import Events, Topic
 from studio.controller.execution import ExecutionActions
 from studio.controller.learning import KeypointItem, KeypointTuning, KeypointView
 from studio.controller.livepath import LivePath, LivePaths
+from studio.controller.placed import PlacedSkills
 from studio.controller.playback import PREVIEW, REPLAY, Playback, PlaybackKind, Player
 from studio.controller.pose import Display, PoseSource
 from studio.controller.run import RunPaths, RunStatus
@@ -25,7 +26,7 @@ from studio.controller.scene import SceneActions
 from studio.controller.sessions import RECOVERED, SessionActions, open_or_create
 from studio.controller.suggest import Suggesting, SuggestState
 from studio.controller.teaching import Reach, Teaching
-from studio.controller.training import MODE_WORDS, SkillVerdict, Training, UsedDemo
+from studio.controller.training import FRAME_WORDS, MODE_WORDS, SkillVerdict, Training, UsedDemo
 from studio.controller.view import Layer, Step, View
 from studio.core.kinematics import Baxter
 from studio.robot_backend.base import RobotBackend
@@ -71,7 +72,13 @@ class Controller:
         self.scene = SceneActions(ctx, backend, player=self.playback)
         self.teaching = Teaching(ctx, backend, takes=self.scene, motion_guard=lambda d: self.execution.check_free(d))
         self.keypoints = KeypointTuning(ctx, self.demos)
-        self.live = LivePaths(ctx, self.demos, self.keypoints, wanted=lambda: self.view.shown(Layer.KEYPOINTS))
+        self.live = LivePaths(
+            ctx,
+            self.demos,
+            self.keypoints,
+            wanted=lambda: self.view.shown(Layer.KEYPOINTS),
+            route=lambda arm: self.training.chosen_route(arm),
+        )
         self.suggest = Suggesting(ctx, self.demos, self.keypoints)
         self.training = Training(ctx, self.demos, self.keypoints)
         self.execution = ExecutionActions(
@@ -82,6 +89,10 @@ class Controller:
             training_busy=lambda: self.training.busy,
             unload_playback=self.playback.unload,
         )
+        self.placed = PlacedSkills(ctx)  # the skills where the objects are now: what preview and runs play
+        self.playback.skills = self.placed.get
+        self.execution.warnings = self.placed.warnings
+        self.execution.skills = self.placed.get
         self.sessions = SessionActions(ctx, persist=self.keypoints.persist)
 
     @property
@@ -156,6 +167,7 @@ class Controller:
 
 
 __all__ = [
+    "FRAME_WORDS",
     "MODE_WORDS",
     "PALETTE",
     "PREVIEW",

@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Protocol
 
 import numpy as np
@@ -91,6 +91,10 @@ class ExecutionActions:
         self.recording: Recording | None = None
         self.report: TrackingReport | None = None
         self.task: TaskResult | None = None
+        #: Objects where no demonstration put them, in words (set by the controller; told when a run starts).
+        self.warnings: Callable[[], list[str]] = list
+        #: The skills a run plays (set by the controller: placed where the objects are now).
+        self.skills: Callable[[], Mapping[str, Skill]] = lambda: ctx.session.skills
         ctx.on_leave(self._check_leave)
         ctx.events.on(Topic.SKILL, self._forget_last_run)
         ctx.events.on(Topic.SESSION, self._forget_last_run)
@@ -114,7 +118,7 @@ class ExecutionActions:
     def feasibility(self) -> dict[str, Feasibility]:
         """arm -> whether the robot can follow its learned skill, in plain words (computed once per skill)."""
         out = {}
-        for arm, skill in sampling.executable(self.ctx.session.skills).items():
+        for arm, skill in sampling.executable(self.skills()).items():
             with self._lock:
                 hit = self._feasible.get(arm)
             if hit is None or hit[0] is not skill:
@@ -127,7 +131,7 @@ class ExecutionActions:
 
     def unreachable_paths(self) -> dict[str, list[np.ndarray]]:
         """arm -> the stretches (each (n, 3) m) of its learned path the robot cannot follow, to draw in red."""
-        skills = self.ctx.session.skills
+        skills = self.skills()
         out: dict[str, list[np.ndarray]] = {}
         for arm, f in self.feasibility().items():
             pos = np.asarray(skills[arm].trajectory.position)
@@ -144,7 +148,7 @@ class ExecutionActions:
             return "Stop the recording before running the skill on the robot."
         if self.training_busy():
             return "Wait for the training to finish before running the skill on the robot."
-        if not sampling.executable(self.ctx.session.skills):
+        if not sampling.executable(self.skills()):
             return "There is no learned skill to run yet: record demonstrations and press Train first."
         bad = [f.message for f in self.feasibility().values() if not f.ok]
         if bad:
@@ -178,7 +182,7 @@ class ExecutionActions:
             reason = self.why_not()
             if reason:
                 raise StudioError(reason)
-            skills = sampling.executable(self.ctx.session.skills)
+            skills = sampling.executable(self.skills())
             jts = {arm: s.joint_trajectory for arm, s in skills.items() if s.joint_trajectory is not None}
             self.unload_playback()
             self.display.show_live()  # the drawn robot is the real one during the run
@@ -192,7 +196,10 @@ class ExecutionActions:
                 self._status = RunStatus("running", 0.0, plan.duration, "The robot is running the skill.")
             run.thread = threading.Thread(target=self._follow, args=(run,), name="studio-run", daemon=True)
             run.thread.start()
+            said = self.warnings()
         self.ctx.emit(Topic.EXECUTION)
+        if said:
+            self.ctx.notify("The objects are somewhere new", " ".join(said), kind="warning")
 
     def stop(self) -> None:
         """Controlled stop: the robot slows down along the skill's path to rest."""

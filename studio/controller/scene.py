@@ -27,6 +27,7 @@ from studio.world import (
     PRESETS,
     ObjectPose,
     Scene,
+    TaskGoal,
     TaskResult,
     World,
     WorldEvent,
@@ -38,6 +39,7 @@ from studio.world import (
     task_goal,
     task_result,
 )
+from studio.world.relative import relative_goal
 
 log = logging.getLogger(__name__)
 
@@ -224,9 +226,16 @@ class SceneActions:
                 return
             rec = self.player.preview_recording()
             run = simulate(rec.t, rec.q, rec.gripper, self.scene, baxter=self.ctx.baxter)
-            result = task_result(run, task_goal(events))
+            result = task_result(run, self._goal(events))
         self._result, self._result_key = result, key
         self.ctx.emit(Topic.TASK)
+
+    def _goal(self, events: list[tuple[WorldEvent, ...]]) -> TaskGoal:
+        """What the demonstrations did with the objects; for a skill that follows them, relative to where the
+        objects are now."""
+        goal = task_goal(events)
+        frames = next((s.frames for s in self.ctx.session.skills.values() if s.frames is not None), None)
+        return goal if frames is None else relative_goal(goal, frames, self.scene)
 
     # -- a run on the robot (studio.controller.execution) ------------------------------------------------
     def begin_run(
@@ -255,7 +264,7 @@ class SceneActions:
         gripper path the wording uses."""
         self.live.snapshot("end")
         events = tuple(self.live.events_since(mark))
-        goal = task_goal(self._shown_events())
+        goal = self._goal(self._shown_events())
         if not goal.objects:
             return None
         step = max(1, round(len(recording) / max(recording.duration * 100.0, 1.0)))  # ~100 Hz, as simulate()

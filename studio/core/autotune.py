@@ -1,10 +1,10 @@
 """Search the key-point thresholds and k for the best held-out fidelity (GUI-free): :func:`suggest`.
 
-Searched: ``detail`` (:mod:`studio.core.thresholds`) and k (a factor on the paper's default). A candidate's
-score is held-out G/R: the path learned without one demo (:func:`studio.core.pipeline.learn_path`) against
-that demo, over at most :data:`MAX_FOLDS` folds. The current settings first, then coarse ``detail`` values,
-then around the best and other k; more detail must win by :data:`MARGIN`. Candidates run in worker processes
-(docs/decisions/011); progress and cancel are callbacks."""
+Searched: ``detail`` (:mod:`studio.core.thresholds`) and k (a factor on the paper's default). The score is
+held-out G/R: the path learned without one demo (:func:`studio.core.pipeline.learn_path`) against that demo,
+over at most :data:`MAX_FOLDS` folds. The current settings first, then coarse ``detail`` values, then around
+the best and other k; the current thresholds stay (``changed`` False) unless something does better.
+Candidates run in worker processes (docs/decisions/011)."""
 
 from __future__ import annotations
 
@@ -79,6 +79,8 @@ class TuneResult:
         seconds: wall time.
         cancelled: the search was cancelled (``settings`` is then the best found so far, or the current one).
         complete: every planned candidate was scored (False when cancelled or out of time).
+        changed: the suggestion differs from the current thresholds (False: they are already good — nothing
+            did better by :data:`MARGIN` than the defaults, or at all than the teacher's own values).
     """
 
     settings: ThresholdSettings
@@ -90,6 +92,7 @@ class TuneResult:
     seconds: float
     cancelled: bool
     complete: bool
+    changed: bool = True
 
 
 # -- the work (runs in the worker processes, or in-process with workers=1) -------------------------------------
@@ -371,9 +374,17 @@ def suggest(
         best_c, best, before, evaluated, complete = _rounds(search, before_c, t0, budget_s)
     finally:
         search.close()
-    if search.cancelled:  # keep what the teacher has
+    defaults = n_clusters is None and (current is None or current == ThresholdSettings())
+    # the defaults stay unless something is clearly better; the teacher's own values unless something is as good
+    better = best.g_over_r < before.g_over_r * (1.0 - MARGIN) if defaults else best.g_over_r <= before.g_over_r
+    keep = math.isfinite(before.g_over_r) and not better
+    if search.cancelled or keep:  # keep what the teacher has
         settings = current if isinstance(current, ThresholdSettings) else ThresholdSettings()
         params, k = _params(before_c, stats), n_clusters
+        if keep and not search.cancelled:
+            best = before
+            if progress is not None:
+                progress(1.0, "Done")
     else:
         settings = ThresholdSettings(detail=best_c.detail)
         params = auto_params(stats, best_c.detail)
@@ -390,6 +401,7 @@ def suggest(
         seconds=time.perf_counter() - t0,
         cancelled=search.cancelled,
         complete=complete and not search.cancelled,
+        changed=not keep and not search.cancelled,
     )
 
 
