@@ -1,8 +1,5 @@
-"""Headless commands behind ``studio learn | import-csv | export-csv | make-examples``.
-
-Each takes the parsed ``argparse`` namespace (see :mod:`studio.cli`), prints plain-words output and returns
-an exit code; :class:`StudioError` propagates to the CLI, which prints its message.
-"""
+"""Headless commands behind ``studio learn | import-csv | export-csv | make-examples``: each takes the parsed
+``argparse`` namespace (:mod:`studio.cli`), prints plain words and returns an exit code (errors: the CLI)."""
 
 from __future__ import annotations
 
@@ -21,8 +18,11 @@ import numpy as np
 from studio.core import sampling
 from studio.core.arms import normalize_arms
 from studio.core.errors import InvalidInput, NotEnoughData, StudioError
+from studio.core.quality import Remedy
 from studio.core.types import Recording, Skill
 from studio.storage import DEFAULT_ROOT, Session, SessionStore
+from studio.words import SHARED_REMEDIES, Remedies, tune_summary
+from studio.words import verdict_lines as verdict_words
 
 if TYPE_CHECKING:
     from studio.core.autotune import TuneResult
@@ -79,8 +79,7 @@ def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
     from studio.core import pipeline
     from studio.core.thresholds import ThresholdSettings
 
-    # Automatic thresholds follow each arm's demos; the teacher's own values are kept (older sessions: values off
-    # the old fixed defaults count as the teacher's).
+    # automatic thresholds follow each arm's demos; values off the old fixed defaults count as the teacher's
     settings: ThresholdSettings = session.thresholds
     k = session.n_clusters
     t0 = time.perf_counter()
@@ -94,9 +93,10 @@ def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
                 continue
             res = autotune.suggest(demos_arm, current=settings, n_clusters=k, generalization=session.generalization)
             tuned[arm] = res
+            k_words = res.n_clusters or "mean key-points per demonstration"
             print(
-                f"{arm.capitalize()} arm — suggested thresholds (Detail {res.settings.detail:+.1f}, "
-                f"k = {res.n_clusters or 'mean key-points per demonstration'}) in {res.seconds:.1f} s. {res.summary}",
+                f"{arm.capitalize()} arm — suggested thresholds (Detail {res.settings.detail:+.1f}, k = {k_words}) "
+                f"in {res.seconds:.1f} s. {tune_summary(res)}",
                 file=out,
             )
     if tuned:
@@ -130,7 +130,7 @@ def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
         session.set_skills(skills, params=used, demos=demos)
     print(report(session, skills, elapsed), file=out)
     for arm, skill in skills.items():
-        lines = verdict_lines(session, arm, skill)
+        lines = verdict_lines(session, arm, skill, bool(tuned))
         if lines:
             print(f"\nHow good is the {arm} arm's skill?", file=out)
             for line in lines:
@@ -138,7 +138,15 @@ def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
     return 0
 
 
-def verdict_lines(session: Session, arm: str, skill: Skill | None) -> list[str]:
+def cli_remedies(session: str, auto: bool) -> Remedies:
+    """The knob that would help, said with ``studio learn``'s options (it has no Suggest or Detail)."""
+    again = f'learn again with `studio learn "{session}" --auto`, which searches for better thresholds'
+    search = "record one or two more demonstrations (--auto already chose the thresholds)" if auto else again
+    redo = "re-record it, or hide it in the studio"
+    return {**SHARED_REMEDIES, Remedy.MORE_KEYPOINTS: search, Remedy.SHARPER_CORNERS: search, Remedy.REDO_DEMO: redo}
+
+
+def verdict_lines(session: Session, arm: str, skill: Skill | None, auto: bool = False) -> list[str]:
     """The quality verdict of one arm's skill in plain words (empty for something that is not a learned skill)."""
     from studio.core.pipeline import demo_from_recording, judge_skill
 
@@ -149,7 +157,7 @@ def verdict_lines(session: Session, arm: str, skill: Skill | None) -> list[str]:
     if len(demos) != len(skill.demo_names):
         return []
     _, verdict = judge_skill(skill, demos, fixed_k=session.n_clusters is not None)
-    return list(verdict.lines)
+    return list(verdict_words(verdict, cli_remedies(session.name, auto)))
 
 
 def _fmt(x: float, spec: str = ".3g") -> str:
@@ -381,8 +389,7 @@ def make_examples(args: argparse.Namespace, out: TextIO | None = None) -> int:
             raise InvalidInput(f'Unknown example "{task}": choose one of {", ".join(EXAMPLES)}.')
         t0 = time.perf_counter()
         print(f'Making example session "{task}"...', file=out)
-        # The committed examples hold demonstrations only: the skill is learned in seconds (``studio learn``
-        # or the Train panel), and a stored skill would tie the examples to today's skill file format.
+        # demonstrations only: a stored skill would tie the examples to today's skill file format
         s = build_example(store, task, learn_skill=bool(getattr(args, "learn", False)), out=out)
         size = sum(p.stat().st_size for p in s.path.rglob("*") if p.is_file())
         print(f"  done in {time.perf_counter() - t0:.1f} s: {s.path} ({size / 1e6:.1f} MB)", file=out)
@@ -392,6 +399,7 @@ def make_examples(args: argparse.Namespace, out: TextIO | None = None) -> int:
 __all__ = [
     "EXAMPLES",
     "build_example",
+    "cli_remedies",
     "export_csv",
     "import_csv",
     "learn",

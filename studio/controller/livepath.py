@@ -40,7 +40,7 @@ class LivePath:
     @property
     def words(self) -> str:
         """The fidelity figure in plain words."""
-        from studio.core.quality import length_words
+        from studio.words import length_words
 
         if self.message:
             return self.message

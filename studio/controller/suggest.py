@@ -14,6 +14,7 @@ from studio.controller.events import Topic
 from studio.controller.learning import KeypointTuning
 from studio.core.errors import NotEnoughData, StudioError
 from studio.core.thresholds import ThresholdSettings
+from studio.words import tune_summary
 
 #: Progress is told to the views at most this often (s).
 PROGRESS_EVERY_S = 0.1
@@ -108,7 +109,7 @@ class Suggesting:
                 running=False,
                 fraction=1.0,
                 step="Done",
-                summary=f"Suggested{words}: {_detail_words(res.settings.detail)}. {res.summary}",
+                summary=f"Suggested{words}: {_detail_words(res.settings.detail)}. {tune_summary(res)}",
                 can_undo=True,
                 seconds=res.seconds,
             )
