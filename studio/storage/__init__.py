@@ -6,6 +6,7 @@ Layout of ``<root>/<name>/``::
     demos/d0001.npz       one demonstration: t (N,) s float64, q (N, 14) rad, gripper (N, 2) percent
     skills/left.npz       a learned skill, Skill.to_arrays() (one file per arm)
     .recording/           the recorder's crash-safe files while recording (not part of the format)
+    recovered/            demo files the manifest did not list when opened, moved aside (never deleted)
 
 Modules, one concern each:
 

@@ -27,6 +27,8 @@ DEMO_DIR = "demos"
 SKILL_DIR = "skills"
 #: The recorder's crash-safe files while recording (inside the session folder, not part of the format).
 RECORDING_DIR = ".recording"
+#: Demonstration files found in the session folder but not in its list, moved aside on opening (never deleted).
+RECOVERED_DIR = "recovered"
 #: The one place that knows where sessions live by default: the repository's ``sessions/`` folder.
 DEFAULT_ROOT = Path(__file__).resolve().parent.parent.parent / "sessions"
 
@@ -163,6 +165,16 @@ def implausible(t: np.ndarray, q: np.ndarray) -> str | None:
     return None
 
 
+def recovered_note(n: int, folder: Path) -> str:
+    """What the teacher is told when opening moved ``n`` unlisted demonstration files into ``folder``."""
+    were, they = ("was", "it is") if n == 1 else ("were", "they are")
+    s = "" if n == 1 else "s"
+    return (
+        f'{n} recording{s} {were} not in the session list; {they} in Recovered (the folder "{folder}"). '
+        "Nothing was deleted."
+    )
+
+
 def unique_name(name: str, taken: set[str]) -> str:
     """``name``, or ``name (2)``, ``name (3)``… whichever is not ``taken``, within the 100-character limit."""
     if name not in taken:
@@ -177,10 +189,32 @@ def unique_name(name: str, taken: set[str]) -> str:
         i += 1
 
 
+class _KeyTwice(ValueError):
+    def __init__(self, key: str) -> None:
+        super().__init__(key)
+        self.key = key
+
+
+def _once(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """A JSON object whose keys are all different (JSON itself would silently keep the last of two)."""
+    out: dict[str, Any] = {}
+    for k, v in pairs:
+        if k in out:
+            raise _KeyTwice(k)
+        out[k] = v
+    return out
+
+
 def decode_manifest(raw: bytes, session: str) -> dict[str, Any]:
-    """The manifest's JSON object, or a plain-words :class:`SessionFormatError` for each way it can be damaged."""
+    """The manifest's JSON object, or a plain-words :class:`SessionFormatError` for each way it can be damaged
+    (a key written twice included: which of the two is right cannot be told)."""
     try:
-        m = json.loads(raw.decode("utf-8"))
+        m = json.loads(raw.decode("utf-8"), object_pairs_hook=_once)
+    except _KeyTwice as exc:
+        shown = exc.key if len(exc.key) <= 40 else exc.key[:37] + "..."
+        raise damaged(
+            session, MANIFEST, f'has the entry "{shown}" twice (a hand edit or a copy that went wrong?)'
+        ) from exc
     except UnicodeDecodeError as exc:
         raise damaged(session, MANIFEST, "is not readable text") from exc
     except RecursionError as exc:

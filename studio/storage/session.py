@@ -79,6 +79,7 @@ class Session:
         skills: arm -> learned :class:`Skill`; skill_info: arm -> what it was learned from and when.
         skills_stale: the demonstrations changed since the skills were learned.
         problems, recovery_message: plain-words notes from loading (skipped damaged files, crash recovery).
+        opened_instead: why this session was opened in place of the one asked for ("" normally).
         objects: the task scene and each demonstration's object events (:class:`SessionObjects`).
     """
 
@@ -99,6 +100,7 @@ class Session:
     skill_info: dict[str, SkillEntry] = field(default_factory=dict)
     problems: list[str] = field(default_factory=list)
     recovery_message: str = ""
+    opened_instead: str = ""
     objects: SessionObjects = field(default_factory=SessionObjects)
     _files: list[str] = field(default_factory=list, repr=False)
     _next_id: int = field(default=1, repr=False)
