@@ -608,3 +608,34 @@ def test_the_key_is_read_from_a_file_and_never_shown_in_ps(sessions: Path, tmp_p
             proc.wait()
         if proc.stdout is not None:
             proc.stdout.close()
+
+
+def test_parts_viser_drops_never_end_the_count_of_an_upload(sessions: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue 21 §4, today's regression: parts with an index out of range (or sent twice) counted as received, so an
+    upload stopped being counted while viser kept its parts: five 315 MB uploads were buffered, none refused."""
+    from studio import security
+
+    monkeypatch.setattr(security.uploads, "MAX_UPLOAD_BYTES", 8 * MiB)
+    a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
+    c = ViserClient(f"ws://127.0.0.1:{a.port}/?key={key_of(a)}")
+    try:
+        uuid = c.wait_gui("Upload session (.zip)")["uuid"]
+        chunk = 512 * 1024
+        part = b"\0" * chunk
+        start_upload(c, uuid, "t-first", 6 * MiB, 12)
+        for i in range(11):  # all but one part: viser buffers them
+            send_part(c, uuid, "t-first", i, part)
+        send_part(c, uuid, "t-first", 0, part)  # a part again
+        send_part(c, uuid, "t-first", 10**6, part)  # out of range
+        send_part(c, uuid, "t-first", -1, part)
+        # The first upload still counts: a second one that would pass the limit together with it is refused.
+        start_upload(c, uuid, "t-second", 6 * MiB, 12)
+        assert c.wait_for(lambda _m: refusals(c), 20), c.notifications()
+        assert "still running" in refusals(c)[0]
+        # The last real part completes the first upload (not a session archive: refused in words, nothing added).
+        send_part(c, uuid, "t-first", 11, part)
+        assert wait_for(lambda: not a.server.gui._current_file_upload_states)
+        assert a.controller.sessions.names() == ["stack-cup"]
+    finally:
+        c.close()
+        a.stop()
