@@ -33,8 +33,12 @@ RECOVERED_DIR = "recovered"
 DEFAULT_ROOT = Path(__file__).resolve().parent.parent.parent / "sessions"
 
 # -- limits: bytes, counted from what a file declares, checked before anything is read or unpacked ------------
-#: Longest demonstration accepted: 6 hours at 1 kHz (the recorder stops by itself after 4).
-MAX_SAMPLES = 6 * 3600 * 1000
+#: Longest demonstration accepted: 1 hour at 1 kHz (the recorder stops by itself at 1 hour). The limits below
+#: keep the studio within 2 GB of memory whatever it is given (docs/decisions/051-memory-budget.md).
+MAX_SAMPLES = 3600 * 1000
+#: Most samples a manifest may list for one demonstration (earlier studios kept 6 hours): a longer one listed
+#: is a damaged manifest; one between this and MAX_SAMPLES is refused (or skipped) when it is opened.
+MAX_LISTED_SAMPLES = 6 * 3600 * 1000
 #: Longest demonstration or learned trajectory, seconds (whatever the sampling rate; Preview and export too).
 MAX_DURATION_S = MAX_SECONDS
 #: Shortest mean (and median) sampling interval, seconds (a 100 kHz stream; robots stream at 1 kHz at most).
@@ -43,9 +47,12 @@ MIN_TIME_STEP_S = 1e-5
 MAX_JOINT_RAD = 2 * math.pi
 #: Bytes a demonstration takes in memory per sample: t, 14 joints, 2 grippers as float64.
 DEMO_BYTES_PER_SAMPLE = 17 * 8
-#: Largest demonstration in memory (≈ 4.4 hours at 1 kHz), and largest session (demonstrations and skills).
-MAX_DEMO_BYTES = 2 * 1024**3
-MAX_SESSION_BYTES = 4 * 1024**3
+#: Largest demonstration in memory (≈ 66 minutes at 1 kHz), and largest session (demonstrations and skills).
+MAX_DEMO_BYTES = 512 * 1024**2
+MAX_SESSION_BYTES = 768 * 1024**2
+#: Samples of all shown demonstrations together that the studio derives poses, key-points and skills from;
+#: beyond it every n-th sample is used (the recordings themselves stay whole).
+WORK_SAMPLES = 1_000_000
 #: Largest learned skill file's arrays (bytes, as declared by its headers).
 MAX_SKILL_BYTES = 2 * 1024**3
 MAX_MANIFEST_BYTES = 4 * 1024 * 1024

@@ -156,8 +156,8 @@ class Session:
             raise InvalidInput("A demonstration needs at least two samples.")
         if len(rec) > MAX_SAMPLES:
             raise InvalidInput(
-                f"This demonstration is too long to keep ({rec.duration / 3600:.1f} hours); "
-                f"the limit is {MAX_SAMPLES // 3_600_000} hours. Trim it first."
+                f"This demonstration is too long to keep ({len(rec):,} samples, {rec.duration / 60:,.0f} minutes); "
+                f"a demonstration may have {MAX_SAMPLES:,} samples (an hour at 1,000 a second). Trim it first."
             )
         if len(self.recordings) >= MAX_DEMOS:
             raise InvalidInput(f"A session holds at most {MAX_DEMOS} demonstrations.")
