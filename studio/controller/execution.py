@@ -30,28 +30,26 @@ from __future__ import annotations
 import dataclasses
 import logging
 import threading
+from collections.abc import Callable, Mapping
+from typing import Protocol
 
 import numpy as np
 
 from studio.controller.context import Context, Kind
 from studio.controller.events import Topic
-from studio.controller.playback import Player
-from studio.controller.pose import Display
 from studio.controller.run import (
     HELD,
     IDLE,
     RELEASED,
     TITLES,
     Run,
+    RunObjects,
     RunPaths,
     RunStatus,
     ended,
     hold_still,
     judgement,
 )
-from studio.controller.scene import SceneActions
-from studio.controller.teaching import Teaching
-from studio.controller.training import Training
 from studio.core import sampling
 from studio.core.errors import StudioError
 from studio.core.execution import ExecutionPlan, TrackingReport, plan_execution, skill_feasibility
@@ -63,6 +61,14 @@ from studio.world import TaskResult
 log = logging.getLogger(__name__)
 
 
+class Hands(Protocol):
+    """Teaching by hand, as a run on the robot sees it (:class:`~studio.controller.teaching.Teaching`)."""
+
+    @property
+    def recording(self) -> bool: ...
+    def forget_targets(self) -> None: ...
+
+
 class ExecutionActions:
     """Run on robot, Stop, Emergency stop and its release; the last run's status, paths and judgement.
 
@@ -70,25 +76,30 @@ class ExecutionActions:
         plan, recording, report, task: the last run's plan, its recorded joint states (times from 0), how
             closely it followed the plan, and its task result (None when the demonstrations moved no object),
             kept in memory until the next run, a new skill or another session.
+
+    Args:
+        objects: the objects on the table during a run; hands: whether a take is recorded, and forgetting the
+            hand-moved targets once the robot moved by itself; training_busy, unload_playback: what a run
+            checks and does first.
     """
 
     def __init__(
         self,
         ctx: Context,
         backend: RobotBackend,
-        display: Display,
-        player: Player,
-        teaching: Teaching,
-        training: Training,
-        scene: SceneActions,
+        *,
+        objects: RunObjects,
+        hands: Hands,
+        training_busy: Callable[[], bool],
+        unload_playback: Callable[[], None],
     ) -> None:
         self.ctx = ctx
         self.backend = backend
-        self.display = display
-        self.player = player
-        self.teaching = teaching
-        self.training = training
-        self.scene = scene
+        self.display = ctx.display
+        self.scene = objects
+        self.teaching = hands
+        self.training_busy = training_busy
+        self.unload_playback = unload_playback
         self._lock = threading.RLock()
         self._status = RunStatus()
         self._run: Run | None = None
@@ -99,6 +110,11 @@ class ExecutionActions:
         self.recording: Recording | None = None
         self.report: TrackingReport | None = None
         self.task: TaskResult | None = None
+        #: Objects where no demonstration put them, in words (set by the controller; told when a run starts).
+        self.warnings: Callable[[], list[str]] = list
+        #: The skills a run plays (set by the controller: placed where the objects are now).
+        self.skills: Callable[[], Mapping[str, Skill]] = lambda: ctx.session.skills
+        ctx.on_leave(self._check_leave)
         ctx.events.on(Topic.SKILL, self._forget_last_run)
         ctx.events.on(Topic.SESSION, self._forget_last_run)
 
@@ -121,7 +137,7 @@ class ExecutionActions:
     def feasibility(self) -> dict[str, Feasibility]:
         """arm -> whether the robot can follow its learned skill, in plain words (computed once per skill)."""
         out = {}
-        for arm, skill in sampling.executable(self.ctx.session.skills).items():
+        for arm, skill in sampling.executable(self.skills()).items():
             with self._lock:
                 hit = self._feasible.get(arm)
             if hit is None or hit[0] is not skill:
@@ -134,7 +150,7 @@ class ExecutionActions:
 
     def unreachable_paths(self) -> dict[str, list[np.ndarray]]:
         """arm -> the stretches (each (n, 3) m) of its learned path the robot cannot follow, to draw in red."""
-        skills = self.ctx.session.skills
+        skills = self.skills()
         out: dict[str, list[np.ndarray]] = {}
         for arm, f in self.feasibility().items():
             pos = np.asarray(skills[arm].trajectory.position)
@@ -149,9 +165,9 @@ class ExecutionActions:
             return "The robot is already running the skill: wait for it to finish, or press Stop."
         if self.teaching.recording:
             return "Stop the recording before running the skill on the robot."
-        if self.training.busy:
+        if self.training_busy():
             return "Wait for the training to finish before running the skill on the robot."
-        if not sampling.executable(self.ctx.session.skills):
+        if not sampling.executable(self.skills()):
             return "There is no learned skill to run yet: record demonstrations and press Train first."
         bad = [f.message for f in self.feasibility().values() if not f.ok]
         if bad:
@@ -169,6 +185,10 @@ class ExecutionActions:
                 f"The robot is running the learned skill: wait for it to finish, or press Stop, before {doing}."
             )
 
+    def _check_leave(self, doing: str) -> None:
+        if self.backend.progress().active:
+            raise StudioError(f"Wait for the robot's run to end (or press Stop) before {doing}.")
+
     def check_not_running(self) -> None:
         """Refuse a preview or replay while the robot runs: the scene shows the real robot then."""
         if self._run is not None:
@@ -181,9 +201,9 @@ class ExecutionActions:
             reason = self.why_not()
             if reason:
                 raise StudioError(reason)
-            skills = sampling.executable(self.ctx.session.skills)
+            skills = sampling.executable(self.skills())
             jts = {arm: s.joint_trajectory for arm, s in skills.items() if s.joint_trajectory is not None}
-            self.player.unload()
+            self.unload_playback()
             self.display.show_live()  # the drawn robot is the real one during the run
             hold_still(self.backend)
             st = self.backend.state()
@@ -195,7 +215,10 @@ class ExecutionActions:
                 self._status = RunStatus("running", 0.0, plan.duration, "The robot is running the skill.")
             run.thread = threading.Thread(target=self._follow, args=(run,), name="studio-run", daemon=True)
             run.thread.start()
+            said = self.warnings()
         self.ctx.emit(Topic.EXECUTION)
+        if said:
+            self.ctx.notify("The objects are somewhere new", " ".join(said), kind="warning")
 
     def stop(self) -> None:
         """Controlled stop: the robot slows down along the skill's path to rest."""

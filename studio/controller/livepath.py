@@ -7,13 +7,15 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
 from studio.controller.context import Context
-from studio.controller.demos import Demos
 from studio.controller.events import Topic
-from studio.controller.learning import KeypointTuning, KeypointView
+from studio.controller.learning import Follower, KeypointView, ShownDemos
+from studio.core.keypoints import KeypointCache
+from studio.core.types import SkillRoute
 
 
 @dataclass(frozen=True)
@@ -27,6 +29,7 @@ class LivePath:
         g_over_r: G/R against them (≤ 0.6 is close; NaN with one demonstration).
         k: the number of clusters used.
         message: why there is no path, in plain words ("" when there is one).
+        routes, route: the ways the demonstrations go when more than one, and the one the path follows.
     """
 
     arm: str
@@ -36,37 +39,68 @@ class LivePath:
     g_over_r: float
     k: int
     message: str = ""
+    routes: tuple[SkillRoute, ...] = ()
+    route: int = 0
 
     @property
     def words(self) -> str:
         """The fidelity figure in plain words."""
-        from studio.words import length_words
+        from studio.words import length_words, routes_words
 
         if self.message:
             return self.message
+        if self.routes:
+            near = (
+                f", within {length_words(self.distance)} of those demonstrations on average"
+                if math.isfinite(self.distance)
+                else ""
+            )
+            return f"{routes_words(self.routes, self.route)}: the learned path would follow that way{near}."
         if not math.isfinite(self.distance):
             return "The learned path would follow your demonstration."
         return f"The learned path would stay within {length_words(self.distance)} of your demonstrations on average."
+
+
+class KeypointSource(Protocol):
+    """The key-point view and its settings (:class:`~studio.controller.learning.KeypointTuning`)."""
+
+    view: KeypointView | None
+    cache: KeypointCache
+
+    @property
+    def k(self) -> int | None: ...
+    def request(self) -> None: ...
+    def add_follower(self, follower: Follower) -> None: ...
 
 
 class LivePaths:
     """Follows the key-point view (a :data:`~studio.controller.learning.Follower`) and keeps one live path per
     taught arm in :attr:`paths`; emits :attr:`Topic.LIVE_PATH` when they are new.
 
-    ``wanted()`` says whether anybody looks at them (the Key-points step): otherwise nothing is computed.
+    ``wanted()`` says whether anybody looks at them (the Key-points step): otherwise nothing is computed; when
+    the view changes (:attr:`Topic.VIEW`) and they are wanted, they are brought up to date.
     """
 
-    def __init__(self, ctx: Context, demos: Demos, tuning: KeypointTuning, wanted: Callable[[], bool]) -> None:
+    def __init__(
+        self,
+        ctx: Context,
+        demos: ShownDemos,
+        tuning: KeypointSource,
+        wanted: Callable[[], bool],
+        route: Callable[[str], int | None] = lambda arm: None,
+    ) -> None:
         from studio.core.pipeline import AlignmentCache
 
         self.ctx = ctx
         self.demos = demos
         self.tuning = tuning
         self.wanted = wanted
+        self.route = route  #: the way the teacher chose for an arm (None: the way most demonstrations go)
         self.paths: dict[str, LivePath] = {}
         self.align_cache = AlignmentCache()
         self.computed_ms: float = math.nan  # how long the last set of paths took (for the bench)
-        tuning.followers.append(self.follow)
+        tuning.add_follower(self.follow)
+        ctx.events.on(Topic.VIEW, self.refresh_if_wanted)
 
     def follow(self, view: KeypointView, stale: Callable[[], bool]) -> None:
         """Compute the live path of every arm of ``view`` unless a newer view is coming; :attr:`Topic.LIVE_PATH`
@@ -97,8 +131,19 @@ class LivePaths:
                     cache=self.tuning.cache,
                     align_cache=self.align_cache,
                     keypoints=idx,
+                    route=self.route(arm),
                 )
-                out[arm] = LivePath(arm, view.version, pp.position, pp.distance, pp.g_over_r, pp.n_clusters, pp.message)
+                out[arm] = LivePath(
+                    arm,
+                    view.version,
+                    pp.position,
+                    pp.distance,
+                    pp.g_over_r,
+                    pp.n_clusters,
+                    pp.message,
+                    pp.routes,
+                    pp.route,
+                )
         except Exception:
             out = {}
             raise

@@ -3,21 +3,29 @@ and how well each demonstration fits), and answer what the panels show about the
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Sequence
 from concurrent.futures import Future
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
 from studio.controller.context import Context
-from studio.controller.demos import Demos
 from studio.controller.events import Topic
-from studio.controller.learning import KeypointTuning
-from studio.controller.playback import Player
+from studio.controller.learning import ShownDemos
 from studio.core.errors import NotEnoughData, StudioError
+from studio.core.frames import DemoObjects
+from studio.core.keypoints import KeypointCache
 from studio.core.quality import DemoFit, Verdict
-from studio.core.types import GENERALIZATIONS, Demo, KeypointParams, Skill
+from studio.core.thresholds import ThresholdSettings
+from studio.core.types import FRAMES, GENERALIZATIONS, Demo, KeypointParams, Recording, Skill
+from studio.world.relative import demo_objects, objects_now
 
+#: How each choice of frames is called in the Train panel.
+FRAME_WORDS = {
+    "objects": "Follow the objects (each part learned relative to the object it acts on)",
+    "robot": "Fixed places (the paper: one path in the robot's frame)",
+}
 #: How each generalisation mode is called in the Train panel.
 MODE_WORDS = {
     "aligned-mean": "Follow the demonstrations (average of your demonstrations, aligned in time)",
@@ -46,20 +54,41 @@ class SkillVerdict:
     message: str = ""
 
 
-class Training:
-    """Learns the skill of every taught arm on the work thread and judges it; answers what the panels show."""
+class DemoSource(ShownDemos, Protocol):
+    """The demonstrations learning reads (:class:`~studio.controller.demos.Demos`)."""
 
-    def __init__(
-        self, ctx: Context, demos: Demos, tuning: KeypointTuning, arms: Callable[[], tuple[str, ...]], player: Player
-    ) -> None:
+    def demo_of(self, rec: Recording, arm: str) -> Demo: ...
+
+
+class Settings(Protocol):
+    """The thresholds and k a skill is learned with (:class:`~studio.controller.learning.KeypointTuning`)."""
+
+    cache: KeypointCache
+
+    @property
+    def k(self) -> int | None: ...
+    def settings(self) -> ThresholdSettings: ...
+    def params(self, arm: str | None = None, settings: ThresholdSettings | None = None) -> KeypointParams: ...
+    def persist(self, force: bool = False) -> None: ...
+
+
+class Training:
+    """Learns the skill of every taught arm on the work thread and judges it; answers what the panels show.
+
+    The open session cannot change while it trains; another session is judged when it has skills.
+    """
+
+    def __init__(self, ctx: Context, demos: DemoSource, tuning: Settings) -> None:
         self.ctx = ctx
         self.demos = demos
         self.tuning = tuning
-        self.arms = arms
-        self.player = player
         self.busy = False
         self.judging = False
+        #: The newest judgement under way or done (training starts one when it finishes).
+        self.judgement: Future[None] | None = None
         self._verdicts: dict[str, SkillVerdict] = {}
+        self._routes: dict[str, int] = {}
+        ctx.on_leave(self._check_leave)
         ctx.events.on(Topic.SESSION, self._on_session)
 
     def skills(self) -> dict[str, Skill]:
@@ -80,15 +109,49 @@ class Training:
             self.ctx.session.set_params(mode=mode)
         self.ctx.emit(Topic.TRAINING)
 
+    @property
+    def frames(self) -> str:
+        """Where the next training keeps the skill's path: "objects" (it follows them) or "robot" (the paper)."""
+        return self.ctx.session.frames
+
+    def set_frames(self, frames: str) -> None:
+        if frames not in FRAMES:
+            raise StudioError(f'Unknown way to place the skill "{frames}".')
+        with self.ctx.lock:
+            if frames == self.ctx.session.frames:
+                return
+            self.ctx.session.set_params(mode=frames)
+        self.ctx.emit(Topic.TRAINING)
+
+    def _check_leave(self, doing: str) -> None:
+        if self.busy:
+            raise StudioError(f"Wait for the training to finish before {doing}.")
+
+    # -- which way, when the demonstrations go several ways ---------------------------------------------------
+    def chosen_route(self, arm: str) -> int | None:
+        """The way the teacher chose for ``arm`` (index into its skill's ``routes``), or None for the default."""
+        return self._routes.get(arm)
+
+    def set_route(self, arm: str, route: int) -> Future[dict[str, Skill] | None]:
+        """Learn ``arm``'s skill from the demonstrations of another way (see :attr:`Skill.routes`), at once."""
+        sk = self.ctx.session.skills.get(arm)
+        if sk is None or not 0 <= int(route) < len(sk.routes):
+            raise StudioError("Your demonstrations go only one way: there is no other way to choose.")
+        with self.ctx.lock:
+            self._routes[arm] = int(route)
+        return self.train()
+
     # -- training ------------------------------------------------------------------------------------------
-    def train(self) -> Future[dict[str, Skill] | None]:
-        """Learn the skill of every taught arm from the shown demos on the work thread, then judge it."""
-        from studio.core.pipeline import learn_skill
+    def train(self, arms: Sequence[str] | None = None) -> Future[dict[str, Skill] | None]:
+        """Learn the skill of every taught arm (or of ``arms``) from the shown demos on the work thread, then
+        judge it."""
+        from studio.core.pipeline import learn_skill, routes_of
+        from studio.core.segments import learn_relative
 
         with self.ctx.lock:
             if self.busy:
                 raise StudioError("Training is already running; wait for it to finish.")
-            per_arm = {arm: self.demos.for_arm(arm) for arm in self.arms()}
+            per_arm = {arm: self.demos.for_arm(arm) for arm in (self.ctx.arms if arms is None else arms)}
             for arm, demos in per_arm.items():
                 if len(demos) < 2:
                     raise NotEnoughData(
@@ -97,15 +160,32 @@ class Training:
                     )
             settings, k = self.tuning.settings(), self.tuning.k
             params = {arm: self.tuning.params(arm, settings) for arm in per_arm}
-            mode = self.ctx.session.generalization
+            mode, frames = self.ctx.session.generalization, self.ctx.session.frames
+            routes = dict(self._routes)
             session = self.ctx.session  # the skill belongs to the session it was learned from
             self.busy = True
         self.ctx.emit(Topic.TRAINING)
         baxter, cache = self.ctx.baxter, self.tuning.cache
 
+        relative = {arm: self._objects(arm, demos) for arm, demos in per_arm.items()} if frames == "objects" else {}
+        now = objects_now(session.objects.scene)
+
+        def way(arm: str, demos: list[Demo]) -> int | None:
+            r = routes.get(arm)
+            return r if r is not None and r < len(routes_of(demos)) else None  # the demos changed since
+
         def job() -> dict[str, Skill]:
-            return {
-                arm: learn_skill(
+            out = {}
+            for arm, demos in per_arm.items():
+                objs = relative.get(arm)
+                if objs is not None and not isinstance(objs, str):
+                    out[arm] = learn_relative(
+                        [d for _, d in demos], objs, params[arm], now=now, arm=arm, baxter=baxter, generalization=mode
+                    )
+                    continue
+                if isinstance(objs, str):
+                    self.ctx.notify("The skill follows fixed places", objs, kind="info")
+                out[arm] = learn_skill(
                     [d for _, d in demos],
                     params[arm],
                     n_clusters=k,
@@ -114,9 +194,9 @@ class Training:
                     baxter=baxter,
                     cache=cache,
                     generalization=mode,
+                    route=way(arm, [d for _, d in demos]),
                 )
-                for arm, demos in per_arm.items()
-            }
+            return out
 
         def done(skills: dict[str, Skill]) -> None:
             names = {arm: [d.name for _, d in per_arm[arm]] for arm in skills}
@@ -134,8 +214,7 @@ class Training:
                 )
                 return
             self.tuning.persist(force=True)  # the current settings again (the skill's values replaced them)
-            self.player.unload_preview()  # the loaded preview shows the previous skill
-            self.ctx.emit(Topic.SKILL)
+            self.ctx.emit(Topic.SKILL)  # the player unloads the preview of the previous skill
             self.ctx.notify(
                 "Training finished", "The robot learned the skill: open Preview to watch it.", kind="success"
             )
@@ -144,6 +223,21 @@ class Training:
         fut = self.ctx.submit(job, done=done, title="Training failed")
         fut.add_done_callback(lambda f: self._finished())
         return fut
+
+    def _objects(self, arm: str, demos: list[tuple[int, Demo]]) -> list[DemoObjects] | str:
+        """The objects and ``arm``'s contacts of each demonstration, or why the skill cannot follow them."""
+        from studio.core.segments import plan
+
+        session = self.ctx.session
+        out = []
+        for i, _ in demos:
+            events = session.objects.events(session.demo_files[i]) if i < len(session.demo_files) else ()
+            objs = demo_objects(events, arm)
+            if objs is None:
+                return "Some demonstrations were recorded without objects, so the skill follows fixed places."
+            out.append(objs)
+        _, why = plan(out)
+        return why or out
 
     def _finished(self) -> None:
         if self.busy:  # the job failed: done() never ran
@@ -180,6 +274,7 @@ class Training:
 
         fut = self.ctx.submit(job, title="Could not judge the skill")
         fut.add_done_callback(finished)
+        self.judgement = fut
         return fut
 
     def _judge_one(self, arm: str, skill: Skill, fixed_k: bool) -> SkillVerdict:
@@ -205,6 +300,7 @@ class Training:
     def _on_session(self) -> None:
         with self.ctx.lock:
             self._verdicts = {}
+            self._routes = {}
             has_skills = bool(self.ctx.session.skills)
         if has_skills:
             self.judge()
@@ -221,7 +317,7 @@ class Training:
 
     def skill_demos(self, arm: str) -> list[UsedDemo]:
         """Every demonstration the current skill of ``arm`` was learned from, in the skill's order."""
-        by_name = {r.name: (i, r) for i, r in enumerate(self.demos.recordings())}
+        by_name = {r.name: (i, r) for i, r in enumerate(self.ctx.session.recordings)}
         out: list[UsedDemo] = []
         for nm in self.skill_demo_names(arm):
             hit = by_name.get(nm)

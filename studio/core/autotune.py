@@ -10,7 +10,9 @@ out, lower is better). With more than :data:`MAX_FOLDS` demos, that many evenly 
 
 Search: the current settings ("before"), then Detail −2, −1, 0, 1, 2 with the default k, then ±0.5 around the
 best and k × 0.75 and × 1.3 at the best (about 10 candidates × 3 folds). A candidate must be better by 2 % to
-displace one with less detail (fewer key-points generalise better when the figures tie).
+displace one with less detail (fewer key-points generalise better when the figures tie). The current
+thresholds stay (``changed`` False, "already good") when they are the defaults and nothing is 2 % better, or
+they are the teacher's own and nothing is as good: a suggestion never makes the held-out figure worse.
 
 Speed: "before" is scored in this process first, which derives the demos' series and DTW maps; the other
 candidates are then evaluated in :data:`WORKERS` worker processes **forked** for the search, which inherit all
@@ -103,6 +105,8 @@ class TuneResult:
         seconds: wall time.
         cancelled: the search was cancelled (``settings`` is then the best found so far, or the current one).
         complete: every planned candidate was scored (False when cancelled or out of time).
+        changed: the suggestion differs from the current thresholds (False: they are already good — nothing
+            did better by :data:`MARGIN` than the defaults, or at all than the teacher's own values).
     """
 
     settings: ThresholdSettings
@@ -114,6 +118,7 @@ class TuneResult:
     seconds: float
     cancelled: bool
     complete: bool
+    changed: bool = True
 
 
 # -- the work (runs in the worker processes, or in-process with workers=1) -------------------------------------
@@ -395,9 +400,17 @@ def suggest(
         best_c, best, before, evaluated, complete = _rounds(search, before_c, t0, budget_s)
     finally:
         search.close()
-    if search.cancelled:  # keep what the teacher has
+    defaults = n_clusters is None and (current is None or current == ThresholdSettings())
+    # the defaults stay unless something is clearly better; the teacher's own values unless something is as good
+    better = best.g_over_r < before.g_over_r * (1.0 - MARGIN) if defaults else best.g_over_r <= before.g_over_r
+    keep = math.isfinite(before.g_over_r) and not better
+    if search.cancelled or keep:  # keep what the teacher has
         settings = current if isinstance(current, ThresholdSettings) else ThresholdSettings()
         params, k = _params(before_c, stats), n_clusters
+        if keep and not search.cancelled:
+            best = before
+            if progress is not None:
+                progress(1.0, "Done")
     else:
         settings = ThresholdSettings(detail=best_c.detail)
         params = auto_params(stats, best_c.detail)
@@ -414,6 +427,7 @@ def suggest(
         seconds=time.perf_counter() - t0,
         cancelled=search.cancelled,
         complete=complete and not search.cancelled,
+        changed=not keep and not search.cancelled,
     )
 
 

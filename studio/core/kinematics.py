@@ -139,7 +139,6 @@ def dh_fk(q: np.ndarray, table: np.ndarray = DH_TABLE) -> np.ndarray:
     return T
 
 
-
 def _mix(row: list[Any], col: np.ndarray) -> Any:
     """Σ_k row[k]·col[k], skipping the zero entries of ``col`` (the placements are mostly axis permutations)."""
     out: Any = 0.0

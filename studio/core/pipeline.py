@@ -55,9 +55,10 @@ from scipy.interpolate import PchipInterpolator
 from studio.core import alignment, hmm, quality
 from studio.core.clustering import FeatureScale, align_hemisphere, cluster, default_n_clusters
 from studio.core.errors import InvalidInput, NotEnoughData
-from studio.core.generalize import SMOOTHING, generalize, joint_trajectory
+from studio.core.generalize import SMOOTHING, demo_pins, generalize, joint_trajectory, pin_poses
 from studio.core.keypoints import KeypointCache
 from studio.core.kinematics import Baxter, make_sign_continuous
+from studio.core.routes import Routes, find_routes
 from studio.core.thresholds import ThresholdSettings
 from studio.core.types import (
     ARMS,
@@ -67,6 +68,7 @@ from studio.core.types import (
     KeypointParams,
     Recording,
     Skill,
+    SkillRoute,
     check_arm,
 )
 
@@ -128,25 +130,49 @@ class AlignmentCache:
 
     def __init__(self, size: int = 64) -> None:
         self.size = size
-        self._maps: dict[tuple, tuple[weakref.ref, weakref.ref, np.ndarray]] = {}
+        self._maps: dict[tuple, tuple[tuple[weakref.ref, ...], Any]] = {}
 
-    def get(self, ref: Demo, demo: Demo, key: tuple, compute: Callable[[], np.ndarray]) -> np.ndarray:
-        k = (id(ref), id(demo), *key)
+    def get(self, ref: Demo, demo: Demo, key: tuple, compute: Callable[[], Any]) -> Any:
+        return self.get_set((ref, demo), key, compute)
+
+    def get_set(self, demos: Sequence[Demo], key: tuple, compute: Callable[[], Any]) -> Any:
+        """The value for these demos (in this order) and key, computed once while they all live."""
+        k = (*(id(d) for d in demos), len(demos), *key)
         hit = self._maps.get(k)
-        if hit is not None and hit[0]() is ref and hit[1]() is demo:
-            return hit[2]
+        if hit is not None and len(hit[0]) == len(demos) and all(r() is d for r, d in zip(hit[0], demos, strict=True)):
+            return hit[1]
         value = compute()
         if len(self._maps) >= self.size:
             try:
                 self._maps.pop(next(iter(self._maps)), None)
             except (StopIteration, RuntimeError):
                 pass
-        self._maps[k] = (weakref.ref(ref), weakref.ref(demo), value)
+        self._maps[k] = (tuple(weakref.ref(d) for d in demos), value)
         return value
 
 
 _SERIES_CACHE = KeypointCache()
 _ALIGN_CACHE = AlignmentCache()
+_ROUTES_CACHE = AlignmentCache(16)
+
+
+def routes_of(demos: Sequence[Demo]) -> Routes:
+    """Which demonstrations go which way (:func:`studio.core.routes.find_routes`, remembered per set of demos)."""
+    demos = list(demos)
+    return _ROUTES_CACHE.get_set(demos, ("routes",), lambda: find_routes(demos))
+
+
+def _route_demos(demos: list[Demo], route: int | None, split: bool = True) -> tuple[Routes, int, list[Demo]]:
+    """(the routes, the one to learn, its demonstrations): all demos when they go one way (or ``split`` is False)."""
+    found = routes_of(demos) if split else Routes()
+    if not found:
+        if route not in (None, 0):
+            raise InvalidInput("Your demonstrations all go the same way: there is no other way to choose.")
+        return found, 0, demos
+    r = found.default if route is None else int(route)
+    if not 0 <= r < len(found):
+        raise InvalidInput(f"Your demonstrations go {len(found)} ways: choose one of them (got way {r + 1}).")
+    return found, r, [demos[i] for i in found.routes[r].demos]
 
 
 @dataclass(frozen=True, eq=False)
@@ -169,6 +195,28 @@ class _Model:
 
 def _inverse(warp: PchipInterpolator, lo: float, hi: float, tau: np.ndarray) -> np.ndarray:
     return np.asarray(warp(np.clip(tau, lo, hi)), dtype=np.float64)
+
+
+def _dtw_series(X: np.ndarray, scale: FeatureScale, ref_quat: np.ndarray, dtw_features: str) -> np.ndarray:
+    """The DTW features of a resampled (N, 8) series: scaled; for "shape", orientation weighted down and the
+    direction of motion added, faded out where the hand is slower than usual (at rest it is only noise)."""
+    X = _scaled(X, scale, ref_quat)
+    if dtw_features == "paper":
+        return X
+    X[:, 3:7] *= DTW_ORIENTATION_WEIGHT
+    v = np.gradient(X[:, :3], axis=0)
+    n = np.linalg.norm(v, axis=1, keepdims=True)
+    tan = v / np.maximum(n, 1e-12) * np.minimum(1.0, n / max(float(np.median(n)), 1e-12))
+    return np.column_stack([X, DTW_DIRECTION_WEIGHT * tan])
+
+
+def _warp_to(
+    mapped: np.ndarray, grid: np.ndarray, t0: float, tau: np.ndarray, tau_t0: float
+) -> Callable[[np.ndarray], np.ndarray]:
+    """The smoothed, monotone inverse of a DTW time map: time on the average's line (from its start) -> demo time
+    (from its start)."""
+    warp = PchipInterpolator(tau, alignment.smooth_warp(alignment.inverse_time_map(mapped - tau_t0, grid - t0, tau)))
+    return functools.partial(_inverse, warp, float(tau[0]), float(tau[-1]))
 
 
 def _fit(
@@ -219,15 +267,7 @@ def _fit(
     ac = align_cache or _ALIGN_CACHE
 
     def series(i: int) -> np.ndarray:
-        X = _scaled(alignment.resample(demos[i].t, demos[i].features, grids[i]), scale, ref_quat)
-        if dtw_features == "paper":
-            return X
-        X[:, 3:7] *= DTW_ORIENTATION_WEIGHT
-        # direction of motion, faded out where the hand is slower than usual (at rest it is only noise)
-        v = np.gradient(X[:, :3], axis=0)
-        n = np.linalg.norm(v, axis=1, keepdims=True)
-        tan = v / np.maximum(n, 1e-12) * np.minimum(1.0, n / max(float(np.median(n)), 1e-12))
-        return np.column_stack([X, DTW_DIRECTION_WEIGHT * tan])
+        return _dtw_series(alignment.resample(demos[i].t, demos[i].features, grids[i]), scale, ref_quat, dtw_features)
 
     aligned: list[np.ndarray] = []
     inverse: list[Callable[[np.ndarray], np.ndarray]] = []
@@ -244,12 +284,9 @@ def _fit(
 
         mapped = ac.get(ref_demo, d, key, compute)
         aligned.append(np.interp(tk, grids[i], mapped) - ref_demo.t[0])
-        g0, m0 = grids[i] - d.t[0], mapped - ref_demo.t[0]
         # The demo's time at each step of the reference's grid, smoothed (a DTW staircase would jerk the
         # average), monotone C¹ in between (PCHIP).
-        tau = grids[ref] - ref_demo.t[0]
-        warp = PchipInterpolator(tau, alignment.smooth_warp(alignment.inverse_time_map(m0, g0, tau)))
-        inverse.append(functools.partial(_inverse, warp, float(tau[0]), float(tau[-1])))
+        inverse.append(_warp_to(mapped, grids[i], float(d.t[0]), grids[ref] - ref_demo.t[0], float(ref_demo.t[0])))
     # 5. timed path points
     times_all = np.concatenate(aligned)
     labels_all = np.concatenate(cl.labels)
@@ -287,20 +324,23 @@ def _fit(
     )
 
 
-def _aligned_mean(demos: list[Demo], fm: _Model, t: np.ndarray, cache: KeypointCache) -> np.ndarray:
-    """(len(t), 7) position and orientation: at each time of the reference, the mean of all demos (their
-    50 ms smoothed series) at the time DTW matched to it.
+def _mean_pose(
+    demos: list[Demo], inverse: list[Callable[[np.ndarray], np.ndarray]], ref: int, t: np.ndarray, cache: KeypointCache
+) -> tuple[np.ndarray, np.ndarray]:
+    """(len(t), 7) position and orientation and (len(t),) gripper: at each time of the reference, the mean of all
+    demos (their 50 ms smoothed series) at the time DTW matched to it.
 
     Quaternions are averaged on one side: the reference's (sign-continuous) series keeps its own sign, and
     each other demo's quaternion takes the sign of the reference's at the same instant. (Against one fixed
     quaternion instead, a hand that turns past 180° from it flips sign there and the average jumps.)"""
     acc = np.zeros((t.shape[0], 7))
+    grip = np.zeros(t.shape[0])
     q_ref: np.ndarray | None = None
-    for d in [fm.ref, *(i for i in range(len(demos)) if i != fm.ref)]:
+    for d in [ref, *(i for i in range(len(demos)) if i != ref)]:
         demo = demos[d]
         ser = cache.series(demo)
         td_all = np.asarray(demo.t) - demo.t[0]
-        w = np.clip(fm.inverse[d](t), 0.0, td_all[-1])
+        w = np.clip(inverse[d](t), 0.0, td_all[-1])
         pos = np.column_stack([np.interp(w, td_all, ser.position[:, k]) for k in range(3)])
         q = np.column_stack([np.interp(w, td_all, ser.orientation[:, k]) for k in range(4)])
         if q_ref is None:
@@ -309,9 +349,15 @@ def _aligned_mean(demos: list[Demo], fm: _Model, t: np.ndarray, cache: KeypointC
             q *= np.where(np.einsum("ij,ij->i", q, q_ref) < 0, -1.0, 1.0)[:, None]
         acc[:, :3] += pos
         acc[:, 3:] += q
+        grip += np.interp(w, td_all, np.asarray(demo.gripper, dtype=np.float64))
     acc /= len(demos)
     acc[:, 3:] /= np.linalg.norm(acc[:, 3:], axis=1, keepdims=True)
-    return acc
+    return acc, grip / len(demos)
+
+
+def _aligned_mean(demos: list[Demo], fm: _Model, t: np.ndarray, cache: KeypointCache) -> np.ndarray:
+    """(len(t), 7) position and orientation of the aligned mean (:func:`_mean_pose`)."""
+    return _mean_pose(demos, fm.inverse, fm.ref, t, cache)[0]
 
 
 def _trajectory(
@@ -337,8 +383,11 @@ def _trajectory(
     )
     if generalization == "paper":
         return traj
-    pose = _aligned_mean(demos, fm, np.asarray(traj.t), cache)
-    return Demo(traj.t, pose[:, :3], make_sign_continuous(pose[:, 3:]), traj.gripper, name="learned skill")
+    t = np.asarray(traj.t)
+    pose = _aligned_mean(demos, fm, t, cache)
+    pins = demo_pins(demos, t, traj.gripper)
+    pos, ori = pin_poses(t, pose[:, :3], make_sign_continuous(pose[:, 3:]), pins)
+    return Demo(traj.t, pos, ori, traj.gripper, name="learned skill")
 
 
 def learn_skill(
@@ -356,6 +405,8 @@ def learn_skill(
     keypoints: Sequence[np.ndarray] | None = None,
     cache: KeypointCache | None = None,
     align_cache: AlignmentCache | None = None,
+    route: int | None = None,
+    split_routes: bool = True,
 ) -> Skill:
     """Learn a skill from demonstrations (paper § Task Learning).
 
@@ -373,6 +424,10 @@ def learn_skill(
         keypoints: precomputed key-point indices per demo (e.g. from the slider's cache).
         cache: a :class:`KeypointCache` to reuse derived series.
         align_cache: an :class:`AlignmentCache` to reuse DTW maps (default: a process-wide one).
+        route: when the demos go several ways (:func:`routes_of`), which one to learn (index into
+            ``skill.routes``; default: the way most demos go). The skill learns from that way's demos only.
+        split_routes: False learns from every demo even when they go several ways (a part of an object-relative
+            skill, whose parts must keep every demo).
 
     Returns:
         The :class:`Skill`.
@@ -382,7 +437,8 @@ def learn_skill(
         InvalidInput: malformed input (NaN, mismatched lengths are rejected when the Demo is built).
         IkFailed: with ``arm``, the skill's start is out of reach.
     """
-    demos = _validate(demos)
+    everyone = demos = _validate(demos)
+    found, chosen, demos = _route_demos(demos, route, split_routes)
     if params is None:
         from studio.core.thresholds import auto_params
 
@@ -446,6 +502,9 @@ def learn_skill(
         spline_through=spline_through,
         demo_names=tuple(d.name for d in demos),
         generalization=generalization,
+        routes=tuple(SkillRoute(tuple(everyone[i].name for i in r.demos), r.at) for r in found.routes),
+        route=chosen,
+        route_where=found.where,
     )
 
 
@@ -460,11 +519,19 @@ def learn_path(
     cache: KeypointCache | None = None,
     align_cache: AlignmentCache | None = None,
     keypoints: Sequence[np.ndarray] | None = None,
+    route: int | None = None,
 ) -> Demo:
     """The generalized trajectory only, sampled at ``rate_hz`` (no IK, no :class:`Skill`): what the auto-tune
     scores and the live preview draws. Same stages and results as :func:`learn_skill` at a lower rate
-    (``keypoints``: the key-point indices per demo for ``params``, when already extracted)."""
-    demos = _validate(demos)
+    (``keypoints``: the key-point indices per demo for ``params``, when already extracted; ``route``: as for
+    :func:`learn_skill`)."""
+    everyone = _validate(demos)
+    found, _, demos = _route_demos(everyone, route)
+    if keypoints is not None and found:
+        if len(keypoints) != len(everyone):
+            raise InvalidInput("There must be one list of key-points per demonstration.")
+        keep = {id(d) for d in demos}
+        keypoints = [k for d, k in zip(everyone, keypoints, strict=True) if id(d) in keep]
     if params is None:
         from studio.core.thresholds import auto_params
 
@@ -499,6 +566,8 @@ class PreviewPath:
         g_over_r: in-sample fidelity G/R against the shown demos (NaN with one demo).
         distance: root-mean-square distance to the demos, m (the "within … on average" figure).
         message: plain words when no path could be made (too few key-points, …), else "".
+        routes: the ways the demos go when more than one; the path follows ``routes[route]`` and the figures
+            are against that way's demos.
     """
 
     t: np.ndarray
@@ -508,6 +577,8 @@ class PreviewPath:
     g_over_r: float
     distance: float
     message: str = ""
+    routes: tuple[SkillRoute, ...] = ()
+    route: int = 0
 
 
 class _DemoCurves:
@@ -547,6 +618,7 @@ def preview_path(
     align_cache: AlignmentCache | None = None,
     rate_hz: float = 50.0,
     keypoints: Sequence[np.ndarray] | None = None,
+    route: int | None = None,
 ) -> PreviewPath:
     """Re-extract key-points, re-cluster, re-train the HMM and regenerate the path for the live preview.
 
@@ -561,6 +633,9 @@ def preview_path(
     demos = _validate(demos)
     kc = cache or _SERIES_CACHE
     kps = [kc.extract(d, params) for d in demos] if keypoints is None else [np.asarray(k) for k in keypoints]
+    found = routes_of(demos)
+    way = found.default if found and (route is None or not 0 <= route < len(found)) else int(route or 0)
+    ways = tuple(SkillRoute(tuple(demos[i].name for i in r.demos), r.at) for r in found.routes)
     try:
         traj = learn_path(
             demos,
@@ -571,13 +646,18 @@ def preview_path(
             cache=kc,
             align_cache=align_cache,
             keypoints=kps,
+            route=way if found else None,
         )
     except StudioError as exc:
-        return PreviewPath(np.zeros(0), np.zeros((0, 3)), kps, 0, float("nan"), float("nan"), str(exc))
+        return PreviewPath(np.zeros(0), np.zeros((0, 3)), kps, 0, float("nan"), float("nan"), str(exc), ways, way)
+    used = kps
+    if found:
+        demos = [demos[i] for i in found.routes[way].demos]
+        used = [kps[i] for i in found.routes[way].demos]
     curves, r = _PREVIEW_CURVES.get(demos)
     c = quality.curve(traj, 300)
     g = float(np.mean([quality.ndtw(c, x) for x in curves]))
-    k = default_n_clusters(kps) if n_clusters is None else int(n_clusters)
+    k = default_n_clusters(used) if n_clusters is None else int(n_clusters)
     return PreviewPath(
         t=np.asarray(traj.t),
         position=np.asarray(traj.position),
@@ -585,6 +665,8 @@ def preview_path(
         n_clusters=k,
         g_over_r=g / r if r and r > 0 else float("nan"),
         distance=float(np.sqrt(g)),
+        routes=ways,
+        route=way,
     )
 
 

@@ -231,7 +231,8 @@ class ThresholdSettings:
         return cls(0.0, teacher)
 
 
-def detail_params(stats: DemoStats | Sequence[Demo], detail: float, teacher: Mapping[str, float] | None = None
+def detail_params(
+    stats: DemoStats | Sequence[Demo], detail: float, teacher: Mapping[str, float] | None = None
 ) -> KeypointParams:
     """Shorthand: ``ThresholdSettings(detail, teacher).resolve(stats)``."""
     return ThresholdSettings(detail, dict(teacher or {})).resolve(stats)

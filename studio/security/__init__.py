@@ -1,5 +1,5 @@
 """Only the studio's own page may drive the studio: host, origin, a per-launch key bound to a per-launch path,
-the page's address and Content-Security-Policy, upload and message limits (``docs/decisions/050-…``)."""
+the page's address and Content-Security-Policy, upload and message limits (``docs/decisions/016`` and ``050``)."""
 
 from studio.security.access import NEEDS_KEY_TEXT, ODD_ADDRESS_TEXT, REFUSED_TEXT, Access, Verdict
 from studio.security.addresses import KEY_PARAM, WILDCARD_HOSTS, host_name, is_loopback, new_key

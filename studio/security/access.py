@@ -1,6 +1,6 @@
 """Who may use the studio's server: :class:`Access` decides on every request (host, origin, the page's address,
 key and path) and hooks that decision, the page's policy and the upload caps into viser's server
-(docs/decisions/050-key-bound-to-a-launch-path.md)."""
+(why there: docs/decisions/016; the page's address, key and path: 050)."""
 
 from __future__ import annotations
 

@@ -21,7 +21,7 @@ from studio.core.sampling import MAX_SECONDS
 FORMAT = "teaching-studio-session"
 #: Version of the manifest written today; see :mod:`studio.storage.manifest` for how it is extended.
 #: 2: the task scene and each demonstration's object events (a studio of version 1 would drop them).
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 MANIFEST = "session.json"
 DEMO_DIR = "demos"
 SKILL_DIR = "skills"

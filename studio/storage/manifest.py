@@ -13,7 +13,8 @@ Versioning and extending (read before adding anything to the format):
   ``old_version`` into ``old_version + 1``; :meth:`Manifest.from_json` applies them in order before validating,
   so the validation below only ever sees the current version. Version 2 added the task scene (``scene``) and
   each demonstration's object events (``objects``): ``UPGRADES[1]`` reads a version-1 session as one on an
-  empty table, whose demonstrations have no object events.
+  empty table, whose demonstrations have no object events; ``UPGRADES[2]``: a session's skills from before
+  skills could follow the objects keep their path in the robot's frame (``frames``, format 3).
 
 Loading never writes: an upgraded manifest is written in the new version the next time the session changes.
 """
@@ -28,7 +29,7 @@ from typing import Any
 
 from studio.core.errors import InvalidInput, StudioError
 from studio.core.thresholds import ThresholdSettings
-from studio.core.types import ARMS, DEFAULT_GENERALIZATION, GENERALIZATIONS, KeypointParams
+from studio.core.types import ARMS, DEFAULT_FRAMES, DEFAULT_GENERALIZATION, FRAMES, GENERALIZATIONS, KeypointParams
 from studio.storage.format import (
     DEMO_FILE_RE,
     FORMAT,
@@ -56,8 +57,13 @@ def _scene_added(raw: dict[str, Any]) -> dict[str, Any]:
     return {**raw, "version": 2, "scene": None}
 
 
+def _frames_added(raw: dict[str, Any]) -> dict[str, Any]:
+    """Version 2 -> 3: a session with skills (paths in the robot's frame) keeps learning them that way."""
+    return {**raw, "version": 3, "frames": "robot" if raw.get("skills") else DEFAULT_FRAMES}
+
+
 #: Upgrades of older manifests: ``UPGRADES[v]`` turns the raw JSON of version ``v`` into version ``v + 1``.
-UPGRADES: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {1: _scene_added}
+UPGRADES: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {1: _scene_added, 2: _frames_added}
 
 
 @dataclass(frozen=True)
@@ -137,6 +143,7 @@ class Manifest:
     thresholds: ThresholdSettings | None = None
     #: The generalisation mode training uses ("aligned-mean" or "paper").
     generalization: str = DEFAULT_GENERALIZATION
+    frames: str = DEFAULT_FRAMES  # where skills keep their path: "objects" (they follow them) or "robot"
 
     # -- writing ----------------------------------------------------------------------------------------------
     def to_json(self) -> dict[str, object]:
@@ -165,7 +172,7 @@ class Manifest:
         return {d.file for d in self.demos} | {s.file for s in self.skills.values()}
 
     def _learning_json(self) -> dict[str, object]:
-        out: dict[str, object] = {"generalization": self.generalization}
+        out: dict[str, object] = {"generalization": self.generalization, "frames": self.frames}
         if self.thresholds is not None:
             out["thresholds"] = self.thresholds.as_dict()
         return out
@@ -230,7 +237,8 @@ class Manifest:
             version=version,
             scene=m.scene(),
             thresholds=m.thresholds(),
-            generalization=m.generalization(),
+            generalization=m.choice("generalization", GENERALIZATIONS, DEFAULT_GENERALIZATION),
+            frames=m.choice("frames", FRAMES, DEFAULT_FRAMES),
         )
 
 
@@ -300,11 +308,11 @@ class _Reader:
         except (InvalidInput, TypeError, ValueError) as exc:
             raise self.bad(f'has invalid "thresholds" ({exc})') from exc
 
-    def generalization(self) -> str:
-        mode = self.raw.get("generalization", DEFAULT_GENERALIZATION)
-        if mode not in GENERALIZATIONS:
-            raise self.bad(f'has an unknown "generalization" {mode!r}')
-        return str(mode)
+    def choice(self, key: str, allowed: tuple[str, ...], default: str) -> str:
+        value = self.raw.get(key, default)
+        if value not in allowed:
+            raise self.bad(f'has an unknown "{key}" {value!r}')
+        return str(value)
 
     def n_clusters(self) -> int | None:
         try:
