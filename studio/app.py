@@ -304,6 +304,9 @@ def serve(
     warning = exposure_warning(host, port)
     if warning:
         print(warning, file=sys.stderr, flush=True)
+    for title, body in app.controller.sessions.startup_notes():
+        if title == "The session could not be opened":
+            print(f"studio: {body}", file=sys.stderr, flush=True)
     stop = threading.Event()
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, lambda *_: stop.set())

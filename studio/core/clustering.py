@@ -19,6 +19,12 @@ from studio.core.types import Demo, readonly
 #: k-means implementation: "numpy" (this module's Lloyd iterations, default: docs/decisions/006) or
 #: "sklearn" (scikit-learn ``KMeans``).
 BACKEND = "numpy"
+#: Most key-points grouped at once (all demonstrations together) and most clusters: the work and memory of
+#: clustering and of the HMM grow with them (docs/decisions/051-memory-budget.md); beyond, refused in words.
+MAX_KEYPOINTS = 4_000
+MAX_K = 400
+#: k-means++ compares at most this many key-points pairwise (a random sample of them beyond it).
+SEED_SAMPLE = 2_000
 
 
 @dataclass(frozen=True)
@@ -223,13 +229,28 @@ def cluster(
         InvalidInput: k below 1.
     """
     scale = scale or FeatureScale.for_demos(demos)
+    m = sum(len(kp) for kp in keypoints)
+    if m > MAX_KEYPOINTS:
+        raise InvalidInput(
+            f"The demonstrations have {m:,} key-points together; at most {MAX_KEYPOINTS:,} can be grouped into a "
+            "skill (a demonstration usually has tens: these are noisy or very long recordings, or the key-point "
+            "thresholds are very fine). Use larger key-point thresholds, or trim or hide the longest demonstrations."
+        )
     X, _, u = keypoint_features(demos, keypoints)
-    m = X.shape[0]
     if m == 0:
         raise NotEnoughData("There are no key-points to group: record at least one demonstration.")
     k = default_n_clusters(keypoints) if n_clusters is None else int(n_clusters)
     if k < 1:
         raise InvalidInput(f"The number of clusters must be at least 1 (got {k}).")
+    if k > MAX_K:
+        raise InvalidInput(
+            f"{k:,} clusters are more than a skill can be learned with (at most {MAX_K:,}). "
+            + (
+                "The demonstrations have that many key-points each: use larger key-point thresholds."
+                if n_clusters is None
+                else "Choose fewer clusters."
+            )
+        )
     Xs = X / scale.divisors
     n_distinct = np.unique(np.round(Xs, 9), axis=0).shape[0]
     if k > n_distinct and n_clusters is None:
@@ -250,9 +271,10 @@ def cluster(
     else:
         inits = [quantiles]
         rng = np.random.default_rng(seed)
-        D = _sq_dist(Xs, Xs)
+        sample = Xs if m <= SEED_SAMPLE else Xs[np.sort(rng.choice(m, SEED_SAMPLE, replace=False))]
+        D = _sq_dist(sample, sample)
         for _ in range(max(0, n_init - 1)):
-            inits.append(kmeans_plusplus(Xs, k, rng, D=D))
+            inits.append(kmeans_plusplus(sample, k, rng, D=D))
         best: tuple[float, np.ndarray, np.ndarray] | None = None
         for init in inits:
             centers, labels_, inertia = lloyd(Xs, init)

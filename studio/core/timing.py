@@ -28,6 +28,9 @@ LIMIT_MARGIN = 0.97
 WINDOW_PAD_S = 0.5
 #: Largest number of toppra grid points in one window; grid spacing is 10 ms below that.
 MAX_GRID = 1500
+#: Most samples a timed joint trajectory may have: its arrays and the work of making them grow with it
+#: (about 350 bytes a sample at the peak; docs/decisions/051-memory-budget.md).
+MAX_TIMED_SAMPLES = 1_500_000
 GRID_STEP_S = 0.01
 #: Largest deviation (rad) of the joint path from straight chords between grid points.
 GRID_TOLERANCE_RAD = 2e-5
@@ -140,6 +143,18 @@ class _Segment:
         return 2.0 * ds / max(self.v0 + self.v1, 1e-9)
 
 
+def _timed_samples(total: float, rate_hz: float) -> int:
+    """Samples of a timed trajectory lasting ``total`` s at ``rate_hz``, refused beyond :data:`MAX_TIMED_SAMPLES`."""
+    M = max(1, math.ceil(total * rate_hz - 1e-9)) + 1
+    if M > MAX_TIMED_SAMPLES:
+        raise InvalidInput(
+            f"Within its speed limits the robot would need {total / 60:,.0f} minutes to follow this skill, longer "
+            f"than the {MAX_TIMED_SAMPLES / rate_hz / 60:,.0f} minutes a skill can be planned for: the learned path "
+            "is very long or jittery. Teach it with smoother movements, or in shorter parts."
+        )
+    return M
+
+
 def _grid(spl: CubicSpline, a: float, b: float, refine: float) -> np.ndarray:
     """toppra grid points on [a, b]: every :data:`GRID_STEP_S`, denser where the joint path bends.
 
@@ -148,7 +163,9 @@ def _grid(spl: CubicSpline, a: float, b: float, refine: float) -> np.ndarray:
     motion, and the limits must hold between grid points too); computed here vectorised, not by bisection.
     """
     fine = np.linspace(a, b, max(3, math.ceil((b - a) * 2000) + 1))
-    curv = np.max(np.abs(spl(fine, 2)), axis=1)
+    curv = np.concatenate(  # a chunk at a time: a long path has millions of fine points
+        [np.max(np.abs(spl(fine[i : i + 100_000], 2)), axis=1) for i in range(0, fine.shape[0], 100_000)]
+    )
     density = np.maximum(1.0 / GRID_STEP_S, np.sqrt(curv / (2.0 * GRID_TOLERANCE_RAD))) / refine
     cum = np.concatenate([[0.0], np.cumsum(0.5 * (density[1:] + density[:-1]) * np.diff(fine))])
     n = int(min(MAX_GRID / refine, max(2.0, math.ceil(cum[-1])))) + 1
@@ -419,7 +436,7 @@ def _retime_once(
         items.append(item)
         now += T
     total = now
-    M = max(1, math.ceil(total * rate_hz - 1e-9)) + 1
+    M = _timed_samples(total, rate_hz)
     t = np.arange(M) / rate_hz
     S = np.empty(M)
     Q = np.empty((M, vlim.shape[0]))

@@ -33,8 +33,9 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
-#: Longest recording accepted (simulated seconds); past it the recorder stops by itself and says so.
-MAX_SECONDS = 4 * 3600.0
+#: Longest recording accepted (simulated seconds); past it the recorder stops by itself and says so (a session
+#: keeps demonstrations up to 1 hour at 1 kHz: studio.storage.format.MAX_SAMPLES).
+MAX_SECONDS = 3600.0
 #: Samples the writer turns into rows at once (FK temporaries stay a few MB).
 DRAIN_CHUNK = 32_768
 #: Samples allowed to wait for the writer before the producer is made to wait (100 s of the stream at 1 kHz).

@@ -1,10 +1,10 @@
 """Sessions on disk: one folder per session, a versioned human-readable manifest, array files, no pickle.
 
 ``<root>/<name>/`` holds ``session.json`` (:class:`Manifest`), ``demos/d0001.npz`` (t, q, gripper),
-``skills/<arm>.npz`` and, while recording, ``.recording/``. Every write is atomic; loading validates
+``skills/<arm>.npz``, ``recovered/`` (unlisted demo files, never deleted) and, while
+recording, ``.recording/``. Every write is atomic; loading validates
 everything, raises :class:`~studio.core.errors.SessionFormatError` in plain words and never writes. One module
-per concern (``format``, ``atomic``, ``npz``, ``manifest``, ``objects``, ``session``, ``loading``, ``fs``,
-``limits``, ``store``, ``archive``, ``idle``): see ARCHITECTURE.md."""
+per concern: see ARCHITECTURE.md."""
 
 from studio.storage.atomic import atomic_write_bytes, atomic_write_npz
 from studio.storage.format import (

@@ -11,7 +11,6 @@ import io
 import json
 import os
 import shutil
-import uuid
 import zipfile
 import zlib
 from collections.abc import Callable
@@ -34,6 +33,7 @@ from studio.storage.format import (
     sanitize_name,
     what_went_wrong,
 )
+from studio.storage.fs import temporary_folder
 from studio.storage.limits import check_disk, size_text, write_failed
 from studio.storage.loading import demos_bytes, load_session, skills_bytes
 from studio.storage.manifest import Manifest
@@ -199,23 +199,20 @@ def import_zip(root: Path, data: bytes, final_name: Callable[[str], str], *, arc
         _check_memory(m, label, len(data))
         check_disk(root, sum(i.file_size for i in infos), label)
         root.mkdir(parents=True, exist_ok=True)
-        tmp_root = root / f".tmp-import-{uuid.uuid4().hex[:8]}"
-        tmp = tmp_root / sanitize_name(top)  # messages from loading name the session, not the temporary folder
         try:
-            tmp.mkdir(parents=True)
-            _unpack(zf, infos, top, tmp, label)
-            _check_memory(m, label, len(data), skills_bytes(tmp, m))  # skills: from their headers, now unpacked
-            try:
-                s = load_session(tmp)
-            except SessionFormatError as exc:
-                raise SessionFormatError(f"{label} cannot be imported. {what_went_wrong(exc)} {_NOTHING}") from exc
-            final = final_name(sanitize_name(top))
-            s.name = final
-            s._write_manifest()
-            os.rename(tmp, root / final)
+            with temporary_folder(root, "import") as tmp_root:  # held: a studio starting meanwhile leaves it
+                tmp = tmp_root / sanitize_name(top)  # messages from loading name the session, not the folder
+                tmp.mkdir()
+                _unpack(zf, infos, top, tmp, label)
+                _check_memory(m, label, len(data), skills_bytes(tmp, m))  # skills: from their headers, unpacked
+                try:
+                    s = load_session(tmp)
+                except SessionFormatError as exc:
+                    raise SessionFormatError(f"{label} cannot be imported. {what_went_wrong(exc)} {_NOTHING}") from exc
+                final = final_name(sanitize_name(top))
+                s.name = final
+                s._write_manifest()
+                os.rename(tmp, root / final)
         except OSError as exc:
-            raise write_failed(tmp, exc, doing="imported", subject=label, after=_NOTHING) from exc
-        finally:
-            if tmp_root.exists():
-                shutil.rmtree(tmp_root, ignore_errors=True)
+            raise write_failed(root, exc, doing="imported", subject=label, after=_NOTHING) from exc
     return final

@@ -23,8 +23,8 @@ from studio.storage.format import (
     MANIFEST,
     MAX_DEMOS,
     MAX_FILE_ID,
+    MAX_LISTED_SAMPLES,
     MAX_MANIFEST_BYTES,
-    MAX_SAMPLES,
     PRECISIONS,
     SKILL_DIR,
     SKILL_FILE_RE,
@@ -340,7 +340,7 @@ class _Reader:
         if not isinstance(da, list) or not da or any(a not in ARMS for a in da):
             raise self.bad(f"has invalid taught arms for demonstration {i + 1}")
         s = d.get("samples")
-        if not isinstance(s, int) or isinstance(s, bool) or not 0 < s <= MAX_SAMPLES:
+        if not isinstance(s, int) or isinstance(s, bool) or not 0 < s <= MAX_LISTED_SAMPLES:
             raise self.bad(f"has an invalid sample count for demonstration {i + 1}")
         hidden = d.get("hidden", False)
         if not isinstance(hidden, bool):
