@@ -1,29 +1,10 @@
 """Running the learned skill on the robot ("Run on robot"), stopping it, the emergency stop, and the last run.
 
-:meth:`ExecutionActions.run` takes every learned skill of the session (both arms when both are taught), checks
-that the robot can follow it (:func:`~studio.core.execution.skill_feasibility`, on the joint trajectories
-training already computed, which Preview plays too), plans it from where the robot is now
-(:func:`~studio.core.execution.plan_execution`: a slow approach to the skill's start, then the skill) and sends
-it to the robot backend as a :class:`~studio.controller.run.Run`. While the robot runs:
-
-* the drawn robot is the live one (a preview or replay is unloaded and refused until the run ends); the objects
-  on the table start from the session's set-up and respond to the robot's real joint states (the live world of
-  :class:`~studio.controller.scene.SceneActions`);
-* its joint states are recorded by the same :class:`~studio.recorder.Recorder` as a demonstration, written to
-  disk as they arrive, into a temporary folder of the run's own (never the session's demonstration folder).
-  At the end the recording is read back and the file deleted: the run is kept in memory as the studio's
-  **last run** (plan, recording, tracking report, task result) until the next run, a new skill or another
-  session. It is a check of the skill, not teaching material, so it is never added to the demonstrations;
-* a thread follows the robot's progress; at the end the run is compared with its plan and the task result is
-  measured on what the objects did during the run, in one sentence: "The robot followed the plan within
-  0.4 mm; the block ended 0.5 cm from where you put it — the skill works."
-
-:meth:`~ExecutionActions.stop` is the controlled stop (the robot slows down along the path);
-:meth:`~ExecutionActions.emergency_stop` halts it within one control cycle, at any time, and refuses every motion
-(runs, moves by hand, recordings) until :meth:`~ExecutionActions.release_emergency_stop`.
-:attr:`Topic.EXECUTION` is emitted when a run starts, changes phase and is judged, and when the emergency stop
-is engaged or released; :attr:`~ExecutionActions.status` also carries the progress (the panels poll it).
-"""
+:meth:`ExecutionActions.run` checks that the robot can follow every learned skill, plans it from where the
+robot is (a slow approach, then the skill) and starts a :class:`~studio.controller.run.Run`; the last run
+(plan, recording, tracking report, task result) is kept in memory, never as a demonstration
+(docs/decisions/028). :meth:`~ExecutionActions.stop` slows down along the path; the emergency stop halts
+within one control cycle and refuses motion until released."""
 
 from __future__ import annotations
 

@@ -87,6 +87,7 @@ class Training:
         #: The newest judgement under way or done (training starts one when it finishes).
         self.judgement: Future[None] | None = None
         self._verdicts: dict[Arm, SkillVerdict] = {}
+        self._routes: dict[Arm, int] = {}
         ctx.on_leave(self._check_leave)
         ctx.events.on(Topic.SESSION, self._on_session)
 
@@ -125,11 +126,25 @@ class Training:
         if self.busy:
             raise StudioError(f"Wait for the training to finish before {doing}.")
 
+    # -- which way, when the demonstrations go several ways ---------------------------------------------------
+    def chosen_route(self, arm: Arm) -> int | None:
+        """The way the teacher chose for ``arm`` (index into its skill's ``routes``), or None for the default."""
+        return self._routes.get(arm)
+
+    def set_route(self, arm: Arm, route: int) -> Future[dict[Arm, Skill] | None]:
+        """Learn ``arm``'s skill from the demonstrations of another way (see :attr:`Skill.routes`), at once."""
+        sk = self.ctx.session.skills.get(arm)
+        if sk is None or not 0 <= int(route) < len(sk.routes):
+            raise StudioError("Your demonstrations go only one way: there is no other way to choose.")
+        with self.ctx.lock:
+            self._routes[arm] = int(route)
+        return self.train()
+
     # -- training ------------------------------------------------------------------------------------------
     def train(self, arms: Sequence[Arm] | None = None) -> Future[dict[Arm, Skill] | None]:
         """Learn the skill of every taught arm (or of ``arms``) from the shown demos on the work thread, then
         judge it."""
-        from studio.core.pipeline import learn_skill
+        from studio.core.pipeline import learn_skill, routes_of
         from studio.core.segments import learn_relative
 
         with self.ctx.lock:
@@ -145,6 +160,7 @@ class Training:
             settings, k = self.tuning.settings(), self.tuning.k
             params = {arm: self.tuning.params(arm, settings) for arm in per_arm}
             mode, frames = self.ctx.session.generalization, self.ctx.session.frames
+            routes = dict(self._routes)
             session = self.ctx.session  # the skill belongs to the session it was learned from
             self.busy = True
         self.ctx.emit(Topic.TRAINING)
@@ -152,6 +168,10 @@ class Training:
 
         relative = {arm: self._objects(arm, demos) for arm, demos in per_arm.items()} if frames == "objects" else {}
         now = objects_now(session.objects.scene)
+
+        def way(arm: Arm, demos: list[Demo]) -> int | None:
+            r = routes.get(arm)
+            return r if r is not None and r < len(routes_of(demos)) else None  # the demos changed since
 
         def job() -> dict[Arm, Skill]:
             out: dict[Arm, Skill] = {}
@@ -173,6 +193,7 @@ class Training:
                     baxter=baxter,
                     cache=cache,
                     generalization=mode,
+                    route=way(arm, [d for _, d in demos]),
                 )
             return out
 
@@ -278,6 +299,7 @@ class Training:
     def _on_session(self) -> None:
         with self.ctx.lock:
             self._verdicts = {}
+            self._routes = {}
             has_skills = bool(self.ctx.session.skills)
         if has_skills:
             self.judge()

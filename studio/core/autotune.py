@@ -1,27 +1,10 @@
-"""Suggest thresholds: search the key-point thresholds and k for the best held-out fidelity (GUI-free).
+"""Search the key-point thresholds and k for the best held-out fidelity (GUI-free): :func:`suggest`.
 
-What is searched: the Detail control (:mod:`studio.core.thresholds`: one number that moves the coupled
-thresholds ε2–ε7 and ε10–ε14 together, in real units that follow the demonstrations) and k, the number of
-clusters (a factor on the paper's default, the mean number of key-points per demo). A candidate is scored by
-**held-out fidelity**: for each fold, the skill's path is learned from all demonstrations but one
-(:func:`studio.core.pipeline.learn_path`, 50 Hz) and compared with the one left out (normalised DTW, the
-paper's squared cost); the score is the mean over folds ÷ the demos' mean pairwise normalised DTW (G/R held
-out, lower is better). With more than :data:`MAX_FOLDS` demos, that many evenly spread demos are left out.
-
-Search: the current settings ("before"), then Detail −2, −1, 0, 1, 2 with the default k, then ±0.5 around the
-best and k × 0.75 and × 1.3 at the best (about 10 candidates × 3 folds). A candidate must be better by 2 % to
-displace one with less detail (fewer key-points generalise better when the figures tie).
-
-Where it runs: "before" is scored in the calling thread; the other candidates there too, or in the ``executor``
-the caller passes (threads, or processes it started; one candidate a task, so progress moves and a cancel
-returns at once). The core starts no thread or process (docs/decisions/030; figures in bench/README.md).
-
-Usage (GUI: on a work thread, then apply ``result.settings`` and ``result.n_clusters`` as one undoable change)::
-
-    cancel = threading.Event()
-    result = suggest(demos, current=settings, progress=lambda f, msg: ..., cancel=cancel)
-    if not result.cancelled: apply(result.settings, result.n_clusters); show(result.summary)
-"""
+Searched: ``detail`` (:mod:`studio.core.thresholds`) and k (a factor on the paper's default). The score is
+held-out G/R: the path learned without one demo (:func:`studio.core.pipeline.learn_path`) against that demo,
+over at most :data:`MAX_FOLDS` folds. The current settings first, then coarse ``detail`` values, then around
+the best and other k; the current thresholds stay (``changed`` False) unless something does better.
+Candidates run here or in the caller's ``executor`` (docs/decisions/030)."""
 
 from __future__ import annotations
 
@@ -41,9 +24,9 @@ from studio.core.types import Demo, KeypointParams
 
 #: At most this many demos are left out in turn.
 MAX_FOLDS = 3
-#: Coarse Detail values tried first.
+#: Coarse ``detail`` values tried first.
 COARSE_DETAIL = (-2.0, -1.0, 0.0, 1.0, 2.0)
-#: k factors tried at the best Detail.
+#: k factors tried at the best ``detail``.
 K_FACTORS = (0.75, 1.3)
 #: Relative improvement needed to prefer more detail or a different k.
 MARGIN = 0.02
@@ -51,7 +34,7 @@ MARGIN = 0.02
 
 @dataclass(frozen=True)
 class Candidate:
-    """One point of the search: Detail, a factor on the default k (1 = the paper's k), or fixed values.
+    """One point of the search: ``detail``, a factor on the default k (1 = the paper's k), or fixed values.
 
     ``fixed`` holds thresholds to use as they are (the teacher's current ones for "before"); ``k`` a fixed k.
     """
@@ -81,10 +64,10 @@ class Score:
 
 @dataclass(frozen=True)
 class TuneResult:
-    """What Suggest found.
+    """What the search found.
 
     Attributes:
-        settings: the suggested :class:`ThresholdSettings` (Detail; every threshold automatic).
+        settings: the suggested :class:`ThresholdSettings` (``detail``; every threshold automatic).
         params: the same as the fourteen values in real units for these demos.
         n_clusters: the suggested k, or None for the paper's default (mean key-points per demo).
         before, after: held-out figures of the current settings and of the suggestion.
@@ -92,6 +75,8 @@ class TuneResult:
         seconds: wall time.
         cancelled: the search was cancelled (``settings`` is then the best found so far, or the current one).
         complete: every planned candidate was scored (False when cancelled or out of time).
+        changed: the suggestion differs from the current thresholds (False: they are already good — nothing
+            did better by :data:`MARGIN` than the defaults, or at all than the teacher's own values).
     """
 
     settings: ThresholdSettings
@@ -103,6 +88,7 @@ class TuneResult:
     seconds: float
     cancelled: bool
     complete: bool
+    changed: bool = True
 
 
 # -- the work (in the calling thread, or a task of the caller's executor) -----------------------------------------
@@ -172,7 +158,7 @@ def evaluate(
 
 
 def warm_up() -> None:
-    """Load the learning pipeline (a worker process's first task, ahead of the first Suggest)."""
+    """Load the learning pipeline (a worker process's first task, ahead of the first search)."""
     from studio.core import pipeline, quality  # noqa: F401
 
 
@@ -185,7 +171,7 @@ def shutdown() -> None:
 
 
 def _fingerprint(demos: Sequence[Demo]) -> str:
-    """A cheap content key of the demos: a worker that already holds them (a second Suggest on the same demos)
+    """A cheap content key of the demos: a worker that already holds them (a second search on the same demos)
     keeps their derived series and DTW maps."""
     h = hashlib.blake2b(digest_size=12)
     for d in demos:
@@ -311,7 +297,7 @@ def _rounds(
 ) -> tuple[Candidate, Score, Score, int, bool]:
     """The search itself: (best candidate, its score, "before", candidates scored, every round done).
 
-    Round 1: "before" and the coarse Detail values (Detail 0 is the incumbent the others challenge); round 2:
+    Round 1: "before" and the coarse ``detail`` values (0 is the incumbent the others challenge); round 2:
     ±0.5 around the best; round 3: other k at the best. A round starts only within the time budget.
     """
     nothing = Score(math.inf, math.inf, math.nan, math.nan)
@@ -348,7 +334,7 @@ def suggest(
     executor: Executor | None = None,
     budget_s: float = 5.0,
 ) -> TuneResult:
-    """Search Detail and k for the best held-out fidelity (module docstring).
+    """Search ``detail`` and k for the best held-out fidelity (module docstring; docs/decisions/011).
 
     Args:
         demos: the shown demonstrations (at least two).
@@ -356,7 +342,7 @@ def suggest(
         n_clusters: the k in use (None = the paper's default).
         generalization: the mode to tune for (default: the pipeline's default).
         progress: called with (fraction 0…1, plain-words step) as candidates finish, from this thread.
-        cancel: set it to stop; :func:`suggest` then returns within about 50 ms with ``cancelled=True``.
+        cancel: set it to stop; :func:`suggest` then returns early with ``cancelled=True``.
         executor: runs the candidates after "before" (threads, or processes the caller started); None: here.
         budget_s: stop starting new rounds after this many seconds (the result says ``complete=False``).
 
@@ -377,9 +363,17 @@ def suggest(
     before_c = _before(current, stats, n_clusters)
     search = _Search(demos, generalization, executor, progress, cancel)
     best_c, best, before, evaluated, complete = _rounds(search, before_c, t0, budget_s)
-    if search.cancelled:  # keep what the teacher has
+    defaults = n_clusters is None and (current is None or current == ThresholdSettings())
+    # the defaults stay unless something is clearly better; the teacher's own values unless something is as good
+    better = best.g_over_r < before.g_over_r * (1.0 - MARGIN) if defaults else best.g_over_r <= before.g_over_r
+    keep = math.isfinite(before.g_over_r) and not better
+    if search.cancelled or keep:  # keep what the teacher has
         settings = current if isinstance(current, ThresholdSettings) else ThresholdSettings()
         params, k = _params(before_c, stats), n_clusters
+        if keep and not search.cancelled:
+            best = before
+            if progress is not None:
+                progress(1.0, "Done")
     else:
         settings = ThresholdSettings(detail=best_c.detail)
         params = auto_params(stats, best_c.detail)
@@ -396,6 +390,7 @@ def suggest(
         seconds=time.perf_counter() - t0,
         cancelled=search.cancelled,
         complete=complete and not search.cancelled,
+        changed=not keep and not search.cancelled,
     )
 
 

@@ -2,10 +2,9 @@
 the paper's pipeline in the frame of the object it acts on (:mod:`studio.core.frames`).
 
 :func:`plan` reads the frames from the demonstrations' contacts (a grasp in the grasped object's frame; a
-release in the frame where the demonstrations agree best on where the object landed: the object it landed on,
-the spot it came from, or the robot). :func:`learn_relative` learns the segments and returns a :class:`Skill`
-placed where the objects are now; :func:`place_skill` moves it when they move.
-"""
+release in the frame where the demonstrations agree best on where the object landed). :func:`learn_relative`
+learns the segments and returns a :class:`Skill` placed where the objects are now; :func:`place_skill` moves
+it when they move (docs/decisions/080)."""
 
 from __future__ import annotations
 
@@ -236,9 +235,10 @@ def _learn_segment(
         parts.append((_in_frame(d, c[k], c[k + 1], fp), _in_frame(d, c[k], c[k + 1], fo)))
     seg_demos = [p[0] for p in parts]
     try:
-        sk = learn_skill(seg_demos, params, seed=seed, generalization=generalization)
+        sk = learn_skill(seg_demos, params, seed=seed, generalization=generalization, split_routes=False)
     except NotEnoughData:
-        sk = learn_skill(seg_demos, auto_params(seg_demos), seed=seed, generalization=generalization)
+        auto = auto_params(seg_demos)
+        sk = learn_skill(seg_demos, auto, seed=seed, generalization=generalization, split_routes=False)
     t, pos, q, g = _resampled(sk.trajectory)
     mp, mo, qp, qo, vp, vo = _statistics(t, pos, parts)
     pi_end = _minjerk(t / max(t[-1], 1e-9))

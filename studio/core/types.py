@@ -144,7 +144,7 @@ class Demo:
     @functools.cached_property
     def extent(self) -> float:
         """The largest side of the positions' bounding box, m (0 when empty); computed once (the arrays are
-        read-only), since every slider step of the studio asks for it (3 ms a demo of 30,000 samples)."""
+        read-only), since every slider step of the studio asks for it."""
         return float(np.max(np.ptp(self.position, axis=0))) if len(self) else 0.0
 
     @property
@@ -348,6 +348,19 @@ def _unpack_list(d: dict[str, np.ndarray], name: str, dtype: type) -> list[np.nd
     return [readonly(data[off[i] : off[i + 1]], dtype=dtype) for i in range(len(off) - 1)]
 
 
+@dataclass(frozen=True)
+class SkillRoute:
+    """One way the demonstrations went, as a skill remembers it.
+
+    Attributes:
+        demos: the names of the demonstrations that went this way.
+        at: (3,) m, their mean where the ways are farthest apart.
+    """
+
+    demos: tuple[str, ...]
+    at: tuple[float, float, float]
+
+
 @dataclass(frozen=True, eq=False)
 class Skill:
     """A learned skill: the generalized trajectory plus everything the panels draw.
@@ -378,6 +391,9 @@ class Skill:
             objects' frames and the places the demonstrations covered; then ``trajectory``, ``joint_trajectory``,
             ``centroids`` and ``path_points`` are placed where the objects were when it was placed last. None: the
             path is in the robot's frame (the paper's way).
+        routes: the ways the demonstrations went when they went more than one way (else empty); the skill is
+            learned from the demonstrations of ``routes[route]`` only (``demo_names``).
+        route: which of ``routes`` was learned; route_where: (3,) m, all demos' mean where the ways part most.
     """
 
     trajectory: Demo
@@ -403,6 +419,9 @@ class Skill:
     demo_names: tuple[str, ...] = ()
     generalization: Generalization = Generalization.PAPER
     frames: ObjectFrames | None = None
+    routes: tuple[SkillRoute, ...] = ()
+    route: int = 0
+    route_where: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         for name in (
@@ -453,6 +472,11 @@ class Skill:
             "spline_through": np.array(self.spline_through),
             "demo_names": np.array(list(self.demo_names), dtype=str),
             "generalization": np.array(self.generalization),
+            "route": np.array(self.route, dtype=np.int64),
+            "route_names": np.array([n for r in self.routes for n in r.demos], dtype=str),
+            "route_sizes": np.array([len(r.demos) for r in self.routes], dtype=np.int64),
+            "route_at": np.array([r.at for r in self.routes], dtype=np.float64).reshape(-1, 3),
+            "route_where": np.array(self.route_where, dtype=np.float64),
         }
         if self.frames is not None:
             d.update(self.frames.to_arrays())
@@ -526,9 +550,31 @@ class Skill:
                 demo_names=tuple(str(x) for x in np.asarray(d["demo_names"]).reshape(-1)),
                 generalization=Generalization.of(str(d.get("generalization", Generalization.PAPER))),
                 frames=ObjectFrames.from_arrays(d),
+                **_routes_from_arrays(d),
             )
         except KeyError as exc:
             raise InvalidInput(f"The saved skill is incomplete: {exc.args[0]} is missing.") from exc
+
+
+def _routes_from_arrays(d: dict[str, np.ndarray]) -> dict:
+    """The routes of a saved skill (none in files from before routes were found)."""
+    if "route_sizes" not in d:
+        return {}
+    names = [str(x) for x in np.asarray(d["route_names"]).reshape(-1)]
+    sizes = np.asarray(d["route_sizes"], dtype=np.int64).reshape(-1)
+    at = np.asarray(d["route_at"], dtype=np.float64).reshape(-1, 3)
+    where = np.asarray(d["route_where"], dtype=np.float64).reshape(-1)
+    if int(sizes.sum()) != len(names) or at.shape[0] != sizes.shape[0] or where.shape != (3,) or np.any(sizes < 1):
+        raise InvalidInput("The saved skill's routes are damaged.")
+    off = np.concatenate([[0], np.cumsum(sizes)])
+    routes = tuple(
+        SkillRoute(tuple(names[off[i] : off[i + 1]]), (float(a[0]), float(a[1]), float(a[2])))
+        for i, a in enumerate(at)
+    )
+    route = int(d["route"])
+    if routes and not 0 <= route < len(routes):
+        raise InvalidInput("The saved skill's routes are damaged.")
+    return {"routes": routes, "route": route, "route_where": (float(where[0]), float(where[1]), float(where[2]))}
 
 
 __all__ = [
@@ -540,6 +586,7 @@ __all__ = [
     "KeypointParams",
     "Recording",
     "Skill",
+    "SkillRoute",
     "check_arm",
     "readonly",
 ]

@@ -1,23 +1,9 @@
 """``session.json``: the session's manifest as frozen dataclasses, validated when read from JSON.
 
-Versioning and extending (read before adding anything to the format):
-
-* ``version`` is :data:`~studio.storage.format.FORMAT_VERSION`. A studio refuses, in plain words, a
-  manifest written by a newer one (a higher version) and reads every older one.
-* **Adding an optional field** (the usual case): add it to the dataclass with a default, read it in
-  ``from_json`` with that default when it is absent (older files), write it in ``to_json``. No version change:
-  an older studio ignores keys it does not know. ``n_clusters``, ``hidden``, ``skills_stale``, ``thresholds``
-  and ``generalization`` were added this way.
-* **A change an older studio would misread** (a field changing meaning, data moving between files): bump
-  ``FORMAT_VERSION`` and register ``UPGRADES[old_version]``, a function turning the raw JSON of version
-  ``old_version`` into ``old_version + 1``; :meth:`Manifest.from_json` applies them in order before validating,
-  so the validation below only ever sees the current version. Version 2 added the task scene (``scene``) and
-  each demonstration's object events (``objects``): ``UPGRADES[1]`` reads a version-1 session as one on an
-  empty table, whose demonstrations have no object events; ``UPGRADES[2]``: a session's skills from before
-  skills could follow the objects keep their path in the robot's frame (``frames``, format 3).
-
-Loading never writes: an upgraded manifest is written in the new version the next time the session changes.
-"""
+To extend the format: an optional field gets a default, is read with it when absent and always written (no
+version change: an older studio ignores unknown keys). A change an older studio would misread bumps
+:data:`~studio.storage.format.FORMAT_VERSION` and adds ``UPGRADES[old]`` (raw JSON of ``old`` to ``old + 1``),
+applied before validation. A newer manifest is refused in plain words; loading never writes (docs/decisions/023)."""
 
 from __future__ import annotations
 
@@ -46,8 +32,8 @@ from studio.storage.format import (
     MANIFEST,
     MAX_DEMOS,
     MAX_FILE_ID,
+    MAX_LISTED_SAMPLES,
     MAX_MANIFEST_BYTES,
-    MAX_SAMPLES,
     PRECISIONS,
     SKILL_DIR,
     SKILL_FILE_RE,
@@ -363,7 +349,7 @@ class _Reader:
         if not isinstance(da, list) or not da or any(a not in ARMS for a in da):
             raise self.bad(f"has invalid taught arms for demonstration {i + 1}")
         s = d.get("samples")
-        if not isinstance(s, int) or isinstance(s, bool) or not 0 < s <= MAX_SAMPLES:
+        if not isinstance(s, int) or isinstance(s, bool) or not 0 < s <= MAX_LISTED_SAMPLES:
             raise self.bad(f"has an invalid sample count for demonstration {i + 1}")
         hidden = d.get("hidden", False)
         if not isinstance(hidden, bool):

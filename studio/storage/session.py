@@ -89,6 +89,7 @@ class Session:
         skills: arm -> learned :class:`Skill`; skill_info: arm -> what it was learned from and when.
         skills_stale: the demonstrations changed since the skills were learned.
         problems, recovery_message: plain-words notes from loading (skipped damaged files, crash recovery).
+        opened_instead: why this session was opened in place of the one asked for ("" normally).
         objects: the task scene and each demonstration's object events (:class:`SessionObjects`).
     """
 
@@ -110,6 +111,7 @@ class Session:
     skill_info: dict[Arm, SkillEntry] = field(default_factory=dict)
     problems: list[str] = field(default_factory=list)
     recovery_message: str = ""
+    opened_instead: str = ""
     objects: SessionObjects = field(default_factory=SessionObjects)
     _files: list[str] = field(default_factory=list, repr=False)
     _next_id: int = field(default=1, repr=False)
@@ -165,8 +167,8 @@ class Session:
             raise InvalidInput("A demonstration needs at least two samples.")
         if len(rec) > MAX_SAMPLES:
             raise InvalidInput(
-                f"This demonstration is too long to keep ({rec.duration / 3600:.1f} hours); "
-                f"the limit is {MAX_SAMPLES // 3_600_000} hours. Trim it first."
+                f"This demonstration is too long to keep ({len(rec):,} samples, {rec.duration / 60:,.0f} minutes); "
+                f"a demonstration may have {MAX_SAMPLES:,} samples (an hour at 1,000 a second). Trim it first."
             )
         if len(self.recordings) >= MAX_DEMOS:
             raise InvalidInput(f"A session holds at most {MAX_DEMOS} demonstrations.")

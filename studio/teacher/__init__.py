@@ -1,21 +1,10 @@
 """A scripted, human-like teacher: demonstrations of the paper's two tasks without a human.
 
-The simulated backend, the example session and the core's quality tests all learn from these plans.
-A plan is built the way a person moves a Baxter arm by hand in kinesthetic teaching:
-
-* a sequence of Cartesian key-frames (the paper's two tasks, in front of the robot, gripper pointing
-  down), each jittered per demonstration by a few centimetres (via-points) or a few millimetres (the
-  grasp and release poses, where the object leaves the teacher little freedom);
-* minimum-jerk motion between key-frames (Flash & Hogan's model of human reaching) along a slightly bowed
-  path, with a speed that varies per demonstration and per segment, and pauses of varying length;
-* the gripper closes to the object's width and opens again during pauses, in about half a second.
-
-Joint targets come from :meth:`Baxter.ik` on a few samples per second of the Cartesian path, each solve
-seeded by the previous one, then interpolated per segment with a clamped cubic (zero joint speed where a
-minimum-jerk segment starts and ends), checked against the URDF position and velocity limits (a segment
-that would be too fast is slowed down) and verified by forward kinematics. Sensor noise is added only by
-:func:`recording_from_plan`; the plan's joint targets are smooth.
-"""
+The simulated backend, the example sessions and the core's tests learn from these plans, built the way a
+person moves a Baxter arm by hand: jittered Cartesian key-frames, minimum-jerk motion along slightly bowed
+paths at varying speeds, pauses, and the gripper closing to the object's width. Joint targets come from
+:meth:`Baxter.ik`, interpolated per segment within the URDF limits and checked by FK; sensor noise is added
+only by :func:`recording_from_plan` (docs/decisions/026)."""
 
 from __future__ import annotations
 
@@ -323,7 +312,7 @@ def _item_len(item: tuple[str, float, object]) -> float:
 def _gripper_signal(
     t: np.ndarray, grips: list[tuple[float, float, str]], task: str, rng: np.random.Generator
 ) -> np.ndarray:
-    """Opening (percent) over time: open at the start, a ~0.5 s ramp at 30 % into each action's pause."""
+    """Opening (percent) over time: open at the start, a 0.5 s ramp at 30 % into each action's pause."""
     g = np.full(t.shape[0], OPEN_WIDTH[task])
     level = OPEN_WIDTH[task]
     for t0, hold, action in grips:
