@@ -118,13 +118,15 @@ def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
             arm = next((a for a in arms if len(ctl.demos.for_arm(a)) >= 2), arms[0])
             ctl.suggest.start(arm).result()
             res = ctl.suggest.state.result
-            if res is not None:
+            if res is not None and res.changed:
                 print(
                     f"{arm.capitalize()} arm — suggested thresholds (Detail {res.settings.detail:+.1f}, "
                     f"k = {res.n_clusters or 'mean key-points per demonstration'}) in {res.seconds:.1f} s. "
                     f"{tune_summary(res)}",
                     file=out,
                 )
+            elif res is not None:
+                print(f"{arm.capitalize()} arm — searched in {res.seconds:.1f} s. {tune_summary(res)}", file=out)
         skills = ctl.training.train(arms).result()
         elapsed = time.perf_counter() - t0
         assert skills is not None and ctl.training.judgement is not None  # a headless controller raises failures

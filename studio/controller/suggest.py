@@ -33,7 +33,7 @@ class SuggestState:
         summary: the last outcome in plain words (before/after figures, or stopped, or undone).
         can_undo: Undo would put back the settings from before the last applied suggestion.
         seconds: how long the last search took.
-        result: the last applied search's outcome (settings, k, figures), or None.
+        result: the last finished search's outcome (settings, k, figures; ``changed`` says if it was applied).
     """
 
     running: bool = False
@@ -94,7 +94,7 @@ class Suggesting:
             settings, k, session = self.tuning.settings(), self.tuning.k, self.ctx.session
             mode = session.generalization
             self._cancel.clear()
-        self._set(running=True, fraction=0.0, step="Starting", summary="")
+        self._set(running=True, fraction=0.0, step="Starting", summary="", result=None)
 
         def progress(fraction: float, step: str) -> None:
             now = time.monotonic()
@@ -120,7 +120,9 @@ class Suggesting:
                 self._set(running=False, summary="")
                 return
             if not res.changed:
-                self._set(running=False, fraction=1.0, step="Done", summary=tune_summary(res), seconds=res.seconds)
+                self._set(
+                    running=False, fraction=1.0, step="Done", summary=tune_summary(res), seconds=res.seconds, result=res
+                )
                 return
             with self.ctx.lock:
                 self._undo = (settings, k)
