@@ -1,23 +1,10 @@
 """Human-like demonstrations of continuous shapes (GUI-free): the quality benchmark's and tests' second teacher.
 
-The scripted teacher (:mod:`studio.teacher`) shows the paper's two arm tasks; this module draws shapes in
-the air the way a person guiding the arm would, at any size and tempo, so that defaults, the auto-tune and
-the verdict are judged on more than our own tasks:
-
-* shapes (:data:`SHAPES`): ``circle``, ``figure-eight``, ``zigzag`` (three sharp corners), ``spiral``,
-  ``handwriting`` (cursive loops, like "ellle") and ``wave`` (a signature-like stroke of changing height);
-  each is a planar curve whose largest extent is ``size`` metres, drawn on a vertical plane in front of
-  the robot (y across, z up), the gripper pointing forward;
-* per demonstration, a person's variation: an offset of the whole shape (3 % of its size, at least 1 mm),
-  ±4 % scale, ±3° turn, a smooth deformation of 1.5 % of the size along the path, a height drift;
-  a tempo ±15 % around ``duration``, a smooth random time warp, one or two hesitations (the hand slows almost
-  to a stop), slowing down at sharp corners, a rest before and after the stroke; 8–12 Hz tremor (0.15 mm)
-  and white sensor noise (0.05 mm) on every 1 kHz sample; a small wobble of the hand's orientation.
-
-:func:`shape_demos` returns :class:`~studio.core.types.Demo` series (Cartesian, like forward kinematics of a
-recording) and :func:`shape_corners` the corners all the demonstrations of a shape share (ground truth for
-the corner measure). :func:`check_reachable` verifies with Baxter's IK that a shape can be drawn by the arm.
-"""
+:func:`shape_demos` draws a shape of :data:`SHAPES` (circle, figure-eight, zigzag, spiral, handwriting,
+wave) in the air in front of the robot as a person guiding the arm would, at any size and tempo, each demo
+with its own offset, scale, turn, deformation, tempo, hesitations, tremor and sensor noise
+(docs/decisions/026). :func:`shape_corners` gives the corners every demonstration shares (ground truth);
+:func:`check_reachable` checks with Baxter's IK that the arm can draw it."""
 
 from __future__ import annotations
 
@@ -31,7 +18,7 @@ from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation
 
 from studio.core.errors import InvalidInput
-from studio.core.types import Demo, check_arm, readonly
+from studio.core.types import Arm, Demo, check_arm, readonly
 
 if TYPE_CHECKING:
     from studio.core.kinematics import Baxter
@@ -129,7 +116,7 @@ class ShapeSpec:
     shape: str
     size: float
     duration: float
-    arm: str = "left"
+    arm: Arm = "left"
     style: str = "careful"
 
     def __post_init__(self) -> None:
@@ -189,7 +176,7 @@ def _loose_progress(rng: np.random.Generator, n: int) -> np.ndarray:
 
 
 def shape_demo(spec: ShapeSpec, seed: int, *, rate_hz: float = 1000.0, name: str | None = None) -> Demo:
-    """One human-like demonstration of ``spec`` (see module docstring); deterministic for a given seed.
+    """One human-like demonstration of ``spec`` (its variation: docs/decisions/026); deterministic for a given seed.
 
     Returns:
         A :class:`Demo`: rest, stroke, rest; about ``spec.duration`` × (0.85–1.15) s of stroke plus 0.2–0.5 s
@@ -296,7 +283,7 @@ def shape_corners(spec: ShapeSpec, seed: int = 0) -> np.ndarray:
 
 
 @lru_cache(maxsize=2)
-def ready_pose(arm: str = "left") -> np.ndarray:
+def ready_pose(arm: Arm = "left") -> np.ndarray:
     """(7,) joint angles holding the gripper at the drawing plane's centre, pointing forward: the seed for IK
     along a shape (the studio's untuck pose points the gripper down, too far from this for one IK solve)."""
     from studio.core.kinematics import Baxter
@@ -361,7 +348,7 @@ def check_reachable(
     return worst_p, worst_o
 
 
-def joint_angles(demo: Demo, arm: str, *, knots_hz: float = 50.0, baxter: Baxter | None = None) -> np.ndarray:
+def joint_angles(demo: Demo, arm: Arm, *, knots_hz: float = 50.0, baxter: Baxter | None = None) -> np.ndarray:
     """(N, 7) joint angles that draw ``demo`` with ``arm`` (IK at ``knots_hz``, cubic between), e.g. to seed
     execution like a recording's joints."""
     from studio.core.kinematics import Baxter

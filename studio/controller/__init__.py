@@ -1,27 +1,10 @@
 """The studio's controller: its state and every action, over the core, the robot backend and the storage.
 
-It knows nothing of viser (:class:`studio.app.Studio` has one and adds the server, scene and panels), so it
-runs and is tested without a browser. One module per concern:
-
-    events.py     Topic, Events: what changed, for the views to redraw
-    context.py    Context (open session, lock, events, notifications, work thread), Notifier, LogNotifier
-    pose.py       PoseSource, Display: which robot pose the scene draws
-    teaching.py   Teaching: arms, moving the live robot (IK), reach, recording
-    demos.py      Demos, DemoSummary: the demonstrations, their cache and edits
-    learning.py   KeypointTuning (threshold settings, k, the live key-point view)
-    livepath.py   LivePaths: the learned path recomputed while the thresholds move
-    suggest.py    Suggesting: Suggest thresholds (progress, cancel, undo)
-    training.py   Training: train, the verdict on the skill, what the panels show about it
-    playback.py   Player, Playback: preview of the skill and replay of a demo, one mechanism
-    sessions.py   SessionActions: open, new, save, duplicate, zip, CSV; switching sessions
-    scene.py      SceneActions: the objects on the table, the live world, replay/preview objects, task result
-    execution.py  ExecutionActions: Run on robot, Stop, Emergency stop, the last run against its plan
-    run.py        Run, RunStatus: one run on the robot (recording, progress, judgement) and its words
-    view.py       View: the step the teacher is at and which scene layers are drawn
-
-No part takes another: each gets the :class:`Context` and narrow protocols or callables for what it asks,
-and subscribes to the events it follows. ARCHITECTURE.md ("The controller") has the wiring and the threads.
-"""
+It knows nothing of viser (:class:`studio.app.Studio` adds the server, scene and panels), so it runs and is
+tested without a browser. One module per concern (``events``, ``context``, ``teaching``, ``demos``,
+``learning``, ``livepath``, ``suggest``, ``training``, ``playback``, ``sessions``, ``scene``, ``execution``,
+``run``, ``view``, ``pose``). No part takes another: each gets the :class:`Context` and narrow protocols or
+callables (ARCHITECTURE.md, "The controller")."""
 
 from __future__ import annotations
 
@@ -85,7 +68,8 @@ class Controller:
         # bound: a part is asked only once all exist); it subscribes to the events it follows itself.
         self.view = View(ctx.events)
         self.demos = Demos(ctx)
-        self.playback = Player(ctx, guard=lambda: self.execution.check_not_running())
+        self.placed = PlacedSkills(ctx)  # the skills where the objects are now: what preview and runs play
+        self.playback = Player(ctx, guard=lambda: self.execution.check_not_running(), skills=self.placed.get)
         self.scene = SceneActions(ctx, backend, player=self.playback)
         self.teaching = Teaching(ctx, backend, takes=self.scene, motion_guard=lambda d: self.execution.check_free(d))
         self.keypoints = KeypointTuning(ctx, self.demos)
@@ -105,11 +89,9 @@ class Controller:
             hands=self.teaching,
             training_busy=lambda: self.training.busy,
             unload_playback=self.playback.unload,
+            skills=self.placed.get,
+            warnings=self.placed.warnings,
         )
-        self.placed = PlacedSkills(ctx)  # the skills where the objects are now: what preview and runs play
-        self.playback.skills = self.placed.get
-        self.execution.warnings = self.placed.warnings
-        self.execution.skills = self.placed.get
         self.sessions = SessionActions(ctx, persist=self.keypoints.persist)
 
     @property

@@ -1,29 +1,10 @@
 """Running the learned skill on the robot ("Run on robot"), stopping it, the emergency stop, and the last run.
 
-:meth:`ExecutionActions.run` takes every learned skill of the session (both arms when both are taught), checks
-that the robot can follow it (:func:`~studio.core.execution.skill_feasibility`, on the joint trajectories
-training already computed, which Preview plays too), plans it from where the robot is now
-(:func:`~studio.core.execution.plan_execution`: a slow approach to the skill's start, then the skill) and sends
-it to the robot backend as a :class:`~studio.controller.run.Run`. While the robot runs:
-
-* the drawn robot is the live one (a preview or replay is unloaded and refused until the run ends); the objects
-  on the table start from the session's set-up and respond to the robot's real joint states (the live world of
-  :class:`~studio.controller.scene.SceneActions`);
-* its joint states are recorded by the same :class:`~studio.recorder.Recorder` as a demonstration, written to
-  disk as they arrive, into a temporary folder of the run's own (never the session's demonstration folder).
-  At the end the recording is read back and the file deleted: the run is kept in memory as the studio's
-  **last run** (plan, recording, tracking report, task result) until the next run, a new skill or another
-  session. It is a check of the skill, not teaching material, so it is never added to the demonstrations;
-* a thread follows the robot's progress; at the end the run is compared with its plan and the task result is
-  measured on what the objects did during the run, in one sentence: "The robot followed the plan within
-  0.4 mm; the block ended 0.5 cm from where you put it — the skill works."
-
-:meth:`~ExecutionActions.stop` is the controlled stop (the robot slows down along the path);
-:meth:`~ExecutionActions.emergency_stop` halts it within one control cycle, at any time, and refuses every motion
-(runs, moves by hand, recordings) until :meth:`~ExecutionActions.release_emergency_stop`.
-:attr:`Topic.EXECUTION` is emitted when a run starts, changes phase and is judged, and when the emergency stop
-is engaged or released; :attr:`~ExecutionActions.status` also carries the progress (the panels poll it).
-"""
+:meth:`ExecutionActions.run` checks that the robot can follow every learned skill, plans it from where the
+robot is (a slow approach, then the skill) and starts a :class:`~studio.controller.run.Run`; the last run
+(plan, recording, tracking report, task result) is kept in memory, never as a demonstration
+(docs/decisions/028). :meth:`~ExecutionActions.stop` slows down along the path; the emergency stop halts
+within one control cycle and refuses motion until released."""
 
 from __future__ import annotations
 
@@ -54,7 +35,7 @@ from studio.core import sampling
 from studio.core.errors import StudioError
 from studio.core.execution import ExecutionPlan, TrackingReport, plan_execution, skill_feasibility
 from studio.core.ik_path import Feasibility
-from studio.core.types import Recording, Skill
+from studio.core.types import Arm, Recording, Skill
 from studio.robot_backend.base import ExecutionProgress, RobotBackend
 from studio.world import TaskResult
 
@@ -80,7 +61,8 @@ class ExecutionActions:
     Args:
         objects: the objects on the table during a run; hands: whether a take is recorded, and forgetting the
             hand-moved targets once the robot moved by itself; training_busy, unload_playback: what a run
-            checks and does first.
+            checks and does first; skills: what a run plays (default: the session's, as learned); warnings:
+            objects where no demonstration put them, in words.
     """
 
     def __init__(
@@ -92,6 +74,8 @@ class ExecutionActions:
         hands: Hands,
         training_busy: Callable[[], bool],
         unload_playback: Callable[[], None],
+        skills: Callable[[], Mapping[Arm, Skill]] | None = None,
+        warnings: Callable[[], list[str]] = list,
     ) -> None:
         self.ctx = ctx
         self.backend = backend
@@ -104,16 +88,16 @@ class ExecutionActions:
         self._status = RunStatus()
         self._run: Run | None = None
         self._last: Run | None = None
-        self._feasible: dict[str, tuple[Skill, Feasibility]] = {}
+        self._feasible: dict[Arm, tuple[Skill, Feasibility]] = {}
         self._paths = RunPaths()
         self.plan: ExecutionPlan | None = None
         self.recording: Recording | None = None
         self.report: TrackingReport | None = None
         self.task: TaskResult | None = None
-        #: Objects where no demonstration put them, in words (set by the controller; told when a run starts).
-        self.warnings: Callable[[], list[str]] = list
-        #: The skills a run plays (set by the controller: placed where the objects are now).
-        self.skills: Callable[[], Mapping[str, Skill]] = lambda: ctx.session.skills
+        #: Objects where no demonstration put them, in words (told when a run starts).
+        self.warnings = warnings
+        #: The skills a run plays (the controller's: placed where the objects are now).
+        self.skills: Callable[[], Mapping[Arm, Skill]] = skills or (lambda: ctx.session.skills)
         ctx.on_leave(self._check_leave)
         ctx.events.on(Topic.SKILL, self._forget_last_run)
         ctx.events.on(Topic.SESSION, self._forget_last_run)
@@ -134,7 +118,7 @@ class ExecutionActions:
     def running(self) -> bool:
         return self._run is not None
 
-    def feasibility(self) -> dict[str, Feasibility]:
+    def feasibility(self) -> dict[Arm, Feasibility]:
         """arm -> whether the robot can follow its learned skill, in plain words (computed once per skill)."""
         out = {}
         for arm, skill in sampling.executable(self.skills()).items():
@@ -148,10 +132,10 @@ class ExecutionActions:
             out[arm] = hit[1]
         return out
 
-    def unreachable_paths(self) -> dict[str, list[np.ndarray]]:
+    def unreachable_paths(self) -> dict[Arm, list[np.ndarray]]:
         """arm -> the stretches (each (n, 3) m) of its learned path the robot cannot follow, to draw in red."""
         skills = self.skills()
-        out: dict[str, list[np.ndarray]] = {}
+        out: dict[Arm, list[np.ndarray]] = {}
         for arm, f in self.feasibility().items():
             pos = np.asarray(skills[arm].trajectory.position)
             out[arm] = [pos[s.i_start : s.i_end + 2] for s in f.spans]

@@ -1,17 +1,10 @@
 """One run of a plan on the robot (what :class:`~studio.controller.execution.ExecutionActions` starts): its
 recording, its trace, following its progress, judging it at the end; and the run's status in plain words.
 
-* :meth:`Run.start` puts the objects back to the set-up, starts a :class:`~studio.recorder.Recorder` (the same as
-  for a demonstration, written to disk as the joint states arrive) in a temporary folder of the run's own — never
-  the session's demonstration folder, whose leftovers crash recovery turns into demonstrations — and sends the
-  plan to the robot. Once the approach is over and the skill itself starts, the objects' world starts again
-  from the set-up with the samples from that moment on (:meth:`SceneActions.begin_run`), so the grippers'
-  close/open detection starts from the skill's first openings, as in the preview.
-* :meth:`Run.follow` reads the robot's progress until it reports the end (or the run is abandoned);
-  :meth:`Run.judge` reads the recording back, compares it with the plan
-  (:func:`~studio.core.execution.compare_execution`) and measures the task result on what the objects did
-  (:meth:`SceneActions.end_run`); :meth:`Run.release` deletes the recorder file and its folder.
-"""
+:meth:`Run.start` puts the objects back, records into a temporary folder of the run's own (never the
+session's demonstration folder, docs/decisions/028) and sends the plan; :meth:`Run.follow` reads the
+progress; :meth:`Run.judge` compares the recording with the plan and measures the task result;
+:meth:`Run.release` deletes the recorder's file."""
 
 from __future__ import annotations
 
@@ -31,7 +24,7 @@ import numpy as np
 from studio.core.errors import StudioError
 from studio.core.execution import ExecutionPlan, TrackingReport, compare_execution
 from studio.core.kinematics import Baxter
-from studio.core.types import Recording
+from studio.core.types import Arm, Recording
 from studio.recorder import Recorder
 from studio.robot_backend.base import ExecutionProgress, JointStateBatch, RobotBackend
 from studio.world import TaskResult, format_distance
@@ -98,8 +91,8 @@ class RunPaths:
     ``executed``, where the gripper really went. ``key`` changes whenever they do."""
 
     key: tuple[int, ...] = ()
-    approach: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
-    executed: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
+    approach: dict[Arm, np.ndarray] = dataclasses.field(default_factory=dict)
+    executed: dict[Arm, np.ndarray] = dataclasses.field(default_factory=dict)
 
 
 class Trace:

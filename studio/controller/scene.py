@@ -2,21 +2,9 @@
 acts on, the objects of each recorded take, the objects shown during a replay or the preview, and the task
 result of the learned skill in plain words.
 
-* **Live**: a :class:`~studio.world.World` of the session's scene listens to the robot backend; the pose pump
-  draws :meth:`SceneActions.shown` whenever its key changes.
-* **Recording**: each take starts with the objects where the teacher set them up (unless a gripper holds
-  one); at Stop the world's events since the start of the take, times on the recording's clock, are kept
-  with the demonstration (:meth:`SceneActions.end_take`).
-* **Replay and preview**: a world of their own, started from the demonstration's recorded start (or the
-  scene's set-up for the preview) and played up to the moment shown (forward by feeding, backward by
-  starting over), so a seek, a pause or a speed change always shows the objects as they were.
-* **A run on the robot** (:mod:`studio.controller.execution`): the objects go back to the set-up when it starts
-  and again when the skill itself starts (:meth:`SceneActions.begin_run`); the live world responds to the real
-  joint states; :meth:`SceneActions.end_run` judges what it did against the demonstrations.
-* **Task result**: the preview played through the scene (:func:`~studio.world.simulate`) against what the
-  shown demonstrations did (:func:`~studio.world.task_goal`), recomputed when a skill is learned or the
-  scene or demonstrations change (:attr:`Topic.TASK`).
-"""
+The live :class:`~studio.world.World` listens to the robot backend; a take keeps the world's events since
+its start (:meth:`SceneActions.end_take`); replay and preview play a world of their own up to the moment
+shown; a run on the robot restarts the objects (:meth:`SceneActions.begin_run`, :meth:`SceneActions.end_run`)."""
 
 from __future__ import annotations
 
@@ -30,7 +18,7 @@ import numpy as np
 
 from studio.controller.context import Context
 from studio.controller.events import Topic
-from studio.controller.playback import Playback
+from studio.controller.playback import Playback, PlaybackKind
 from studio.core.errors import StudioError
 from studio.core.types import ARMS, Recording
 from studio.robot_backend.base import RobotBackend
@@ -193,7 +181,7 @@ class SceneActions:
         rec = pb.recording
         if self._played is None or self._played[0] is not pb:
             start = None
-            if pb.kind == "replay":
+            if pb.kind == PlaybackKind.REPLAY:
                 i = next((k for k, r in enumerate(self.ctx.session.recordings) if r is pb.key), None)
                 start = self.demo_start(i) if i is not None else None
             self._played = (pb, World(self.scene, self.ctx.baxter, start=start), 0)

@@ -1,47 +1,19 @@
-"""Suggest thresholds: search the key-point thresholds and k for the best held-out fidelity (GUI-free).
+"""Search the key-point thresholds and k for the best held-out fidelity (GUI-free): :func:`suggest`.
 
-What is searched: the Detail control (:mod:`studio.core.thresholds`: one number that moves the coupled
-thresholds ε2–ε7 and ε10–ε14 together, in real units that follow the demonstrations) and k, the number of
-clusters (a factor on the paper's default, the mean number of key-points per demo). A candidate is scored by
-**held-out fidelity**: for each fold, the skill's path is learned from all demonstrations but one
-(:func:`studio.core.pipeline.learn_path`, 50 Hz) and compared with the one left out (normalised DTW, the
-paper's squared cost); the score is the mean over folds ÷ the demos' mean pairwise normalised DTW (G/R held
-out, lower is better). With more than :data:`MAX_FOLDS` demos, that many evenly spread demos are left out.
-
-Search: the current settings ("before"), then Detail −2, −1, 0, 1, 2 with the default k, then ±0.5 around the
-best and k × 0.75 and × 1.3 at the best (about 10 candidates × 3 folds). A candidate must be better by 2 % to
-displace one with less detail (fewer key-points generalise better when the figures tie). The current
-thresholds stay (``changed`` False, "already good") when they are the defaults and nothing is 2 % better, or
-they are the teacher's own and nothing is as good: a suggestion never makes the held-out figure worse.
-
-Speed: "before" is scored in this process first, which derives the demos' series and DTW maps; the other
-candidates are then evaluated in :data:`WORKERS` worker processes **forked** for the search, which inherit all
-of that (no demo is pickled, nothing is computed twice). Threads do not help here: measured in the same run,
-16 learns took 5.9 s serially and 6.2 s on two threads, since hmmlearn and the key-point scan hold the GIL. A
-persistent "forkserver" pool was tried first: each worker had to receive the demos and derive their series and
-DTW maps again, and the first search took 4.2 s against 2.6 s in one process (bench_quality.py, load 3–5).
-One candidate per task
-so the progress callback moves and a cancel returns at once. Each worker keeps the demos and their derived
-series and DTW maps between batches of the same search. Budget ≤ 5 s for 3 demos × 30,000 samples; figures
-in bench/README.md (bench/bench_quality.py).
-
-Usage (GUI: on a work thread, then apply ``result.settings`` and ``result.n_clusters`` as one undoable change)::
-
-    cancel = threading.Event()
-    result = suggest(demos, current=settings, progress=lambda f, msg: ..., cancel=cancel)
-    if not result.cancelled: apply(result.settings, result.n_clusters); show(result.summary)
-"""
+Searched: ``detail`` (:mod:`studio.core.thresholds`) and k (a factor on the paper's default). The score is
+held-out G/R: the path learned without one demo (:func:`studio.core.pipeline.learn_path`) against that demo,
+over at most :data:`MAX_FOLDS` folds. The current settings first, then coarse ``detail`` values, then around
+the best and other k; the current thresholds stay (``changed`` False) unless something does better.
+Candidates run here or in the caller's ``executor`` (docs/decisions/030)."""
 
 from __future__ import annotations
 
 import hashlib
 import math
-import multiprocessing
-import os
 import threading
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, Executor, Future, wait
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,13 +22,11 @@ from studio.core.errors import NotEnoughData, StudioError
 from studio.core.thresholds import DemoStats, ThresholdSettings, auto_params
 from studio.core.types import Demo, KeypointParams
 
-#: Worker processes (both cores of the target machine).
-WORKERS = max(1, min(2, os.cpu_count() or 1))
 #: At most this many demos are left out in turn.
 MAX_FOLDS = 3
-#: Coarse Detail values tried first.
+#: Coarse ``detail`` values tried first.
 COARSE_DETAIL = (-2.0, -1.0, 0.0, 1.0, 2.0)
-#: k factors tried at the best Detail.
+#: k factors tried at the best ``detail``.
 K_FACTORS = (0.75, 1.3)
 #: Relative improvement needed to prefer more detail or a different k.
 MARGIN = 0.02
@@ -64,7 +34,7 @@ MARGIN = 0.02
 
 @dataclass(frozen=True)
 class Candidate:
-    """One point of the search: Detail, a factor on the default k (1 = the paper's k), or fixed values.
+    """One point of the search: ``detail``, a factor on the default k (1 = the paper's k), or fixed values.
 
     ``fixed`` holds thresholds to use as they are (the teacher's current ones for "before"); ``k`` a fixed k.
     """
@@ -94,10 +64,10 @@ class Score:
 
 @dataclass(frozen=True)
 class TuneResult:
-    """What Suggest found.
+    """What the search found.
 
     Attributes:
-        settings: the suggested :class:`ThresholdSettings` (Detail; every threshold automatic).
+        settings: the suggested :class:`ThresholdSettings` (``detail``; every threshold automatic).
         params: the same as the fourteen values in real units for these demos.
         n_clusters: the suggested k, or None for the paper's default (mean key-points per demo).
         before, after: held-out figures of the current settings and of the suggestion.
@@ -121,8 +91,10 @@ class TuneResult:
     changed: bool = True
 
 
-# -- the work (runs in the worker processes, or in-process with workers=1) -------------------------------------
+# -- the work (in the calling thread, or a task of the caller's executor) -----------------------------------------
 
+#: The last search's demos and derived data in this process, by search token (a worker keeps them between its
+#: tasks; a second search on the same demos reuses them).
 _STATE: dict[str, tuple] = {}
 
 
@@ -174,33 +146,24 @@ def _score(c: Candidate, st: tuple, folds: Sequence[int]) -> Score:
     )
 
 
-def _evaluate(
-    token: str, demos: list[Demo], generalization: str, folds: list[int], cands: list[Candidate]
-) -> list[Score]:
-    st = _state(token, demos, generalization)
+def evaluate(
+    token: str, demos: list[Demo] | None, generalization: str, folds: list[int], cands: list[Candidate]
+) -> list[Score] | None:
+    """One task: score ``cands`` for the search ``token`` (picklable, for an executor of processes). ``demos`` may
+    be None when this process already holds the search's data; then None is returned if it does not."""
+    if demos is None and token not in _STATE:
+        return None
+    st = _state(token, demos or [], generalization)
     return [_score(c, st, folds) for c in cands]
 
 
-# -- the pool ----------------------------------------------------------------------------------------------------
-
-
-def _evaluate_inherited(token: str, folds: list[int], cands: list[Candidate]) -> list[Score]:
-    """In a forked worker: the search's demos, series and DTW maps were inherited from the parent."""
-    st = _STATE[token]
-    return [_score(c, st, folds) for c in cands]
-
-
-def _fork_pool(workers: int) -> ProcessPoolExecutor:
-    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("fork"))
-
-
-def warm_up(workers: int = WORKERS) -> None:
-    """Load the learning pipeline ahead of the first Suggest (the workers are forked from this process)."""
+def warm_up() -> None:
+    """Load the learning pipeline (a worker process's first task, ahead of the first search)."""
     from studio.core import pipeline, quality  # noqa: F401
 
 
 def shutdown() -> None:
-    """Forget the last search's demos and derived data (workers live only during a search)."""
+    """Forget the last search's demos and derived data in this process."""
     _STATE.clear()
 
 
@@ -208,7 +171,7 @@ def shutdown() -> None:
 
 
 def _fingerprint(demos: Sequence[Demo]) -> str:
-    """A cheap content key of the demos: a worker that already holds them (a second Suggest on the same demos)
+    """A cheap content key of the demos: a worker that already holds them (a second search on the same demos)
     keeps their derived series and DTW maps."""
     h = hashlib.blake2b(digest_size=12)
     for d in demos:
@@ -234,14 +197,14 @@ def _better(a: Score, ca: Candidate, b: Score, cb: Candidate) -> bool:
 
 
 class _Search:
-    """One search's scoring: "before" here (it derives the demos' series and DTW maps), the other candidates in
-    this process or in worker processes forked after that (they inherit them); counts progress, honours cancel."""
+    """One search's scoring: "before" here (it derives the demos' series and DTW maps), the other candidates here
+    or as tasks of ``executor``; counts progress, honours cancel."""
 
     def __init__(
         self,
         demos: list[Demo],
         generalization: str,
-        workers: int,
+        executor: Executor | None,
         progress: Callable[[float, str], None] | None,
         cancel: threading.Event | None,
     ) -> None:
@@ -250,10 +213,9 @@ class _Search:
         self.folds = _folds(len(demos))
         self.token = f"{_fingerprint(demos)}-{generalization}"
         self.st = _state(self.token, demos, generalization)
-        self.workers = workers
+        self.executor = executor
         self.progress = progress
         self.cancel = cancel
-        self.pool: ProcessPoolExecutor | None = None
         self.done = 0
         self.planned = 1 + len(COARSE_DETAIL) + 2 + len(K_FACTORS)
         self.cancelled = False
@@ -268,34 +230,38 @@ class _Search:
         return self.cancelled
 
     def first(self, before_c: Candidate) -> Score | None:
-        """Score "before" in this process, then start the workers (they inherit what it derived)."""
+        """Score "before" in this thread (it derives the demos' series and DTW maps)."""
         self.report("Measuring the current thresholds")
         if self.stopped():
             return None
         score = _score(before_c, self.st, self.folds)
         self.done += 1
-        if self.workers > 1:
-            self.pool = _fork_pool(self.workers)
         return score
 
     def run(self, cands: list[Candidate], msg: str) -> list[Score] | None:
-        """Score candidates (one per task across the workers); None if cancelled."""
-        if self.pool is None:
+        """Score candidates (one per task of the executor); None if cancelled."""
+        if self.executor is None:
             out = []
             for c in cands:
                 if self.stopped():
                     return None
-                out.extend(_evaluate(self.token, self.demos, self.generalization, self.folds, [c]))
+                out.append(_score(c, self.st, self.folds))
                 self.done += 1
                 self.report(msg)
             return out
-        futs = {self.pool.submit(_evaluate_inherited, self.token, self.folds, [c]): i for i, c in enumerate(cands)}
+        futs = {self._submit(c): i for i, c in enumerate(cands)}
         res: list[Score | None] = [None] * len(cands)
         pending: set[Future] = set(futs)
         while pending:
             done, pending = wait(pending, timeout=0.05, return_when=FIRST_COMPLETED)
             for f in done:
-                res[futs[f]] = f.result()[0]
+                scores = f.result()
+                if scores is None:  # a worker without the search's data: send it the demos
+                    again = self._submit(cands[futs[f]], with_demos=True)
+                    futs[again] = futs[f]
+                    pending.add(again)
+                    continue
+                res[futs[f]] = scores[0]
                 self.done += 1
                 self.report(msg)
             if self.stopped():
@@ -304,10 +270,10 @@ class _Search:
                 return None
         return [r for r in res if r is not None]
 
-    def close(self) -> None:
-        if self.pool is not None:
-            self.pool.shutdown(wait=False, cancel_futures=True)
-            self.pool = None
+    def _submit(self, c: Candidate, *, with_demos: bool = False) -> Future[list[Score] | None]:
+        assert self.executor is not None
+        demos = self.demos if with_demos else None
+        return self.executor.submit(evaluate, self.token, demos, self.generalization, self.folds, [c])
 
 
 def _before(current: ThresholdSettings | KeypointParams | None, stats: DemoStats, k: int | None) -> Candidate:
@@ -331,7 +297,7 @@ def _rounds(
 ) -> tuple[Candidate, Score, Score, int, bool]:
     """The search itself: (best candidate, its score, "before", candidates scored, every round done).
 
-    Round 1: "before" and the coarse Detail values (Detail 0 is the incumbent the others challenge); round 2:
+    Round 1: "before" and the coarse ``detail`` values (0 is the incumbent the others challenge); round 2:
     ±0.5 around the best; round 3: other k at the best. A round starts only within the time budget.
     """
     nothing = Score(math.inf, math.inf, math.nan, math.nan)
@@ -365,10 +331,10 @@ def suggest(
     generalization: str | None = None,
     progress: Callable[[float, str], None] | None = None,
     cancel: threading.Event | None = None,
-    workers: int = WORKERS,
+    executor: Executor | None = None,
     budget_s: float = 5.0,
 ) -> TuneResult:
-    """Search Detail and k for the best held-out fidelity (module docstring).
+    """Search ``detail`` and k for the best held-out fidelity (module docstring; docs/decisions/011).
 
     Args:
         demos: the shown demonstrations (at least two).
@@ -376,8 +342,8 @@ def suggest(
         n_clusters: the k in use (None = the paper's default).
         generalization: the mode to tune for (default: the pipeline's default).
         progress: called with (fraction 0…1, plain-words step) as candidates finish, from this thread.
-        cancel: set it to stop; :func:`suggest` then returns within about 50 ms with ``cancelled=True``.
-        workers: processes to use (1 = in this process, no pool).
+        cancel: set it to stop; :func:`suggest` then returns early with ``cancelled=True``.
+        executor: runs the candidates after "before" (threads, or processes the caller started); None: here.
         budget_s: stop starting new rounds after this many seconds (the result says ``complete=False``).
 
     Raises:
@@ -395,11 +361,8 @@ def suggest(
     generalization = generalization or DEFAULT_GENERALIZATION
     stats = DemoStats.of(demos)
     before_c = _before(current, stats, n_clusters)
-    search = _Search(demos, generalization, workers, progress, cancel)
-    try:
-        best_c, best, before, evaluated, complete = _rounds(search, before_c, t0, budget_s)
-    finally:
-        search.close()
+    search = _Search(demos, generalization, executor, progress, cancel)
+    best_c, best, before, evaluated, complete = _rounds(search, before_c, t0, budget_s)
     defaults = n_clusters is None and (current is None or current == ThresholdSettings())
     # the defaults stay unless something is clearly better; the teacher's own values unless something is as good
     better = best.g_over_r < before.g_over_r * (1.0 - MARGIN) if defaults else best.g_over_r <= before.g_over_r
@@ -445,10 +408,10 @@ def _suggested_k(demos: list[Demo], params: KeypointParams, k_factor: float) -> 
 __all__ = [
     "COARSE_DETAIL",
     "K_FACTORS",
-    "WORKERS",
     "Candidate",
     "Score",
     "TuneResult",
+    "evaluate",
     "shutdown",
     "suggest",
     "warm_up",

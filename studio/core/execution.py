@@ -1,15 +1,9 @@
 """From a learned skill to what the robot executes, and back: joint trajectory, execution plan, tracking report.
 
-* :func:`joint_trajectory` — the skill's Cartesian trajectory as joint angles the robot can play: whole-path
-  IK (:mod:`studio.core.ik_path`) timed within the joint velocity and acceleration limits at the taught
-  pace (:mod:`studio.core.timing`, toppra). A tracking failure never stretches the time line: unreachable
-  stretches keep the closest continuous pose and are reported by :func:`skill_feasibility`.
-* :func:`plan_execution` — one or both arms' joint trajectories as a single 14-joint plan at the robot's
-  rate, with a slow approach from where the arms are to the skill's start (rest to rest, within the limits);
-  this is what a :class:`~studio.robot_backend.base.RobotBackend` executes.
-* :func:`compare_execution` — a recording of the execution against the plan: joint and gripper-position
-  tracking error over time (what the studio draws beside the planned path).
-"""
+:func:`joint_trajectory`: whole-path IK (:mod:`studio.core.ik_path`) timed within the joint limits at the
+taught pace (:mod:`studio.core.timing`); unreachable stretches keep the closest continuous pose and are
+reported by :func:`skill_feasibility`. :func:`plan_execution`: one or both arms as one 14-joint plan with a
+slow approach from where the arms are. :func:`compare_execution`: a recording of the run against the plan."""
 
 from __future__ import annotations
 
@@ -32,7 +26,7 @@ from studio.core.ik_path import (
 )
 from studio.core.kinematics import Baxter, matrix_from_quat_wxyz
 from studio.core.timing import _trapezoid, _trapezoid_progress, retime
-from studio.core.types import ALL_ARM_JOINTS, ARMS, Demo, JointTrajectory, Recording, check_arm, readonly
+from studio.core.types import ALL_ARM_JOINTS, ARMS, Arm, Demo, JointTrajectory, Recording, check_arm, readonly
 
 #: A start pose farther than this from anything the arm can reach refuses the whole skill (IkFailed).
 START_POSITION_M = 0.01
@@ -67,7 +61,7 @@ def _pose_at(trajectory: Demo, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def joint_trajectory(
     trajectory: Demo,
-    arm: str,
+    arm: Arm,
     q_seed: np.ndarray,
     baxter: Baxter | None = None,
     *,
@@ -179,7 +173,7 @@ class ExecutionPlan:
     t: np.ndarray
     q: np.ndarray
     gripper: np.ndarray
-    arms: tuple[str, ...]
+    arms: tuple[Arm, ...]
     skill_start: float
     skill_time: np.ndarray
     rate_hz: float
@@ -212,7 +206,7 @@ class ExecutionPlan:
 
 
 def plan_execution(
-    joint_trajectories: Mapping[str, JointTrajectory],
+    joint_trajectories: Mapping[Arm, JointTrajectory],
     q_now: np.ndarray,
     gripper_now: np.ndarray,
     baxter: Baxter | None = None,
@@ -319,10 +313,10 @@ class TrackingReport:
     t: np.ndarray
     plan_time: np.ndarray
     joint_error: np.ndarray
-    position_error: dict[str, np.ndarray]
-    path_error: dict[str, np.ndarray]
-    planned_position: dict[str, np.ndarray]
-    executed_position: dict[str, np.ndarray]
+    position_error: dict[Arm, np.ndarray]
+    path_error: dict[Arm, np.ndarray]
+    planned_position: dict[Arm, np.ndarray]
+    executed_position: dict[Arm, np.ndarray]
     gripper_error: np.ndarray
     offset: float
     completed: float

@@ -1,23 +1,10 @@
 """The generalized trajectory (paper § Generalized Trajectory) and its joint-space execution (§ Robot Execution).
 
-The timed path points (centroids, or the mean of the key-points Viterbi assigned to each state, with
-zero-points removed) are joined by cubic smoothing-spline regression (scipy ``make_smoothing_spline``,
-penalised least squares Σ w (y − f)² + λ ∫ f''²) and sampled at the demonstrations' rate:
-
-* position and quaternion components are fitted together; λ = ``smoothing`` · h³ with h the median spacing
-  of the points in seconds (λ has units of s³, so this keeps the same amount of smoothing whatever the
-  pace), weights = number of key-points behind each point (×10 for the first and the last: the skill
-  must start and end where the demonstrations do; ``SMOOTHING`` was lowered from 0.02 to 0.005 after the
-  quality tests showed the end pose pulled 5–7 mm off by the smoother fit); quaternions are made sign-continuous before
-  the fit and renormalised after it;
-* the gripper is not splined: it is a step signal. Consecutive path points whose opening differs by less
-  than :data:`GRIPPER_LEVEL_TOL` form one level (their weighted mean: the learned opening and grasp width,
-  which the paper stresses); the step is half-way in time between the last point of one level and the
-  first of the next — both are gripper-event key-points at the grasp pose, so the step happens there.
-
-Execution (:func:`joint_trajectory`, re-exported from :mod:`studio.core.execution`): whole-path IK and
-timing within Baxter's joint velocity and acceleration limits at the taught pace (toppra).
-"""
+The timed path points are joined by a cubic smoothing spline (scipy ``make_smoothing_spline``), position and
+quaternion components together, weighted by the key-points behind each point (the ends most), and sampled at
+the demonstrations' rate; the gripper is a step signal between levels, switching at the gripper-event
+key-points. Choices and figures: docs/decisions/015. :func:`joint_trajectory` (from
+:mod:`studio.core.execution`) turns the path into timed joint angles."""
 
 from __future__ import annotations
 
@@ -102,7 +89,7 @@ def generalize(
         t_start, t_end: sampled interval (default the first and last point); outside the points the
             trajectory holds the end values.
         rate_hz: output rate.
-        smoothing: λ / h³ (see module docstring).
+        smoothing: λ / h³ (docs/decisions/015).
 
     Returns:
         A :class:`Demo` (t, position, unit sign-continuous orientation, step gripper).

@@ -4,7 +4,7 @@ The end-effector frame is ``<arm>_gripper``: the point between the fingertips, 0
 It is the frame the Baxter SDK reports as the endpoint pose and the one its IK service (which the paper
 uses for execution) solves for, so demonstrations, the learned skill and execution all speak of it.
 
-Poses are expressed in the URDF root frame ``base`` (Baxter's torso base), positions in metres and
+Poses are given in the URDF root frame ``base`` (Baxter's torso base), positions in metres and
 orientations as unit quaternions w, x, y, z.
 """
 
@@ -23,7 +23,7 @@ import pinocchio as pin
 
 from studio.core.errors import InvalidInput
 from studio.core.rotations import make_sign_continuous, matrix_from_quat_wxyz, quat_angle, quat_wxyz_from_matrix
-from studio.core.types import ARM_JOINTS, ARMS, check_arm, readonly
+from studio.core.types import ARM_JOINTS, ARMS, Arm, check_arm, readonly
 
 #: The paper's Table I (Denavit–Hartenberg, standard convention): rows (d, a, alpha) for joints 1..7.
 DH_TABLE: np.ndarray = readonly(
@@ -41,7 +41,7 @@ DH_TABLE: np.ndarray = readonly(
 DH_TABLE_EXACT_ALPHA: np.ndarray = readonly(
     np.column_stack([DH_TABLE[:, :2], np.round(DH_TABLE[:, 2] / 1.571) * math.pi / 2])
 )
-#: Joint offset that maps URDF joint angles onto the table's θ (measured: only s1 differs, by +π/2).
+#: Joint offset that maps URDF joint angles onto the table's θ (only s1 differs, by +π/2).
 DH_JOINT_OFFSET: np.ndarray = readonly([0.0, math.pi / 2, 0.0, 0.0, 0.0, 0.0, 0.0])
 #: Constant translation from ``<arm>_arm_mount`` to the DH base frame, metres.
 DH_BASE_OFFSET: np.ndarray = readonly([0.055695, 0.0, 0.011038])
@@ -55,10 +55,8 @@ EE_FRAME = "{arm}_gripper"
 #: (moveit_robots) and 1.0 rad/s² (RethinkRobotics/baxter_simulator) for every joint — and would slow down
 #: every demonstration, which the robot itself made under a person's hand. CoppeliaSim's Baxter model
 #: (PyRep ``BaxterLeft``) uses 4 rad/s². We take 4 rad/s² for the shoulder and elbow (s0–e1, URDF speed
-#: 1.5 rad/s reached in 0.375 s) and 8 rad/s² for the lighter wrist (w0–w2, 4 rad/s in 0.5 s). Measured
-#: on the scripted teacher's pick-and-place demonstrations (minimum-jerk human reaching): peaks of
-#: 1.5–2.5 rad/s² at the shoulder and up to 5 rad/s² at e1, so a skill's smoothed path keeps the taught
-#: pace except in its fastest reaches, which are slowed just enough.
+#: 1.5 rad/s reached in 0.375 s) and 8 rad/s² for the lighter wrist (w0–w2, 4 rad/s in 0.5 s); the scripted
+#: teacher's demonstrations stay below them except in their fastest reaches (docs/decisions/010).
 ACCELERATION_LIMITS: np.ndarray = readonly([4.0, 4.0, 4.0, 4.0, 8.0, 8.0, 8.0])
 
 
@@ -151,7 +149,7 @@ def _mix(row: list[Any], col: np.ndarray) -> Any:
 class _ArmChain:
     """One arm as seven z-axis revolute joints with fixed placements: FK vectorised over N configurations."""
 
-    def __init__(self, model: pin.Model, arm: str) -> None:
+    def __init__(self, model: pin.Model, arm: Arm) -> None:
         names = ARM_JOINTS[arm]
         self.joint_ids = [model.getJointId(n) for n in names]
         self.idx_q = np.array([model.joints[j].idx_q for j in self.joint_ids])
@@ -176,9 +174,8 @@ class _ArmChain:
         """Gripper rotation (N, 3, 3) and position (N, 3) in the world for joint angles Q (N, 7).
 
         Works on the nine rotation entries as separate (N,) arrays with plain element-wise arithmetic and
-        skips the placements' zero entries (they are axis permutations). Measured on the shared 2-core
-        machine this is 3-5x faster than stacked (N,3,3) matrix products, whose BLAS threads contend
-        with other work.
+        skips the placements' zero entries (they are axis permutations), rather than stacked (N,3,3) matrix
+        products, whose BLAS threads contend with other work (bench/README.md, "Kinematics").
         """
         rot, pos, _, _ = self._chain(Q, joints=False)
         return rot, pos
@@ -186,7 +183,7 @@ class _ArmChain:
     def pose_jacobian_columns(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Gripper rotation (N, 3, 3), position (N, 3) and the 6×7 Jacobian (N, 6, 7) for joint angles Q (N, 7).
 
-        The Jacobian is expressed in the world-aligned frame at the gripper point (pinocchio's
+        The Jacobian is given in the world-aligned frame at the gripper point (pinocchio's
         ``LOCAL_WORLD_ALIGNED``): rows vx, vy, vz, wx, wy, wz. Each joint turns about its frame's z axis,
         so column i is (z_i × (p − o_i), z_i) with o_i, z_i that joint's origin and axis — the same
         element-wise arithmetic as :meth:`pose_columns`, vectorised over N.
@@ -269,24 +266,24 @@ class Baxter:
         return cls(baxter_urdf_path())
 
     # -- limits -------------------------------------------------------------------------------------------
-    def lower_limits(self, arm: str) -> np.ndarray:
+    def lower_limits(self, arm: Arm) -> np.ndarray:
         """(7,) lower joint limits of ``arm`` in radians (URDF)."""
         return self._chains[check_arm(arm)].lower.copy()
 
-    def upper_limits(self, arm: str) -> np.ndarray:
+    def upper_limits(self, arm: Arm) -> np.ndarray:
         """(7,) upper joint limits of ``arm`` in radians (URDF)."""
         return self._chains[check_arm(arm)].upper.copy()
 
-    def velocity_limits(self, arm: str) -> np.ndarray:
+    def velocity_limits(self, arm: Arm) -> np.ndarray:
         """(7,) joint velocity limits of ``arm`` in rad/s (URDF)."""
         return self._chains[check_arm(arm)].velocity.copy()
 
-    def acceleration_limits(self, arm: str) -> np.ndarray:
+    def acceleration_limits(self, arm: Arm) -> np.ndarray:
         """(7,) joint acceleration limits of ``arm`` in rad/s² (see :data:`ACCELERATION_LIMITS`)."""
         check_arm(arm)
         return np.array(ACCELERATION_LIMITS, dtype=np.float64)
 
-    def neutral(self, arm: str) -> np.ndarray:
+    def neutral(self, arm: Arm) -> np.ndarray:
         """A comfortable working configuration in front of the robot (the Baxter SDK's "untuck" pose)."""
         q = np.array([0.08, -1.0, -1.19, 1.94, 0.67, 1.03, -0.50])
         if check_arm(arm) == "right":
@@ -294,7 +291,7 @@ class Baxter:
         return q
 
     # -- forward kinematics -------------------------------------------------------------------------------
-    def fk(self, arm: str, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def fk(self, arm: Arm, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Gripper pose for one configuration.
 
         Args:
@@ -314,7 +311,7 @@ class Baxter:
         quat = np.array([w, x, y, z]) if w >= 0 else -np.array([w, x, y, z])
         return np.array(M.translation), quat / np.linalg.norm(quat)
 
-    def fk_batch(self, arm: str, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def fk_batch(self, arm: Arm, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Gripper poses for N configurations, vectorised.
 
         Args:
@@ -336,7 +333,7 @@ class Baxter:
         rot, pos = chain.pose_columns(Q)
         return pos, make_sign_continuous(quat_wxyz_from_matrix(rot))
 
-    def pose_jacobian_batch(self, arm: str, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def pose_jacobian_batch(self, arm: Arm, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Gripper rotations (N, 3, 3), positions (N, 3) and Jacobians (N, 6, 7) for N configurations.
 
         The Jacobian maps joint velocities to the gripper's linear and angular velocity in world axes
@@ -344,11 +341,11 @@ class Baxter:
         """
         return self._chains[check_arm(arm)].pose_jacobian_columns(np.asarray(Q, dtype=np.float64))
 
-    def rotations_batch(self, arm: str, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def rotations_batch(self, arm: Arm, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Gripper rotation matrices (N, 3, 3) and positions (N, 3) for N configurations (no quaternions)."""
         return self._chains[check_arm(arm)].pose_columns(np.asarray(Q, dtype=np.float64))
 
-    def elbow_swivel(self, arm: str, q: np.ndarray) -> float:
+    def elbow_swivel(self, arm: Arm, q: np.ndarray) -> float:
         """Swivel angle (rad) of the elbow about the shoulder–wrist line; 0 = elbow straight up.
 
         A 7-joint arm reaches one gripper pose with the elbow anywhere on a circle about the line from
@@ -390,7 +387,7 @@ class Baxter:
     # -- inverse kinematics -------------------------------------------------------------------------------
     def ik(
         self,
-        arm: str,
+        arm: Arm,
         position: np.ndarray,
         wxyz: np.ndarray,
         q_seed: np.ndarray,
@@ -402,10 +399,9 @@ class Baxter:
     ) -> IkResult:
         """Full 6-D pose IK by damped least squares, clamped to the URDF joint limits at every step.
 
-        Damped least squares (Levenberg–Marquardt with adaptive damping on the SE(3) log error) is used
-        rather than a QP (pink): it needs no extra solver package, converges in a handful of iterations from
-        a nearby seed (the studio always warm-starts from the current pose), and limit clamping keeps every
-        iterate valid. A target the arm cannot reach ends at the closest pose found, ``converged=False``.
+        Damped least squares (Levenberg–Marquardt with adaptive damping on the SE(3) log error); clamping keeps
+        every iterate within the limits. Meant to be warm-started from a nearby pose (how it compares with pink:
+        docs/decisions/009). A target the arm cannot reach ends at the closest pose found, ``converged=False``.
 
         Args:
             arm: "left" or "right".
@@ -470,7 +466,7 @@ class Baxter:
             iterations=iterations,
         )
 
-    def _reduced_data(self, arm: str) -> pin.Data:
+    def _reduced_data(self, arm: Arm) -> pin.Data:
         key = f"rdata_{arm}"
         d = getattr(self._local, key, None)
         if d is None:
@@ -478,18 +474,18 @@ class Baxter:
             setattr(self._local, key, d)
         return d
 
-    def clamp(self, arm: str, q: np.ndarray) -> np.ndarray:
+    def clamp(self, arm: Arm, q: np.ndarray) -> np.ndarray:
         """Joint angles clipped into the URDF limits."""
         c = self._chains[check_arm(arm)]
         return np.clip(np.asarray(q, dtype=np.float64), c.lower, c.upper)
 
-    def random_configuration(self, arm: str, rng: np.random.Generator, n: int | None = None) -> np.ndarray:
+    def random_configuration(self, arm: Arm, rng: np.random.Generator, n: int | None = None) -> np.ndarray:
         """Uniform random joint angles within the limits: (7,) or (n, 7)."""
         c = self._chains[check_arm(arm)]
         size = (7,) if n is None else (n, 7)
         return rng.uniform(c.lower, c.upper, size=size)
 
-    def hand_in_mount(self, arm: str, q: np.ndarray) -> np.ndarray:
+    def hand_in_mount(self, arm: Arm, q: np.ndarray) -> np.ndarray:
         """(4, 4) transform from ``<arm>_arm_mount`` to ``<arm>_hand_link`` from the URDF (for the DH check)."""
         check_arm(arm)
         q = _as_array("joint angles", q, (7,))

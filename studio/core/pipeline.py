@@ -2,44 +2,9 @@
 
 key-points (keypoints.py) ▸ k-means codebook (clustering.py) ▸ Bakis HMM, Baum–Welch, Viterbi, forward
 selection of the reference (hmm.py) ▸ multidimensional DTW of every demo against the reference
-(alignment.py) ▸ timed path points without zero-points ▸ smoothing spline (generalize.py) ▸ IK (optional).
-
-Path points ("spline_through"):
-
-* ``"state-means"`` (default): the reference's key-points are taken in order as (Viterbi state, k-means
-  cluster) pairs; each pair gives one point, the mean of all demos' key-points with that same state and
-  cluster, timed by the mean of their DTW-aligned times. Usually a pair is just a state; keeping the
-  cluster too matters when Viterbi lets one state absorb two different key-points of the reference (a
-  self-transition) — e.g. the start and the end of a gripper motion at the same pose: one point per state
-  would drop one of them, and the gripper would switch half-way to the neighbouring point, centimetres
-  away from the grasp;
-* ``"centroids"`` (the paper): the k-means centroid of the pair's cluster, timed the same way (not by all
-  the cluster's members: a cluster visited twice, as in pick-and-place there and back, has members at two
-  different times).
-
-The quality tests (tests/core/test_pipeline.py) measure both on the scripted teacher's demonstrations;
-state-means land closer to the demos' start and end poses and to the grasp poses, because a k-means
-cluster can mix key-points from different parts of the task that Viterbi keeps apart by their order.
-
-Generalisation ("generalization", recorded in ``Skill.generalization``):
-
-* ``"paper"``: the paper's cubic smoothing spline through the timed path points above, DTW on the paper's
-  8-D series (the reference mode);
-* ``"aligned-mean"`` (default): every demonstration is aligned to the HMM's reference demonstration by DTW
-  and, at each instant of the reference, the demos' (50 ms smoothed) poses at the matched instants are
-  averaged. The path keeps the demos' shape between key-points (a spline through ~20 points cuts corners
-  and flattens loops) and starts and ends exactly at their mean start and end. Each demo's time map is
-  smoothed over two DTW grid steps (:func:`~studio.core.alignment.smooth_warp`; DTW's staircase made the
-  average jump in speed: 440 m/s² on the scripted pick-and-place, whose demos' smoothed series stay under
-  18 m/s², which the joint timing then had to slow down for), and quaternions are averaged on the
-  reference's side instant by instant (:func:`_aligned_mean`). The gripper is paper mode's
-  step signal (levels and switch times from the path points). DTW for this mode weights orientation down
-  and adds the direction of motion (:data:`DTW_ORIENTATION_WEIGHT`, :data:`DTW_DIRECTION_WEIGHT`).
-  Measured by bench/bench_quality.py on 36 shapes × 3 and 7 demos: median F/B1 0.53 against 0.79 for paper
-  mode, worst 0.99 against 1.79, start/end within 0.1 mm against up to 48 mm. Pinning the average to
-  landmarks (the key-points the demos share with the reference by Viterbi state and cluster) was tried and
-  measured no better (corners worse: 6.5 mm against 3.7 mm at 15 cm), so the alignment is DTW's alone.
-"""
+(alignment.py) ▸ timed path points without zero-points ▸ the path: the paper's smoothing spline
+(generalize.py, ``generalization="paper"``) or the demos averaged along their DTW alignment
+(``"aligned-mean"``, the default) ▸ IK (optional). Why these defaults: docs/decisions/003 and 004."""
 
 from __future__ import annotations
 
@@ -53,7 +18,7 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 
 from studio.core import alignment, hmm, quality
-from studio.core.clustering import FeatureScale, align_hemisphere, cluster, default_n_clusters
+from studio.core.clustering import Clustering, FeatureScale, align_hemisphere, cluster, default_n_clusters
 from studio.core.errors import InvalidInput, NotEnoughData
 from studio.core.generalize import SMOOTHING, demo_pins, generalize, joint_trajectory, pin_poses
 from studio.core.keypoints import KeypointCache
@@ -64,7 +29,9 @@ from studio.core.types import (
     ARMS,
     DEFAULT_GENERALIZATION,
     GENERALIZATIONS,
+    Arm,
     Demo,
+    Generalization,
     KeypointParams,
     Recording,
     Skill,
@@ -75,13 +42,12 @@ from studio.core.types import (
 SPLINE_THROUGH = ("state-means", "centroids")
 #: DTW features besides the scaled pose: orientation is weighted down (on a drawn shape the hand's small
 #: wobble would steer the alignment as much as the path does) and the unit direction of motion is added
-#: (it turns sharply at a corner, so corners align exactly). Chosen on the shape suite (bench_quality.py):
-#: 7 demos × 36 shapes, largest corner error at 15 cm 4.8 mm → 0.9 mm, worst F/B1 0.985 → 0.961.
+#: (it turns sharply at a corner, so corners align exactly); chosen on the shape suite (docs/decisions/003).
 DTW_ORIENTATION_WEIGHT = 0.3
 DTW_DIRECTION_WEIGHT = 0.5
 
 
-def demo_from_recording(rec: Recording, arm: str, baxter: Baxter | None = None) -> Demo:
+def demo_from_recording(rec: Recording, arm: Arm, baxter: Baxter | None = None) -> Demo:
     """One arm of a recording as the paper's 8-D demonstration (forward kinematics of every sample).
 
     Args:
@@ -181,8 +147,8 @@ class _Model:
 
     kps: list[np.ndarray]
     k: int
-    cl: Any
-    model: Any
+    cl: Clustering
+    model: hmm.HmmResult
     ref: int
     aligned: list[np.ndarray]  # key-point times of each demo on the reference's time line (from its start)
     own: list[np.ndarray]  # key-point times of each demo on its own time line (from its start)
@@ -396,7 +362,7 @@ def learn_skill(
     *,
     n_clusters: int | None = None,
     seed: int = 0,
-    arm: str | None = None,
+    arm: Arm | None = None,
     baxter: Baxter | None = None,
     spline_through: str = "state-means",
     generalization: str = DEFAULT_GENERALIZATION,
@@ -417,8 +383,8 @@ def learn_skill(
         seed: seed for k-means and hmmlearn.
         arm: if given, also solve IK for ``skill.joint_trajectory``, seeded by the reference demo's joints.
         baxter: the robot model (default :meth:`Baxter.load`).
-        spline_through: paper mode's path points, "state-means" (default) or "centroids" (module docstring).
-        generalization: "aligned-mean" (default) or "paper" (module docstring).
+        spline_through: paper mode's path points, "state-means" (default) or "centroids" (docs/decisions/004).
+        generalization: "aligned-mean" (default) or "paper" (docs/decisions/003).
         smoothing: spline smoothing (see :mod:`studio.core.generalize`).
         scale: feature scaling for clustering and DTW (default :meth:`FeatureScale.for_demos`).
         keypoints: precomputed key-point indices per demo (e.g. from the slider's cache).
@@ -501,7 +467,7 @@ def learn_skill(
         params=params,
         spline_through=spline_through,
         demo_names=tuple(d.name for d in demos),
-        generalization=generalization,
+        generalization=Generalization.of(generalization),
         routes=tuple(SkillRoute(tuple(everyone[i].name for i in r.demos), r.at) for r in found.routes),
         route=chosen,
         route_where=found.where,
@@ -622,10 +588,10 @@ def preview_path(
 ) -> PreviewPath:
     """Re-extract key-points, re-cluster, re-train the HMM and regenerate the path for the live preview.
 
-    Budget: ≤ 150 ms for 3 demos × 30,000 samples with warm caches (pass the slider's :class:`KeypointCache`;
-    DTW maps are cached across calls since they do not depend on ε); see bench/bench_quality.py. Never raises
-    for thresholds that find too few key-points: the message says what to do instead. ``keypoints``: the
-    key-point indices per demo for ``params`` when already extracted (the slider's view has them).
+    Pass the slider's :class:`KeypointCache` (DTW maps are cached across calls since they do not depend on ε;
+    speed: bench/bench_quality.py). Never raises for thresholds that find too few key-points: the message says
+    what to do instead. ``keypoints``: the key-point indices per demo for ``params`` when already extracted
+    (the slider's view has them).
     """
     from studio.core import quality
     from studio.core.errors import StudioError
@@ -676,7 +642,7 @@ def judge_skill(
     """How good a learned skill is, measured against the demonstrations it learned from (in the skill's order):
     the :class:`~studio.core.quality.QualityReport` with held-out fidelity (at most ``folds`` demos left out in
     turn, learned with the skill's thresholds and mode; with ``fixed_k`` the skill's k, else the default) and
-    its :func:`~studio.core.quality.verdict`. About 0.3–1 s for 3 demos × 20,000 samples.
+    its :func:`~studio.core.quality.verdict`.
     """
     from studio.core.errors import StudioError
 
@@ -706,7 +672,7 @@ def learn_arms(
     seed: int = 0,
     baxter: Baxter | None = None,
     generalization: str = DEFAULT_GENERALIZATION,
-) -> dict[str, Skill]:
+) -> dict[Arm, Skill]:
     """One skill per taught arm, each with its joint trajectory.
 
     Args:
@@ -724,9 +690,9 @@ def learn_arms(
     b = baxter or Baxter.load()
     if arms is None:
         arms = [a for a in ARMS if any(a in r.arms for r in recordings)]
-    out: dict[str, Skill] = {}
-    for arm in arms:
-        check_arm(arm)
+    out: dict[Arm, Skill] = {}
+    for name in arms:
+        arm = check_arm(name)
         demos = [demo_from_recording(r, arm, b) for r in recordings if arm in r.arms]
         if not demos:
             raise NotEnoughData(f"No demonstration teaches the {arm} arm.")

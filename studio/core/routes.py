@@ -1,14 +1,10 @@
 """Demonstrations that take different routes (around an obstacle on either side): which demos go which way.
 
-Two demos are compared along their DTW alignment (50 ms smoothed, evenly spaced along the path): their *route
-distance* is the median distance of matched points, so a start that lands elsewhere and converges counts
-little, a detour along most of the path counts fully. The demos are grouped by average linkage (scipy); a
-split into 2 or 3 groups is a set of routes when the groups are farther apart than :data:`ROUTE_SHARE` of the
-demos' size and :data:`ROUTE_RATIO` times the farthest two demos within a group (:data:`SINGLES_SHARE` when
-each group is one demo), they end at the same place and every demo uses the gripper the same way (else the
-odd one out is a different task, not a way). The decision and its figures:
-docs/decisions/060-one-skill-per-route.md.
-"""
+Two demos' *route distance* is the median distance of their points matched along the DTW alignment (smoothed,
+evenly spaced along the path). The demos are grouped by average linkage (scipy); 2 or 3 groups are routes when
+they are farther apart than :data:`ROUTE_SHARE` of the size and :data:`ROUTE_RATIO` times their own spread
+(:data:`SINGLES_SHARE` for one demo a group), end at the same place and use the gripper alike. Why and the
+figures: docs/decisions/060."""
 
 from __future__ import annotations
 

@@ -2,10 +2,9 @@
 the paper's pipeline in the frame of the object it acts on (:mod:`studio.core.frames`).
 
 :func:`plan` reads the frames from the demonstrations' contacts (a grasp in the grasped object's frame; a
-release in the frame where the demonstrations agree best on where the object landed: the object it landed on,
-the spot it came from, or the robot). :func:`learn_relative` learns the segments and returns a :class:`Skill`
-placed where the objects are now; :func:`place_skill` moves it when they move.
-"""
+release in the frame where the demonstrations agree best on where the object landed). :func:`learn_relative`
+learns the segments and returns a :class:`Skill` placed where the objects are now; :func:`place_skill` moves
+it when they move (docs/decisions/080)."""
 
 from __future__ import annotations
 
@@ -35,7 +34,7 @@ from studio.core.frames import (
     turn,
 )
 from studio.core.kinematics import Baxter
-from studio.core.types import DEFAULT_GENERALIZATION, Demo, KeypointParams, Skill
+from studio.core.types import DEFAULT_GENERALIZATION, Arm, Demo, Generalization, KeypointParams, Skill
 
 #: Frames whose landing spreads differ by less than this (m) are equally good: the more specific one is kept.
 TIE_M = 0.005
@@ -262,7 +261,7 @@ def learn_relative(
     *,
     now: Sequence[ObjectAt] | None = None,
     seed: int = 0,
-    arm: str | None = None,
+    arm: Arm | None = None,
     baxter: Baxter | None = None,
     generalization: str = DEFAULT_GENERALIZATION,
 ) -> Skill:
@@ -372,7 +371,7 @@ def _combine(
         params=params,
         spline_through=parts[0].spline_through,
         demo_names=names,
-        generalization=generalization,
+        generalization=Generalization.of(generalization),
         frames=frames,
     )
 
@@ -394,7 +393,7 @@ def place_skill(
     skill: Skill,
     now: Sequence[ObjectAt],
     *,
-    arm: str | None = None,
+    arm: Arm | None = None,
     baxter: Baxter | None = None,
     q_seed: np.ndarray | None = None,
 ) -> Skill:

@@ -1,28 +1,9 @@
 """A real Baxter through rosbridge (roslibpy): the ROS 1 topics the robot really speaks, over a websocket.
 
-Baxter runs ROS 1; ``rosbridge_server`` (``roslaunch rosbridge_server rosbridge_websocket.launch``, port 9090)
-exposes its topics as JSON over a websocket, and roslibpy is the Python client for that protocol. The topics
-and messages, and the connection, are :mod:`studio.robot_backend.rosbridge_link`.
-
-* **Joint states** arrive at the robot's rate (100 Hz by default; the paper raises it to 1 kHz with
-  ``/robot/joint_state_publish_rate``, which ``joint_state_rate_hz`` sets). Joints are matched by name, time
-  stamps come from the message header (seconds since the first message), each message is one sample streamed
-  to the subscribers like the simulator's, so the recorder records a real demonstration or an execution.
-* **Joint commands** are position commands for the seven joints of one arm. Baxter drops an arm's command
-  after 0.2 s without a new one (its command timeout) and then holds, so a command thread republishes the
-  targets at ``command_rate_hz`` (100 Hz) — only while a target is live: during an execution, and for
-  :data:`COMMAND_HOLD_S` after :meth:`command_joints` (so the arm is not held stiff between gizmo moves and
-  can still be guided by hand in zero-G mode).
-* **Grippers** are addressed by their hardware id (from their state messages; 65538, Rethink's electric
-  gripper, until one arrives).
-* **Enable**: ``start()`` publishes ``True`` on ``/robot/set_super_enable`` (what ``enable_robot.py -e`` does);
-  ``stop()`` leaves the robot enabled and holding.
-* **Execution** (:meth:`execute`): the plan's joint targets are published at the command rate, its gripper
-  targets when they change; :meth:`stop_motion` slows the plan's progress to rest along its path,
-  :meth:`emergency_stop` publishes a hold at the measured joints from the calling thread at once (within one
-  100 Hz control cycle) and refuses motion until :meth:`clear_emergency_stop`. Baxter's own e-stop button
-  remains the hardware stop.
-"""
+Joint states, matched by name, stream to the subscribers like the simulator's; joint targets are position
+commands republished at ``command_rate_hz`` while a target is live (docs/decisions/022); grippers are
+addressed by their hardware id; ``start()`` enables the robot. :meth:`~RosbridgeBaxter.emergency_stop`
+publishes a hold at the measured joints at once. Topics and the connection: :mod:`.rosbridge_link`."""
 
 from __future__ import annotations
 
@@ -37,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from studio.core.errors import InvalidInput, StudioError
-from studio.core.types import ARMS, check_arm
+from studio.core.types import ARMS, Arm, check_arm
 from studio.robot_backend.base import (
     ExecutionProgress,
     ListenerHub,
@@ -74,7 +55,7 @@ log = logging.getLogger(__name__)
 COMMAND_HOLD_S = 1.0
 
 
-def _cols(arm: str) -> slice:
+def _cols(arm: Arm) -> slice:
     return slice(0, 7) if arm == "left" else slice(7, 14)
 
 
@@ -118,7 +99,7 @@ class _Run:
 
 
 class RosbridgeBaxter(RobotBackend):
-    """A real Baxter over rosbridge (see the module docstring for the topics and the behaviour).
+    """A real Baxter over rosbridge (topics: :mod:`.rosbridge_link`; commands: docs/decisions/022).
 
     Args:
         url: the rosbridge websocket, e.g. ``ws://baxter.local:9090``.
@@ -153,8 +134,8 @@ class RosbridgeBaxter(RobotBackend):
         self._state = StateReader()  # its own lock: the state callbacks never wait for ``_lock``
         self._seq = 0
         # commands
-        self._target: dict[str, np.ndarray] = {}
-        self._target_until: dict[str, float] = {}
+        self._target: dict[Arm, np.ndarray] = {}
+        self._target_until: dict[Arm, float] = {}
         self._run: _Run | None = None
         self._last_grip_cmd = np.full(2, np.nan)
         self._exec = ExecutionProgress()
@@ -215,7 +196,7 @@ class RosbridgeBaxter(RobotBackend):
         self._state.on_gripper_state(i, msg)
 
     # -- commands ---------------------------------------------------------------------------------------------
-    def _joint_command(self, arm: str, q: np.ndarray) -> None:
+    def _joint_command(self, arm: Arm, q: np.ndarray) -> None:
         self._link.publish(JOINT_COMMAND.format(arm=arm), JOINT_COMMAND_TYPE, joint_command(arm, q))
         self.commands_sent += 1
 
@@ -229,7 +210,7 @@ class RosbridgeBaxter(RobotBackend):
         if not self._link.open:
             raise StudioError("The robot is not connected; start the studio with the robot reachable.")
 
-    def command_joints(self, arm: str, q: np.ndarray) -> None:
+    def command_joints(self, arm: Arm, q: np.ndarray) -> None:
         """Move ``arm`` to ``q`` (7,) rad: republished at the command rate for :data:`COMMAND_HOLD_S`."""
         check_arm(arm)
         qa = np.asarray(q, dtype=np.float64)
@@ -243,11 +224,11 @@ class RosbridgeBaxter(RobotBackend):
             self._hold(arm, qa.copy())
             self._joint_command(arm, qa)
 
-    def _hold(self, arm: str, q: np.ndarray) -> None:
+    def _hold(self, arm: Arm, q: np.ndarray) -> None:
         self._target[arm] = q
         self._target_until[arm] = time.monotonic() + COMMAND_HOLD_S
 
-    def command_gripper(self, arm: str, width: float) -> None:
+    def command_gripper(self, arm: Arm, width: float) -> None:
         i = ARMS.index(check_arm(arm))
         w = float(width)
         if not math.isfinite(w):

@@ -1,22 +1,8 @@
-"""Baxter's ROS 1 topics and messages as rosbridge carries them, and the connection (roslibpy).
+"""Baxter's ROS 1 topics and messages as rosbridge carries them, and the connection (roslibpy, asyncio).
 
-Used by :mod:`studio.robot_backend.rosbridge` (the backend). Topics, as in the Baxter SDK:
-
-================================================  ==================================  ===============
-topic                                             type                                direction
-================================================  ==================================  ===============
-``/robot/joint_states``                           ``sensor_msgs/JointState``          robot → studio
-``/robot/end_effector/<arm>_gripper/state``       ``baxter_core_msgs/EndEffectorState``  robot → studio
-``/robot/limb/<arm>/joint_command``               ``baxter_core_msgs/JointCommand``   studio → robot
-``/robot/end_effector/<arm>_gripper/command``     ``baxter_core_msgs/EndEffectorCommand``  studio → robot
-``/robot/set_super_enable``                       ``std_msgs/Bool``                   studio → robot
-``/robot/joint_state_publish_rate``               ``std_msgs/UInt16``                 studio → robot
-================================================  ==================================  ===============
-
-Joint commands are position commands (``mode`` 1, ``POSITION_MODE``) for the seven joints of one arm, by
-name; gripper commands are ``command="go"``, ``args='{"position": <0..100>}'``, addressed to the gripper's
-hardware id. roslibpy's asyncio transport runs one background event loop (no Twisted reactor).
-"""
+Topics as in the Baxter SDK (:data:`JOINT_STATES` and the others below): joint states and gripper states
+come from the robot; joint commands (position mode, one arm by name), gripper commands (``"go"`` to a
+position, by hardware id), enable and the joint-state rate go to it. Used by :mod:`.rosbridge`."""
 
 from __future__ import annotations
 
@@ -32,7 +18,7 @@ from urllib.parse import urlparse
 import numpy as np
 
 from studio.core.errors import InvalidInput, StudioError
-from studio.core.types import ALL_ARM_JOINTS, ARM_JOINTS
+from studio.core.types import ALL_ARM_JOINTS, ARM_JOINTS, Arm
 from studio.robot_backend.base import JointStateBatch
 
 log = logging.getLogger(__name__)
@@ -77,7 +63,7 @@ def parse_robot_url(url: str) -> str:
     return f"{p.scheme}://{host}:{port}{p.path or ''}"
 
 
-def joint_command(arm: str, q: np.ndarray) -> dict[str, Any]:
+def joint_command(arm: Arm, q: np.ndarray) -> dict[str, Any]:
     """A ``baxter_core_msgs/JointCommand``: position mode, ``arm``'s seven joints by name."""
     return {"mode": POSITION_MODE, "command": [float(x) for x in q], "names": list(ARM_JOINTS[arm])}
 

@@ -1,23 +1,9 @@
 """``session.json``: the session's manifest as frozen dataclasses, validated when read from JSON.
 
-Versioning and extending (read before adding anything to the format):
-
-* ``version`` is :data:`~studio.storage.format.FORMAT_VERSION`. A studio refuses, in plain words, a
-  manifest written by a newer one (a higher version) and reads every older one.
-* **Adding an optional field** (the usual case): add it to the dataclass with a default, read it in
-  ``from_json`` with that default when it is absent (older files), write it in ``to_json``. No version change:
-  an older studio ignores keys it does not know. ``n_clusters``, ``hidden``, ``skills_stale``, ``thresholds``
-  and ``generalization`` were added this way.
-* **A change an older studio would misread** (a field changing meaning, data moving between files): bump
-  ``FORMAT_VERSION`` and register ``UPGRADES[old_version]``, a function turning the raw JSON of version
-  ``old_version`` into ``old_version + 1``; :meth:`Manifest.from_json` applies them in order before validating,
-  so the validation below only ever sees the current version. Version 2 added the task scene (``scene``) and
-  each demonstration's object events (``objects``): ``UPGRADES[1]`` reads a version-1 session as one on an
-  empty table, whose demonstrations have no object events; ``UPGRADES[2]``: a session's skills from before
-  skills could follow the objects keep their path in the robot's frame (``frames``, format 3).
-
-Loading never writes: an upgraded manifest is written in the new version the next time the session changes.
-"""
+To extend the format: an optional field gets a default, is read with it when absent and always written (no
+version change: an older studio ignores unknown keys). A change an older studio would misread bumps
+:data:`~studio.storage.format.FORMAT_VERSION` and adds ``UPGRADES[old]`` (raw JSON of ``old`` to ``old + 1``),
+applied before validation. A newer manifest is refused in plain words; loading never writes (docs/decisions/023)."""
 
 from __future__ import annotations
 
@@ -29,7 +15,16 @@ from typing import Any
 
 from studio.core.errors import InvalidInput, StudioError
 from studio.core.thresholds import ThresholdSettings
-from studio.core.types import ARMS, DEFAULT_FRAMES, DEFAULT_GENERALIZATION, FRAMES, GENERALIZATIONS, KeypointParams
+from studio.core.types import (
+    ARMS,
+    DEFAULT_FRAMES,
+    DEFAULT_GENERALIZATION,
+    FRAMES,
+    GENERALIZATIONS,
+    Arm,
+    Generalization,
+    KeypointParams,
+)
 from studio.storage.format import (
     DEMO_FILE_RE,
     FORMAT,
@@ -37,8 +32,8 @@ from studio.storage.format import (
     MANIFEST,
     MAX_DEMOS,
     MAX_FILE_ID,
+    MAX_LISTED_SAMPLES,
     MAX_MANIFEST_BYTES,
-    MAX_SAMPLES,
     PRECISIONS,
     SKILL_DIR,
     SKILL_FILE_RE,
@@ -72,7 +67,7 @@ class DemoEntry:
 
     file: str
     name: str
-    arms: tuple[str, ...]
+    arms: tuple[Arm, ...]
     samples: int
     duration: float
     #: Hidden by the teacher: drawn faintly and left out of learning (optional, default False).
@@ -107,7 +102,7 @@ class SkillEntry:
     demos: tuple[str, ...] = ()
 
     @staticmethod
-    def for_arm(arm: str, learned: str, params: KeypointParams, demos: tuple[str, ...]) -> SkillEntry:
+    def for_arm(arm: Arm, learned: str, params: KeypointParams, demos: tuple[str, ...]) -> SkillEntry:
         return SkillEntry(file=f"{SKILL_DIR}/{arm}.npz", learned=learned, params=params.as_dict(), demos=demos)
 
     def to_json(self) -> dict[str, object]:
@@ -119,12 +114,12 @@ class Manifest:
     """Everything ``session.json`` holds. Build one with :meth:`from_json` (validates) or directly (writes)."""
 
     name: str
-    arms: tuple[str, ...]
+    arms: tuple[Arm, ...]
     created: str
     notes: str
     params: KeypointParams
     demos: tuple[DemoEntry, ...] = ()
-    skills: Mapping[str, SkillEntry] = field(default_factory=dict)
+    skills: Mapping[Arm, SkillEntry] = field(default_factory=dict)
     #: k chosen by hand (None: automatic).
     n_clusters: int | None = None
     precision: str = "float64"
@@ -142,7 +137,7 @@ class Manifest:
     #: file predates it: :func:`settings_of` then derives it from ``params``.
     thresholds: ThresholdSettings | None = None
     #: The generalisation mode training uses ("aligned-mean" or "paper").
-    generalization: str = DEFAULT_GENERALIZATION
+    generalization: Generalization = DEFAULT_GENERALIZATION
     frames: str = DEFAULT_FRAMES  # where skills keep their path: "objects" (they follow them) or "robot"
 
     # -- writing ----------------------------------------------------------------------------------------------
@@ -237,7 +232,7 @@ class Manifest:
             version=version,
             scene=m.scene(),
             thresholds=m.thresholds(),
-            generalization=m.choice("generalization", GENERALIZATIONS, DEFAULT_GENERALIZATION),
+            generalization=Generalization(m.choice("generalization", GENERALIZATIONS, DEFAULT_GENERALIZATION)),
             frames=m.choice("frames", FRAMES, DEFAULT_FRAMES),
         )
 
@@ -281,7 +276,7 @@ class _Reader:
             raise self.bad(f"has an unknown format version {v}")
         return v
 
-    def arms(self) -> tuple[str, ...]:
+    def arms(self) -> tuple[Arm, ...]:
         arms = self.need("arms", list)
         if not arms or any(a not in ARMS for a in arms) or len(set(arms)) != len(arms):
             raise self.bad('has invalid "arms" (must be "left" and/or "right")')
@@ -354,7 +349,7 @@ class _Reader:
         if not isinstance(da, list) or not da or any(a not in ARMS for a in da):
             raise self.bad(f"has invalid taught arms for demonstration {i + 1}")
         s = d.get("samples")
-        if not isinstance(s, int) or isinstance(s, bool) or not 0 < s <= MAX_SAMPLES:
+        if not isinstance(s, int) or isinstance(s, bool) or not 0 < s <= MAX_LISTED_SAMPLES:
             raise self.bad(f"has an invalid sample count for demonstration {i + 1}")
         hidden = d.get("hidden", False)
         if not isinstance(hidden, bool):
@@ -381,11 +376,11 @@ class _Reader:
         except StudioError as exc:
             raise self.bad(f"has a damaged task scene ({exc})") from exc
 
-    def skills(self) -> dict[str, SkillEntry]:
+    def skills(self) -> dict[Arm, SkillEntry]:
         skills = self.raw.get("skills", {})
         if not isinstance(skills, dict):
             raise self.bad('has invalid "skills"')
-        out: dict[str, SkillEntry] = {}
+        out: dict[Arm, SkillEntry] = {}
         for arm, s in skills.items():
             if arm not in ARMS or not isinstance(s, dict) or not isinstance(s.get("file"), str):
                 raise self.bad(f"has an invalid skill entry {arm!r}")

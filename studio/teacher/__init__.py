@@ -1,21 +1,10 @@
 """A scripted, human-like teacher: demonstrations of the paper's two tasks without a human.
 
-The simulated backend, the example session and the core's quality tests all learn from these plans.
-A plan is built the way a person moves a Baxter arm by hand in kinesthetic teaching:
-
-* a sequence of Cartesian key-frames (the paper's two tasks, in front of the robot, gripper pointing
-  down), each jittered per demonstration by a few centimetres (via-points) or a few millimetres (the
-  grasp and release poses, where the object leaves the teacher little freedom);
-* minimum-jerk motion between key-frames (Flash & Hogan's model of human reaching) along a slightly bowed
-  path, with a speed that varies per demonstration and per segment, and pauses of varying length;
-* the gripper closes to the object's width and opens again during pauses, in about half a second.
-
-Joint targets come from :meth:`Baxter.ik` on a few samples per second of the Cartesian path, each solve
-seeded by the previous one, then interpolated per segment with a clamped cubic (zero joint speed where a
-minimum-jerk segment starts and ends), checked against the URDF position and velocity limits (a segment
-that would be too fast is slowed down) and verified by forward kinematics. Sensor noise is added only by
-:func:`recording_from_plan`; the plan's joint targets are smooth.
-"""
+The simulated backend, the example sessions and the core's tests learn from these plans, built the way a
+person moves a Baxter arm by hand: jittered Cartesian key-frames, minimum-jerk motion along slightly bowed
+paths at varying speeds, pauses, and the gripper closing to the object's width. Joint targets come from
+:meth:`Baxter.ik`, interpolated per segment within the URDF limits and checked by FK; sensor noise is added
+only by :func:`recording_from_plan` (docs/decisions/026)."""
 
 from __future__ import annotations
 
@@ -30,7 +19,7 @@ from scipy.interpolate import CubicSpline
 from studio.core.errors import InvalidInput
 from studio.core.kinematics import Baxter
 from studio.core.rotations import matrix_from_quat_wxyz, quat_angle, quat_wxyz_from_matrix, rotvec_matrix, slerp
-from studio.core.types import Recording, check_arm, readonly
+from studio.core.types import ARMS, Arm, Recording, check_arm, readonly
 from studio.teacher.places import SITE_OBJECTS, USUAL, Place, Places
 from studio.teacher.tasks import (
     PICK_PLACE_A,
@@ -64,7 +53,7 @@ class GripperEvent(NamedTuple):
     """One gripper action of a plan: when it starts, which arm, "close" or "open", and the gripper pose."""
 
     time: float
-    arm: str
+    arm: Arm
     action: str
     position: np.ndarray
     wxyz: np.ndarray
@@ -89,7 +78,7 @@ class TeacherPlan:
     t: np.ndarray
     q: np.ndarray
     gripper: np.ndarray
-    arms: tuple[str, ...]
+    arms: tuple[Arm, ...]
     task: str
     seed: int
     events: list[GripperEvent]
@@ -100,7 +89,7 @@ class TeacherPlan:
     def duration(self) -> float:
         return float(self.t[-1] - self.t[0])
 
-    def event_poses(self, action: str, arm: str | None = None) -> list[GripperEvent]:
+    def event_poses(self, action: str, arm: Arm | None = None) -> list[GripperEvent]:
         """The events of one kind ("close" or "open"), optionally for one arm, in time order."""
         return [e for e in self.events if e.action == action and (arm is None or e.arm == arm)]
 
@@ -149,7 +138,7 @@ class _Segment:
 
 
 def _plan_arm(
-    task: str, arm: str, rng: np.random.Generator, baxter: Baxter, places: Places = USUAL, detour: float = 0.0
+    task: str, arm: Arm, rng: np.random.Generator, baxter: Baxter, places: Places = USUAL, detour: float = 0.0
 ) -> tuple[list[tuple[str, float, object]], np.ndarray]:
     """Timeline of one arm: list of ("move", t0, _Segment) / ("hold", t0, duration) and the start q."""
     q_home = baxter.neutral(arm)
@@ -188,7 +177,7 @@ def _plan_arm(
     return items, q_home
 
 
-def _ik_segment(baxter: Baxter, arm: str, seg: _Segment, q_start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _ik_segment(baxter: Baxter, arm: Arm, seg: _Segment, q_start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """IK knots (times (K,), joints (K, 7)) along a segment, each solve seeded by the previous one."""
     n = max(3, math.ceil(seg.duration * _IK_RATE_HZ) + 1)
     tk = seg.t0 + np.linspace(0.0, seg.duration, n)
@@ -212,7 +201,7 @@ def _ik_segment(baxter: Baxter, arm: str, seg: _Segment, q_start: np.ndarray) ->
 
 
 def _arm_joints(
-    items: list[tuple[str, float, object]], q_home: np.ndarray, arm: str, baxter: Baxter, t: np.ndarray
+    items: list[tuple[str, float, object]], q_home: np.ndarray, arm: Arm, baxter: Baxter, t: np.ndarray
 ) -> tuple[np.ndarray, list[tuple[float, float, str]], float]:
     """(N, 7) joint targets at times ``t``, the gripper actions (t_start, hold length, action), end time."""
     vmax = baxter.velocity_limits(arm) * _VELOCITY_MARGIN
@@ -255,7 +244,7 @@ def _arm_joints(
 def teach(
     task: str,
     seed: int,
-    arm: str = "left",
+    arm: Arm = "left",
     rate_hz: float = 1000.0,
     noise: bool = True,
     places: Places = USUAL,
@@ -292,8 +281,8 @@ def teach(
     q = np.empty((t.shape[0], 14))
     grip = np.empty((t.shape[0], 2))
     ends = []
-    grip_actions: dict[str, list[tuple[float, float, str]]] = {}
-    for i_arm, a in enumerate(("left", "right")):
+    grip_actions: dict[Arm, list[tuple[float, float, str]]] = {}
+    for i_arm, a in enumerate(ARMS):
         cols = slice(0, 7) if a == "left" else slice(7, 14)
         if a not in timelines:
             q[:, cols] = baxter.neutral(a)
@@ -331,7 +320,7 @@ def _item_len(item: tuple[str, float, object]) -> float:
 def _gripper_signal(
     t: np.ndarray, grips: list[tuple[float, float, str]], task: str, rng: np.random.Generator
 ) -> np.ndarray:
-    """Opening (percent) over time: open at the start, a ~0.5 s ramp at 30 % into each action's pause."""
+    """Opening (percent) over time: open at the start, a 0.5 s ramp at 30 % into each action's pause."""
     g = np.full(t.shape[0], OPEN_WIDTH[task])
     level = OPEN_WIDTH[task]
     for t0, hold, action in grips:
