@@ -258,12 +258,13 @@ class RosbridgeBaxter(RobotBackend):
                 self._exec = run.end("emergency-stopped", why)
             if not self._link.connected:
                 return "undelivered"
+            fresh = self.health().connected
             q = self._watch.reader.measured()[1]
-            if not np.any(np.isnan(q)):
+            if fresh and not np.any(np.isnan(q)):  # a hold at a stale pose, arriving late, would move the arm
                 for arm in ARMS:
                     self._joint_command(arm, q[_cols(arm)])
-            sent = self._link.publish(STOP, EMPTY_TYPE, {})
-        return "sent" if sent else "undelivered"
+            sent = self._link.publish(STOP, EMPTY_TYPE, {})  # safe whenever it arrives
+        return "sent" if sent and fresh else "undelivered"
 
     def clear_emergency_stop(self) -> None:
         """Release the studio's emergency stop: reset and enable the robot (plain errors when it cannot)."""

@@ -59,8 +59,9 @@ class PlanClock:
         """The plan at wall time ``now``: joint (14,) and gripper (2,) targets."""
         dt, self._last = max(now - self._last, 0.0), now
         if self.slowing:
-            new_rate = max(0.0, self.rate - self.slowing * dt)
-            self.p += 0.5 * (self.rate + new_rate) * dt
+            moving = min(dt, self.rate / self.slowing)  # the rate reaches 0 after this long
+            new_rate = max(0.0, self.rate - self.slowing * moving)
+            self.p += 0.5 * (self.rate + new_rate) * moving
             self.rate = new_rate
         else:
             self.p += dt
