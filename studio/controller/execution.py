@@ -335,9 +335,18 @@ class RobotActions:
     def __init__(self, ctx: Context, backend: RobotBackend) -> None:
         self.ctx = ctx
         self.backend = backend
+        self._warned = 0
 
     def health(self) -> RobotHealth:
         return self.backend.health()
+
+    def poll(self) -> RobotHealth:
+        """The robot's health now; a new faulty message from it (a bad stamp, …) is told to the teacher once."""
+        h = self.backend.health()
+        if h.warnings > self._warned:
+            self._warned = h.warnings
+            self.ctx.notify("The robot sent a faulty message", h.warning, kind="warning")
+        return h
 
     def grippers(self) -> dict[str, str]:
         """arm -> why its gripper cannot open and close on command ("" when it can)."""

@@ -34,7 +34,7 @@ from studio.core.ik_path import Feasibility
 from studio.core.kinematics import Baxter
 from studio.core.types import Recording, Skill
 from studio.recorder import Recorder
-from studio.robot_backend.base import ExecutionProgress, JointStateBatch, RobotBackend
+from studio.robot_backend.base import ExecutionProgress, JointStateBatch, RobotBackend, RobotHealth
 from studio.world import TaskResult, format_distance
 
 log = logging.getLogger(__name__)
@@ -340,4 +340,15 @@ def judgement(p: ExecutionProgress, verdict: RunVerdict, task: TaskResult | None
     return text
 
 
-__all__ = ["Judged", "Run", "RunPaths", "RunStatus", "Trace", "ended", "hold_still", "judgement", "tracking_words"]
+__all__ = [
+    "Judged",
+    "RobotHealth",
+    "Run",
+    "RunPaths",
+    "RunStatus",
+    "Trace",
+    "ended",
+    "hold_still",
+    "judgement",
+    "tracking_words",
+]
