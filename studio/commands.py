@@ -1,18 +1,17 @@
-"""Headless commands behind ``studio learn | import-csv | export-csv | make-examples``.
-
-Each takes the parsed ``argparse`` namespace (see :mod:`studio.cli`), prints plain-words output and returns
-an exit code; :class:`StudioError` propagates to the CLI, which prints its message.
-"""
+"""Headless commands behind ``studio learn | import-csv | export-csv | make-examples``: each takes the parsed
+``argparse`` namespace (:mod:`studio.cli`), prints plain words and returns an exit code (errors: the CLI)."""
 
 from __future__ import annotations
 
 import argparse
+import logging
 import os
 import shutil
 import sys
 import time
 import uuid
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
@@ -21,12 +20,17 @@ import numpy as np
 from studio.core import sampling
 from studio.core.arms import normalize_arms
 from studio.core.errors import InvalidInput, NotEnoughData, StudioError
+from studio.core.quality import Remedy
 from studio.core.types import Recording, Skill
 from studio.storage import DEFAULT_ROOT, Session, SessionStore
+from studio.words import SHARED_REMEDIES, Remedies, tune_summary
+from studio.words import verdict_lines as verdict_words
 
 if TYPE_CHECKING:
-    from studio.core.autotune import TuneResult
+    from studio.controller import Controller
     from studio.teacher import TeacherPlan
+
+log = logging.getLogger(__name__)
 
 #: The example sessions: task -> (seeds of the three demonstrations, taught arm, notes).
 EXAMPLES: dict[str, tuple[tuple[int, ...], str, str]] = {
@@ -57,11 +61,44 @@ def _arms(value: str | None, default: Sequence[str]) -> tuple[str, ...]:
 
 
 # -- learn ----------------------------------------------------------------------------------------------------
-def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
-    """Learn a session's skill headless, save it into the session and print a short report and the verdict.
+@contextmanager
+def headless(store: SessionStore, session: Session) -> Iterator[Controller]:
+    """The studio's controller on ``session`` without a GUI or a running robot: commands learn through it, so
+    they choose demonstrations, thresholds and k as the Train button does. Failures raise."""
+    from studio.controller import Controller
+    from studio.robot_backend.simulated import SimulatedBaxter
 
-    Thresholds still at the old fixed defaults are automatic (they follow the demonstrations); with ``--auto``
-    Suggest runs first for each arm and its thresholds and k are used (and saved, for a single arm).
+    ctl = Controller(store=store, session=session, backend=SimulatedBaxter(), notifier=_Quiet(), headless=True)
+    try:
+        yield ctl
+    finally:
+        ctl.close()
+        ctl.shutdown()
+
+
+class _Quiet:
+    """A headless controller's notifications: failures raise instead, and the GUI's hints would not fit here."""
+
+    def notify(self, title: str, body: str, *, kind: str = "error", client: object | None = None) -> None:
+        log.info("%s: %s", title, body)
+
+
+def train(ctl: Controller, arms: Sequence[str] | None = None) -> dict[str, Skill]:
+    """Train as the Train button does (the shown demonstrations, the session's thresholds and k) and wait for
+    the skill and its verdict."""
+    skills = ctl.training.train(arms).result()
+    assert skills is not None  # a headless controller raises failures
+    if ctl.training.judgement is not None:
+        ctl.training.judgement.result()
+    return skills
+
+
+def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
+    """Learn a session's skill headless (as the studio's Train button does: the shown demonstrations), save it
+    into the session and print a short report and the verdict.
+
+    With ``--auto`` Suggest runs first (on the first chosen arm with demonstrations, as in the studio) and its
+    thresholds and k are applied and saved.
     """
     out = out or sys.stdout
     store = SessionStore(_sessions_dir(args))
@@ -70,67 +107,33 @@ def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
         print(session.recovery_message, file=out)
     for p in session.problems:
         print(p, file=out)
-    if len(session.recordings) < 2:
-        raise NotEnoughData(
-            f'Session "{session.name}" has {len(session.recordings)} demonstration(s); record or import at least '
-            "two (the paper uses three) before learning."
-        )
     arms = _arms(getattr(args, "arm", None), session.arms)
-    from studio.core import pipeline
-    from studio.core.thresholds import ThresholdSettings
-
-    # Automatic thresholds follow each arm's demos; the teacher's own values are kept (older sessions: values off
-    # the old fixed defaults count as the teacher's).
-    settings: ThresholdSettings = session.thresholds
-    k = session.n_clusters
+    hidden = [r.name for r in session.recordings if r.name in session.hidden_demos]
+    if hidden:
+        print(f"Left out (hidden in the studio): {', '.join(hidden)}.", file=out)
     t0 = time.perf_counter()
-    tuned: dict[str, TuneResult] = {}
-    if getattr(args, "auto", False):
-        from studio.core import autotune
-
-        for arm in arms:
-            demos_arm = [pipeline.demo_from_recording(r, arm) for r in session.recordings if arm in r.arms]
-            if len(demos_arm) < 2:
-                continue
-            res = autotune.suggest(demos_arm, current=settings, n_clusters=k, generalization=session.generalization)
-            tuned[arm] = res
-            print(
-                f"{arm.capitalize()} arm — suggested thresholds (Detail {res.settings.detail:+.1f}, "
-                f"k = {res.n_clusters or 'mean key-points per demonstration'}) in {res.seconds:.1f} s. {res.summary}",
-                file=out,
-            )
-    if tuned:
-        skills: dict[str, Skill] = {}
-        for arm in arms:
-            r = tuned.get(arm)
-            skills.update(
-                pipeline.learn_arms(
-                    session.recordings,
-                    params=r.params if r is not None else settings,
-                    arms=(arm,),
-                    n_clusters=r.n_clusters if r is not None else k,
-                    seed=0,
-                    generalization=session.generalization,
+    auto = bool(getattr(args, "auto", False))
+    with headless(store, session) as ctl:
+        if auto:
+            arm = next((a for a in arms if len(ctl.demos.for_arm(a)) >= 2), arms[0])
+            ctl.suggest.start(arm).result()
+            res = ctl.suggest.state.result
+            if res is not None:
+                print(
+                    f"{arm.capitalize()} arm — suggested thresholds (Detail {res.settings.detail:+.1f}, "
+                    f"k = {res.n_clusters or 'mean key-points per demonstration'}) in {res.seconds:.1f} s. "
+                    f"{tune_summary(res)}",
+                    file=out,
                 )
-            )
-    else:
-        skills = pipeline.learn_arms(
-            session.recordings, params=settings, arms=arms, n_clusters=k, seed=0, generalization=session.generalization
-        )
-    elapsed = time.perf_counter() - t0
-    demos = {arm: list(skill.demo_names) for arm, skill in skills.items()}
-    if len(tuned) == 1 and len(arms) == 1:
-        # Suggest applied: its settings (Detail, every threshold automatic) and k become the session's
-        only = next(iter(tuned.values()))
-        session.set_skills(skills, params=only.params, demos=demos)
-        session.set_params(only.params, only.settings)
-        session.set_n_clusters(only.n_clusters)
-    else:
-        used = next(iter(skills.values())).params if skills else session.params  # what older studios read
-        session.set_skills(skills, params=used, demos=demos)
+        skills = ctl.training.train(arms).result()
+        elapsed = time.perf_counter() - t0
+        assert skills is not None and ctl.training.judgement is not None  # a headless controller raises failures
+        ctl.training.judgement.result()
+        verdicts = ctl.training.verdicts()
     print(report(session, skills, elapsed), file=out)
-    for arm, skill in skills.items():
-        lines = verdict_lines(session, arm, skill)
+    for arm in skills:
+        v = verdicts.get(arm)
+        lines = verdict_words(v.verdict, cli_remedies(session.name, auto)) if v and v.verdict else ()
         if lines:
             print(f"\nHow good is the {arm} arm's skill?", file=out)
             for line in lines:
@@ -138,18 +141,12 @@ def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
     return 0
 
 
-def verdict_lines(session: Session, arm: str, skill: Skill | None) -> list[str]:
-    """The quality verdict of one arm's skill in plain words (empty for something that is not a learned skill)."""
-    from studio.core.pipeline import demo_from_recording, judge_skill
-
-    if not isinstance(skill, Skill):
-        return []
-    recs = {r.name: r for r in session.recordings}
-    demos = [demo_from_recording(recs[n], arm) for n in skill.demo_names if n in recs]
-    if len(demos) != len(skill.demo_names):
-        return []
-    _, verdict = judge_skill(skill, demos, fixed_k=session.n_clusters is not None)
-    return list(verdict.lines)
+def cli_remedies(session: str, auto: bool) -> Remedies:
+    """The knob that would help, said with ``studio learn``'s options (it has no Suggest or Detail)."""
+    again = f'learn again with `studio learn "{session}" --auto`, which searches for better thresholds'
+    search = "record one or two more demonstrations (--auto already chose the thresholds)" if auto else again
+    redo = "re-record it, or hide it in the studio"
+    return {**SHARED_REMEDIES, Remedy.MORE_KEYPOINTS: search, Remedy.SHARPER_CORNERS: search, Remedy.REDO_DEMO: redo}
 
 
 def _fmt(x: float, spec: str = ".3g") -> str:
@@ -351,14 +348,9 @@ def build_example(store: SessionStore, task: str, *, learn_skill: bool = False, 
             r = session.recordings[-1]
             print(f"  {task} demo {i + 1}: {len(r)} samples, {r.duration:.1f} s", file=out)
         if learn_skill:
-            try:
-                from studio.core.pipeline import learn_arms
-            except ImportError:
-                print("  (the learning pipeline is not available; the skill was not learned)", file=out)
-            else:
-                skills = learn_arms(session.recordings, params=session.params, arms=(arm,), seed=0)
-                session.set_skills(skills, demos={a: list(sk.demo_names) for a, sk in skills.items()})
-                print(report(session, skills), file=out)
+            with headless(tmp_store, session) as ctl:
+                skills = train(ctl)
+            print(report(session, skills), file=out)
         final = store.root / task
         old = store.root / f".tmp-old-{uuid.uuid4().hex[:8]}"
         if final.exists():
@@ -381,8 +373,7 @@ def make_examples(args: argparse.Namespace, out: TextIO | None = None) -> int:
             raise InvalidInput(f'Unknown example "{task}": choose one of {", ".join(EXAMPLES)}.')
         t0 = time.perf_counter()
         print(f'Making example session "{task}"...', file=out)
-        # The committed examples hold demonstrations only: the skill is learned in seconds (``studio learn``
-        # or the Train panel), and a stored skill would tie the examples to today's skill file format.
+        # demonstrations only: a stored skill would tie the examples to today's skill file format
         s = build_example(store, task, learn_skill=bool(getattr(args, "learn", False)), out=out)
         size = sum(p.stat().st_size for p in s.path.rglob("*") if p.is_file())
         print(f"  done in {time.perf_counter() - t0:.1f} s: {s.path} ({size / 1e6:.1f} MB)", file=out)
@@ -392,11 +383,13 @@ def make_examples(args: argparse.Namespace, out: TextIO | None = None) -> int:
 __all__ = [
     "EXAMPLES",
     "build_example",
+    "cli_remedies",
     "export_csv",
+    "headless",
     "import_csv",
     "learn",
     "make_examples",
     "record_plan",
     "report",
-    "verdict_lines",
+    "train",
 ]

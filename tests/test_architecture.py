@@ -1,9 +1,11 @@
 """The layout holds: no import cycle (function-level and TYPE_CHECKING imports included), layers import only
-downwards, panels use the controller and never each other, and modules and classes stay a readable size."""
+downwards, panels use the controller and never each other, the controller's parts never take each other; and
+a loose ceiling on module and class size (a review guide: split by concept, never to meet a number)."""
 
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -19,17 +21,27 @@ ALLOWED = {
     "teacher": {"core", "teacher"},
     "world": {"core", "robot_backend", "teacher", "world"},
     "security": {"core", "security"},
-    "controller": {"core", "robot_backend", "recorder", "storage", "csv_io", "world", "controller"},
-    "panels": {"core", "controller", "panels"},
+    "words": {"core", "words"},
+    "controller": {"core", "robot_backend", "recorder", "storage", "csv_io", "world", "words", "controller"},
+    "panels": {"core", "controller", "words", "panels"},
     "app": {"core", "robot_backend", "storage", "controller", "panels", "security", "app"},
-    "commands": {"core", "robot_backend", "recorder", "storage", "csv_io", "teacher", "world", "commands"},
+    "commands": {
+        "core",
+        "robot_backend",
+        "recorder",
+        "storage",
+        "csv_io",
+        "teacher",
+        "world",
+        "words",
+        "controller",
+        "commands",
+    },
     "cli": {"core", "storage", "app", "commands", "cli"},
 }
-#: "About 400 lines a module (outside studio/core), about 250 a class": past that, split by concern.
-MAX_MODULE_LINES = 410
-MAX_CLASS_LINES = 255
-#: Merged before the split (issues 10 and 13 split them next); this set must shrink to empty, never grow.
-SPLIT_PENDING: set[str] = set()
+#: A ceiling, not a target: below it, cohesion decides (one concept a module, one responsibility a class).
+MAX_MODULE_LINES = 600
+MAX_CLASS_LINES = 400
 
 
 def _module_name(path: Path) -> str:
@@ -122,7 +134,47 @@ def test_panels_never_touch_each_other_or_private_state() -> None:
                     assert "ctl" not in root, f"{name}: {chain} reads the controller's private state"
 
 
-def test_modules_and_classes_stay_readable() -> None:
+def _controller_parts() -> set[str]:
+    """The classes ``Controller.__init__`` builds its parts from (``self.x = Part(...)``)."""
+    tree = ast.parse(MODULES["studio.controller"].read_text())
+    init = next(
+        n
+        for c in tree.body
+        if isinstance(c, ast.ClassDef) and c.name == "Controller"
+        for n in c.body
+        if isinstance(n, ast.FunctionDef) and n.name == "__init__"
+    )
+    return {
+        node.value.func.id
+        for node in ast.walk(init)
+        if isinstance(node, ast.Assign)
+        and isinstance(node.value, ast.Call)
+        and isinstance(node.value.func, ast.Name)
+        and node.value.func.id[0].isupper()
+        and node.value.func.id not in ("Context", "LogNotifier")
+    }
+
+
+def test_controller_parts_never_take_each_other() -> None:
+    parts = _controller_parts()
+    assert {"Teaching", "Training", "SessionActions", "ExecutionActions"} <= parts
+    bad = []
+    for name, path in MODULES.items():
+        if _layer(name) != "controller":
+            continue
+        for cls in ast.walk(ast.parse(path.read_text())):
+            if not (isinstance(cls, ast.ClassDef) and cls.name in parts):
+                continue
+            for fn in cls.body:
+                if isinstance(fn, ast.FunctionDef) and fn.name == "__init__":
+                    for a in [*fn.args.args, *fn.args.kwonlyargs]:
+                        ann = ast.unparse(a.annotation) if a.annotation is not None else ""
+                        if set(re.findall(r"\w+", ann)) & parts:  # names in the annotation, quoted or not
+                            bad.append(f"{cls.name}.__init__({a.arg}: {ann})")
+    assert not bad, "a controller part takes another part (give it a narrow Protocol or a callable):\n" + "\n".join(bad)
+
+
+def test_modules_and_classes_stay_under_the_ceiling() -> None:
     big = []
     for name, path in MODULES.items():
         src = path.read_text()
@@ -133,5 +185,7 @@ def test_modules_and_classes_stay_readable() -> None:
                 n = node.end_lineno - node.lineno + 1
                 if n > MAX_CLASS_LINES:
                     big.append(f"{name}.{node.name}: {n} lines")
-    big = [b for b in big if b.split(":")[0] not in SPLIT_PENDING]
-    assert not big, "\n".join(big)
+    assert not big, (
+        "Past the ceiling: does this hold more than one concept? Split it by concept (what changes together stays "
+        "together), not by moving helpers elsewhere to meet the number.\n" + "\n".join(big)
+    )

@@ -3,16 +3,20 @@
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
+from studio import commands
 from studio.cli import main
 from studio.commands import EXAMPLES, build_example
 from studio.core.types import Demo, KeypointParams, Recording
 from studio.csv_io import export_recording_csv
 from studio.storage import DEFAULT_ROOT, SessionStore
+from tests.conftest import RecordingNotifier
 
 
 def _csv(path: Path, n: int = 800, seed: int = 0) -> Path:
@@ -136,6 +140,7 @@ def test_learn_uses_the_sessions_k_and_remembers_each_arms_demos(
     tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     pipeline = pytest.importorskip("studio.core.pipeline")
+    quality = pytest.importorskip("studio.core.quality")
     calls: list[dict] = []
 
     class FakeSkill:  # what `studio learn` saves and reports, without learning
@@ -152,11 +157,15 @@ def test_learn_uses_the_sessions_k_and_remembers_each_arms_demos(
         def to_arrays(self) -> dict[str, np.ndarray]:
             return {"x": np.zeros(1)}
 
-    def fake_learn_arms(recordings, params=None, *, arms=None, n_clusters=None, seed=0, baxter=None, generalization=""):
-        calls.append({"n_clusters": n_clusters})
-        return {a: FakeSkill(tuple(r.name for r in recordings if a in r.arms)) for a in arms}
+    def fake_learn_skill(demos, params=None, *, n_clusters=None, arm="left", **kwargs):
+        calls.append({"arm": arm, "n_clusters": n_clusters})
+        return FakeSkill(tuple(d.name for d in demos))
 
-    monkeypatch.setattr(pipeline, "learn_arms", fake_learn_arms)
+    monkeypatch.setattr(pipeline, "learn_skill", fake_learn_skill)
+    verdict = SimpleNamespace(level="fake")
+    monkeypatch.setattr(pipeline, "judge_skill", lambda skill, demos, fixed_k: (None, verdict))
+    monkeypatch.setattr(commands, "verdict_words", lambda v, remedies: ("fits",) if v is verdict else ())
+    monkeypatch.setattr(quality, "demo_fits", lambda report: ())
     store = SessionStore(tmp_path)
     s = store.create("both arms", arms=("left", "right"))
     n = 300
@@ -165,13 +174,13 @@ def test_learn_uses_the_sessions_k_and_remembers_each_arms_demos(
         s.add_recording(Recording(np.arange(n) / 100.0, q, np.full((n, 2), 100.0), arms=arms, name=name))
     s.set_n_clusters(4)
     assert main(["learn", "both arms", "--sessions-dir", str(tmp_path)]) == 0
-    assert calls == [{"n_clusters": 4}]
+    assert calls == [{"arm": "left", "n_clusters": 4}, {"arm": "right", "n_clusters": 4}]
     info = json.loads((s.path / "session.json").read_text())["skills"]  # the fake skill files do not load back
     assert info["left"]["demos"] == ["l1", "l2", "b"] and info["right"]["demos"] == ["r1", "b"]
+    assert "How good is the right arm's skill?\n  fits" in capsys.readouterr().out
 
 
 def test_learn_auto_suggests_thresholds_first_and_keeps_them(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
-
 
     store = SessionStore(tmp_path)
     src = SessionStore(DEFAULT_ROOT).open("stack-cup", recover=False)
@@ -186,3 +195,41 @@ def test_learn_auto_suggests_thresholds_first_and_keeps_them(tmp_path: Path, cap
     loaded = store.open("auto")
     assert loaded.params.eps5 < 0.2  # the suggestion was applied and saved
     assert loaded.skills["left"].params == loaded.params
+
+
+@pytest.mark.parametrize(
+    ("task", "hidden"), [("stack-cup", ()), ("pick-place", ()), ("stack-cup", ("demo 2",))], ids=str
+)
+def test_studio_learn_and_the_train_button_learn_the_same_skill(
+    tmp_path: Path, capsys: pytest.CaptureFixture, task: str, hidden: tuple[str, ...]
+) -> None:
+    pytest.importorskip("studio.core.pipeline")
+    from studio.controller import Controller
+    from studio.robot_backend.simulated import SimulatedBaxter
+
+    stores = {}
+    for side in ("cli", "studio"):
+        shutil.copytree(DEFAULT_ROOT / task, tmp_path / side / task)
+        stores[side] = SessionStore(tmp_path / side)
+        s = stores[side].open(task)
+        for name in hidden:  # hidden in the studio: left out of learning by both
+            s.set_demo_hidden(s.demo_names.index(name), True)
+    assert main(["learn", task, "--sessions-dir", str(tmp_path / "cli")]) == 0
+    assert "How good is the left arm's skill?" in capsys.readouterr().out
+    ctl = Controller(store=stores["studio"], session=task, backend=SimulatedBaxter(), notifier=RecordingNotifier())
+    try:
+        ctl.training.train().result(timeout=120)
+    finally:
+        ctl.close()
+        ctl.shutdown()
+    by_cli, by_studio = (stores[side].open(task, recover=False) for side in ("cli", "studio"))
+    assert set(by_cli.skills) == set(by_studio.skills) == {"left"}
+    a, b = by_cli.skills["left"], by_studio.skills["left"]
+    names = [n for n in by_cli.demo_names if n not in hidden]
+    assert list(a.demo_names) == list(b.demo_names) == names
+    assert a.n_clusters == b.n_clusters and a.params == b.params and by_cli.params == by_studio.params
+    assert len(a.trajectory) == len(b.trajectory) > 100
+    for field in ("t", "position", "orientation", "gripper"):
+        np.testing.assert_allclose(getattr(a.trajectory, field), getattr(b.trajectory, field), rtol=0, atol=1e-9)
+    assert a.joint_trajectory is not None and b.joint_trajectory is not None
+    np.testing.assert_allclose(a.joint_trajectory.q, b.joint_trajectory.q, rtol=0, atol=1e-9)

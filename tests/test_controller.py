@@ -11,6 +11,7 @@ import pytest
 
 from studio.controller import PREVIEW, REPLAY, Controller, Topic
 from studio.core.errors import NotEnoughData, SessionFormatError, StudioError
+from studio.core.quality import Issue
 from studio.robot_backend.simulated import SimulatedBaxter
 from studio.storage import SessionStore
 from tests.conftest import RecordingNotifier, wait_for
@@ -369,7 +370,7 @@ def test_training_is_judged_in_plain_words(ctl: Controller) -> None:
     ctl.training.train().result(timeout=120)
     assert wait_for(lambda: "left" in ctl.training.verdicts() and not ctl.training.judging, 120)
     v = ctl.training.verdicts()["left"]
-    assert v.verdict is not None and v.verdict.lines[0].startswith("Good: the skill follows your demonstrations")
+    assert v.verdict is not None and v.verdict.level == "good" and v.verdict.headline.issue is Issue.CLOSE
     assert [f.name for f in v.fits] == ["demo 1", "demo 2", "demo 3"] and all(f.well for f in v.fits)
     assert verdicts[0] == 0 and verdicts[-1] == 1
     ctl.demos.rename(0, "renamed")  # the skill stays; its judgement says what it cannot judge any more
@@ -386,7 +387,7 @@ def test_an_odd_demonstration_is_named(ctl: Controller) -> None:
     ctl.training.train().result(timeout=180)
     assert wait_for(lambda: "left" in ctl.training.verdicts() and not ctl.training.judging, 180)
     v = ctl.training.verdicts()["left"]
-    assert v.verdict is not None and "demo 4 differs a lot from the others — re-record or hide it." in v.verdict.lines
+    assert v.verdict is not None and (Issue.OUTLIER, "demo 4") in [(f.issue, f.demo) for f in v.verdict.notes]
     assert [f.well for f in v.fits] == [True, True, True, False]
 
 

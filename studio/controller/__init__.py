@@ -19,9 +19,8 @@ runs and is tested without a browser. One module per concern:
     run.py        Run, RunStatus: one run on the robot (recording, progress, judgement) and its words
     view.py       View: the step the teacher is at and which scene layers are drawn
 
-Threads: the backend's thread delivers joint states (only the newest is kept); one *work* thread runs heavy
-jobs (training) one at a time; one *key-point* thread recomputes the key-point view (newest request wins);
-GUI callbacks call the actions from viser's thread pool; shared state is guarded by ``ctx.lock``.
+No part takes another: each gets the :class:`Context` and narrow protocols or callables for what it asks,
+and subscribes to the events it follows. ARCHITECTURE.md ("The controller") has the wiring and the threads.
 """
 
 from __future__ import annotations
@@ -29,8 +28,6 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from typing import ParamSpec, TypeVar
-
-import numpy as np
 
 from studio.controller.context import Context, Kind, LogNotifier, Notifier
 from studio.controller.demos import PALETTE, Demos, DemoSummary
@@ -67,46 +64,47 @@ class Controller:
         display: the pose the scene draws; events: the topics to subscribe to; baxter: the kinematic model.
 
     Start it with :meth:`start` (robot streaming, key-point thread) and stop it with :meth:`shutdown`.
+    ``headless``: for commands without a GUI (``studio learn``): a failed job raises from its future.
     """
 
     def __init__(
         self,
         *,
         store: SessionStore,
-        session: str,
+        session: str | Session,
         backend: RobotBackend,
         baxter: Baxter | None = None,
         notifier: Notifier | None = None,
+        headless: bool = False,
     ) -> None:
         baxter = baxter if baxter is not None else Baxter.load()
-        self.ctx = Context(store, open_or_create(store, session), baxter, notifier or LogNotifier())
-        self.display = Display()
-        self.view = View(self.ctx.events)
-        self.demos = Demos(self.ctx)
-        self.teaching = Teaching(self.ctx, backend, self.display, self.demos)
-        self.playback = Player(self.ctx, self.display, self._robot_pose)
-        arms = self._arms
-        self.keypoints = KeypointTuning(self.ctx, self.demos, arms)
-        self.live = LivePaths(self.ctx, self.demos, self.keypoints, lambda: self.view.shown(Layer.KEYPOINTS))
-        self.events.on(Topic.VIEW, self.live.refresh_if_wanted)
-        self.suggest = Suggesting(self.ctx, self.demos, self.keypoints)
-        self.training = Training(self.ctx, self.demos, self.keypoints, arms, self.playback)
-        self.scene = SceneActions(self.ctx, backend, self.display, self.playback, arms, lambda: self.teaching.recording)
-        self.teaching.takes = self.scene
+        opened = session if isinstance(session, Session) else open_or_create(store, session)
+        self.ctx = ctx = Context(store, opened, baxter, notifier or LogNotifier(), headless=headless)
+        # Each part gets the context and narrow callables or protocols for what it asks of the others (late
+        # bound: a part is asked only once all exist); it subscribes to the events it follows itself.
+        self.view = View(ctx.events)
+        self.demos = Demos(ctx)
+        self.playback = Player(ctx, guard=lambda: self.execution.check_not_running())
+        self.scene = SceneActions(ctx, backend, player=self.playback)
+        self.teaching = Teaching(ctx, backend, takes=self.scene, motion_guard=lambda d: self.execution.check_free(d))
+        self.keypoints = KeypointTuning(ctx, self.demos)
+        self.live = LivePaths(ctx, self.demos, self.keypoints, wanted=lambda: self.view.shown(Layer.KEYPOINTS))
+        self.suggest = Suggesting(ctx, self.demos, self.keypoints)
+        self.training = Training(ctx, self.demos, self.keypoints)
         self.execution = ExecutionActions(
-            self.ctx, backend, self.display, self.playback, self.teaching, self.training, self.scene
+            ctx,
+            backend,
+            objects=self.scene,
+            hands=self.teaching,
+            training_busy=lambda: self.training.busy,
+            unload_playback=self.playback.unload,
         )
-        self.teaching.motion_guard = self.execution.check_free
-        self.playback.guard = self.execution.check_not_running
-        self.sessions = SessionActions(
-            self.ctx, self.display, self.teaching, self.demos, self.keypoints, self.training, self.playback, self.scene
-        )
+        self.sessions = SessionActions(ctx, persist=self.keypoints.persist)
 
-    def _arms(self) -> tuple[str, ...]:
-        return self.teaching.selected_arms
-
-    def _robot_pose(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.teaching.robot_q(), self.teaching.robot_gripper()
+    @property
+    def display(self) -> Display:
+        """The pose the scene draws."""
+        return self.ctx.display
 
     # -- shared things -------------------------------------------------------------------------------------
     @property

@@ -1,5 +1,6 @@
-"""What every part of the controller shares: the open session, one lock, the events, notifications, and one
-work thread for heavy jobs. Failures anywhere become plain-words notifications; the studio keeps running."""
+"""What every part of the controller shares: the open session and its taught arms, one lock, the events,
+notifications, the pose the scene draws, the checks before the session changes, and one work thread for heavy
+jobs. Failures anywhere become plain-words notifications; the studio keeps running."""
 
 from __future__ import annotations
 
@@ -11,7 +12,9 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Literal, ParamSpec, Protocol, TypeVar
 
 from studio.controller.events import Events, Topic
-from studio.core.errors import StudioError
+from studio.controller.pose import Display
+from studio.core.arms import normalize_arms
+from studio.core.errors import InvalidInput, StudioError
 from studio.core.kinematics import Baxter
 from studio.storage import Session, SessionStore
 
@@ -50,16 +53,39 @@ class Context:
         notifier: where notifications go (replaceable, e.g. by a test that records them).
         events: the topics the views subscribe to.
         lock: guards the state the parts share (session switches, the recorder, training).
+        display: which robot pose the scene draws (the live robot, or a replay's or preview's).
+        headless: a failed job on the work thread stays in its future (the caller raises it) instead of
+            becoming a notification.
     """
 
-    def __init__(self, store: SessionStore, session: Session, baxter: Baxter, notifier: Notifier) -> None:
+    def __init__(
+        self, store: SessionStore, session: Session, baxter: Baxter, notifier: Notifier, *, headless: bool = False
+    ) -> None:
         self.store = store
         self.session = session
         self.baxter = baxter
         self.notifier = notifier
         self.events = Events()
         self.lock = threading.RLock()
+        self.display = Display()
+        self.headless = headless
+        self._leaving: list[Callable[[str], None]] = []
         self._work = ThreadPoolExecutor(max_workers=1, thread_name_prefix="studio-work")
+
+    @property
+    def arms(self) -> tuple[str, ...]:
+        """The arm(s) taught in the open session."""
+        return taught_arms(self.session)
+
+    def on_leave(self, check: Callable[[str], None]) -> None:
+        """Call ``check(doing)`` before the open session is changed (``doing``: "opening another session", …):
+        it refuses in plain words (raises :class:`StudioError`) or keeps what belongs to the session being left."""
+        self._leaving.append(check)
+
+    def leave(self, doing: str) -> None:
+        """Run the checks of :meth:`on_leave` (the first refusal propagates)."""
+        for check in list(self._leaving):
+            check(doing)
 
     def notify(self, title: str, body: str, *, kind: Kind = "error", client: object | None = None) -> None:
         self.notifier.notify(title, body, kind=kind, client=client)
@@ -106,7 +132,7 @@ class Context:
         title: str = "That did not work",
     ) -> Future[R | None]:
         """Run ``job`` on the work thread (one job at a time); ``done(result)`` runs there too. A failure is a
-        notification and the future's result is None."""
+        notification and the future's result is None (:attr:`headless`: the future holds the failure)."""
 
         def run() -> R | None:
             try:
@@ -115,6 +141,8 @@ class Context:
                     done(result)
                 return result
             except Exception as exc:
+                if self.headless:
+                    raise
                 self.report(exc, title=title)
                 return None
 
@@ -123,3 +151,11 @@ class Context:
     def shutdown(self) -> None:
         """Drop queued work (a running job finishes on its own)."""
         self._work.shutdown(wait=False, cancel_futures=True)
+
+
+def taught_arms(session: Session) -> tuple[str, ...]:
+    """The arm(s) ``session`` teaches ("left" when it names none that is valid)."""
+    try:
+        return normalize_arms(tuple(session.arms))
+    except InvalidInput:
+        return ("left",)

@@ -29,6 +29,11 @@ PALETTE: tuple[tuple[int, int, int], ...] = (
 )
 
 
+def demo_color(i: int) -> tuple[int, int, int]:
+    """The colour of demonstration ``i`` (RGB)."""
+    return PALETTE[i % len(PALETTE)]
+
+
 @dataclass(frozen=True)
 class DemoSummary:
     """One row of the demo list."""
@@ -43,7 +48,8 @@ class DemoSummary:
 
 
 class Demos:
-    """The open session's demonstrations; every edit is saved at once and announced as :attr:`Topic.DEMOS`."""
+    """The open session's demonstrations; every edit is saved at once and announced as :attr:`Topic.DEMOS`
+    (a new take too: :class:`~studio.controller.teaching.Teaching` emits it). Another session clears the cache."""
 
     #: Seconds within which a second Delete press confirms the first.
     DELETE_CONFIRM_S = 5.0
@@ -52,6 +58,8 @@ class Demos:
         self.ctx = ctx
         self._cache: dict[tuple[int, str], tuple[Recording, Demo]] = {}
         self._delete_pending: tuple[str, float] | None = None  # (demo name, time of the first Delete press)
+        ctx.events.on(Topic.DEMOS, self._prune)
+        ctx.events.on(Topic.SESSION, self.clear)
 
     # -- reading -------------------------------------------------------------------------------------------
     def recordings(self) -> list[Recording]:
@@ -67,7 +75,7 @@ class Demos:
 
     @staticmethod
     def color(i: int) -> tuple[int, int, int]:
-        return PALETTE[i % len(PALETTE)]
+        return demo_color(i)
 
     def visible(self, i: int) -> bool:
         names = self.names()
@@ -179,10 +187,12 @@ class Demos:
         return False
 
     def changed(self) -> None:
-        """The set of demonstrations changed: drop stale caches and tell the views."""
+        """The set of demonstrations changed: tell the views (stale cache entries are dropped then)."""
+        self.ctx.emit(Topic.DEMOS)
+
+    def _prune(self) -> None:
         live = {id(r) for r in self.recordings()}
         self._cache = {k: v for k, v in self._cache.items() if k[0] in live}
-        self.ctx.emit(Topic.DEMOS)
 
     def clear(self) -> None:
         """Forget everything cached (another session was opened)."""

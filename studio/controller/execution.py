@@ -30,13 +30,13 @@ from __future__ import annotations
 import dataclasses
 import logging
 import threading
+from collections.abc import Callable
+from typing import Protocol
 
 import numpy as np
 
 from studio.controller.context import Context, Kind
 from studio.controller.events import Topic
-from studio.controller.playback import Player
-from studio.controller.pose import Display
 from studio.controller.run import (
     ESTOP_WORDS,
     HELD,
@@ -46,6 +46,7 @@ from studio.controller.run import (
     TITLES,
     FeasibilityCache,
     Run,
+    RunObjects,
     RunPaths,
     RunStatus,
     abandon,
@@ -54,9 +55,6 @@ from studio.controller.run import (
     judgement,
     wait_confirmed,
 )
-from studio.controller.scene import SceneActions
-from studio.controller.teaching import Teaching
-from studio.controller.training import Training
 from studio.core import sampling
 from studio.core.errors import StudioError
 from studio.core.execution import (
@@ -74,6 +72,14 @@ from studio.world import TaskResult
 log = logging.getLogger(__name__)
 
 
+class Hands(Protocol):
+    """Teaching by hand, as a run on the robot sees it (:class:`~studio.controller.teaching.Teaching`)."""
+
+    @property
+    def recording(self) -> bool: ...
+    def forget_targets(self) -> None: ...
+
+
 class ExecutionActions:
     """Run on robot, Stop, Emergency stop and its release; the last run's status, paths and judgement.
 
@@ -81,25 +87,30 @@ class ExecutionActions:
         plan, recording, report, task: the last run's plan, its recorded joint states (times from 0), how
             closely it followed the plan, and its task result (None when the demonstrations moved no object),
             kept in memory until the next run, a new skill or another session.
+
+    Args:
+        objects: the objects on the table during a run; hands: whether a take is recorded, and forgetting the
+            hand-moved targets once the robot moved by itself; training_busy, unload_playback: what a run
+            checks and does first.
     """
 
     def __init__(
         self,
         ctx: Context,
         backend: RobotBackend,
-        display: Display,
-        player: Player,
-        teaching: Teaching,
-        training: Training,
-        scene: SceneActions,
+        *,
+        objects: RunObjects,
+        hands: Hands,
+        training_busy: Callable[[], bool],
+        unload_playback: Callable[[], None],
     ) -> None:
         self.ctx = ctx
         self.backend = backend
-        self.display = display
-        self.player = player
-        self.teaching = teaching
-        self.training = training
-        self.scene = scene
+        self.display = ctx.display
+        self.scene = objects
+        self.teaching = hands
+        self.training_busy = training_busy
+        self.unload_playback = unload_playback
         self._lock = threading.RLock()
         self._status = RunStatus()
         self._run: Run | None = None
@@ -112,6 +123,7 @@ class ExecutionActions:
         self.task: TaskResult | None = None
         self.verdict: RunVerdict | None = None
         self.robot = RobotActions(ctx, backend)
+        ctx.on_leave(self._check_leave)
         ctx.events.on(Topic.SKILL, self._forget_last_run)
         ctx.events.on(Topic.SESSION, self._forget_last_run)
 
@@ -151,7 +163,7 @@ class ExecutionActions:
             return "The robot is already running the skill: wait for it to finish, or press Stop."
         if self.teaching.recording:
             return "Stop the recording before running the skill on the robot."
-        if self.training.busy:
+        if self.training_busy():
             return "Wait for the training to finish before running the skill on the robot."
         if not sampling.executable(self.ctx.session.skills):
             return "There is no learned skill to run yet: record demonstrations and press Train first."
@@ -174,6 +186,10 @@ class ExecutionActions:
         if not health.ready:
             raise StudioError(health.message)
 
+    def _check_leave(self, doing: str) -> None:
+        if self.backend.progress().active:
+            raise StudioError(f"Wait for the robot's run to end (or press Stop) before {doing}.")
+
     def check_not_running(self) -> None:
         """Refuse a preview or replay while the robot runs: the scene shows the real robot then."""
         if self._run is not None:
@@ -188,7 +204,7 @@ class ExecutionActions:
                 raise StudioError(reason)
             skills = sampling.executable(self.ctx.session.skills)
             jts = {arm: s.joint_trajectory for arm, s in skills.items() if s.joint_trajectory is not None}
-            self.player.unload()
+            self.unload_playback()
             self.display.show_live()  # the drawn robot is the real one during the run
             hold_still(self.backend)
             st = self.backend.state()

@@ -8,11 +8,12 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 
 from studio.controller.context import Context
-from studio.controller.demos import Demos
+from studio.controller.demos import demo_color
 from studio.controller.events import Topic
 from studio.core.errors import StudioError
 from studio.core.keypoints import KeypointCache
@@ -53,6 +54,12 @@ class KeypointView:
     indices: dict[str, list[np.ndarray]] = field(default_factory=dict)
 
 
+class ShownDemos(Protocol):
+    """The shown demonstrations of an arm (:meth:`studio.controller.demos.Demos.for_arm`)."""
+
+    def for_arm(self, arm: str) -> list[tuple[int, Demo]]: ...
+
+
 #: Work done on the key-point thread after each new view while no newer request waits: ``follower(view,
 #: stale)``, where ``stale()`` says a newer request arrived (stop early, the result would be old).
 Follower = Callable[[KeypointView, Callable[[], bool]], None]
@@ -69,13 +76,13 @@ class KeypointTuning:
     :attr:`view` and :attr:`Topic.KEYPOINTS` is emitted, then the followers run (the live path).
     """
 
-    def __init__(self, ctx: Context, demos: Demos, arms: Callable[[], tuple[str, ...]]) -> None:
+    def __init__(self, ctx: Context, demos: ShownDemos) -> None:
         self.ctx = ctx
         self.demos = demos
-        self.arms = arms
         self.cache = KeypointCache()  # per-demo derived series, reused across ε changes (weak keys)
         self.view: KeypointView | None = None
         self.followers: list[Follower] = []
+        self._session: Session = ctx.session  # the session the settings belong to
         self._settings: ThresholdSettings = ctx.session.thresholds
         self._k: int | None = ctx.session.n_clusters
         self._stats: dict[str, tuple[tuple[Demo, ...], DemoStats]] = {}
@@ -85,8 +92,17 @@ class KeypointTuning:
         self._pending = threading.Event()
         self._stop = threading.Event()
         self._worker: threading.Thread | None = None
+        ctx.on_leave(lambda doing: self.persist())  # unsaved values belong to the session being left
+        ctx.events.on(Topic.SESSION, self._on_session)
         for topic in (Topic.DEMOS, Topic.SESSION, Topic.ARMS):
             ctx.events.on(topic, self.request)
+
+    def arms(self) -> tuple[str, ...]:
+        return self.ctx.arms
+
+    def add_follower(self, follower: Follower) -> None:
+        """Run ``follower`` on the key-point thread after each new view (see :data:`Follower`)."""
+        self.followers.append(follower)
 
     # -- thresholds and k ----------------------------------------------------------------------------------
     def settings(self) -> ThresholdSettings:
@@ -186,16 +202,17 @@ class KeypointTuning:
             if not (self._dirty or force):
                 return
             self._dirty = False
-            settings, k, session = self._settings, self._k, self.ctx.session
+            settings, k, session = self._settings, self._k, self._session
         params = self.params(settings=settings)
         if settings != session.thresholds or params != session.params:
             session.set_params(params, settings)
         if k != session.n_clusters:
             session.set_n_clusters(k)
 
-    def on_session(self, session: Session) -> None:
-        """Another session is open: take its settings and k (persist the old ones first)."""
+    def _on_session(self) -> None:
+        """Another session is open: take its settings and k (the old ones were kept before it changed)."""
         with self.ctx.lock:
+            session = self._session = self.ctx.session
             self._settings = session.thresholds
             self._k = session.n_clusters
             self._dirty = False
@@ -295,4 +312,4 @@ class KeypointTuning:
 
 def _item(i: int, arm: str, d: Demo, ix: np.ndarray) -> KeypointItem:
     points = np.asarray(d.position)[ix] if len(ix) else np.zeros((0, 3))
-    return KeypointItem(index=i, arm=arm, name=d.name, color=Demos.color(i), count=len(ix), points=points)
+    return KeypointItem(index=i, arm=arm, name=d.name, color=demo_color(i), count=len(ix), points=points)

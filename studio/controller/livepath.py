@@ -7,13 +7,14 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
 from studio.controller.context import Context
-from studio.controller.demos import Demos
 from studio.controller.events import Topic
-from studio.controller.learning import KeypointTuning, KeypointView
+from studio.controller.learning import Follower, KeypointView, ShownDemos
+from studio.core.keypoints import KeypointCache
 
 
 @dataclass(frozen=True)
@@ -40,7 +41,7 @@ class LivePath:
     @property
     def words(self) -> str:
         """The fidelity figure in plain words."""
-        from studio.core.quality import length_words
+        from studio.words import length_words
 
         if self.message:
             return self.message
@@ -49,14 +50,27 @@ class LivePath:
         return f"The learned path would stay within {length_words(self.distance)} of your demonstrations on average."
 
 
+class KeypointSource(Protocol):
+    """The key-point view and its settings (:class:`~studio.controller.learning.KeypointTuning`)."""
+
+    view: KeypointView | None
+    cache: KeypointCache
+
+    @property
+    def k(self) -> int | None: ...
+    def request(self) -> None: ...
+    def add_follower(self, follower: Follower) -> None: ...
+
+
 class LivePaths:
     """Follows the key-point view (a :data:`~studio.controller.learning.Follower`) and keeps one live path per
     taught arm in :attr:`paths`; emits :attr:`Topic.LIVE_PATH` when they are new.
 
-    ``wanted()`` says whether anybody looks at them (the Key-points step): otherwise nothing is computed.
+    ``wanted()`` says whether anybody looks at them (the Key-points step): otherwise nothing is computed; when
+    the view changes (:attr:`Topic.VIEW`) and they are wanted, they are brought up to date.
     """
 
-    def __init__(self, ctx: Context, demos: Demos, tuning: KeypointTuning, wanted: Callable[[], bool]) -> None:
+    def __init__(self, ctx: Context, demos: ShownDemos, tuning: KeypointSource, wanted: Callable[[], bool]) -> None:
         from studio.core.pipeline import AlignmentCache
 
         self.ctx = ctx
@@ -66,7 +80,8 @@ class LivePaths:
         self.paths: dict[str, LivePath] = {}
         self.align_cache = AlignmentCache()
         self.computed_ms: float = math.nan  # how long the last set of paths took (for the bench)
-        tuning.followers.append(self.follow)
+        tuning.add_follower(self.follow)
+        ctx.events.on(Topic.VIEW, self.refresh_if_wanted)
 
     def follow(self, view: KeypointView, stale: Callable[[], bool]) -> None:
         """Compute the live path of every arm of ``view`` unless a newer view is coming; :attr:`Topic.LIVE_PATH`

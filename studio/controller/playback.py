@@ -14,7 +14,7 @@ import numpy as np
 
 from studio.controller.context import Context
 from studio.controller.events import Topic
-from studio.controller.pose import Display, PoseSource
+from studio.controller.pose import PoseSource
 from studio.core import sampling
 from studio.core.errors import NotEnoughData, StudioError
 from studio.core.types import Recording
@@ -79,19 +79,21 @@ class Playback:
 class Player:
     """Loads, plays, pauses, seeks and unloads the one playback; every action names the kind it is for.
 
+    A new skill unloads the preview of the old one (:attr:`Topic.SKILL`); another session unloads any
+    playback and shows the live robot (:attr:`Topic.SESSION`).
+
     Args:
-        robot_pose: the live robot's joints (14,) and grippers (2,): the arms without a skill hold them in
-            the preview.
+        guard: refuses (raises, in plain words) to show a playback while the robot runs a skill: the scene
+            shows the real robot then.
     """
 
-    def __init__(self, ctx: Context, display: Display, robot_pose: Callable[[], tuple[np.ndarray, np.ndarray]]) -> None:
+    def __init__(self, ctx: Context, guard: Callable[[], None] = lambda: None) -> None:
         self.ctx = ctx
-        self.display = display
-        self.robot_pose = robot_pose
+        self.display = ctx.display
+        self.guard = guard
         self._loaded: Playback | None = None
-        #: Refuses to show a playback while the robot runs a skill: the scene shows the real robot then (set by
-        #: the controller: ``ExecutionActions.check_not_running``).
-        self.guard: Callable[[], None] | None = None
+        ctx.events.on(Topic.SKILL, self.unload_preview)
+        ctx.events.on(Topic.SESSION, self._on_session)
 
     # -- state -----------------------------------------------------------------------------------------------
     @property
@@ -125,8 +127,7 @@ class Player:
     # -- actions ---------------------------------------------------------------------------------------------
     def play(self, kind: PlaybackKind, key: object, make: Callable[[], Recording], speed: float = 1.0) -> Playback:
         """Play (resume when the ``kind`` playback of ``key`` is loaded, from the start once it finished)."""
-        if self.guard is not None:
-            self.guard()
+        self.guard()
         pb = self._get(kind)
         if pb is not None and pb.key is key:
             if pb.finished:
@@ -153,8 +154,7 @@ class Player:
         self, kind: PlaybackKind, t: float, key: object = None, make: Callable[[], Recording] | None = None
     ) -> None:
         """Show the moment ``t`` s; loads the playback paused when ``make`` is given and it is not loaded."""
-        if self.guard is not None:
-            self.guard()
+        self.guard()
         pb = self._get(kind)
         if pb is None:
             if make is None:
@@ -174,6 +174,10 @@ class Player:
         if self._get(PREVIEW) is not None:
             self.unload()
             self.display.show_live()
+
+    def _on_session(self) -> None:
+        self.unload()
+        self.display.show_live()
 
     def unload(self) -> None:
         """Unload whatever is loaded (the scene keeps the current source until told otherwise)."""
@@ -201,7 +205,8 @@ class Player:
             raise NotEnoughData("There is no learned skill to preview yet: press Train first.")
         t_end = sampling.duration(skills)
         t = np.linspace(0.0, max(t_end, 0.01), max(2, int(t_end * PREVIEW_RATE_HZ) + 1))
-        q, g = sampling.sample_joints(skills, t, *self.robot_pose())
+        _, _, q_live, g_live = self.display.live.get()  # the arms without a skill hold the live robot's pose
+        q, g = sampling.sample_joints(skills, t, q_live.copy(), g_live.copy())
         return Recording(t=t, q=q, gripper=g, arms=tuple(skills), name="learned skill")
 
     def play_preview(self, speed: float = 1.0) -> None:

@@ -24,10 +24,10 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 
-from studio.controller.scene import SceneActions
 from studio.core.errors import StudioError
 from studio.core.execution import ExecutionPlan, RunVerdict, TrackingReport, compare_execution, skill_feasibility
 from studio.core.ik_path import Feasibility
@@ -159,10 +159,19 @@ class Judged:
     task: TaskResult | None
 
 
+class RunObjects(Protocol):
+    """The objects on the table during a run (:class:`~studio.controller.scene.SceneActions`)."""
+
+    def begin_run(
+        self, t: np.ndarray | None = None, q: np.ndarray | None = None, gripper: np.ndarray | None = None
+    ) -> int: ...
+    def end_run(self, mark: int, recording: Recording, t0: float) -> TaskResult | None: ...
+
+
 class Run:
     """One plan executed by the robot (see the module docstring); :meth:`start` makes one."""
 
-    def __init__(self, plan: ExecutionPlan, backend: RobotBackend, scene: SceneActions, baxter: Baxter) -> None:
+    def __init__(self, plan: ExecutionPlan, backend: RobotBackend, scene: RunObjects, baxter: Baxter) -> None:
         self.plan = plan
         self.backend = backend
         self.scene = scene
@@ -176,7 +185,7 @@ class Run:
         self._unsubscribe: Callable[[], None] | None = None
 
     @classmethod
-    def start(cls, plan: ExecutionPlan, backend: RobotBackend, scene: SceneActions, baxter: Baxter) -> Run:
+    def start(cls, plan: ExecutionPlan, backend: RobotBackend, scene: RunObjects, baxter: Baxter) -> Run:
         """Objects to the set-up, the recorder on, the plan sent to the robot (all undone if the robot refuses)."""
         run = cls(plan, backend, scene, baxter)
         try:

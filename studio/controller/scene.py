@@ -23,14 +23,14 @@ from __future__ import annotations
 import logging
 import math
 import threading
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
+from typing import Protocol
 
 import numpy as np
 
 from studio.controller.context import Context
 from studio.controller.events import Topic
-from studio.controller.playback import Playback, Player
-from studio.controller.pose import Display
+from studio.controller.playback import Playback
 from studio.core.errors import StudioError
 from studio.core.types import ARMS, Recording
 from studio.robot_backend.base import RobotBackend
@@ -58,28 +58,27 @@ log = logging.getLogger(__name__)
 _SPOTS = tuple((x, y) for x in (0.62, 0.72, 0.82, 0.55) for y in (0.0, 0.2, -0.2, 0.35, -0.35, 0.1, -0.1, 0.45, -0.45))
 
 
+class Playing(Protocol):
+    """The playback the scene shows objects for (:class:`~studio.controller.playback.Player`)."""
+
+    @property
+    def loaded(self) -> Playback | None: ...
+    def preview_recording(self) -> Recording: ...
+
+
 class SceneActions:
     """The session's task scene and the worlds that bring it to life (see the module docstring).
 
     Args:
-        robot_arms: the taught arms (for a preset's objects: one set per arm).
-        recording: whether a take is being recorded (the scene cannot change during one).
+        backend: the robot whose joint states drive the live world.
+        player: the loaded playback (a replay's or the preview's objects) and the preview's recording (the task
+            result).
     """
 
-    def __init__(
-        self,
-        ctx: Context,
-        backend: RobotBackend,
-        display: Display,
-        player: Player,
-        robot_arms: Callable[[], tuple[str, ...]],
-        recording: Callable[[], bool],
-    ) -> None:
+    def __init__(self, ctx: Context, backend: RobotBackend, player: Playing) -> None:
         self.ctx = ctx
-        self.display = display
+        self.display = ctx.display
         self.player = player
-        self._arms = robot_arms
-        self._recording = recording
         self._lock = threading.RLock()
         self.live = World(ctx.session.objects.scene, ctx.baxter)
         self._unsubscribe = backend.subscribe(self.live.on_batch)
@@ -87,6 +86,7 @@ class SceneActions:
         self._played: tuple[Playback, World, int] | None = None  # (playback, its world, samples fed)
         self._result: TaskResult | None = None
         self._result_key: object = None
+        ctx.events.on(Topic.SESSION, self._on_session)
         for topic in (Topic.SKILL, Topic.DEMOS, Topic.SESSION):
             ctx.events.on(topic, self._result_may_change)
 
@@ -119,30 +119,36 @@ class SceneActions:
         """Replace the scene by a preset ("empty table", "stack-cup", "pick-place") for the taught arms."""
         if name not in PRESETS:
             raise StudioError(f'Unknown scene "{name}": choose {", ".join(PRESETS)}.')
-        self._set(preset(name, self._arms()))
+        self._set(preset(name, self.ctx.arms))
 
     def put_back(self) -> None:
         """Put every object back where the scene sets it up (what a gripper holds is let go)."""
-        if self._recording():
+        if self.taking:
             raise StudioError("Stop the recording before putting the objects back.")
         self.live.reset(self.scene)
         self.ctx.emit(Topic.SCENE)
 
     def _set(self, scene: Scene) -> None:
         with self.ctx.lock:
-            if self._recording():
+            if self.taking:
                 raise StudioError("Stop the recording before changing the objects on the table.")
             self.ctx.session.set_scene(scene)
             self.live.reset(scene)
         self.ctx.emit(Topic.SCENE)
         self._result_may_change()
 
-    def on_session(self) -> None:
-        """Another session is open: its scene comes to life (called with the context lock held)."""
-        self._take = None
-        self.live.reset(self.scene)
+    def _on_session(self) -> None:
+        """Another session is open: its scene comes to life."""
+        with self.ctx.lock:
+            self._take = None
+            self.live.reset(self.scene)
 
     # -- recording takes -------------------------------------------------------------------------------
+    @property
+    def taking(self) -> bool:
+        """A take is being recorded (between :meth:`begin_take` and its end): the scene cannot change."""
+        return self._take is not None
+
     def begin_take(self) -> None:
         """A recording starts: objects go back to the set-up (unless a gripper holds one), then a start event."""
         t0 = self.live.last_time  # the recording's first sample is the next one the robot sends

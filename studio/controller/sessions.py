@@ -4,17 +4,11 @@ and switching the whole controller to another session (never while recording or 
 from __future__ import annotations
 
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
 from studio.controller.context import Context
-from studio.controller.demos import Demos
 from studio.controller.events import Topic
-from studio.controller.learning import KeypointTuning
-from studio.controller.playback import Player
-from studio.controller.pose import Display
-from studio.controller.scene import SceneActions
-from studio.controller.teaching import Teaching
-from studio.controller.training import Training
 from studio.core.errors import InvalidInput, StudioError
 from studio.storage import Session, SessionStore, check_session_name
 from studio.world import preset
@@ -40,27 +34,16 @@ def session_notes(session: Session) -> list[tuple[str, str]]:
 
 
 class SessionActions:
-    """The Sessions panel's actions; each refuses in plain words while a recording or training runs."""
+    """The Sessions panel's actions; each refuses in plain words while a recording, training or a run on the
+    robot goes on (the parts' own checks, :meth:`Context.on_leave`).
 
-    def __init__(
-        self,
-        ctx: Context,
-        display: Display,
-        teaching: Teaching,
-        demos: Demos,
-        keypoints: KeypointTuning,
-        training: Training,
-        player: Player,
-        scene: SceneActions,
-    ) -> None:
+    Args:
+        persist: writes the threshold settings not yet saved into the open session (before a save or a zip).
+    """
+
+    def __init__(self, ctx: Context, persist: Callable[[], None] = lambda: None) -> None:
         self.ctx = ctx
-        self.display = display
-        self.teaching = teaching
-        self.demos = demos
-        self.keypoints = keypoints
-        self.training = training
-        self.player = player
-        self.scene = scene
+        self.persist = persist
         self._startup_notes = session_notes(ctx.session)
 
     @property
@@ -81,13 +64,9 @@ class SessionActions:
 
     # -- actions -------------------------------------------------------------------------------------------
     def _check_can_switch(self, doing: str) -> None:
-        """Refuse, in plain words, to change the open session while recording or training."""
-        if self.teaching.recording:
-            raise StudioError(f"Stop the recording before {doing}.")
-        if self.training.busy:
-            raise StudioError(f"Wait for the training to finish before {doing}.")
-        if self.teaching.backend.progress().active:
-            raise StudioError(f"Wait for the robot's run to end (or press Stop) before {doing}.")
+        """Refuse, in plain words, to change the open session while recording, training or running."""
+        with self.ctx.lock:
+            self.ctx.leave(doing)
 
     def open(self, name: str) -> None:
         self._check_can_switch("opening another session")
@@ -102,14 +81,14 @@ class SessionActions:
         """Start a new session on the task scene ``scene`` (a preset: "empty table", "stack-cup", "pick-place")."""
         self._check_can_switch("starting a new session")
         name = check_session_name(_typed_name(name))
-        objects = preset(scene, self.teaching.selected_arms)  # checked before anything is created
-        session = self.ctx.store.create(name, arms=self.teaching.selected_arms)
+        objects = preset(scene, self.ctx.arms)  # checked before anything is created
+        session = self.ctx.store.create(name, arms=self.ctx.arms)
         session.set_scene(objects)
         self.switch(session)
         self.ctx.emit(Topic.SESSIONS)
 
     def save(self, *, quiet: bool = False) -> None:
-        self.keypoints.persist()
+        self.persist()
         self.ctx.store.save(self.ctx.session)
         if not quiet:
             self.ctx.notify("Saved", f'Session "{self.ctx.session.name}" is saved.', kind="success")
@@ -130,7 +109,7 @@ class SessionActions:
 
     def zip(self) -> tuple[str, bytes]:
         """(file name, bytes) of the open session as a zip archive, saved first."""
-        self.keypoints.persist()
+        self.persist()
         self.ctx.store.save(self.ctx.session)
         return f"{self.ctx.session.name}.zip", self.ctx.store.export_zip(self.ctx.session.name)
 
@@ -153,23 +132,12 @@ class SessionActions:
             return path.name, path.read_bytes()
 
     def switch(self, session: Session) -> None:
-        """Make ``session`` the open one: every part takes it up, then the views redraw (:attr:`Topic.SESSION`)."""
-        if self.training.busy and session is not self.ctx.session:  # a raced click (the actions check first)
-            raise StudioError("Wait for the training to finish before changing the session.")
-        self.keypoints.persist()  # unsaved ε values belong to the session being left
-        self.player.unload()
-        with self.ctx.lock:  # the recording starts under this lock too: one decision, never a take in between
-            if self.teaching.recording and session is not self.ctx.session:
-                raise StudioError(
-                    "Stop the recording before changing the session: it is being recorded into "
-                    f'"{self.ctx.session.name}".'
-                )
+        """Make ``session`` the open one and tell every part and view (:attr:`Topic.SESSION`). The parts' checks
+        decide first, under ``ctx.lock`` (a recording starts under it too: never a take in between)."""
+        with self.ctx.lock:
+            if session is not self.ctx.session:
+                self.ctx.leave("changing the session")
             self.ctx.session = session
-            self.keypoints.on_session(session)
-            self.demos.clear()
-            self.teaching.on_session(session)
-            self.scene.on_session()
-        self.display.show_live()
         self.ctx.emit(Topic.SESSION)
 
 

@@ -7,13 +7,17 @@ import threading
 import time
 from concurrent.futures import Future
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Protocol
 
 from studio.controller.context import Context
-from studio.controller.demos import Demos
 from studio.controller.events import Topic
-from studio.controller.learning import KeypointTuning
+from studio.controller.learning import ShownDemos
 from studio.core.errors import NotEnoughData, StudioError
 from studio.core.thresholds import ThresholdSettings
+from studio.words import tune_summary
+
+if TYPE_CHECKING:
+    from studio.core.autotune import TuneResult
 
 #: Progress is told to the views at most this often (s).
 PROGRESS_EVERY_S = 0.1
@@ -28,6 +32,7 @@ class SuggestState:
         summary: the last outcome in plain words (before/after figures, or stopped, or undone).
         can_undo: Undo would put back the settings from before the last applied suggestion.
         seconds: how long the last search took.
+        result: the last applied search's outcome (settings, k, figures), or None.
     """
 
     running: bool = False
@@ -36,12 +41,23 @@ class SuggestState:
     summary: str = ""
     can_undo: bool = False
     seconds: float = 0.0
+    result: TuneResult | None = None
+
+
+class Thresholds(Protocol):
+    """The threshold settings Suggest starts from and changes (:class:`~studio.controller.learning.KeypointTuning`)."""
+
+    @property
+    def k(self) -> int | None: ...
+    def settings(self) -> ThresholdSettings: ...
+    def shown_arm(self) -> str | None: ...
+    def restore(self, settings: ThresholdSettings, k: int | None) -> None: ...
 
 
 class Suggesting:
     """Runs :func:`studio.core.autotune.suggest` on the shown demonstrations of the arm the sliders show."""
 
-    def __init__(self, ctx: Context, demos: Demos, tuning: KeypointTuning) -> None:
+    def __init__(self, ctx: Context, demos: ShownDemos, tuning: Thresholds) -> None:
         self.ctx = ctx
         self.demos = demos
         self.tuning = tuning
@@ -58,14 +74,15 @@ class Suggesting:
             self.state = replace(self.state, **changes)  # type: ignore[arg-type]
         self.ctx.emit(Topic.SUGGEST)
 
-    def start(self) -> Future[None]:
-        """Start a search (on the work thread); the result is applied as one change when it completes."""
+    def start(self, arm: str | None = None) -> Future[None]:
+        """Start a search on the demonstrations of ``arm`` (default: the arm the sliders show) on the work
+        thread; the result is applied as one change when it completes."""
         from studio.core import autotune
 
         with self.ctx.lock:
             if self.state.running:
                 raise StudioError("Suggest is already running.")
-            arm = self.tuning.shown_arm()
+            arm = arm or self.tuning.shown_arm()
             demos = [d for _, d in self.demos.for_arm(arm)] if arm else []
             if len(demos) < 2:
                 raise NotEnoughData(
@@ -103,14 +120,15 @@ class Suggesting:
             with self.ctx.lock:
                 self._undo = (settings, k)
             self.tuning.restore(res.settings, res.n_clusters)
-            words = "" if arm is None or len(self.tuning.arms()) < 2 else f" (for the {arm} arm's demonstrations)"
+            words = "" if arm is None or len(self.ctx.arms) < 2 else f" (for the {arm} arm's demonstrations)"
             self._set(
                 running=False,
                 fraction=1.0,
                 step="Done",
-                summary=f"Suggested{words}: {_detail_words(res.settings.detail)}. {res.summary}",
+                summary=f"Suggested{words}: {_detail_words(res.settings.detail)}. {tune_summary(res)}",
                 can_undo=True,
                 seconds=res.seconds,
+                result=res,
             )
 
         def failed(f: Future[None]) -> None:

@@ -13,9 +13,7 @@ from typing import Protocol
 import numpy as np
 
 from studio.controller.context import Context
-from studio.controller.demos import Demos
 from studio.controller.events import Topic
-from studio.controller.pose import Display
 from studio.core.arms import arm_columns, arm_of_joint, gripper_column, normalize_arms
 from studio.core.errors import InvalidInput, StorageError, StudioError
 from studio.core.kinematics import IkResult
@@ -52,26 +50,35 @@ class Takes(Protocol):
 
 
 class Teaching:
-    """The live robot and the recorder. Only one recording runs at a time, across all tabs.
+    """The live robot and the recorder. Only one recording runs at a time, across all tabs; the open session
+    cannot change while one runs.
 
-    ``takes`` (set by the controller) keeps each take's object events with its demonstration.
+    Args:
+        takes: keeps each take's object events with its demonstration.
+        motion_guard: refuses (raises, in plain words) moving by hand or recording ("before {doing}") during a
+            run on the robot or an emergency stop.
     """
 
-    def __init__(self, ctx: Context, backend: RobotBackend, display: Display, demos: Demos) -> None:
+    def __init__(
+        self,
+        ctx: Context,
+        backend: RobotBackend,
+        takes: Takes,
+        motion_guard: Callable[[str], None] = lambda doing: None,
+    ) -> None:
         self.ctx = ctx
         self.backend = backend
-        self.display = display
-        self.demos = demos
-        self.selected_arms: tuple[str, ...] = _session_arms(ctx.session)
+        self.display = ctx.display
+        self.takes = takes
+        self.motion_guard = motion_guard
         self.reach: dict[str, Reach] = {}
         self._targets: dict[str, np.ndarray] = {}
         self._ik_lock = {arm: threading.Lock() for arm in ARMS}
         self._recorder: Recorder | None = None
         self._session: Session = ctx.session
         self._unsubscribe: Callable[[], None] | None = None
-        self.takes: Takes | None = None
-        #: Refuses moving by hand or recording ("before {doing}") during a run or an emergency stop (the controller's).
-        self.motion_guard: Callable[[str], None] = lambda doing: None
+        ctx.on_leave(self._check_leave)
+        ctx.events.on(Topic.SESSION, self.forget_reach)
         self._owner: object | None = None  # the browser tab that started the running take
         self._discard_asked: float | None = None
 
@@ -110,6 +117,11 @@ class Teaching:
         return self.robot_q()[arm_columns(arm)]
 
     # -- arms ----------------------------------------------------------------------------------------------
+    @property
+    def selected_arms(self) -> tuple[str, ...]:
+        """The taught arm(s), as the open session keeps them."""
+        return self.ctx.arms
+
     def set_arms(self, arms: tuple[str, ...]) -> None:
         """Choose the taught arm(s): "left", "right" or both (remembered with the session)."""
         try:
@@ -119,15 +131,14 @@ class Teaching:
         with self.ctx.lock:
             if self._recorder is not None and arms != self.selected_arms:
                 raise StudioError("Stop the recording before changing the arms to teach.")
-            self.selected_arms = arms
             if tuple(self.ctx.session.arms) != arms:
                 self.ctx.session.set_arms(arms)
         self.ctx.emit(Topic.ARMS)
 
-    def on_session(self, session: Session) -> None:
-        """Another session is open: teach its arms."""
-        self.selected_arms = _session_arms(session)
-        self.forget_reach()
+    def _check_leave(self, doing: str) -> None:
+        """Refuse to change the open session while a take is recorded into it (decided under ``ctx.lock``)."""
+        if self._recorder is not None:
+            raise StudioError(f'Stop the recording before {doing}: it is being recorded into "{self._session.name}".')
 
     # -- moving the robot ----------------------------------------------------------------------------------
     def move_gripper(self, arm: str, position: np.ndarray, wxyz: np.ndarray) -> IkResult:
@@ -229,12 +240,11 @@ class Teaching:
             rec.start()
             self._recorder, self._session = rec, session  # the take is saved where it was started
             self._owner, self._discard_asked = _tab_id(by), None
-            if self.takes is not None:
-                self.takes.begin_take()
+            self.takes.begin_take()
         self.ctx.emit(Topic.RECORDING)
 
     def _next_demo_name(self) -> str:
-        names = set(self.demos.names())
+        names = {r.name for r in self.ctx.session.recordings}
         i = len(names) + 1
         while f"demo {i}" in names:
             i += 1
@@ -248,8 +258,12 @@ class Teaching:
                 raise StudioError("Nothing is being recorded.")
             self._recorder = None
             try:
-                recording = rec.stop()
-                events = self.takes.end_take(recording) if self.takes is not None else ()
+                try:
+                    recording = rec.stop()
+                except Exception:
+                    self.takes.cancel_take()
+                    raise
+                events = self.takes.end_take(recording)
                 try:
                     self._session.add_recording(recording, events=events)
                 except StorageError as exc:  # the take stays in the recorder's file: recovered at the next open
@@ -266,7 +280,7 @@ class Teaching:
                 self.ctx.emit(Topic.RECORDING)
         for msg in rec.messages:
             self.ctx.notify("Recording", msg, kind="warning")
-        self.demos.changed()
+        self.ctx.emit(Topic.DEMOS)
         self.ctx.notify(
             "Demonstration saved",
             f"{recording.name}: {recording.duration:.1f} s, {len(recording):,} samples.",
@@ -291,8 +305,7 @@ class Teaching:
                 )
                 return False
             rec, self._recorder = self._recorder, None
-            if self.takes is not None:
-                self.takes.cancel_take()
+            self.takes.cancel_take()
         if rec is not None:
             rec.discard()
         self.ctx.emit(Topic.RECORDING)
@@ -311,10 +324,3 @@ class Teaching:
 def _tab_id(tab: object | None) -> object | None:
     """Who pressed a button: viser's tab handle has a ``client_id`` (None: the studio itself, or a script)."""
     return getattr(tab, "client_id", tab)
-
-
-def _session_arms(session: Session) -> tuple[str, ...]:
-    try:
-        return normalize_arms(tuple(session.arms))
-    except InvalidInput:
-        return ("left",)

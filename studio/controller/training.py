@@ -3,20 +3,21 @@ and how well each demonstration fits), and answer what the panels show about the
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Sequence
 from concurrent.futures import Future
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
 from studio.controller.context import Context
-from studio.controller.demos import Demos
 from studio.controller.events import Topic
-from studio.controller.learning import KeypointTuning
-from studio.controller.playback import Player
+from studio.controller.learning import ShownDemos
 from studio.core.errors import NotEnoughData, StudioError
+from studio.core.keypoints import KeypointCache
 from studio.core.quality import DemoFit, Verdict
-from studio.core.types import GENERALIZATIONS, Demo, KeypointParams, Skill
+from studio.core.thresholds import ThresholdSettings
+from studio.core.types import GENERALIZATIONS, Demo, KeypointParams, Recording, Skill
 
 #: How each generalisation mode is called in the Train panel.
 MODE_WORDS = {
@@ -46,20 +47,40 @@ class SkillVerdict:
     message: str = ""
 
 
-class Training:
-    """Learns the skill of every taught arm on the work thread and judges it; answers what the panels show."""
+class DemoSource(ShownDemos, Protocol):
+    """The demonstrations learning reads (:class:`~studio.controller.demos.Demos`)."""
 
-    def __init__(
-        self, ctx: Context, demos: Demos, tuning: KeypointTuning, arms: Callable[[], tuple[str, ...]], player: Player
-    ) -> None:
+    def demo_of(self, rec: Recording, arm: str) -> Demo: ...
+
+
+class Settings(Protocol):
+    """The thresholds and k a skill is learned with (:class:`~studio.controller.learning.KeypointTuning`)."""
+
+    cache: KeypointCache
+
+    @property
+    def k(self) -> int | None: ...
+    def settings(self) -> ThresholdSettings: ...
+    def params(self, arm: str | None = None, settings: ThresholdSettings | None = None) -> KeypointParams: ...
+    def persist(self, force: bool = False) -> None: ...
+
+
+class Training:
+    """Learns the skill of every taught arm on the work thread and judges it; answers what the panels show.
+
+    The open session cannot change while it trains; another session is judged when it has skills.
+    """
+
+    def __init__(self, ctx: Context, demos: DemoSource, tuning: Settings) -> None:
         self.ctx = ctx
         self.demos = demos
         self.tuning = tuning
-        self.arms = arms
-        self.player = player
         self.busy = False
         self.judging = False
+        #: The newest judgement under way or done (training starts one when it finishes).
+        self.judgement: Future[None] | None = None
         self._verdicts: dict[str, SkillVerdict] = {}
+        ctx.on_leave(self._check_leave)
         ctx.events.on(Topic.SESSION, self._on_session)
 
     def skills(self) -> dict[str, Skill]:
@@ -80,15 +101,20 @@ class Training:
             self.ctx.session.set_params(mode=mode)
         self.ctx.emit(Topic.TRAINING)
 
+    def _check_leave(self, doing: str) -> None:
+        if self.busy:
+            raise StudioError(f"Wait for the training to finish before {doing}.")
+
     # -- training ------------------------------------------------------------------------------------------
-    def train(self) -> Future[dict[str, Skill] | None]:
-        """Learn the skill of every taught arm from the shown demos on the work thread, then judge it."""
+    def train(self, arms: Sequence[str] | None = None) -> Future[dict[str, Skill] | None]:
+        """Learn the skill of every taught arm (or of ``arms``) from the shown demos on the work thread, then
+        judge it."""
         from studio.core.pipeline import learn_skill
 
         with self.ctx.lock:
             if self.busy:
                 raise StudioError("Training is already running; wait for it to finish.")
-            per_arm = {arm: self.demos.for_arm(arm) for arm in self.arms()}
+            per_arm = {arm: self.demos.for_arm(arm) for arm in (self.ctx.arms if arms is None else arms)}
             for arm, demos in per_arm.items():
                 if len(demos) < 2:
                     raise NotEnoughData(
@@ -134,8 +160,7 @@ class Training:
                 )
                 return
             self.tuning.persist(force=True)  # the current settings again (the skill's values replaced them)
-            self.player.unload_preview()  # the loaded preview shows the previous skill
-            self.ctx.emit(Topic.SKILL)
+            self.ctx.emit(Topic.SKILL)  # the player unloads the preview of the previous skill
             self.ctx.notify(
                 "Training finished", "The robot learned the skill: open Preview to watch it.", kind="success"
             )
@@ -180,6 +205,7 @@ class Training:
 
         fut = self.ctx.submit(job, title="Could not judge the skill")
         fut.add_done_callback(finished)
+        self.judgement = fut
         return fut
 
     def _judge_one(self, arm: str, skill: Skill, fixed_k: bool) -> SkillVerdict:
@@ -221,7 +247,7 @@ class Training:
 
     def skill_demos(self, arm: str) -> list[UsedDemo]:
         """Every demonstration the current skill of ``arm`` was learned from, in the skill's order."""
-        by_name = {r.name: (i, r) for i, r in enumerate(self.demos.recordings())}
+        by_name = {r.name: (i, r) for i, r in enumerate(self.ctx.session.recordings)}
         out: list[UsedDemo] = []
         for nm in self.skill_demo_names(arm):
             hit = by_name.get(nm)

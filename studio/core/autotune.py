@@ -115,23 +115,6 @@ class TuneResult:
     cancelled: bool
     complete: bool
 
-    @property
-    def summary(self) -> str:
-        """Before/after in plain words, for the teacher."""
-        from studio.core.quality import length_words
-
-        b, a = self.before, self.after
-        if not math.isfinite(b.distance):
-            return (
-                "Suggested: learned without each demonstration in turn, the skill misses it by "
-                f"{length_words(a.distance)} on average."
-            )
-        return (
-            f"Learned without each demonstration in turn, the skill misses it by {length_words(a.distance)} on "
-            f"average with the suggestion, {length_words(b.distance)} with the current thresholds "
-            f"({a.keypoints:.0f} key-points per demonstration instead of {b.keypoints:.0f})."
-        )
-
 
 # -- the work (runs in the worker processes, or in-process with workers=1) -------------------------------------
 
@@ -401,7 +384,8 @@ def suggest(
     demos = _validate(demos)
     if len(demos) < 2:
         raise NotEnoughData(
-            "Suggest compares the skill with a demonstration it did not learn from: record at least two."
+            "Searching for thresholds compares the skill with a demonstration it did not learn from: record at least "
+            "two."
         )
     generalization = generalization or DEFAULT_GENERALIZATION
     stats = DemoStats.of(demos)

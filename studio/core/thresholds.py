@@ -168,7 +168,7 @@ class ThresholdSettings:
     def __post_init__(self) -> None:
         d = float(self.detail)
         if not math.isfinite(d):
-            raise InvalidInput("Detail must be a number.")
+            raise InvalidInput("The detail setting must be a number.")
         object.__setattr__(self, "detail", float(np.clip(d, DETAIL_MIN, DETAIL_MAX)))
         unknown = set(self.teacher) - set(NAMES)
         if unknown:

@@ -9,11 +9,24 @@ import numpy as np
 import viser
 
 from studio.controller import MODE_WORDS, Controller, SkillVerdict, Step, Topic, UsedDemo
-from studio.core.quality import FIT_EXPLANATION
+from studio.core.quality import Remedy
 from studio.core.types import DEFAULT_GENERALIZATION, Skill
 from studio.panels._charts import heatmap_svg, position_plot_svg
+from studio.words import SHARED_REMEDIES, Remedies, fit_note, verdict_lines
 
 _LEVEL_COLOR = {"good": "#15803d", "fair": "#b45309", "poor": "#b91c1c"}
+#: The knob that would help, said with the studio's own controls.
+REMEDIES: Remedies = {
+    **SHARED_REMEDIES,
+    Remedy.MORE_KEYPOINTS: "press Suggest, or move Detail towards more key-points",
+    Remedy.SHARPER_CORNERS: "press Suggest, or lower Corner sharpness",
+    Remedy.REDO_DEMO: "re-record or hide it",
+}
+#: The one line that explains the per-demo list.
+FIT_EXPLANATION = (
+    "How closely the learned path follows each demonstration. One that fits poorly pulls the skill away from "
+    "the others: re-record it or hide it."
+)
 
 
 class TrainPanel:
@@ -121,7 +134,7 @@ class TrainPanel:
                     f"{html.escape(v.message)}</div>"
                 )
                 continue
-            head, *notes = v.verdict.lines
+            head, *notes = verdict_lines(v.verdict, REMEDIES)
             color = _LEVEL_COLOR.get(v.verdict.level, "#333")
             bullets = "".join(f"<li>{html.escape(n)}</li>" for n in notes)
             blocks.append(
@@ -155,14 +168,15 @@ class TrainPanel:
             elif f.well:
                 fit = '<span style="color:#15803d">well</span>'
             else:
-                fit = f'<span style="color:#b91c1c" title="{html.escape(f.note)}">poorly</span>'
+                fit = f'<span style="color:#b91c1c" title="{html.escape(fit_note(f))}">poorly</span>'
             well = "" if f is None else ("1" if f.well else "0")
             rows.append(
                 f'<tr class="fit-row" data-well="{well}"><td>{html.escape(name)}</td><td>{fit}</td>'
                 f'<td style="color:#555">{"reference" if i == ref else ""}</td></tr>'
             )
             if f is not None and not f.well:
-                rows.append(f'<tr><td colspan="3" style="color:#555;font-size:0.9em">{html.escape(f.note)}</td></tr>')
+                note = html.escape(fit_note(f))
+                rows.append(f'<tr><td colspan="3" style="color:#555;font-size:0.9em">{note}</td></tr>')
         jt = skill.joint_trajectory
         ik_note = ""
         if jt is not None:

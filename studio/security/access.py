@@ -1,5 +1,5 @@
 """Who may use the studio's server: :class:`Access` decides on every request (host, origin, key) and hooks that
-decision, and the upload caps, into viser's server (see :mod:`studio.security` for why there)."""
+decision, and the upload caps, into viser's server (why there: docs/decisions/016)."""
 
 from __future__ import annotations
 
@@ -199,7 +199,7 @@ class Access:
 
     # -- hooking into viser ------------------------------------------------------------------------------
     def start_viser(self, **kwargs: Any) -> viser.ViserServer:
-        """``viser.ViserServer(**kwargs)`` with every request checked and uploads capped (see the module doc)."""
+        """``viser.ViserServer(**kwargs)`` with every request checked and uploads capped (docs/decisions/016)."""
         import rich
         import viser
         import websockets.asyncio.server as wss

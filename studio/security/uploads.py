@@ -1,5 +1,5 @@
 """Upload and message size caps at viser's server: :class:`UploadLimit` checks viser's upload messages on one
-server before its ``GuiApi`` buffers them (see :mod:`studio.security` for the protocol and the hook)."""
+server before its ``GuiApi`` buffers them (the protocol and the hook: docs/decisions/016)."""
 
 from __future__ import annotations
 
@@ -35,7 +35,7 @@ class _Transfer:
 
 
 class UploadLimit:
-    """Checks viser's upload messages on one server before its GuiApi buffers them (see the module doc)."""
+    """Checks viser's upload messages on one server before its GuiApi buffers them (docs/decisions/016)."""
 
     def __init__(self, server: viser.ViserServer) -> None:
         from viser import _messages

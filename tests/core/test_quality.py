@@ -1,6 +1,6 @@
-"""Quality measures and the plain-words verdict, on generated human-like demonstrations (studio/shapes.py) and the
-scripted teacher's tasks. Every wording of the verdict is produced here from real (generated) demonstrations
-through the real pipeline."""
+"""Quality measures, the verdict (data) and its plain words as the studio shows them, on generated human-like
+demonstrations (studio/shapes.py) and the scripted teacher's tasks. Every wording of the verdict is produced here
+from real (generated) demonstrations through the real pipeline."""
 
 from __future__ import annotations
 
@@ -10,13 +10,20 @@ import math
 import numpy as np
 import pytest
 
+from studio import words as W
 from studio.core import quality as Q
 from studio.core.errors import InvalidInput, NotEnoughData
 from studio.core.pipeline import learn_skill
 from studio.core.thresholds import auto_params
 from studio.core.types import Demo
+from studio.panels.train import REMEDIES as STUDIO
 from studio.shapes import ShapeSpec, joint_angles, shape_corners, shape_demo, shape_demos
 from tests.core.teacher_demos import demos as task_demos
+
+
+def say(v: Q.Verdict) -> tuple[str, ...]:
+    """The verdict's lines as the Train panel shows them."""
+    return W.verdict_lines(v, STUDIO)
 
 
 @functools.lru_cache(maxsize=8)
@@ -94,7 +101,7 @@ def test_gripper_events_of_the_tasks_are_checked():
     sk = learn_skill(ds)
     r = Q.assess(sk, ds)
     assert [g.action for g in r.gripper] == ["close", "open", "close", "open"]
-    assert all(g.error < 0.01 for g in r.gripper) and r.gripper_mismatch == ""
+    assert all(g.error < 0.01 for g in r.gripper) and r.gripper_mismatch is None
     assert r.start_error < 0.002 and r.end_error < 0.002
 
 
@@ -116,7 +123,7 @@ def test_no_outlier_is_named_among_ordinary_demonstrations():
 
 
 def test_length_words():
-    assert [Q.length_words(x) for x in (0.0004, 0.004, 0.0096, 0.0123, 0.03, 0.25, 1.23)] == [
+    assert [W.length_words(x) for x in (0.0004, 0.004, 0.0096, 0.0123, 0.03, 0.25, 1.23)] == [
         "0.4 mm",
         "4 mm",
         "1 cm",
@@ -133,10 +140,10 @@ def test_length_words():
 def test_good():
     ds = zigzag()
     v = Q.verdict(Q.assess(learn_skill(ds), ds))
-    assert v.level == "good"
-    assert len(v.lines) == 1
-    assert v.lines[0].startswith("Good: the skill follows your demonstrations closely (within ")
-    assert v.lines[0].endswith(" mm on average).")
+    assert v.level == "good" and v.headline.issue is Q.Issue.CLOSE and v.notes == ()
+    assert len(say(v)) == 1
+    assert say(v)[0].startswith("Good: the skill follows your demonstrations closely (within ")
+    assert say(v)[0].endswith(" mm on average).")
 
 
 def test_fair_cuts_the_corner_and_lowering_corner_sharpness_helps():
@@ -145,7 +152,8 @@ def test_fair_cuts_the_corner_and_lowering_corner_sharpness_helps():
     r = Q.assess(learn_skill(ds, params, generalization="paper"), ds)
     v = Q.verdict(r)
     assert v.level == "fair"
-    head = v.lines[0]
+    assert v.headline.issue is Q.Issue.CUTS_CORNER and v.headline.remedy is Q.Remedy.SHARPER_CORNERS
+    head = say(v)[0]
     assert head.startswith("Fair: it cuts the corner at ") and " s by " in head
     assert head.endswith(" cm — press Suggest, or lower Corner sharpness.")
     worst = max(c.error for c in r.corners)
@@ -159,8 +167,8 @@ def test_fair_cuts_the_corner_and_lowering_corner_sharpness_helps():
 def test_fair_not_as_close_as_the_demos_are_to_each_other():
     ds = list(task_demos("pick-place"))
     v = Q.verdict(Q.assess(learn_skill(ds, auto_params(ds, -1.0), generalization="paper"), ds))
-    assert v.lines[0].startswith("Fair: the skill stays within ")
-    assert v.lines[0].endswith(
+    assert say(v)[0].startswith("Fair: the skill stays within ")
+    assert say(v)[0].endswith(
         " of your demonstrations on average, but they are closer to each other than that — press Suggest, or move "
         "Detail towards more key-points."
     )
@@ -171,9 +179,9 @@ def test_poor():
     from studio.core.types import KeypointParams
 
     v = Q.verdict(Q.assess(learn_skill(ds, KeypointParams(), generalization="paper"), ds))  # the old fixed values
-    assert v.level == "poor"
-    assert v.lines[0].startswith("Poor: the skill strays from your demonstrations (")
-    assert v.lines[0].endswith(" on average) — press Suggest, or move Detail towards more key-points.")
+    assert v.level == "poor" and v.headline.remedy is Q.Remedy.MORE_KEYPOINTS
+    assert say(v)[0].startswith("Poor: the skill strays from your demonstrations (")
+    assert say(v)[0].endswith(" on average) — press Suggest, or move Detail towards more key-points.")
 
 
 def test_outlier_demo_is_named():
@@ -185,10 +193,12 @@ def test_outlier_demo_is_named():
     assert [o.name for o in r.outliers] == ["demo 4"]
     v = Q.verdict(r)
     assert v.level == "fair"
-    assert "demo 4 differs a lot from the others — re-record or hide it." in v.lines
+    assert [(f.issue, f.demo, f.remedy) for f in v.notes] == [(Q.Issue.OUTLIER, "demo 4", Q.Remedy.REDO_DEMO)]
+    assert "demo 4 differs a lot from the others — re-record or hide it." in say(v)
     fits = Q.demo_fits(r)  # the Train panel's per-demo list: the odd one fits poorly, the others well
     assert [(f.name, f.well) for f in fits] == [("demo 1", True), ("demo 2", True), ("demo 3", True), ("demo 4", False)]
-    assert fits[3].note == "It differs a lot from the others." and fits[0].note == ""
+    assert fits[3].why is Q.Misfit.SHAPE and fits[0].why is None
+    assert W.fit_note(fits[3]) == "It differs a lot from the others." and W.fit_note(fits[0]) == ""
 
 
 def test_every_demo_fits_a_good_skill_well():
@@ -200,30 +210,30 @@ def test_every_demo_fits_a_good_skill_well():
 def test_start_and_end_away_from_the_demonstrations():
     ds = list(shape_demos(ShapeSpec("handwriting", 0.6, 2.0), 3))
     v = Q.verdict(Q.assess(learn_skill(ds, generalization="paper"), ds))
-    assert v.lines[0].startswith("Fair: the skill follows your demonstrations closely (within ")
-    assert v.lines[0].endswith(" on average), but:")
+    assert say(v)[0].startswith("Fair: the skill follows your demonstrations closely (within ")
+    assert say(v)[0].endswith(" on average), but:")
     assert any(
         line.startswith("It starts ") and line.endswith(" away from where your demonstrations start.")
-        for line in v.lines
+        for line in say(v)
     )
     assert any(
-        line.startswith("It ends ") and line.endswith(" away from where your demonstrations end.") for line in v.lines
+        line.startswith("It ends ") and line.endswith(" away from where your demonstrations end.") for line in say(v)
     )
 
 
 def test_grasp_and_release_away_from_the_demonstrated_poses():
     ds = list(task_demos("pick-place"))
     v = Q.verdict(Q.assess(learn_skill(ds, generalization="paper", smoothing=0.5), ds))  # an over-smoothed spline
-    lines = [line for line in v.lines if line.startswith("It closes the gripper ")]
+    lines = [line for line in say(v) if line.startswith("It closes the gripper ")]
     assert lines and " away from where you closed it (at " in lines[0]
     assert lines[0].endswith(" s) — press Suggest, or move Detail towards more key-points.")
-    assert any(line.startswith("It opens the gripper ") and "away from where you opened it" in line for line in v.lines)
+    assert any(line.startswith("It opens the gripper ") and "away from where you opened it" in line for line in say(v))
 
 
 def test_demonstrations_that_use_the_gripper_differently():
     ds = [*task_demos("pick-place")[:2], task_demos("stack-cup")[0]]
     v = Q.verdict(Q.assess(learn_skill(ds), ds))
-    assert "Your demonstrations do not use the gripper the same way (not the same closes and opens)." in v.lines
+    assert "Your demonstrations do not use the gripper the same way (not the same closes and opens)." in say(v)
 
 
 def test_held_out_misses_the_left_out_demo():
@@ -234,7 +244,7 @@ def test_held_out_misses_the_left_out_demo():
     assert any(
         line.startswith("Learned without one of your demonstrations, it misses that one by ")
         and line.endswith(" on average: record one or two more demonstrations.")
-        for line in v.lines
+        for line in say(v)
     )
 
 
@@ -245,7 +255,7 @@ def test_execution_that_strays_a_little_is_not_called_a_share_it_cannot_follow()
     ds = zigzag()
     r = Q.assess(learn_skill(ds), ds)
     r = replace(r, execution=Q.Execution(tracked=1.0, max_error=0.007, worst_time=0.1, duration=r.duration))
-    lines = Q.verdict(r).lines
+    lines = say(Q.verdict(r))
     assert (
         "The robot strays up to 7 mm from it (at 0.1 s) — teach it closer to the robot, with the gripper in a "
         "direction the arm can hold." in lines
@@ -266,10 +276,10 @@ def test_execution_the_robot_cannot_follow_and_needs_longer():
     r = Q.assess(learn_skill(ds, arm="left"), ds)
     assert r.execution is not None and r.execution.tracked < 0.98
     v = Q.verdict(r)
-    follow = [line for line in v.lines if line.startswith("The robot cannot follow ")]
+    follow = [line for line in say(v) if line.startswith("The robot cannot follow ")]
     assert follow and follow[0].endswith(
         " — teach it closer to the robot, with the gripper in a direction the arm can hold."
     )
     assert any(
-        line.startswith("The robot needs ") and line.endswith("its joints cannot move that fast.") for line in v.lines
+        line.startswith("The robot needs ") and line.endswith("its joints cannot move that fast.") for line in say(v)
     )

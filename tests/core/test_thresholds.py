@@ -17,6 +17,7 @@ from studio.core.pipeline import preview_path
 from studio.core.thresholds import DemoStats, ThresholdSettings, auto_params
 from studio.core.types import KeypointParams
 from studio.shapes import ShapeSpec, shape_demos
+from studio.words import tune_summary
 from tests.core.teacher_demos import demos as task_demos
 
 
@@ -90,7 +91,7 @@ def test_suggest_reports_progress_and_before_after_figures():
     assert r.params == r.settings.resolve(ds) and r.settings.teacher == {}
     fr = [f for f, _ in seen]
     assert fr == sorted(fr) and fr[-1] == 1.0 and seen[-1][1] == "Done"
-    assert "misses it by" in r.summary
+    assert "misses it by" in tune_summary(r)
 
 
 def test_suggest_uses_worker_processes_and_cancels_at_once():

@@ -1,0 +1,88 @@
+"""How good is a learned skill? Positions of the gripper compared with the demonstrations (GUI-free, no words).
+
+``curves`` (smoothing, normalised DTW, Fréchet), ``metrics`` (fidelity, corners, gripper, smoothness, outliers,
+execution), ``holdout`` (leave one demo out), ``report`` (:func:`assess` gathers them) and ``judgement`` (the
+judgement as data: level, findings, the knob that would help). The words are in :mod:`studio.words`.
+"""
+
+from studio.core.quality.curves import (
+    N_POINTS,
+    SMOOTH_S,
+    arc_length,
+    arc_resample,
+    curve,
+    extent,
+    frechet,
+    ndtw,
+    smoothed,
+    spread,
+    time_normalised_mean,
+)
+from studio.core.quality.holdout import HeldOut, held_out
+from studio.core.quality.judgement import DemoFit, Finding, Issue, Level, Misfit, Remedy, Verdict, demo_fits, verdict
+from studio.core.quality.metrics import (
+    CORNER_TURN,
+    Corner,
+    Disagreement,
+    Execution,
+    Fidelity,
+    GripperCheck,
+    GripperMismatch,
+    OddIn,
+    Outlier,
+    corner_checks,
+    corner_stride,
+    execution,
+    fidelity,
+    find_corners,
+    gripper_checks,
+    mean_squared_jerk,
+    outliers,
+    shared_corners,
+)
+from studio.core.quality.report import QualityReport, assess
+
+__all__ = [
+    "CORNER_TURN",
+    "N_POINTS",
+    "SMOOTH_S",
+    "Corner",
+    "DemoFit",
+    "Disagreement",
+    "Execution",
+    "Fidelity",
+    "Finding",
+    "GripperCheck",
+    "GripperMismatch",
+    "HeldOut",
+    "Issue",
+    "Level",
+    "Misfit",
+    "OddIn",
+    "Outlier",
+    "QualityReport",
+    "Remedy",
+    "Verdict",
+    "arc_length",
+    "arc_resample",
+    "assess",
+    "corner_checks",
+    "corner_stride",
+    "curve",
+    "demo_fits",
+    "execution",
+    "extent",
+    "fidelity",
+    "find_corners",
+    "frechet",
+    "gripper_checks",
+    "held_out",
+    "mean_squared_jerk",
+    "ndtw",
+    "outliers",
+    "shared_corners",
+    "smoothed",
+    "spread",
+    "time_normalised_mean",
+    "verdict",
+]
