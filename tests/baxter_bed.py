@@ -120,9 +120,7 @@ class BaxterBed:
             self.stopped, self.enabled = True, False
             self.estop_button, self.estop_source = ESTOP_BUTTON_PRESSED, ESTOP_SOURCE_USER
             self.target = [None, None]
-            t = time.monotonic()
-        self.loop.call_soon_threadsafe(self._send_state)
-        return t
+            return time.monotonic()  # the studio hears of it with the next /robot/state message
 
     def release_estop(self) -> None:
         """The button turned back: still stopped until a reset (robot_enable.py)."""
@@ -130,7 +128,7 @@ class BaxterBed:
             if self.estop_button == ESTOP_BUTTON_PRESSED:
                 self.estop_button = ESTOP_BUTTON_RELEASED
 
-    def drop(self, seconds: float, *, silent: bool = False) -> float:
+    def drop(self, seconds: float, silent: bool = False) -> float:
         """Lose the link for ``seconds``: close every socket and refuse new ones, or (``silent``) keep the
         sockets but send nothing and ignore everything received. Returns the time (monotonic) it dropped."""
         t = time.monotonic()

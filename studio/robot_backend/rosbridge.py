@@ -133,7 +133,7 @@ class RosbridgeBaxter(RobotBackend):
             if self.joint_state_rate_hz:
                 link.publish(STATE_RATE, STATE_RATE_TYPE, {"data": int(self.joint_state_rate_hz)})
             self._stop_evt.clear()
-            args = (1.0 / self.command_rate_hz, self._command_tick, self._stop_evt, self._watch)
+            args = (1.0 / self.command_rate_hz, self._command_tick, self._stop_evt, self._ping)
             self._thread = threading.Thread(target=tick_forever, args=args, name="rosbridge-commands", daemon=True)
             self._thread.start()
         if self.enable_on_start:
@@ -155,6 +155,9 @@ class RosbridgeBaxter(RobotBackend):
 
     def subscribe(self, listener: StateListener) -> Callable[[], None]:
         return self._hub.subscribe(listener)
+
+    def _ping(self, sent: float) -> None:
+        self._link.call_soon(lambda: self._watch.ping(sent))
 
     # -- the robot's health -----------------------------------------------------------------------------------
     def health(self) -> RobotHealth:

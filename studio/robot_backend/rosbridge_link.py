@@ -146,6 +146,14 @@ class RosLink:
         ros = self._ros
         return ros is not None and bool(getattr(ros, "is_connected", False))
 
+    def call_soon(self, fn: Callable[[], None]) -> None:
+        """Run ``fn`` on roslibpy's event loop (the one that reads the robot's messages); at once without one."""
+        loop = getattr(getattr(getattr(self._ros, "factory", None), "manager", None), "loop", None)
+        if loop is None or loop.is_closed():
+            fn()
+        else:
+            loop.call_soon_threadsafe(fn)
+
     def on_close(self, fn: Callable[[], None]) -> None:
         """Call ``fn`` (from roslibpy's thread) whenever the websocket closes."""
         ros = self._ros

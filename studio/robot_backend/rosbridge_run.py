@@ -25,7 +25,6 @@ from studio.robot_backend.rosbridge_state import (
     ESTOP_BUTTON_PRESSED,
     AssemblyState,
     GripperInfo,
-    RobotWatch,
     gripper_words,
 )
 
@@ -108,16 +107,21 @@ def why_ended(health: RobotHealth, robot: AssemblyState | None, p: ExecutionProg
     return ""
 
 
-def tick_forever(period: float, tick: Callable[[], None], stop: threading.Event, watch: RobotWatch) -> None:
-    """Call ``tick`` every ``period`` seconds of wall time until ``stop`` (a late tick is not caught up);
-    ``watch.tick_at`` tells when it last ran."""
+def tick_forever(
+    period: float, tick: Callable[[], None], stop: threading.Event, ping: Callable[[float], None]
+) -> None:
+    """Call ``tick`` every ``period`` seconds of wall time until ``stop`` (a late tick is not caught up), and
+    ``ping`` a callback to the event loop that reads the robot (see :meth:`RobotWatch.ping`)."""
     next_t = time.monotonic()
     while not stop.is_set():
         try:
             tick()
         except Exception:  # keep commanding: a lost message must not end the loop
             log.exception("rosbridge command tick failed")
-        watch.tick_at = time.monotonic()
+        try:
+            ping(time.monotonic())
+        except Exception:  # the loop is gone (closing)
+            log.debug("pinging the rosbridge loop", exc_info=True)
         next_t += period
         delay = next_t - time.monotonic()
         if delay < 0:

@@ -273,8 +273,9 @@ class RobotWatch:
         self.robot: AssemblyState | None = None
         self.grippers = [GripperInfo(), GripperInfo()]
         self.stale_s = stale_s
-        #: Monotonic time the backend's command thread last ran (freshness is judged on its timely ticks).
-        self.tick_at = time.monotonic()
+        #: When the newest ping that roslibpy's event loop has run was sent (monotonic): messages that arrived
+        #: before it have been read, so staleness is the link's, not a busy machine's.
+        self.loop_seen = time.monotonic()
         self._deliver = deliver
 
     def on_joint_state(self, msg: dict[str, Any]) -> None:
@@ -293,12 +294,16 @@ class RobotWatch:
             self.reader.set_gripper(i, p)
 
     def fresh(self, connected: bool, now: float) -> bool:
-        """Joint states arrive: the socket is up and the newest is at most ``stale_s`` old (judged only when the
-        command thread runs on time: a loaded machine delays both)."""
+        """Joint states arrive: the socket is up, and none is missing for ``stale_s`` by the clock of the event
+        loop that reads them (a loop that a loaded machine holds up has not yet read what did arrive)."""
         arrived = self.reader.arrived
         if not connected or arrived is None:
             return False
-        return now - arrived <= self.stale_s or now - self.tick_at > 0.5 * self.stale_s
+        return now - arrived <= self.stale_s or self.loop_seen - arrived <= self.stale_s
+
+    def ping(self, sent: float) -> None:
+        """Run on the event loop that reads the robot's messages: it has read everything before ``sent``."""
+        self.loop_seen = max(self.loop_seen, sent)
 
     def health(self, connected: bool, ours: bool) -> RobotHealth:
         """The robot's :class:`RobotHealth` (``connected``: the socket is up; ``ours``: the studio's e-stop)."""
