@@ -180,7 +180,7 @@ def test_stop_slows_the_robot_down_to_rest_within_the_limits(rig) -> None:
     st = ctl.execution.status
     assert st.phase == "stopped" and st.ok is False
     assert re.fullmatch(r"The robot stopped at [\d.]+ s of [\d.]+ s, as you asked\.", st.message), st.message
-    assert re.match(r"The skill did not work on the robot: the robot did (3\d) % of the run; ", st.result), st.result
+    assert re.match(r"The skill did not work: the robot did (3\d) % of the run; ", st.result), st.result
     assert "from the planned path" not in st.result  # it stayed on the path while it slowed down
     assert "block" in st.result  # what happened to the block, in words (it was not put on the pad)
     _, q, _ = stream.arrays()
@@ -225,7 +225,7 @@ def test_emergency_stop_halts_within_one_control_cycle_and_refuses_motion_until_
             r"Emergency stop: the robot halted at [\d.]+ s of [\d.]+ s\. Release the emergency stop to move it again\.",
             st.message,
         ), st.message
-        assert st.result.startswith("The skill did not work on the robot: the robot did ")
+        assert st.result.startswith("The skill did not work: the robot did ")
         assert wait_for(lambda: any(title == "Emergency stop" for _, title, _ in notes.notes))
         # Nothing moves the robot until the emergency stop is released, in plain words.
         assert ctl.execution.why_not().startswith("The emergency stop is on.")
@@ -332,7 +332,7 @@ def test_both_arms_run_together_when_both_are_taught(rig) -> None:
     assert verdict is not None and verdict.tracking_error < 1e-3 and verdict.completed > 0.99
     assert verdict.grips_done == verdict.grips_planned > 0
     # this scene's block is not where the two-armed demonstrations picked theirs up: no "it works"
-    assert st.result.startswith("The skill did not work on the robot: the objects did not end where you put them.")
+    assert st.result.startswith("The skill did not work: the objects did not end where you put them.")
 
 
 def test_a_run_pressed_while_an_arm_moved_by_hand_still_moves_starts_from_rest_there(

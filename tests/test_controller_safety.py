@@ -38,7 +38,7 @@ def test_the_robots_estop_button_mid_run(rig: Rig) -> None:  # noqa: F811 - the 
     assert st.message.startswith("The robot's emergency stop was pressed at ") and "% done." in st.message
     pct = int(st.message.split("the skill was ")[1].split(" %")[0])
     assert 25 <= pct <= 35
-    assert st.result.startswith(f"The skill did not work on the robot: the robot did {pct} % of the run")
+    assert st.result.startswith(f"The skill did not work: the robot did {pct} % of the run")
     assert "works" not in st.result
     assert wait_for(lambda: ("warning", "The run on the robot failed", st.result) in notes.notes)
     assert still_after(stream, t_press + 2e-3)  # halted at once, and nothing moved it since

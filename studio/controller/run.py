@@ -343,7 +343,7 @@ def judgement(p: ExecutionProgress, verdict: RunVerdict, task: TaskResult | None
         )
         return f"{head}; {task.text[:1].lower()}{task.text[1:]}" if task is not None else head + " — the skill works."
     failed = verdict.failures() or [f"the run ended before its end ({p.state})"]
-    text = "The skill did not work on the robot: " + "; ".join(failed) + "."
+    text = "The skill did not work: " + "; ".join(failed) + "."
     if task is not None and not task.ok:
         text += f" {task.text}"
     return text

@@ -71,6 +71,7 @@ class RunPanel:
             self.enable_btn = gui.add_button(
                 "Enable robot",
                 icon=viser.Icon.POWER,
+                color="green",
                 visible=False,
                 hint="Reset the robot if it was stopped, then enable its motors.",
             )
@@ -138,7 +139,9 @@ class RunPanel:
         cause = self.ctl.execution.robot.cause
         with self.server.gui.add_folder("Simulated robot (try its faults)", expand_by_default=False):
             for name in faults:
-                btn = self.server.gui.add_button(name, hint="What a real Baxter can do; see how the studio answers.")
+                btn = self.server.gui.add_button(
+                    name, color="gray", hint="What a real Baxter can do; see how the studio answers."
+                )
                 btn.on_click(self.ctl.guarded(f'Could not "{name}"')(lambda _, n=name: cause(n)))
 
     def _show_health(self, h: RobotHealth) -> None:
