@@ -91,6 +91,8 @@ class BaxterBed:
         self.ops: list[tuple[float, dict[str, Any]]] = []
         #: (receive time, arm, target, the arm's joints then) of every joint command the robot obeyed
         self.commands: list[tuple[float, str, np.ndarray, np.ndarray]] = []
+        self.hand: np.ndarray | None = None
+        self.hand_speed = 0.5
         self.stamp_offset = 0.0
         self._stamp_once: float | None = None
         self.renamed: dict[str, str] = {}
@@ -148,6 +150,12 @@ class BaxterBed:
             self.stamp_offset -= 3600.0
         else:
             raise ValueError(kind)
+
+    def guide(self, q_left: np.ndarray, speed: float = 0.5) -> None:
+        """The teacher squeezes the left cuff (zero-g) and moves the arm by hand towards ``q_left`` (7,)."""
+        with self.lock:
+            self.hand = np.array(q_left, dtype=np.float64)
+            self.hand_speed = speed
 
     def rename_joint(self, old: str, new: str) -> None:
         self.renamed[old] = new
@@ -317,6 +325,10 @@ class BaxterBed:
             now = time.monotonic()
             dt, last = min(now - last, 0.05), now
             with self.lock:
+                if self.hand is not None:  # moved by hand in zero-g: the arm goes where the teacher takes it
+                    by_hand = self.hand_speed * dt
+                    self.q[:7] += np.clip(self.hand - self.q[:7], -by_hand, by_hand)
+                    self.target[0] = None
                 for i, arm in enumerate(ARMS):
                     tgt = self.target[i]
                     if tgt is None or not self.enabled or self.stopped:

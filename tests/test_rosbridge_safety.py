@@ -238,3 +238,43 @@ def test_the_plan_clock_follows_the_wall_clock_through_a_stall() -> None:
     clock.advance(10.94)
     clock.advance(11.50)
     assert clock.progress.state == "stopped" and math.isclose(clock.p, 0.44 + 0.5, abs_tol=1e-6)
+
+
+def test_kinesthetic_teaching_records_the_robots_own_stamps_and_says_the_rate(bed: BaxterBed, tmp_path) -> None:
+    """The paper's data collection on the real robot: the teacher moves the arm by hand (zero-g) while the
+    studio records; the take keeps the robot's stamps (no resampling), the gripper from its state topic, no
+    finger messages as samples, and the studio says the rate it really got."""
+    from studio.controller import Controller
+    from studio.storage import SessionStore
+    from tests.conftest import RecordingNotifier
+
+    robot = RosbridgeBaxter(bed.url, connect_timeout=10.0)
+    notes = RecordingNotifier()
+    ctl = Controller(store=SessionStore(tmp_path), session="by-hand", backend=robot, notifier=notes)
+    ctl.start()
+    try:
+        assert wait_for(lambda: robot.health().ready)
+        with bed.lock:
+            start = bed.q[:7].copy()
+        ctl.teaching.start_recording()
+        bed.guide(start + np.array([0.3, -0.2, 0.0, 0.3, 0.0, 0.2, 0.0]))
+        assert wait_for(lambda: np.allclose(robot.state().q[:7], bed.hand, atol=1e-3))  # type: ignore[arg-type]
+        with bed.lock:
+            bed.grippers["left"].position = 40.0  # the teacher closed the gripper (its state topic says so)
+            bed.grippers["left"].target = 40.0
+        assert wait_for(lambda: robot.state().gripper[0] == 40.0)
+        time.sleep(0.3)
+        ctl.teaching.stop_recording()
+        demo = ctl.session.recordings[-1]
+        dt = np.diff(demo.t)
+        assert 0.005 < float(np.median(dt)) < 0.02  # the robot's ~100 Hz, as stamped, not resampled to 1 kHz
+        assert np.all(dt > 0)
+        assert demo.gripper[0, 0] == 100.0 and demo.gripper[-1, 0] == 40.0
+        np.testing.assert_allclose(demo.q[-1, :7], bed.hand, atol=1e-3)  # type: ignore[arg-type]
+        assert not np.any(np.all(np.diff(demo.q[:, :7], axis=0) == 0, axis=1)[:20])  # moving: no stale copies
+        saved = [body for kind, title, body in notes.notes if title == "Demonstration saved"]
+        rate = (len(demo) - 1) / demo.duration
+        assert saved and f"{rate:.0f} a second as the robot sent them" in saved[-1], saved
+    finally:
+        ctl.close()
+        ctl.shutdown()
