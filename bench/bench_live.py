@@ -376,8 +376,10 @@ def main() -> int:
                         where = "studio running" if key.endswith("running") else "stream and pose pump stopped"
                         print(f"  {what}, {where}: {_fmt(r[key])}")
                     m, kib = r["messages"], r["kib"]
-                    print(f"  sent to the browsers per step: {statistics.median(m):.0f} messages, "
-                          f"{statistics.median(kib):.1f} KiB (median)")
+                    print(
+                        f"  sent to the browsers per step: {statistics.median(m):.0f} messages, "
+                        f"{statistics.median(kib):.1f} KiB (median)"
+                    )
                 finally:
                     shutil.rmtree(tmp, ignore_errors=True)
         if args.suggest:

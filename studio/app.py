@@ -1,17 +1,9 @@
 """The browser studio: builds the viser server, the robot backend, the controller and the panels.
 
-Everything a user sees is shared by all browser tabs (viser's server-level GUI and scene are broadcast),
-so two tabs show the same robot and session and a reloaded page gets the current state replayed.
-
-The state and every action live in the :class:`~studio.controller.Controller` (no viser); :class:`Studio`
-*has* one and adds the viser parts: the server and its scene, the panels, notifications in the tabs, and the
-pose pump.
-
-Threads (besides the controller's, see :mod:`studio.controller`):
-    * viser's thread pool runs GUI callbacks; each is wrapped by ``controller.guarded`` so a failure is a
-      notification in plain words and never stops the studio;
-    * one *pose pump* thread pushes the latest robot pose to the scene at ~60 Hz (never per 1 kHz sample).
-"""
+Everything a user sees is shared by all browser tabs (viser's server-level GUI and scene are broadcast), so two
+tabs show the same robot and session and a reloaded page gets the current state replayed. :class:`Studio`
+has a :class:`~studio.controller.Controller` (no viser) and adds the server and its scene, the panels,
+notifications in the tabs, and the pose pump (one thread pushing the latest robot pose at up to 60 Hz)."""
 
 from __future__ import annotations
 
@@ -77,8 +69,8 @@ def configure_scene(server: viser.ViserServer) -> None:
     s.initial_camera.look_at = CAMERA_LOOK_AT
     s.initial_camera.fov = math.radians(CAMERA_FOV_DEG)
     s.scene.set_up_direction("+z")
-    # Software WebGL (no GPU) spends most of each frame on image-based lighting and shadow maps: without
-    # them the studio draws ~20x faster and, with plain lights, Baxter still looks like Baxter.
+    # Software WebGL (no GPU) spends most of each frame on image-based lighting and shadow maps; with plain
+    # lights Baxter still looks like Baxter (frame rates: bench/README.md, "Browser studio").
     s.scene.configure_environment_map(hdri=None)
     s.scene.configure_default_lights(enabled=True, cast_shadow=False)
     s.scene.add_light_hemisphere("/lights/sky", sky_color=(255, 255, 255), ground_color=(90, 90, 100), intensity=1.6)
@@ -312,6 +304,9 @@ def serve(
     warning = exposure_warning(host, port)
     if warning:
         print(warning, file=sys.stderr, flush=True)
+    for title, body in app.controller.sessions.startup_notes():
+        if title == "The session could not be opened":
+            print(f"studio: {body}", file=sys.stderr, flush=True)
     stop = threading.Event()
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, lambda *_: stop.set())

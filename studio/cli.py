@@ -10,6 +10,7 @@ import sys
 import tempfile
 import traceback
 from pathlib import Path
+from typing import Literal
 
 from studio.core.errors import StudioError
 from studio.storage.format import DEFAULT_ROOT
@@ -33,17 +34,19 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("serve", parents=[common], help="start the studio in the browser (the default command)")
     s.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1: this computer only)")
     s.add_argument(
-        "--key",
-        default=os.environ.get("STUDIO_KEY") or None,
-        help="the key in the address to open (default: a new random one at each start, or $STUDIO_KEY); "
-        "16-128 letters, digits, - or _",
+        "--key-file",
+        type=Path,
+        default=None,
+        help="a file holding the key in the address to open (default: $STUDIO_KEY, or a new random key at each "
+        "start); 16-128 letters, digits, - or _",
     )
+    s.add_argument("--key", default=None, help=argparse.SUPPRESS)  # refused in words: ps shows it to everyone
     s.add_argument(
         "--no-key",
         action="store_true",
         help="no key in the address (this computer only: refused with a --host other than 127.0.0.1)",
     )
-    s.add_argument("--port", type=int, default=8080, help="port to listen on (default 8080)")
+    s.add_argument("--port", type=_port, default=8080, help="port to listen on, 1-65535 (default 8080)")
     s.add_argument("--session", default="stack-cup", help='session to open (default "stack-cup")')
     s.add_argument(
         "--robot",
@@ -83,6 +86,38 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _port(text: str) -> int:
+    """A port number from the command line, or argparse's error in plain words."""
+    try:
+        port = int(text, 10)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'"{text}" is not a port number (a whole number from 1 to 65535)') from None
+    if not 1 <= port <= 65535:
+        raise argparse.ArgumentTypeError(f"{port} is not a port number: ports go from 1 to 65535")
+    return port
+
+
+def serve_key(args: argparse.Namespace) -> str | Literal[False] | None:
+    """The key ``studio serve`` uses: none (``--no-key``), read from ``--key-file`` or ``$STUDIO_KEY``, or None
+    (a new random one). A key on the command line is refused: every user of the computer sees it in ``ps``."""
+    if args.key is not None:
+        raise StudioError(
+            "--key would show the key to every user of this computer (in the list of running programs). Put the "
+            "key in a file and use --key-file FILE, or set the environment variable STUDIO_KEY."
+        )
+    if args.no_key:
+        return False
+    if args.key_file is not None:
+        path = Path(args.key_file)
+        try:
+            if not path.is_file() or path.stat().st_size > 4096:
+                raise StudioError(f'The key file "{path}" is not a small text file holding the key.')
+            return path.read_text("utf-8", "replace").strip()
+        except OSError as exc:
+            raise StudioError(f'The key file "{path}" cannot be read ({exc.strerror}).') from exc
+    return os.environ.get("STUDIO_KEY") or None
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     # `studio --sessions-dir D learn X` works like `studio learn X --sessions-dir D`.
@@ -111,7 +146,7 @@ def _dispatch(args: argparse.Namespace) -> int:
                 session=args.session,
                 sessions_dir=args.sessions_dir,
                 meshes=args.meshes,
-                key=False if args.no_key else args.key,
+                key=serve_key(args),
                 backend=backend,
             )
             return 0

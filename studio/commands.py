@@ -146,7 +146,14 @@ def cli_remedies(session: str, auto: bool) -> Remedies:
     again = f'learn again with `studio learn "{session}" --auto`, which searches for better thresholds'
     search = "record one or two more demonstrations (--auto already chose the thresholds)" if auto else again
     redo = "re-record it, or hide it in the studio"
-    return {**SHARED_REMEDIES, Remedy.MORE_KEYPOINTS: search, Remedy.SHARPER_CORNERS: search, Remedy.REDO_DEMO: redo}
+    way = "open the session in the studio to choose another way (Train, How the skill is made)"
+    return {
+        **SHARED_REMEDIES,
+        Remedy.MORE_KEYPOINTS: search,
+        Remedy.SHARPER_CORNERS: search,
+        Remedy.REDO_DEMO: redo,
+        Remedy.CHOOSE_ROUTE: way,
+    }
 
 
 def _fmt(x: float, spec: str = ".3g") -> str:

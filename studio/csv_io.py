@@ -1,12 +1,8 @@
 """Baxter SDK joint-recorder CSV: import real-robot recordings, export learned joint trajectories.
 
-The Baxter SDK's ``joint_recorder.py`` example writes one header line
-``time,left_s0,…,left_w2,left_gripper,right_s0,…,right_w2,right_gripper`` and then one line per sample:
-seconds since the start, 7 left joint angles (rad), the left gripper position (percent, 0 = closed ..
-100 = open), the same for the right arm. Its ``joint_trajectory_file_playback.py`` example reads the same
-format (columns by header name, first column time) and sends it as a joint trajectory, so an exported
-skill can be run on a real Baxter with it.
-"""
+The SDK's ``joint_recorder.py`` writes a header ``time,left_s0,…,left_w2,left_gripper,right_s0,…,right_gripper``
+and one line per sample (seconds, radians, gripper percent 0 = closed … 100 = open); its
+``joint_trajectory_file_playback.py`` reads the same format, so an exported skill runs on a real Baxter."""
 
 from __future__ import annotations
 
@@ -25,7 +21,8 @@ from studio.core.arms import normalize_arms
 from studio.core.errors import InvalidInput, NotEnoughData
 from studio.core.types import ALL_ARM_JOINTS, ARM_JOINTS, ARMS, Recording, Skill, check_arm
 from studio.storage.atomic import atomic_write
-from studio.storage.format import MAX_DURATION_S, MAX_JOINT_RAD, implausible
+from studio.storage.format import DEMO_BYTES_PER_SAMPLE, MAX_DEMO_BYTES, MAX_DURATION_S, MAX_SAMPLES, implausible
+from studio.storage.limits import size_text
 
 #: The SDK's column order.
 CSV_COLUMNS: tuple[str, ...] = (
@@ -41,6 +38,10 @@ MAX_CSV_BYTES = 2 * 1024**3
 MAX_EXPORT_ROWS = int(MAX_DURATION_S * 100) + 1
 #: Longest line read (characters): a row of 17 numbers is about 200.
 MAX_LINE_CHARS = 4096
+#: Rows parsed into numbers at once when reading a CSV.
+PARSE_CHUNK_ROWS = 65_536
+#: How far beyond Baxter's joint limits (URDF) a recorded angle may be, radians (encoder noise).
+JOINT_LIMIT_SLACK = 0.05
 #: Rows formatted at once when writing a CSV.
 WRITE_CHUNK_ROWS = 20_000
 TIME_DECIMALS = 6
@@ -71,48 +72,48 @@ def import_csv(
     p = Path(path)
     arms = normalize_arms(arms)
     label = p.name
-    header, rows = _read_rows(p, label)
-    col = {h: i for i, h in enumerate(header)}
-    t = rows[:, col["time"]]
-    keep = np.concatenate([[True], np.diff(t) > 0]) if len(t) else np.zeros(0, bool)
-    # A time stamp that goes backwards (not just repeats) means the file is not one recording.
-    if len(t) > 1 and np.any(np.diff(t) < 0):
-        i = int(np.argmax(np.diff(t) < 0)) + 3
-        raise CsvFormatError(f'"{label}" line {i}: the time goes backwards.')
-    lines = np.nonzero(keep)[0] + 2  # the file's line of each kept row (the header is line 1)
-    rows = rows[keep]
-    if rows.shape[0] < 2:
+    t, q, g, lines = _read_rows(p, label)
+    if t.shape[0] < 2:
         raise NotEnoughData(f'"{label}" holds fewer than two samples; there is nothing to learn from.')
-    _check_plausible(rows, col, lines, label)
-    q = rows[:, [col[j] for j in ALL_ARM_JOINTS]]
-    g = rows[:, [col["left_gripper"], col["right_gripper"]]]
-    if np.any(g < -0.5) or np.any(g > 100.5):
-        raise CsvFormatError(f'"{label}": gripper positions must be percent 0..100.')
-    t = rows[:, col["time"]]
+    _check_plausible(t, q, g, lines, label)
     return Recording(t=t - t[0], q=q, gripper=np.clip(g, 0.0, 100.0), arms=tuple(arms), name=name or p.stem[:100])
 
 
-def _check_plausible(rows: np.ndarray, col: dict[str, int], lines: np.ndarray, label: str) -> None:
-    """Numbers no robot records (1e-300 s steps, 1e300 rad, a million years) are refused, naming the line: they
-    pass as numbers but make learning overflow or never end."""
-    t = rows[:, col["time"]]
+def _check_plausible(t: np.ndarray, q: np.ndarray, g: np.ndarray, lines: np.ndarray, label: str) -> None:
+    """Numbers no robot records (1e-300 s steps, a million years, joints beyond Baxter's limits) are refused,
+    naming the line: they pass as numbers but make learning overflow or never end."""
     problem = implausible(t, np.zeros((0, 14)))
     if problem is not None:
         raise CsvFormatError(f'"{label}" {problem}; nothing was imported from it.')
-    joints = [col[j] for j in ALL_ARM_JOINTS]
-    far = np.abs(rows[:, joints]) > MAX_JOINT_RAD
-    if far.any():
-        r, c = np.argwhere(far)[0]
-        raise CsvFormatError(
-            f'"{label}" line {lines[r]}: the joint {ALL_ARM_JOINTS[c]} is at {rows[r, joints[c]]:.3g}, more than a '
-            "full turn; joint angles must be in radians."
-        )
+    lo, hi = _joint_limits()
+    for c, joint in enumerate(ALL_ARM_JOINTS):
+        col = q[:, c]
+        bad = (col < lo[c]) | (col > hi[c])
+        if bad.any():
+            r = int(np.argmax(bad))
+            raise CsvFormatError(
+                f'"{label}" line {lines[r]}: the joint {joint} is at {col[r]:.3g} rad, beyond what Baxter\'s joint '
+                f"can reach ({lo[c] + JOINT_LIMIT_SLACK:.3g} to {hi[c] - JOINT_LIMIT_SLACK:.3g} rad); joint angles "
+                "must be in radians, in the Baxter SDK's joint order."
+            )
+    if np.any(g < -0.5) or np.any(g > 100.5):
+        raise CsvFormatError(f'"{label}": gripper positions must be percent 0..100.')
 
 
-def _read_rows(p: Path, label: str) -> tuple[list[str], np.ndarray]:
-    """The header and the (rows, columns) numbers, read a line at a time: the size is checked before reading and
-    memory stays about 8 bytes a number, whatever the file holds (a file of millions of tiny lines is refused at
-    its first bad line, not after splitting all of it)."""
+def _joint_limits() -> tuple[np.ndarray, np.ndarray]:
+    """(14,) lower and upper joint limits (rad) in :data:`ALL_ARM_JOINTS` order, widened by the slack."""
+    from studio.core.kinematics import Baxter  # pinocchio: loaded only when a file is imported
+
+    b = Baxter.load()
+    lo = np.concatenate([b.lower_limits(a) for a in ARMS]) - JOINT_LIMIT_SLACK
+    hi = np.concatenate([b.upper_limits(a) for a in ARMS]) + JOINT_LIMIT_SLACK
+    return lo, hi
+
+
+def _read_rows(p: Path, label: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """t (n,), q (n, 14), gripper (n, 2) and each row's line number, read in two passes: the rows are counted
+    first (refused before anything is parsed when the demonstration could not be kept), then parsed a chunk at
+    a time into arrays of their final size. Rows whose time repeats are dropped as they are read."""
     try:
         st = p.stat()
     except OSError as exc:
@@ -122,13 +123,30 @@ def _read_rows(p: Path, label: str) -> tuple[list[str], np.ndarray]:
     if st.st_size > MAX_CSV_BYTES:
         raise CsvFormatError(f'The file "{label}" is too large to be a joint recording ({st.st_size / 1e9:.1f} GB).')
     try:
+        rows = _count_rows(p)
+        if rows > MAX_SAMPLES or rows * DEMO_BYTES_PER_SAMPLE > MAX_DEMO_BYTES:
+            raise CsvFormatError(
+                f'"{label}" holds {rows:,} rows: longer than a demonstration the studio keeps ({MAX_SAMPLES:,} '
+                f"samples, an hour at 1,000 a second, {size_text(MAX_DEMO_BYTES)} in memory). Nothing was imported; "
+                "split the file, or record at a lower rate."
+            )
         with open(p, encoding="utf-8-sig", newline="") as f:
             header = _check_header(_line(f, 1, label), label)
-            return header, _parse_rows(f, len(header), label)
+            return _parse_rows(f, header, rows, label)
     except UnicodeDecodeError as exc:
         raise CsvFormatError(f'The file "{label}" is not a text (CSV) file.') from exc
     except OSError as exc:
         raise CsvFormatError(f'The file "{label}" cannot be read ({exc.strerror}).') from exc
+
+
+def _count_rows(p: Path) -> int:
+    """Lines after the first (an upper bound on the rows), counted a megabyte at a time."""
+    lines, last = 0, b"\n"
+    with open(p, "rb") as f:
+        while chunk := f.read(1 << 20):
+            lines += chunk.count(b"\n")
+            last = chunk[-1:]
+    return max(0, lines + (last != b"\n") - 1)
 
 
 def _line(f: TextIO, number: int, label: str) -> str:
@@ -154,9 +172,54 @@ def _check_header(header_line: str, label: str) -> list[str]:
     return header
 
 
-def _parse_rows(f: TextIO, ncol: int, label: str) -> np.ndarray:
-    """(rows, ncol) numbers from the lines after the header; every problem names its line (the header is 1)."""
-    flat = array("d")
+class _Rows:
+    """The arrays being filled: t, q, gripper and line numbers, ``n`` rows so far (repeated times dropped)."""
+
+    def __init__(self, header: list[str], capacity: int) -> None:
+        col = {h: i for i, h in enumerate(header)}
+        self.ncol = len(header)
+        self.ti = col["time"]
+        self.qi = [col[j] for j in ALL_ARM_JOINTS]
+        self.gi = [col["left_gripper"], col["right_gripper"]]
+        self.t = np.empty(capacity)
+        self.q = np.empty((capacity, 14))
+        self.g = np.empty((capacity, 2))
+        self.lines = np.empty(capacity, np.int64)
+        self.n = 0
+
+    def add(self, flat: array, numbers: array, label: str) -> None:
+        """Append the rows of ``flat`` (their line numbers in ``numbers``); the time must never go back."""
+        rows = np.frombuffer(flat, dtype=np.float64).reshape(-1, self.ncol)
+        ok = np.all(np.isfinite(rows), axis=1)
+        if not ok.all():
+            raise CsvFormatError(
+                f'"{label}" line {numbers[int(np.argmin(ok))]} contains a missing or invalid value (NaN or infinity).'
+            )
+        t = rows[:, self.ti]
+        prev = self.t[self.n - 1] if self.n else -np.inf
+        step = np.diff(t, prepend=prev)
+        if np.any(step < 0):
+            i = int(np.argmax(step < 0))
+            raise CsvFormatError(f'"{label}" line {numbers[i]}: the time goes backwards.')
+        keep = np.flatnonzero(step > 0)  # the first row of the file always (its step is from -inf)
+        a, b = self.n, self.n + keep.shape[0]
+        if b > self.t.shape[0]:
+            raise CsvFormatError(f'"{label}" changed while it was read; import it again once it is complete.')
+        self.t[a:b] = t[keep]
+        self.q[a:b] = rows[keep][:, self.qi]
+        self.g[a:b] = rows[keep][:, self.gi]
+        self.lines[a:b] = np.frombuffer(numbers, dtype=np.int64)[keep]
+        self.n = b
+
+
+def _parse_rows(
+    f: TextIO, header: list[str], capacity: int, label: str
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The rows after the header, a chunk at a time, into arrays of ``capacity`` rows (the counted lines); every
+    problem names its line (the header is line 1). Numbers are read strictly: ``1_00.0`` is not a number here."""
+    out = _Rows(header, capacity)
+    ncol = len(header)
+    flat, numbers = array("d"), array("q")
     blank = 0  # the first blank line seen: fine at the end of the file, not before a row
     number = 1
     while ln := _line(f, number + 1, label):
@@ -171,17 +234,19 @@ def _parse_rows(f: TextIO, ncol: int, label: str) -> np.ndarray:
         if len(parts) != ncol:
             raise CsvFormatError(f'"{label}" line {number} has {len(parts)} values, expected {ncol}.')
         try:
-            values = [float(x) for x in parts]
+            if "_" in text:
+                raise ValueError("underscore")
+            flat.extend([float(x) for x in parts])
         except ValueError as exc:
             raise CsvFormatError(f'"{label}" line {number} contains something that is not a number.') from exc
-        flat.extend(values)
-    rows = np.frombuffer(flat, dtype=np.float64).reshape(-1, ncol).copy() if flat else np.empty((0, ncol))
-    bad = ~np.all(np.isfinite(rows), axis=1)
-    if bad.any():
-        raise CsvFormatError(
-            f'"{label}" line {int(np.argmax(bad)) + 2} contains a missing or invalid value (NaN or infinity).'
-        )
-    return rows
+        numbers.append(number)
+        if len(numbers) >= PARSE_CHUNK_ROWS:
+            out.add(flat, numbers, label)
+            flat, numbers = array("d"), array("q")
+    if numbers:
+        out.add(flat, numbers, label)
+    n = out.n
+    return out.t[:n], out.q[:n], out.g[:n], out.lines[:n]
 
 
 def _fmt_rows(t: np.ndarray, q: np.ndarray, g: np.ndarray) -> str:

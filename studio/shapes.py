@@ -1,23 +1,10 @@
 """Human-like demonstrations of continuous shapes (GUI-free): the quality benchmark's and tests' second teacher.
 
-The scripted teacher (:mod:`studio.teacher`) shows the paper's two arm tasks; this module draws shapes in
-the air the way a person guiding the arm would, at any size and tempo, so that defaults, the auto-tune and
-the verdict are judged on more than our own tasks:
-
-* shapes (:data:`SHAPES`): ``circle``, ``figure-eight``, ``zigzag`` (three sharp corners), ``spiral``,
-  ``handwriting`` (cursive loops, like "ellle") and ``wave`` (a signature-like stroke of changing height);
-  each is a planar curve whose largest extent is ``size`` metres, drawn on a vertical plane in front of
-  the robot (y across, z up), the gripper pointing forward;
-* per demonstration, a person's variation: an offset of the whole shape (3 % of its size, at least 1 mm),
-  ±4 % scale, ±3° turn, a smooth deformation of 1.5 % of the size along the path, a height drift;
-  a tempo ±15 % around ``duration``, a smooth random time warp, one or two hesitations (the hand slows almost
-  to a stop), slowing down at sharp corners, a rest before and after the stroke; 8–12 Hz tremor (0.15 mm)
-  and white sensor noise (0.05 mm) on every 1 kHz sample; a small wobble of the hand's orientation.
-
-:func:`shape_demos` returns :class:`~studio.core.types.Demo` series (Cartesian, like forward kinematics of a
-recording) and :func:`shape_corners` the corners all the demonstrations of a shape share (ground truth for
-the corner measure). :func:`check_reachable` verifies with Baxter's IK that a shape can be drawn by the arm.
-"""
+:func:`shape_demos` draws a shape of :data:`SHAPES` (circle, figure-eight, zigzag, spiral, handwriting,
+wave) in the air in front of the robot as a person guiding the arm would, at any size and tempo, each demo
+with its own offset, scale, turn, deformation, tempo, hesitations, tremor and sensor noise
+(docs/decisions/026). :func:`shape_corners` gives the corners every demonstration shares (ground truth);
+:func:`check_reachable` checks with Baxter's IK that the arm can draw it."""
 
 from __future__ import annotations
 
@@ -37,6 +24,14 @@ if TYPE_CHECKING:
     from studio.core.kinematics import Baxter
 
 SHAPES: tuple[str, ...] = ("circle", "figure-eight", "zigzag", "spiral", "handwriting", "wave")
+#: Strokes from bottom to top around one obstacle (2 routes: on the robot's left or right of it) or two side by
+#: side (3 routes: left of both, between, right of both): "around-<routes>-<route>", route 0 the leftmost.
+ROUTE_SHAPES: tuple[str, ...] = ("around-2-0", "around-2-1", "around-3-0", "around-3-1", "around-3-2")
+#: How a teacher draws: "careful" (the stroke starts and ends at the shape's own ends, small offsets) or "loose"
+#: (each stroke starts up to 20 % of the size away and converges on the shared end, larger deformation, an
+#: even tempo, recorded from the first move to the last, without rest: like a shape drawn quickly with a pen).
+STYLES: tuple[str, ...] = ("careful", "loose")
+_ALL_SHAPES = SHAPES + ROUTE_SHAPES
 
 #: Centre of the drawing plane for the left arm (the right arm mirrors y), metres in Baxter's base frame. Shapes
 #: are drawn on a vertical plane in front of the robot (like a whiteboard), the gripper pointing forward: with the
@@ -85,8 +80,17 @@ def _unit_curve(shape: str) -> tuple[np.ndarray, np.ndarray]:
         th = 2.5 * 2 * math.pi * s  # a signature-like stroke: growing then shrinking waves with a slant
         env = 0.25 + 0.75 * np.sin(math.pi * s)
         xy = np.column_stack([s + 0.04 * np.sin(th), 0.3 * env * np.sin(th)])
+    elif shape in ROUTE_SHAPES:
+        _, n_routes, route = shape.split("-")
+        # from (0, -0.5) to (0, 0.5); the detour's lateral offset, flat while passing the obstacle(s)
+        lateral = {"2": (0.3, -0.3), "3": (0.42, 0.0, -0.42)}[n_routes][int(route)]
+        bump = np.clip(1.6 * np.sin(math.pi * s), 0.0, 1.0)
+        bump = bump * bump * (3.0 - 2.0 * bump)  # smoothstep: leaves and rejoins the straight line smoothly
+        xy = np.column_stack([lateral * bump, s - 0.5])
+        lo, hi = xy.min(axis=0), xy.max(axis=0)
+        return xy - np.array([0.0, (lo[1] + hi[1]) / 2]), np.asarray(corners, dtype=np.int64)
     else:
-        raise InvalidInput(f'Unknown shape "{shape}": choose one of {", ".join(SHAPES)}.')
+        raise InvalidInput(f'Unknown shape "{shape}": choose one of {", ".join(_ALL_SHAPES)}.')
     lo, hi = xy.min(axis=0), xy.max(axis=0)
     xy = (xy - (lo + hi) / 2) / float(np.max(hi - lo))
     return xy, np.asarray(corners, dtype=np.int64)
@@ -106,16 +110,20 @@ def _arc_param(shape: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 @dataclass(frozen=True)
 class ShapeSpec:
-    """What a teacher draws: a shape, how big (largest extent, m), how long the stroke takes (s), which arm."""
+    """What a teacher draws: a shape, how big (largest extent, m), how long the stroke takes (s), which arm, and
+    how (:data:`STYLES`)."""
 
     shape: str
     size: float
     duration: float
     arm: str = "left"
+    style: str = "careful"
 
     def __post_init__(self) -> None:
-        if self.shape not in SHAPES:
-            raise InvalidInput(f'Unknown shape "{self.shape}": choose one of {", ".join(SHAPES)}.')
+        if self.shape not in _ALL_SHAPES:
+            raise InvalidInput(f'Unknown shape "{self.shape}": choose one of {", ".join(_ALL_SHAPES)}.')
+        if self.style not in STYLES:
+            raise InvalidInput(f'Unknown style "{self.style}": choose one of {", ".join(STYLES)}.')
         if not (0.005 <= self.size <= 0.8) or not (0.5 <= self.duration <= 120.0):
             raise InvalidInput("A shape is 5 mm to 80 cm across and takes 0.5 s to 2 minutes.")
         check_arm(self.arm)
@@ -158,35 +166,51 @@ def _progress(rng: np.random.Generator, u_nodes: np.ndarray, corner_u: np.ndarra
     return s
 
 
+def _loose_progress(rng: np.random.Generator, n: int) -> np.ndarray:
+    """Arc-length progress (n,) of a quick, even stroke: a bell-shaped speed, a mild time warp, no hesitation."""
+    tau = np.linspace(0.0, 1.0, n)
+    speed = np.sin(math.pi * tau) ** 1.5 + 1e-3
+    speed *= np.exp(_smooth_noise(rng, tau, 3, 0.1))
+    s = np.cumsum(speed)
+    return (s - s[0]) / (s[-1] - s[0])
+
+
 def shape_demo(spec: ShapeSpec, seed: int, *, rate_hz: float = 1000.0, name: str | None = None) -> Demo:
-    """One human-like demonstration of ``spec`` (see module docstring); deterministic for a given seed.
+    """One human-like demonstration of ``spec`` (its variation: docs/decisions/026); deterministic for a given seed.
 
     Returns:
         A :class:`Demo`: rest, stroke, rest; about ``spec.duration`` × (0.85–1.15) s of stroke plus 0.2–0.5 s
         of rest at each end, sampled at ``rate_hz``; gripper open; no joint angles.
     """
-    rng = np.random.default_rng([seed, SHAPES.index(spec.shape), round(spec.size * 1e4), round(spec.duration * 10)])
+    key = [seed, _ALL_SHAPES.index(spec.shape), round(spec.size * 1e4), round(spec.duration * 10)]
+    loose = spec.style == "loose"
+    rng = np.random.default_rng([*key, STYLES.index(spec.style)] if loose else key)
     u_nodes, xy_unit, corner_u = _arc_param(spec.shape)
     size = spec.size
     stroke = spec.duration * rng.uniform(0.85, 1.15)
     rest0, rest1 = rng.uniform(0.2, 0.5), rng.uniform(0.2, 0.5)
     n_stroke = max(50, round(stroke * rate_hz))
-    n0, n1 = round(rest0 * rate_hz), round(rest1 * rate_hz)
-    s = _progress(rng, u_nodes, corner_u, n_stroke)
+    n0, n1 = (0, 0) if loose else (round(rest0 * rate_hz), round(rest1 * rate_hz))  # a loose stroke never rests
+    s = _loose_progress(rng, n_stroke) if loose else _progress(rng, u_nodes, corner_u, n_stroke)
     s = np.concatenate([np.zeros(n0), s, np.ones(n1)])
     n = s.shape[0]
     t = np.arange(n) / rate_hz
     # geometry: the unit shape at progress s, deformed, scaled, turned, offset
     x = np.interp(s, u_nodes, xy_unit[:, 0])
     y = np.interp(s, u_nodes, xy_unit[:, 1])
-    x = x + _smooth_noise(rng, s, 3, 0.015)
-    y = y + _smooth_noise(rng, s, 3, 0.015)
+    deform = 0.04 if loose else 0.015
+    x = x + _smooth_noise(rng, s, 3, deform)
+    y = y + _smooth_noise(rng, s, 3, deform)
+    if loose:  # the pen lands away from the shape's start and converges on it by mid-stroke
+        land = rng.uniform(0.05, 0.2) * np.array([math.cos(a := rng.uniform(0, 2 * math.pi)), math.sin(a)])
+        fade = np.clip(1.0 - s / 0.6, 0.0, 1.0) ** 2
+        x, y = x + land[0] * fade, y + land[1] * fade
     ang = math.radians(rng.normal(0.0, 3.0))
     scale = size * (1.0 + rng.uniform(-0.04, 0.04))
     c, sn = math.cos(ang), math.sin(ang)
     px, py = scale * (c * x - sn * y), scale * (sn * x + c * y)
     depth = _smooth_noise(rng, s, 2, 0.01 * size) + 0.002 * (s - 0.5) * rng.normal()
-    offset = rng.normal(0.0, max(0.03 * size, 0.001), 3) * np.array([0.5, 1.0, 1.0])
+    offset = rng.normal(0.0, max((0.01 if loose else 0.03) * size, 0.001), 3) * np.array([0.5, 1.0, 1.0])
     pos = np.column_stack([depth, px, py]) + spec.centre + offset
     if spec.arm == "right":
         pos[:, 1] = 2 * spec.centre[1] - pos[:, 1]  # mirrored drawing for the right hand
@@ -217,6 +241,25 @@ def shape_demos(spec: ShapeSpec, n_demos: int = 3, *, first_seed: int = 0, rate_
     if n_demos < 1:
         raise InvalidInput("Ask for at least one demonstration.")
     return tuple(shape_demo(spec, first_seed + i, rate_hz=rate_hz, name=f"demo {i + 1}") for i in range(int(n_demos)))
+
+
+def route_demos(
+    n_routes: int, size: float, duration: float, n_demos: int, *, seed: int = 0, style: str = "careful"
+) -> tuple[tuple[Demo, ...], tuple[int, ...]]:
+    """``n_demos`` demonstrations that go ``n_routes`` (2 or 3) ways around obstacles (:data:`ROUTE_SHAPES`),
+    every route taken at least once, the routes shuffled among the demos by ``seed``.
+
+    Returns:
+        (the demos, named "demo 1", …; the route each one takes, 0 = the robot's leftmost).
+    """
+    if n_routes not in (2, 3) or n_demos < n_routes:
+        raise InvalidInput("Ask for 2 or 3 routes and at least one demonstration per route.")
+    rng = np.random.default_rng([seed, n_routes, n_demos, round(size * 1e4)])
+    routes = [i % n_routes for i in range(n_demos)]
+    rng.shuffle(routes)
+    specs = [ShapeSpec(f"around-{n_routes}-{r}", size, duration, style=style) for r in routes]
+    demos = tuple(shape_demo(sp, 100 * seed + i, name=f"demo {i + 1}") for i, sp in enumerate(specs))
+    return demos, tuple(int(r) for r in routes)
 
 
 def shape_corners(spec: ShapeSpec, seed: int = 0) -> np.ndarray:
@@ -323,11 +366,14 @@ def joint_angles(demo: Demo, arm: str, *, knots_hz: float = 50.0, baxter: Baxter
 
 __all__ = [
     "CENTRE_LEFT",
+    "ROUTE_SHAPES",
     "SHAPES",
+    "STYLES",
     "ShapeSpec",
     "check_reachable",
     "joint_angles",
     "ready_pose",
+    "route_demos",
     "shape_corners",
     "shape_demo",
     "shape_demos",

@@ -8,10 +8,11 @@ passes its own :data:`Remedies` (the studio's controls: ``panels/train.py``; the
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
 from studio.core.quality import DemoFit, Disagreement, Finding, Issue, Level, Misfit, Remedy, Verdict
+from studio.core.types import SkillRoute
 
 if TYPE_CHECKING:
     from studio.core.autotune import TuneResult
@@ -100,7 +101,49 @@ def _note(f: Finding, remedies: Remedies) -> str:
         return f"Learned without one of your demonstrations, it misses that one by {d} on average{fix}"
     if f.issue is Issue.OUTLIER:
         return f"{f.demo} differs a lot from the others{fix}"
+    if f.issue is Issue.ROUTES:
+        return f"{routes_words(f.routes, f.route)}, never a path between them{fix}"
     return f"{f.issue}{fix}"
+
+
+_COUNT = {2: "two", 3: "three"}
+#: Per axis of Baxter's base frame (x forward, y to its left, z up): how the lower and the higher side are called.
+_SIDES = (
+    ("nearer the robot", "farther from the robot"),
+    ("on the robot's right", "on the robot's left"),
+    ("lower", "higher"),
+)
+
+
+def route_sides(routes: Sequence[SkillRoute]) -> tuple[str, ...]:
+    """Where each way goes, as words: along the axis the ways differ most ("on the robot's left", "higher", …;
+    a way between two others is "in the middle")."""
+    at = [r.at for r in routes]
+    if len(at) < 2:
+        return tuple("" for _ in at)
+    spans = [max(p[k] for p in at) - min(p[k] for p in at) for k in range(3)]
+    axis = spans.index(max(spans))
+    order = sorted(range(len(at)), key=lambda i: at[i][axis])
+    low, high = _SIDES[axis]
+    out = ["in the middle"] * len(at)
+    out[order[0]], out[order[-1]] = low, high
+    return tuple(out)
+
+
+def route_label(routes: Sequence[SkillRoute], i: int) -> str:
+    """One way and who went it: "on the robot's left: demo 1, demo 3"."""
+    return f"{route_sides(routes)[i]}: {', '.join(routes[i].demos)}"
+
+
+def routes_words(routes: Sequence[SkillRoute], route: int) -> str:
+    """The ways the demonstrations went and the one learned: "Your demonstrations go two ways (…). I learned the
+    way on the robot's left" (no full stop)."""
+    sides = route_sides(routes)
+    ways = "; ".join(route_label(routes, i) for i in range(len(routes)))
+    return (
+        f"Your demonstrations go {_COUNT.get(len(routes), str(len(routes)))} ways ({ways}). "
+        f"I learned the way {sides[route]}"
+    )
 
 
 def verdict_lines(v: Verdict, remedies: Remedies) -> tuple[str, ...]:
@@ -122,6 +165,11 @@ def fit_note(fit: DemoFit) -> str:
 def tune_summary(result: TuneResult) -> str:
     """Suggest's before and after figures in plain words."""
     b, a = result.before, result.after
+    if not result.changed:
+        return (
+            "Your thresholds are already good: learned without each demonstration in turn, the skill misses it by "
+            f"{length_words(b.distance)} on average, and no other thresholds did better."
+        )
     if not math.isfinite(b.distance):
         return (
             "Suggested: learned without each demonstration in turn, the skill misses it by "
@@ -134,4 +182,14 @@ def tune_summary(result: TuneResult) -> str:
     )
 
 
-__all__ = ["SHARED_REMEDIES", "Remedies", "fit_note", "length_words", "tune_summary", "verdict_lines"]
+__all__ = [
+    "SHARED_REMEDIES",
+    "Remedies",
+    "fit_note",
+    "length_words",
+    "route_label",
+    "route_sides",
+    "routes_words",
+    "tune_summary",
+    "verdict_lines",
+]

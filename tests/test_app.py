@@ -415,6 +415,7 @@ def test_suggest_controls_show_progress_and_undo(app: Studio) -> None:
     seen: list[tuple[bool, bool]] = []
     ctl.events.on(Topic.SUGGEST, lambda: seen.append((sc.progress.visible, sc.stop.visible)))
     assert not sc.undo.visible and not sc.progress.visible
+    ctl.keypoints.set_param("eps5", 0.3)  # far too few key-points: Suggest has something better to offer
     ctl.suggest.start().result(timeout=120)
     assert (True, True) in seen  # the progress bar and Stop while it searched
     assert not sc.progress.visible and sc.undo.visible and "misses it by" in sc.text.content

@@ -46,7 +46,7 @@ def test_a_skill_the_arm_cannot_follow_is_drawn_red_and_not_run(app: Studio) -> 
     far = dataclasses.replace(tr, position=tr.position + np.outer(bump, [0.6, 0.0, 0.0]))
     assert skill.joint_trajectory is not None
     jt = joint_trajectory(far, "left", skill.joint_trajectory.q[0], ctl.baxter)
-    ctl.session.set_skills({"left": dataclasses.replace(skill, trajectory=far, joint_trajectory=jt)})
+    ctl.session.set_skills({"left": dataclasses.replace(skill, trajectory=far, joint_trajectory=jt, frames=None)})
     ctl.events.emit(Topic.SKILL)
     assert "In red: The left gripper cannot reach" in preview.info.content
     assert preview.run_btn.disabled

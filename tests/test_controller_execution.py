@@ -287,7 +287,8 @@ def test_refusals_are_plain(rig, trained: Path) -> None:
     bump = np.exp(-(((tr.t - tr.t[0]) - 7.0) ** 2) / (2 * 0.4**2))  # 7 s into the skill, the path goes 60 cm out
     far = dataclasses.replace(tr, position=tr.position + np.outer(bump, [0.6, 0.0, 0.0]))
     jt = joint_trajectory(far, "left", skill.joint_trajectory.q[0], ctl.baxter)
-    ctl.session.set_skills({"left": dataclasses.replace(skill, trajectory=far, joint_trajectory=jt)})
+    # (a path in the robot's frame: a skill that follows the objects would be rebuilt from its segments)
+    ctl.session.set_skills({"left": dataclasses.replace(skill, trajectory=far, joint_trajectory=jt, frames=None)})
     ctl.events.emit(Topic.SKILL)
     f = ctl.execution.feasibility()["left"]
     assert not f.ok

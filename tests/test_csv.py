@@ -67,7 +67,7 @@ def test_real_sdk_style_file_imports(tmp_path: Path) -> None:
     rows = [SDK_HEADER]
     for i in range(50):
         t = 12.5 + i * 0.01 if i != 7 else 12.5 + 6 * 0.01
-        vals = [0.1 * i / 50] * 7 + [100.0] + [-0.2] * 7 + [0.0]
+        vals = [0.1 * i / 50] * 7 + [100.0] + [0.2] * 7 + [0.0]
         rows.append(f"{t:f}," + ",".join(str(v) for v in vals))
     f = tmp_path / "real.csv"
     f.write_text("\n".join(rows) + "\n\n")

@@ -28,7 +28,6 @@ def skill():
     return learn_skill(list(demos("stack-cup")), arm="left")
 
 
-
 def _limits() -> tuple[np.ndarray, np.ndarray]:
     b = Baxter.load()
     return (

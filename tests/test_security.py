@@ -46,7 +46,12 @@ def key_of(app: Studio) -> str:
 
 
 def cookie_of(app: Studio) -> str:
-    return f"studio-key-{app.port}={key_of(app)}"
+    return f"{app.access.cookie_name}={key_of(app)}"
+
+
+def page_ws(app: Studio) -> str:
+    """The websocket address of the studio's page (the launch's path, where its cookie is valid)."""
+    return f"ws://127.0.0.1:{app.port}{app.access.prefix}"
 
 
 def own_origin(app: Studio) -> str:
@@ -94,23 +99,23 @@ def test_a_foreign_web_page_cannot_drive_the_studio(app: Studio) -> None:
 
 
 def test_a_page_on_another_local_port_cannot_drive_it_even_with_the_cookie(app: Studio) -> None:
-    # A page served by some other program on this computer is "same-site" for the browser, so the studio's
-    # SameSite=Strict cookie does go along with its websocket: only the Origin check stops it.
-    nothing_achieved(attack(app, origin=f"http://127.0.0.1:{free_port()}", cookie=cookie_of(app)))
-    nothing_achieved(attack(app, origin=f"http://localhost:{free_port()}", cookie=cookie_of(app)))
-    nothing_achieved(attack(app, origin="null", cookie=cookie_of(app)))
+    # A page served by some other program on this computer is "same-site" for the browser: had it learned the
+    # page's path, the studio's SameSite=Strict cookie would go along with its websocket; the Origin check stops it.
+    for origin in (f"http://127.0.0.1:{free_port()}", f"http://localhost:{free_port()}", "null"):
+        nothing_achieved(attack(app, origin=origin, cookie=cookie_of(app), url=page_ws(app)))
 
 
 def test_a_program_without_the_key_cannot_drive_it(app: Studio) -> None:
     nothing_achieved(attack(app, origin=None))  # no Origin: not a browser
     nothing_achieved(attack(app, origin=own_origin(app)))  # the right origin but no cookie
-    nothing_achieved(attack(app, origin=own_origin(app), cookie=f"studio-key-{app.port}=wrong-key-0123456789"))
+    nothing_achieved(attack(app, origin=own_origin(app), cookie=f"{app.access.cookie_name}=wrong-key-0123456789"))
+    nothing_achieved(attack(app, origin=own_origin(app), cookie=cookie_of(app)))  # the cookie without the path
     nothing_achieved(attack(app, origin=None, url=f"ws://127.0.0.1:{app.port}/?key=wrong-key-0123456789"))
     assert app.controller.demos.names() == ["demo 1", "demo 2", "demo 3"]
 
 
 def test_the_studio_page_with_its_cookie_drives_it(app: Studio) -> None:
-    r = attack(app, origin=own_origin(app), cookie=cookie_of(app))
+    r = attack(app, origin=own_origin(app), cookie=cookie_of(app), url=page_ws(app))
     assert r["refused"] is None and r["gui"] >= 80
     assert r["deleted"] == {"demo 1"} and set(r["downloads"]) == {"stack-cup.zip"}
 
@@ -153,31 +158,40 @@ def handshake(port: int, headers: dict[str, str], path: str = "/") -> int:
 
 def test_printed_address_sets_a_cookie_and_reloads_work(app: Studio) -> None:
     assert app.url() == f"http://127.0.0.1:{app.port}/?key={key_of(app)}"
+    prefix = app.access.prefix
+    assert prefix.startswith("/s/") and len(prefix) > 20
     status, headers, body = http_get(app.port, f"/?key={key_of(app)}")
-    assert status == 303 and headers["location"] == "/"  # the key does not stay in the address bar
+    assert status == 303 and headers["location"] == prefix + "/"  # the key does not stay in the address bar
     cookie = headers["set-cookie"]
     assert cookie.startswith(f"{cookie_of(app)};")
-    assert "HttpOnly" in cookie and "SameSite=Strict" in cookie and "Path=/" in cookie
-    # Other parameters of the address survive the redirect.
-    status, headers, _ = http_get(app.port, f"/?darkMode&key={key_of(app)}")
-    assert status == 303 and headers["location"] == "/?darkMode"
+    assert "HttpOnly" in cookie and "SameSite=Strict" in cookie and f"Path={prefix};" in cookie
 
     # A reload sends the cookie: the page loads, and the browser may not frame it into another site.
-    status, headers, body = http_get(app.port, "/", {"Cookie": f"other=1; {cookie_of(app)}"})
+    status, headers, body = http_get(app.port, prefix + "/", {"Cookie": f"other=1; {cookie_of(app)}"})
     assert status == 200 and b"<html" in body[:200].lower()
     assert "frame-ancestors 'self'" in headers["content-security-policy"]
     # ... and the websocket of that page is accepted, from 127.0.0.1 or localhost.
-    assert handshake(app.port, {"Origin": own_origin(app), "Cookie": cookie_of(app)}) == 101
+    assert handshake(app.port, {"Origin": own_origin(app), "Cookie": cookie_of(app)}, prefix) == 101
     local = {"Host": f"localhost:{app.port}", "Origin": f"http://localhost:{app.port}", "Cookie": cookie_of(app)}
-    assert handshake(app.port, local) == 101
+    assert handshake(app.port, local, prefix) == 101
+
+
+def test_a_malformed_cookie_of_another_program_does_not_hide_the_key(app: Studio) -> None:
+    """Cookies are shared by every port of this computer: another program's odd cookies come along."""
+    odd = 'a="unterminated; b=x y z; [c]=1; d={"json": 1}; =; e'
+    status, _, _ = http_get(app.port, app.access.prefix + "/", {"Cookie": f"{odd}; {cookie_of(app)}; f=,"})
+    assert status == 200
 
 
 def test_without_the_key_the_page_says_what_to_open(app: Studio) -> None:
+    prefix = app.access.prefix
     for path, headers in [
         ("/", {}),
         ("/?key=wrong-key-0123456789", {}),
-        ("/", {"Cookie": f"studio-key-{app.port}=wrong-key-0123456789"}),
-        ("/", {"Cookie": f"studio-key-{app.port + 1}={key_of(app)}"}),  # another studio's cookie
+        (prefix + "/", {"Cookie": f"{app.access.cookie_name}=wrong-key-0123456789"}),
+        (prefix + "/", {"Cookie": f"studio-key-{app.port}={key_of(app)}"}),  # another cookie's name
+        ("/", {"Cookie": cookie_of(app)}),  # the cookie replayed without the page's path
+        ("/s/other-path/", {"Cookie": cookie_of(app)}),
     ]:
         status, hdrs, body = http_get(app.port, path, headers)
         text = body.decode()
@@ -188,11 +202,12 @@ def test_without_the_key_the_page_says_what_to_open(app: Studio) -> None:
 
 def test_the_page_may_not_be_pointed_at_another_server(app: Studio) -> None:
     """viser's page reads ?websocket=... / ?playbackPath=...: another server's HTML would run as the studio's page.
-    From another port of this computer the cookie goes along with such a link, so the address itself is refused."""
+    From another port of this computer the cookie may go along with such a link, so the address itself is refused."""
+    page = app.access.prefix + "/"
     for q in ("websocket=ws://127.0.0.1:1/", "playbackPath=http://127.0.0.1:1/x.viser", "darkMode&websocket=x"):
-        assert http_get(app.port, f"/?{q}", {"Cookie": cookie_of(app)})[0] == 403, q
+        assert http_get(app.port, f"{page}?{q}", {"Cookie": cookie_of(app)})[0] == 403, q
         assert http_get(app.port, f"/?{q}&key={key_of(app)}")[0] == 403, q
-    assert http_get(app.port, "/?darkMode", {"Cookie": cookie_of(app)})[0] == 200
+    assert http_get(app.port, page, {"Cookie": cookie_of(app)})[0] == 200
 
 
 def test_other_host_names_are_refused(app: Studio) -> None:
@@ -202,7 +217,71 @@ def test_other_host_names_are_refused(app: Studio) -> None:
     assert handshake(app.port, {**evil, "Origin": f"http://evil.example:{app.port}"}) == 403
     assert handshake(app.port, {**evil}) == 403
     # The right name on another port is someone else.
-    assert handshake(app.port, {"Host": f"127.0.0.1:{app.port + 1}", "Cookie": cookie_of(app)}) == 403
+    assert (
+        handshake(app.port, {"Host": f"127.0.0.1:{app.port + 1}", "Cookie": cookie_of(app)}, app.access.prefix) == 403
+    )
+    for name in ("127.example.com", "localhost.evil", "127.0.0.1.evil", "[::2]", "0.0.0.0"):
+        assert (
+            http_get(app.port, app.access.prefix + "/", {"Host": f"{name}:{app.port}", "Cookie": cookie_of(app)})[0]
+            == 403
+        ), name
+    for name in ("localhost.", "LOCALHOST", "[::ffff:127.0.0.1]", "127.0.0.2"):  # this computer, written otherwise
+        assert (
+            http_get(app.port, app.access.prefix + "/", {"Host": f"{name}:{app.port}", "Cookie": cookie_of(app)})[0]
+            == 200
+        ), name
+
+
+# -- host names, judged with ipaddress (issue 17 §4) ---------------------------------------------------------
+@pytest.mark.parametrize(
+    ("host", "loopback"),
+    [
+        ("127.0.0.1", True),
+        ("127.0.0.2", True),
+        ("localhost", True),
+        ("LocalHost", True),
+        ("localhost.", True),  # the same name, written with the DNS root
+        ("127.0.0.1.", True),  # as a browser reads it
+        ("::1", True),
+        ("[::1]", True),
+        ("::ffff:127.0.0.1", True),  # IPv4-mapped IPv6
+        ("[::ffff:7f00:1]", True),
+        ("0:0:0:0:0:0:0:1", True),
+        ("127.example.com", False),  # a name anyone can point anywhere
+        ("127.0.0.1.evil.example", False),
+        ("localhost.evil", False),
+        ("evil.localhost", False),
+        ("localhost..", False),
+        ("[127.0.0.1]", False),  # brackets hold IPv6 only
+        ("::ffff:10.0.0.1", False),
+        ("::2", False),
+        ("0.0.0.0", False),
+        ("::", False),
+        ("10.0.0.1", False),
+        ("", False),
+        ("local host", False),
+    ],
+)
+def test_a_host_is_this_computer_only_when_ipaddress_says_so(host: str, loopback: bool) -> None:
+    from studio.security import is_loopback
+
+    assert is_loopback(host) is loopback
+
+
+def test_host_headers_are_read_with_the_standard_library() -> None:
+    from studio.security.addresses import read_target, split_host
+
+    assert split_host("127.0.0.1:8080") == ("127.0.0.1", 8080)
+    assert split_host("[::1]:8080") == ("::1", 8080)
+    assert split_host("[::ffff:127.0.0.1]:80") == ("127.0.0.1", 80)
+    assert split_host("LOCALHOST.:8080") == ("localhost", 8080)
+    assert split_host("localhost") == ("localhost", 80)
+    for bad in ("::1:8080", "user@127.0.0.1:80", "127.0.0.1:99999", "127.0.0.1:", "127.0.0.1:80/x", "a b:80", ""):
+        assert split_host(bad) is None, bad
+    t = read_target("/s/x/?%77ebsocket=ws%3A%2F%2Fa&playback%50ath=1&a+b=c")
+    assert t is not None and t.path == "/s/x/"
+    assert t.query == (("websocket", "ws://a"), ("playbackPath", "1"), ("a b", "c"))
+    assert read_target("//evil.example/") is None and read_target("http://x/") is None
 
 
 # -- listening beyond this computer -------------------------------------------------------------------------
@@ -211,7 +290,7 @@ def test_listening_beyond_this_computer_needs_the_key(sessions: Path, capsys: py
     from studio.core.errors import StudioError
 
     port = free_port()
-    for host in ("0.0.0.0", "::", "192.168.1.5"):
+    for host in ("0.0.0.0", "::", "192.168.1.5", "127.evil.example", "127.example.com", "localhost.evil"):
         with pytest.raises(StudioError, match="key"):
             build_app(host=host, port=port, sessions_dir=sessions, key=False)
     # Nothing was started: the port is still free.
@@ -243,6 +322,7 @@ def test_a_chosen_key_is_checked(sessions: Path) -> None:
     try:
         assert a.url().endswith("/?key=my-own-key-0123456789")
         assert http_get(a.port, "/?key=my-own-key-0123456789")[0] == 303
+        assert a.access.prefix not in a.url()
     finally:
         a.stop()
 
@@ -459,3 +539,103 @@ def test_the_share_button_is_not_offered(app: Studio) -> None:
         assert theme and theme[-1]["show_share_button"] is False
     finally:
         c.close()
+
+
+# -- the command line (issue 21 §2, §7) ----------------------------------------------------------------------
+def test_the_command_line_refuses_in_words(sessions: Path) -> None:
+    """Today: ``--port 99999`` printed a traceback and hung; ``--host 127.evil.example --no-key`` was accepted."""
+    from tests.hostile.builders import assert_plain, studio_cli
+
+    d = str(sessions)
+    for args, words in [
+        (("serve", "--port", "99999", "--sessions-dir", d), "ports go from 1 to 65535"),
+        (("serve", "--port", "http", "--sessions-dir", d), "not a port number"),
+        (("serve", "--host", "127.evil.example", "--no-key", "--port", str(free_port()), "--sessions-dir", d), "key"),
+        (("serve", "--host", "localhost.evil", "--no-key", "--port", str(free_port()), "--sessions-dir", d), "key"),
+        (("serve", "--key", "my-own-key-0123456789", "--port", str(free_port()), "--sessions-dir", d), "--key-file"),
+    ]:
+        proc = studio_cli(*args, timeout=60)
+        assert_plain(proc)
+        assert words in proc.stderr, (args, proc.stderr)
+
+
+def test_a_busy_port_is_refused_not_moved(sessions: Path) -> None:
+    from studio.core.errors import StudioError
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen(1)
+        port = int(s.getsockname()[1])
+        with pytest.raises(StudioError, match=f"Port {port} is already used by another program"):
+            build_app(port=port, session="stack-cup", sessions_dir=sessions)
+    assert wait_for(lambda: _port_free(port + 1))  # nothing stayed on the next port either
+
+
+def test_the_key_is_read_from_a_file_and_never_shown_in_ps(sessions: Path, tmp_path: Path) -> None:
+    import re
+    import signal
+    import subprocess
+    import sys
+
+    key = "from-a-file-0123456789abcdef"
+    key_file = tmp_path / "key"
+    key_file.write_text(key + "\n")
+    port = free_port()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "studio", "serve", "--key-file", str(key_file), "--port", str(port),
+         "--sessions-dir", str(sessions), "--meshes", "light"],
+        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )  # fmt: skip
+    try:
+        assert proc.stdout is not None
+        line = ""
+        for line in proc.stdout:
+            if "open http" in line:
+                break
+        assert re.search(rf"open http://127\.0\.0\.1:{port}/\?key={key} ", line), line
+        cmdline = Path(f"/proc/{proc.pid}/cmdline").read_bytes().decode()
+        assert key not in cmdline and str(key_file) in cmdline
+        status, _, _ = http_get(port, f"/?key={key}")
+        assert status == 303
+        t0 = time.monotonic()
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(timeout=30)
+        assert time.monotonic() - t0 < 5.0 and proc.returncode == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        if proc.stdout is not None:
+            proc.stdout.close()
+
+
+def test_parts_viser_drops_never_end_the_count_of_an_upload(sessions: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue 21 §4, today's regression: parts with an index out of range (or sent twice) counted as received, so an
+    upload stopped being counted while viser kept its parts: five 315 MB uploads were buffered, none refused."""
+    from studio import security
+
+    monkeypatch.setattr(security.uploads, "MAX_UPLOAD_BYTES", 8 * MiB)
+    a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
+    c = ViserClient(f"ws://127.0.0.1:{a.port}/?key={key_of(a)}")
+    try:
+        uuid = c.wait_gui("Upload session (.zip)")["uuid"]
+        chunk = 512 * 1024
+        part = b"\0" * chunk
+        start_upload(c, uuid, "t-first", 6 * MiB, 12)
+        for i in range(11):  # all but one part: viser buffers them
+            send_part(c, uuid, "t-first", i, part)
+        send_part(c, uuid, "t-first", 0, part)  # a part again
+        send_part(c, uuid, "t-first", 10**6, part)  # out of range
+        send_part(c, uuid, "t-first", -1, part)
+        # The first upload still counts: a second one that would pass the limit together with it is refused.
+        start_upload(c, uuid, "t-second", 6 * MiB, 12)
+        assert c.wait_for(lambda _m: refusals(c), 20), c.notifications()
+        assert "still running" in refusals(c)[0]
+        # The last real part completes the first upload (not a session archive: refused in words, nothing added).
+        send_part(c, uuid, "t-first", 11, part)
+        assert wait_for(lambda: not a.server.gui._current_file_upload_states)
+        assert a.controller.sessions.names() == ["stack-cup"]
+    finally:
+        c.close()
+        a.stop()

@@ -70,7 +70,7 @@ def test_scene_and_events_round_trip_through_the_manifest(store: SessionStore, s
     assert again.objects.events(again.demo_files[0]) == tuple(events_for(preset("pick-place")))
     assert again.objects.events(again.demo_files[1]) == ()
     raw = json.loads((session.path / "session.json").read_text())
-    assert raw["version"] == FORMAT_VERSION == 2
+    assert raw["version"] == FORMAT_VERSION == 3
     assert raw["scene"]["preset"] == "pick-place"
     assert [e["kind"] for e in raw["demos"][0]["objects"]["events"]] == ["start", "grasp", "release", "end"]
     assert "objects" not in raw["demos"][1]  # nothing written for a demonstration without objects
@@ -103,7 +103,9 @@ def test_edits_keep_the_events_with_their_demonstration(store: SessionStore, ses
     assert len(again.recordings) == 1
 
 
-def test_a_version_1_session_opens_on_an_empty_table_and_is_written_as_version_2(store: SessionStore, session) -> None:
+def test_a_version_1_session_opens_on_an_empty_table_and_is_written_in_the_current_version(
+    store: SessionStore, session
+) -> None:
     assert 1 in UPGRADES
     path = session.path / "session.json"
     raw = json.loads(path.read_text())
@@ -119,7 +121,25 @@ def test_a_version_1_session_opens_on_an_empty_table_and_is_written_as_version_2
     assert all(old.objects.events(f) == () for f in old.demo_files)
     assert path.read_bytes() == before  # loading never writes
     old.rename_demo(0, "renamed")
-    assert json.loads(path.read_text())["version"] == 2
+    assert json.loads(path.read_text())["version"] == FORMAT_VERSION
+
+
+def test_a_version_2_session_keeps_its_skills_in_the_robots_frame(store: SessionStore, session) -> None:
+    """Skills learned before format 3 are paths in the robot's frame: a session with them keeps learning that
+    way; one without skills takes the default (skills that follow the objects)."""
+    assert UPGRADES[2]({"version": 2, "skills": {"left": {"file": "skills/left.npz"}}})["frames"] == "robot"
+    assert UPGRADES[2]({"version": 2, "skills": {}})["frames"] == "objects"
+    path = session.path / "session.json"
+    raw = json.loads(path.read_text())
+    raw["version"] = 2
+    raw.pop("frames", None)
+    path.write_text(json.dumps(raw))
+    old = load_session(session.path)
+    assert old.frames == "objects"
+    old.set_params(mode="robot")
+    again = json.loads(path.read_text())
+    assert again["version"] == FORMAT_VERSION and again["frames"] == "robot"
+    assert load_session(session.path).frames == "robot"
 
 
 def test_a_damaged_scene_or_event_list_is_named(store: SessionStore, session) -> None:

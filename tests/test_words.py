@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import pytest
 
@@ -65,3 +66,15 @@ def test_the_command_line_names_its_options_not_the_studio_controls() -> None:
     assert "--auto already chose" in "\n".join(W.verdict_lines(HEADLINES[2], cli_remedies("my session", True)))
     studio_text = "\n".join(W.verdict_lines(HEADLINES[1], STUDIO))
     assert studio_text.endswith("— press Suggest, or lower Corner sharpness.")
+
+
+def test_the_core_names_no_control_of_the_studio() -> None:
+    # the check: `grep -rn "press\|Suggest\|Detail" studio/core` finds nothing
+    core = Path(__file__).resolve().parent.parent / "studio" / "core"
+    found = [
+        f"{p.relative_to(core.parent)}:{i}: {line.strip()}"
+        for p in sorted(core.rglob("*.py"))
+        for i, line in enumerate(p.read_text().splitlines(), 1)
+        if re.search(r"press|Suggest|Detail", line)
+    ]
+    assert not found, "\n".join(found)

@@ -43,6 +43,7 @@ def teacher_variant(monkeypatch: pytest.MonkeyPatch):
         teach.cache_clear()
         for k, v in values.items():
             monkeypatch.setattr(teacher, k, v)
+            monkeypatch.setattr(teacher.tasks, k, v)  # where the key-frames read them
 
     yield change
     monkeypatch.undo()

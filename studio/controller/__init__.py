@@ -1,27 +1,10 @@
 """The studio's controller: its state and every action, over the core, the robot backend and the storage.
 
-It knows nothing of viser (:class:`studio.app.Studio` has one and adds the server, scene and panels), so it
-runs and is tested without a browser. One module per concern:
-
-    events.py     Topic, Events: what changed, for the views to redraw
-    context.py    Context (open session, lock, events, notifications, work thread), Notifier, LogNotifier
-    pose.py       PoseSource, Display: which robot pose the scene draws
-    teaching.py   Teaching: arms, moving the live robot (IK), reach, recording
-    demos.py      Demos, DemoSummary: the demonstrations, their cache and edits
-    learning.py   KeypointTuning (threshold settings, k, the live key-point view)
-    livepath.py   LivePaths: the learned path recomputed while the thresholds move
-    suggest.py    Suggesting: Suggest thresholds (progress, cancel, undo)
-    training.py   Training: train, the verdict on the skill, what the panels show about it
-    playback.py   Player, Playback: preview of the skill and replay of a demo, one mechanism
-    sessions.py   SessionActions: open, new, save, duplicate, zip, CSV; switching sessions
-    scene.py      SceneActions: the objects on the table, the live world, replay/preview objects, task result
-    execution.py  ExecutionActions: Run on robot, Stop, Emergency stop, the last run against its plan
-    run.py        Run, RunStatus: one run on the robot (recording, progress, judgement) and its words
-    view.py       View: the step the teacher is at and which scene layers are drawn
-
-No part takes another: each gets the :class:`Context` and narrow protocols or callables for what it asks,
-and subscribes to the events it follows. ARCHITECTURE.md ("The controller") has the wiring and the threads.
-"""
+It knows nothing of viser (:class:`studio.app.Studio` adds the server, scene and panels), so it runs and is
+tested without a browser. One module per concern (``events``, ``context``, ``teaching``, ``demos``,
+``learning``, ``livepath``, ``suggest``, ``training``, ``playback``, ``sessions``, ``scene``, ``execution``,
+``run``, ``view``, ``pose``). No part takes another: each gets the :class:`Context` and narrow protocols or
+callables (ARCHITECTURE.md, "The controller")."""
 
 from __future__ import annotations
 
@@ -35,6 +18,7 @@ from studio.controller.events import Events, Topic
 from studio.controller.execution import ExecutionActions
 from studio.controller.learning import KeypointItem, KeypointTuning, KeypointView
 from studio.controller.livepath import LivePath, LivePaths
+from studio.controller.placed import PlacedSkills
 from studio.controller.playback import PREVIEW, REPLAY, Playback, PlaybackKind, Player
 from studio.controller.pose import Display, PoseSource
 from studio.controller.run import RunPaths, RunStatus
@@ -42,7 +26,7 @@ from studio.controller.scene import SceneActions
 from studio.controller.sessions import RECOVERED, SessionActions, open_or_create
 from studio.controller.suggest import Suggesting, SuggestState
 from studio.controller.teaching import Reach, Teaching
-from studio.controller.training import MODE_WORDS, SkillVerdict, Training, UsedDemo
+from studio.controller.training import FRAME_WORDS, MODE_WORDS, SkillVerdict, Training, UsedDemo
 from studio.controller.view import Layer, Step, View
 from studio.core.kinematics import Baxter
 from studio.robot_backend.base import RobotBackend
@@ -88,7 +72,13 @@ class Controller:
         self.scene = SceneActions(ctx, backend, player=self.playback)
         self.teaching = Teaching(ctx, backend, takes=self.scene, motion_guard=lambda d: self.execution.check_free(d))
         self.keypoints = KeypointTuning(ctx, self.demos)
-        self.live = LivePaths(ctx, self.demos, self.keypoints, wanted=lambda: self.view.shown(Layer.KEYPOINTS))
+        self.live = LivePaths(
+            ctx,
+            self.demos,
+            self.keypoints,
+            wanted=lambda: self.view.shown(Layer.KEYPOINTS),
+            route=lambda arm: self.training.chosen_route(arm),
+        )
         self.suggest = Suggesting(ctx, self.demos, self.keypoints)
         self.training = Training(ctx, self.demos, self.keypoints)
         self.execution = ExecutionActions(
@@ -99,6 +89,10 @@ class Controller:
             training_busy=lambda: self.training.busy,
             unload_playback=self.playback.unload,
         )
+        self.placed = PlacedSkills(ctx)  # the skills where the objects are now: what preview and runs play
+        self.playback.skills = self.placed.get
+        self.execution.warnings = self.placed.warnings
+        self.execution.skills = self.placed.get
         self.sessions = SessionActions(ctx, persist=self.keypoints.persist)
 
     @property
@@ -173,6 +167,7 @@ class Controller:
 
 
 __all__ = [
+    "FRAME_WORDS",
     "MODE_WORDS",
     "PALETTE",
     "PREVIEW",

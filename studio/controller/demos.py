@@ -12,6 +12,7 @@ from studio.controller.context import Context
 from studio.controller.events import Topic
 from studio.core.errors import StudioError
 from studio.core.types import Demo, Recording
+from studio.storage.format import WORK_SAMPLES
 
 #: Demo colours (RGB), distinct on the light background, never red (red marks the cluster centroids) and never
 #: cyan (the learned path).
@@ -56,7 +57,8 @@ class Demos:
 
     def __init__(self, ctx: Context) -> None:
         self.ctx = ctx
-        self._cache: dict[tuple[int, str], tuple[Recording, Demo]] = {}
+        self._cache: dict[tuple[int, str], tuple[Recording, Demo, int]] = {}
+        self._told_stride = 1
         self._delete_pending: tuple[str, float] | None = None  # (demo name, time of the first Delete press)
         ctx.events.on(Topic.DEMOS, self._prune)
         ctx.events.on(Topic.SESSION, self.clear)
@@ -95,17 +97,42 @@ class Demos:
         """The 8-D Demo of recording ``i`` for ``arm`` (FK once, cached)."""
         return self.demo_of(self.recordings()[i], arm)
 
+    def stride(self) -> int:
+        """Every how many samples the demonstrations are worked on: 1, or more when all of them together hold
+        more than :data:`~studio.storage.format.WORK_SAMPLES` (the recordings themselves stay whole)."""
+        total = sum(len(r) for r in self.recordings())
+        return max(1, -(-total // WORK_SAMPLES))
+
     def demo_of(self, rec: Recording, arm: str) -> Demo:
-        """The 8-D Demo of recording object ``rec`` for ``arm`` (FK once, cached)."""
+        """The 8-D Demo of recording object ``rec`` for ``arm`` (FK once, cached), at :meth:`stride`."""
         from studio.core.pipeline import demo_from_recording
 
+        step = self.stride()
         key = (id(rec), arm)
         hit = self._cache.get(key)
-        if hit is not None and hit[0] is rec:  # the same object, not a new one that reused a freed id
+        if hit is not None and hit[0] is rec and hit[2] == step:  # the same object, not one that reused its id
             return hit[1]
-        d = demo_from_recording(rec, arm, baxter=self.ctx.baxter)
-        self._cache[key] = (rec, d)
+        src = rec
+        if step > 1:
+            self._tell_stride(step)
+            src = Recording(t=rec.t[::step], q=rec.q[::step], gripper=rec.gripper[::step], arms=rec.arms, name=rec.name)
+        d = demo_from_recording(src, arm, baxter=self.ctx.baxter)
+        self._cache[key] = (rec, d, step)
         return d
+
+    def _tell_stride(self, step: int) -> None:
+        if self._told_stride == step:
+            return
+        self._told_stride = step
+        total = sum(len(r) for r in self.recordings())
+        nth = {2: "2nd", 3: "3rd"}.get(step, f"{step}th")
+        self.ctx.notify(
+            "Long demonstrations",
+            f"These demonstrations hold {total:,} samples together. To stay within the computer's memory the "
+            f"studio learns from and draws every {nth} sample ({-(-total // step):,}); the recordings are kept "
+            "whole.",
+            kind="info",
+        )
 
     def gripper_marks(self, rec: Recording, arm: str) -> tuple[np.ndarray, np.ndarray]:
         """Where ``arm``'s gripper closed and where it opened in recording ``rec``: two (n, 3) arrays (m), with
@@ -198,3 +225,4 @@ class Demos:
         """Forget everything cached (another session was opened)."""
         self._cache = {}
         self._delete_pending = None
+        self._told_stride = 1

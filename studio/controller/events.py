@@ -40,9 +40,9 @@ class Topic(StrEnum):
     SUGGEST = "suggest"
     #: The verdict on the learned skill changed (``training.verdicts()``).
     VERDICT = "verdict"
-    #: Training started or finished (``learning.training``).
+    #: Training started or finished (``training.busy``).
     TRAINING = "training"
-    #: New skills were learned (``learning.skills()``).
+    #: New skills were learned (``training.skills()``).
     SKILL = "skill"
     #: A preview or replay was loaded or unloaded (``playback.kind``).
     PLAYBACK = "playback"

@@ -1,36 +1,17 @@
 """Running the learned skill on the robot ("Run on robot"), stopping it, the emergency stop, and the last run.
 
-:meth:`ExecutionActions.run` takes every learned skill of the session (both arms when both are taught), checks
-that the robot can follow it (:func:`~studio.core.execution.skill_feasibility`, on the joint trajectories
-training already computed, which Preview plays too), plans it from where the robot is now
-(:func:`~studio.core.execution.plan_execution`: a slow approach to the skill's start, then the skill) and sends
-it to the robot backend as a :class:`~studio.controller.run.Run`. While the robot runs:
-
-* the drawn robot is the live one (a preview or replay is unloaded and refused until the run ends); the objects
-  on the table start from the session's set-up and respond to the robot's real joint states (the live world of
-  :class:`~studio.controller.scene.SceneActions`);
-* its joint states are recorded by the same :class:`~studio.recorder.Recorder` as a demonstration, written to
-  disk as they arrive, into a temporary folder of the run's own (never the session's demonstration folder).
-  At the end the recording is read back and the file deleted: the run is kept in memory as the studio's
-  **last run** (plan, recording, tracking report, task result) until the next run, a new skill or another
-  session. It is a check of the skill, not teaching material, so it is never added to the demonstrations;
-* a thread follows the robot's progress; at the end the run is compared with its plan and the task result is
-  measured on what the objects did during the run, in one sentence: "The robot followed the plan within
-  0.4 mm; the block ended 0.5 cm from where you put it — the skill works."
-
-:meth:`~ExecutionActions.stop` is the controlled stop (the robot slows down along the path);
-:meth:`~ExecutionActions.emergency_stop` halts it within one control cycle, at any time, and refuses every motion
-(runs, moves by hand, recordings) until :meth:`~ExecutionActions.release_emergency_stop`.
-:attr:`Topic.EXECUTION` is emitted when a run starts, changes phase and is judged, and when the emergency stop
-is engaged or released; :attr:`~ExecutionActions.status` also carries the progress (the panels poll it).
-"""
+:meth:`ExecutionActions.run` checks that the robot can follow every learned skill, plans it from where the
+robot is (a slow approach, then the skill) and starts a :class:`~studio.controller.run.Run`; the last run
+(plan, recording, tracking report, task result) is kept in memory, never as a demonstration
+(docs/decisions/028). :meth:`~ExecutionActions.stop` slows down along the path; the emergency stop halts
+within one control cycle and refuses motion until released."""
 
 from __future__ import annotations
 
 import dataclasses
 import logging
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Protocol
 
 import numpy as np
@@ -65,7 +46,7 @@ from studio.core.execution import (
     plan_execution,
 )
 from studio.core.ik_path import Feasibility
-from studio.core.types import Recording
+from studio.core.types import Recording, Skill
 from studio.robot_backend.base import ExecutionProgress, RobotBackend, RobotHealth
 from studio.world import TaskResult
 
@@ -123,6 +104,10 @@ class ExecutionActions:
         self.task: TaskResult | None = None
         self.verdict: RunVerdict | None = None
         self.robot = RobotActions(ctx, backend)
+        #: Objects where no demonstration put them, in words (set by the controller; told when a run starts).
+        self.warnings: Callable[[], list[str]] = list
+        #: The skills a run plays (set by the controller: placed where the objects are now).
+        self.skills: Callable[[], Mapping[str, Skill]] = lambda: ctx.session.skills
         ctx.on_leave(self._check_leave)
         ctx.events.on(Topic.SKILL, self._forget_last_run)
         ctx.events.on(Topic.SESSION, self._forget_last_run)
@@ -145,11 +130,11 @@ class ExecutionActions:
 
     def feasibility(self) -> dict[str, Feasibility]:
         """arm -> whether the robot can follow its learned skill, in plain words (computed once per skill)."""
-        return self._feasible.get(sampling.executable(self.ctx.session.skills), self.ctx.baxter)
+        return self._feasible.get(sampling.executable(self.skills()), self.ctx.baxter)
 
     def unreachable_paths(self) -> dict[str, list[np.ndarray]]:
         """arm -> the stretches (each (n, 3) m) of its learned path the robot cannot follow, to draw in red."""
-        pos = {a: s.trajectory.position for a, s in self.ctx.session.skills.items()}
+        pos = {a: s.trajectory.position for a, s in self.skills().items()}
         return {a: [pos[a][s.i_start : s.i_end + 2] for s in f.spans] for a, f in self.feasibility().items()}
 
     def why_not(self) -> str:
@@ -165,7 +150,7 @@ class ExecutionActions:
             return "Stop the recording before running the skill on the robot."
         if self.training_busy():
             return "Wait for the training to finish before running the skill on the robot."
-        if not sampling.executable(self.ctx.session.skills):
+        if not sampling.executable(self.skills()):
             return "There is no learned skill to run yet: record demonstrations and press Train first."
         bad = [f.message for f in self.feasibility().values() if not f.ok]
         if bad:
@@ -202,7 +187,7 @@ class ExecutionActions:
             reason = self.why_not()
             if reason:
                 raise StudioError(reason)
-            skills = sampling.executable(self.ctx.session.skills)
+            skills = sampling.executable(self.skills())
             jts = {arm: s.joint_trajectory for arm, s in skills.items() if s.joint_trajectory is not None}
             self.unload_playback()
             self.display.show_live()  # the drawn robot is the real one during the run
@@ -216,7 +201,10 @@ class ExecutionActions:
                 self._status = RunStatus("running", 0.0, plan.duration, "The robot is running the skill.")
             run.thread = threading.Thread(target=self._follow, args=(run,), name="studio-run", daemon=True)
             run.thread.start()
+            said = self.warnings()
         self.ctx.emit(Topic.EXECUTION)
+        if said:
+            self.ctx.notify("The objects are somewhere new", " ".join(said), kind="warning")
 
     def stop(self) -> None:
         """Controlled stop: the robot slows down along the skill's path to rest."""

@@ -15,6 +15,7 @@ from studio.controller.context import Context
 from studio.controller.events import Topic
 from studio.controller.learning import Follower, KeypointView, ShownDemos
 from studio.core.keypoints import KeypointCache
+from studio.core.types import SkillRoute
 
 
 @dataclass(frozen=True)
@@ -28,6 +29,7 @@ class LivePath:
         g_over_r: G/R against them (≤ 0.6 is close; NaN with one demonstration).
         k: the number of clusters used.
         message: why there is no path, in plain words ("" when there is one).
+        routes, route: the ways the demonstrations go when more than one, and the one the path follows.
     """
 
     arm: str
@@ -37,14 +39,23 @@ class LivePath:
     g_over_r: float
     k: int
     message: str = ""
+    routes: tuple[SkillRoute, ...] = ()
+    route: int = 0
 
     @property
     def words(self) -> str:
         """The fidelity figure in plain words."""
-        from studio.words import length_words
+        from studio.words import length_words, routes_words
 
         if self.message:
             return self.message
+        if self.routes:
+            near = (
+                f", within {length_words(self.distance)} of those demonstrations on average"
+                if math.isfinite(self.distance)
+                else ""
+            )
+            return f"{routes_words(self.routes, self.route)}: the learned path would follow that way{near}."
         if not math.isfinite(self.distance):
             return "The learned path would follow your demonstration."
         return f"The learned path would stay within {length_words(self.distance)} of your demonstrations on average."
@@ -70,13 +81,21 @@ class LivePaths:
     the view changes (:attr:`Topic.VIEW`) and they are wanted, they are brought up to date.
     """
 
-    def __init__(self, ctx: Context, demos: ShownDemos, tuning: KeypointSource, wanted: Callable[[], bool]) -> None:
+    def __init__(
+        self,
+        ctx: Context,
+        demos: ShownDemos,
+        tuning: KeypointSource,
+        wanted: Callable[[], bool],
+        route: Callable[[str], int | None] = lambda arm: None,
+    ) -> None:
         from studio.core.pipeline import AlignmentCache
 
         self.ctx = ctx
         self.demos = demos
         self.tuning = tuning
         self.wanted = wanted
+        self.route = route  #: the way the teacher chose for an arm (None: the way most demonstrations go)
         self.paths: dict[str, LivePath] = {}
         self.align_cache = AlignmentCache()
         self.computed_ms: float = math.nan  # how long the last set of paths took (for the bench)
@@ -112,8 +131,19 @@ class LivePaths:
                     cache=self.tuning.cache,
                     align_cache=self.align_cache,
                     keypoints=idx,
+                    route=self.route(arm),
                 )
-                out[arm] = LivePath(arm, view.version, pp.position, pp.distance, pp.g_over_r, pp.n_clusters, pp.message)
+                out[arm] = LivePath(
+                    arm,
+                    view.version,
+                    pp.position,
+                    pp.distance,
+                    pp.g_over_r,
+                    pp.n_clusters,
+                    pp.message,
+                    pp.routes,
+                    pp.route,
+                )
         except Exception:
             out = {}
             raise

@@ -7,7 +7,7 @@ playback is loaded; the scene follows it while it is shown (:class:`~studio.cont
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Literal
 
 import numpy as np
@@ -17,7 +17,7 @@ from studio.controller.events import Topic
 from studio.controller.pose import PoseSource
 from studio.core import sampling
 from studio.core.errors import NotEnoughData, StudioError
-from studio.core.types import Recording
+from studio.core.types import Recording, Skill
 from studio.robot_backend.base import JointStateBatch
 from studio.robot_backend.replay import ReplayBackend
 
@@ -92,6 +92,8 @@ class Player:
         self.display = ctx.display
         self.guard = guard
         self._loaded: Playback | None = None
+        #: The skills the preview plays (set by the controller: placed where the objects are now).
+        self.skills: Callable[[], Mapping[str, Skill]] = lambda: ctx.session.skills
         ctx.events.on(Topic.SKILL, self.unload_preview)
         ctx.events.on(Topic.SESSION, self._on_session)
 
@@ -196,11 +198,11 @@ class Player:
 
     # -- the two sources ---------------------------------------------------------------------------------------
     def preview_duration(self) -> float:
-        return sampling.duration(self.ctx.session.skills)
+        return sampling.duration(self.skills())
 
     def preview_recording(self) -> Recording:
         """The learned joint trajectories of all arms as one Recording (arms without a skill hold still)."""
-        skills = sampling.executable(self.ctx.session.skills)
+        skills = sampling.executable(self.skills())
         if not skills:
             raise NotEnoughData("There is no learned skill to preview yet: press Train first.")
         t_end = sampling.duration(skills)

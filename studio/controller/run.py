@@ -1,17 +1,10 @@
 """One run of a plan on the robot (what :class:`~studio.controller.execution.ExecutionActions` starts): its
 recording, its trace, following its progress, judging it at the end; and the run's status in plain words.
 
-* :meth:`Run.start` puts the objects back to the set-up, starts a :class:`~studio.recorder.Recorder` (the same as
-  for a demonstration, written to disk as the joint states arrive) in a temporary folder of the run's own — never
-  the session's demonstration folder, whose leftovers crash recovery turns into demonstrations — and sends the
-  plan to the robot. Once the approach is over and the skill itself starts, the objects' world starts again
-  from the set-up with the samples from that moment on (:meth:`SceneActions.begin_run`), so the grippers'
-  close/open detection starts from the skill's first openings, as in the preview.
-* :meth:`Run.follow` reads the robot's progress until it reports the end (or the run is abandoned);
-  :meth:`Run.judge` reads the recording back, compares it with the plan
-  (:func:`~studio.core.execution.compare_execution`) and measures the task result on what the objects did
-  (:meth:`SceneActions.end_run`); :meth:`Run.release` deletes the recorder file and its folder.
-"""
+:meth:`Run.start` puts the objects back, records into a temporary folder of the run's own (never the
+session's demonstration folder, docs/decisions/028) and sends the plan; :meth:`Run.follow` reads the
+progress; :meth:`Run.judge` compares the recording with the plan and measures the task result;
+:meth:`Run.release` deletes the recorder's file."""
 
 from __future__ import annotations
 

@@ -2,21 +2,9 @@
 acts on, the objects of each recorded take, the objects shown during a replay or the preview, and the task
 result of the learned skill in plain words.
 
-* **Live**: a :class:`~studio.world.World` of the session's scene listens to the robot backend; the pose pump
-  draws :meth:`SceneActions.shown` whenever its key changes.
-* **Recording**: each take starts with the objects where the teacher set them up (unless a gripper holds
-  one); at Stop the world's events since the start of the take, times on the recording's clock, are kept
-  with the demonstration (:meth:`SceneActions.end_take`).
-* **Replay and preview**: a world of their own, started from the demonstration's recorded start (or the
-  scene's set-up for the preview) and played up to the moment shown (forward by feeding, backward by
-  starting over), so a seek, a pause or a speed change always shows the objects as they were.
-* **A run on the robot** (:mod:`studio.controller.execution`): the objects go back to the set-up when it starts
-  and again when the skill itself starts (:meth:`SceneActions.begin_run`); the live world responds to the real
-  joint states; :meth:`SceneActions.end_run` judges what it did against the demonstrations.
-* **Task result**: the preview played through the scene (:func:`~studio.world.simulate`) against what the
-  shown demonstrations did (:func:`~studio.world.task_goal`), recomputed when a skill is learned or the
-  scene or demonstrations change (:attr:`Topic.TASK`).
-"""
+The live :class:`~studio.world.World` listens to the robot backend; a take keeps the world's events since
+its start (:meth:`SceneActions.end_take`); replay and preview play a world of their own up to the moment
+shown; a run on the robot restarts the objects (:meth:`SceneActions.begin_run`, :meth:`SceneActions.end_run`)."""
 
 from __future__ import annotations
 
@@ -39,6 +27,7 @@ from studio.world import (
     PRESETS,
     ObjectPose,
     Scene,
+    TaskGoal,
     TaskResult,
     World,
     WorldEvent,
@@ -50,6 +39,7 @@ from studio.world import (
     task_goal,
     task_result,
 )
+from studio.world.relative import relative_goal
 
 log = logging.getLogger(__name__)
 
@@ -236,9 +226,16 @@ class SceneActions:
                 return
             rec = self.player.preview_recording()
             run = simulate(rec.t, rec.q, rec.gripper, self.scene, baxter=self.ctx.baxter)
-            result = task_result(run, task_goal(events))
+            result = task_result(run, self._goal(events))
         self._result, self._result_key = result, key
         self.ctx.emit(Topic.TASK)
+
+    def _goal(self, events: list[tuple[WorldEvent, ...]]) -> TaskGoal:
+        """What the demonstrations did with the objects; for a skill that follows them, relative to where the
+        objects are now."""
+        goal = task_goal(events)
+        frames = next((s.frames for s in self.ctx.session.skills.values() if s.frames is not None), None)
+        return goal if frames is None else relative_goal(goal, frames, self.scene)
 
     # -- a run on the robot (studio.controller.execution) ------------------------------------------------
     def begin_run(
@@ -267,7 +264,7 @@ class SceneActions:
         gripper path the wording uses."""
         self.live.snapshot("end")
         events = tuple(self.live.events_since(mark))
-        goal = task_goal(self._shown_events())
+        goal = self._goal(self._shown_events())
         if not goal.objects:
             return None
         step = max(1, round(len(recording) / max(recording.duration * 100.0, 1.0)))  # ~100 Hz, as simulate()

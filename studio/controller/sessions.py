@@ -9,27 +9,48 @@ from pathlib import Path
 
 from studio.controller.context import Context
 from studio.controller.events import Topic
-from studio.core.errors import InvalidInput, StudioError
+from studio.core.errors import InvalidInput, SessionFormatError, StudioError
 from studio.storage import Session, SessionStore, check_session_name
+from studio.storage.format import what_went_wrong
 from studio.world import preset
 
 #: Title of the note told once after a crash recovery (damaged files are told to every new tab).
 RECOVERED = "Recovered recordings"
+#: The session the studio opens when the one it should start with cannot be opened.
+STAND_IN = "untitled"
 
 
 def open_or_create(store: SessionStore, name: str) -> Session:
-    """Open session ``name``, or create it when there is none of that name (a damaged one is an error)."""
+    """The session the studio starts with: ``name`` (damaged demonstrations skipped), created when there is none
+    of that name. When it cannot be opened the studio still starts, on the session "untitled", and says why;
+    the files of ``name`` are untouched. Temporary folders a killed studio left are removed first."""
+    store.clean_temporary()
     try:
-        return store.open(name)
+        return store.open(name, skip_damaged=True)
+    except StudioError as exc:
+        failure = exc
+    try:
+        if not store.path_of(name).exists():
+            return store.create(name)
+    except StudioError as exc:
+        failure = exc
+    why = what_went_wrong(failure) if isinstance(failure, SessionFormatError) else str(failure)
+    try:
+        session = store.open(STAND_IN, skip_damaged=True)
     except StudioError:
-        if name in store.list_sessions():
-            raise
-        return store.create(name)
+        session = store.create(store.free_name(STAND_IN))
+    session.opened_instead = (
+        f'The session "{name}" could not be opened: {why} The studio opened the session "{session.name}" instead; '
+        f'the files of "{name}" are untouched.'
+    )
+    return session
 
 
 def session_notes(session: Session) -> list[tuple[str, str]]:
-    """(title, body) warnings from opening ``session``: crash recovery, damaged files."""
-    notes = [(RECOVERED, session.recovery_message)] if session.recovery_message else []
+    """(title, body) warnings from opening ``session``: another session opened instead, crash recovery, damaged
+    files."""
+    notes = [("The session could not be opened", session.opened_instead)] if session.opened_instead else []
+    notes += [(RECOVERED, session.recovery_message)] if session.recovery_message else []
     return notes + [("Part of the session could not be read", p) for p in session.problems]
 
 
@@ -69,8 +90,9 @@ class SessionActions:
             self.ctx.leave(doing)
 
     def open(self, name: str) -> None:
+        """Open session ``name``: its damaged demonstrations are skipped and told, the rest opens."""
         self._check_can_switch("opening another session")
-        session = self.ctx.store.open(name)
+        session = self.ctx.store.open(name, skip_damaged=True)
         self.switch(session)
         self._startup_notes = session_notes(session)
         for title, body in self._startup_notes:

@@ -117,6 +117,9 @@ class Suggesting:
             if session is not self.ctx.session:
                 self._set(running=False, summary="")
                 return
+            if not res.changed:
+                self._set(running=False, fraction=1.0, step="Done", summary=tune_summary(res), seconds=res.seconds)
+                return
             with self.ctx.lock:
                 self._undo = (settings, k)
             self.tuning.restore(res.settings, res.n_clusters)

@@ -14,11 +14,18 @@ from studio.controller.context import Context
 from studio.controller.events import Topic
 from studio.controller.learning import ShownDemos
 from studio.core.errors import NotEnoughData, StudioError
+from studio.core.frames import DemoObjects
 from studio.core.keypoints import KeypointCache
 from studio.core.quality import DemoFit, Verdict
 from studio.core.thresholds import ThresholdSettings
-from studio.core.types import GENERALIZATIONS, Demo, KeypointParams, Recording, Skill
+from studio.core.types import FRAMES, GENERALIZATIONS, Demo, KeypointParams, Recording, Skill
+from studio.world.relative import demo_objects, objects_now
 
+#: How each choice of frames is called in the Train panel.
+FRAME_WORDS = {
+    "objects": "Follow the objects (each part learned relative to the object it acts on)",
+    "robot": "Fixed places (the paper: one path in the robot's frame)",
+}
 #: How each generalisation mode is called in the Train panel.
 MODE_WORDS = {
     "aligned-mean": "Follow the demonstrations (average of your demonstrations, aligned in time)",
@@ -80,6 +87,7 @@ class Training:
         #: The newest judgement under way or done (training starts one when it finishes).
         self.judgement: Future[None] | None = None
         self._verdicts: dict[str, SkillVerdict] = {}
+        self._routes: dict[str, int] = {}
         ctx.on_leave(self._check_leave)
         ctx.events.on(Topic.SESSION, self._on_session)
 
@@ -101,15 +109,44 @@ class Training:
             self.ctx.session.set_params(mode=mode)
         self.ctx.emit(Topic.TRAINING)
 
+    @property
+    def frames(self) -> str:
+        """Where the next training keeps the skill's path: "objects" (it follows them) or "robot" (the paper)."""
+        return self.ctx.session.frames
+
+    def set_frames(self, frames: str) -> None:
+        if frames not in FRAMES:
+            raise StudioError(f'Unknown way to place the skill "{frames}".')
+        with self.ctx.lock:
+            if frames == self.ctx.session.frames:
+                return
+            self.ctx.session.set_params(mode=frames)
+        self.ctx.emit(Topic.TRAINING)
+
     def _check_leave(self, doing: str) -> None:
         if self.busy:
             raise StudioError(f"Wait for the training to finish before {doing}.")
+
+    # -- which way, when the demonstrations go several ways ---------------------------------------------------
+    def chosen_route(self, arm: str) -> int | None:
+        """The way the teacher chose for ``arm`` (index into its skill's ``routes``), or None for the default."""
+        return self._routes.get(arm)
+
+    def set_route(self, arm: str, route: int) -> Future[dict[str, Skill] | None]:
+        """Learn ``arm``'s skill from the demonstrations of another way (see :attr:`Skill.routes`), at once."""
+        sk = self.ctx.session.skills.get(arm)
+        if sk is None or not 0 <= int(route) < len(sk.routes):
+            raise StudioError("Your demonstrations go only one way: there is no other way to choose.")
+        with self.ctx.lock:
+            self._routes[arm] = int(route)
+        return self.train()
 
     # -- training ------------------------------------------------------------------------------------------
     def train(self, arms: Sequence[str] | None = None) -> Future[dict[str, Skill] | None]:
         """Learn the skill of every taught arm (or of ``arms``) from the shown demos on the work thread, then
         judge it."""
-        from studio.core.pipeline import learn_skill
+        from studio.core.pipeline import learn_skill, routes_of
+        from studio.core.segments import learn_relative
 
         with self.ctx.lock:
             if self.busy:
@@ -123,15 +160,32 @@ class Training:
                     )
             settings, k = self.tuning.settings(), self.tuning.k
             params = {arm: self.tuning.params(arm, settings) for arm in per_arm}
-            mode = self.ctx.session.generalization
+            mode, frames = self.ctx.session.generalization, self.ctx.session.frames
+            routes = dict(self._routes)
             session = self.ctx.session  # the skill belongs to the session it was learned from
             self.busy = True
         self.ctx.emit(Topic.TRAINING)
         baxter, cache = self.ctx.baxter, self.tuning.cache
 
+        relative = {arm: self._objects(arm, demos) for arm, demos in per_arm.items()} if frames == "objects" else {}
+        now = objects_now(session.objects.scene)
+
+        def way(arm: str, demos: list[Demo]) -> int | None:
+            r = routes.get(arm)
+            return r if r is not None and r < len(routes_of(demos)) else None  # the demos changed since
+
         def job() -> dict[str, Skill]:
-            return {
-                arm: learn_skill(
+            out = {}
+            for arm, demos in per_arm.items():
+                objs = relative.get(arm)
+                if objs is not None and not isinstance(objs, str):
+                    out[arm] = learn_relative(
+                        [d for _, d in demos], objs, params[arm], now=now, arm=arm, baxter=baxter, generalization=mode
+                    )
+                    continue
+                if isinstance(objs, str):
+                    self.ctx.notify("The skill follows fixed places", objs, kind="info")
+                out[arm] = learn_skill(
                     [d for _, d in demos],
                     params[arm],
                     n_clusters=k,
@@ -140,9 +194,9 @@ class Training:
                     baxter=baxter,
                     cache=cache,
                     generalization=mode,
+                    route=way(arm, [d for _, d in demos]),
                 )
-                for arm, demos in per_arm.items()
-            }
+            return out
 
         def done(skills: dict[str, Skill]) -> None:
             names = {arm: [d.name for _, d in per_arm[arm]] for arm in skills}
@@ -169,6 +223,21 @@ class Training:
         fut = self.ctx.submit(job, done=done, title="Training failed")
         fut.add_done_callback(lambda f: self._finished())
         return fut
+
+    def _objects(self, arm: str, demos: list[tuple[int, Demo]]) -> list[DemoObjects] | str:
+        """The objects and ``arm``'s contacts of each demonstration, or why the skill cannot follow them."""
+        from studio.core.segments import plan
+
+        session = self.ctx.session
+        out = []
+        for i, _ in demos:
+            events = session.objects.events(session.demo_files[i]) if i < len(session.demo_files) else ()
+            objs = demo_objects(events, arm)
+            if objs is None:
+                return "Some demonstrations were recorded without objects, so the skill follows fixed places."
+            out.append(objs)
+        _, why = plan(out)
+        return why or out
 
     def _finished(self) -> None:
         if self.busy:  # the job failed: done() never ran
@@ -231,6 +300,7 @@ class Training:
     def _on_session(self) -> None:
         with self.ctx.lock:
             self._verdicts = {}
+            self._routes = {}
             has_skills = bool(self.ctx.session.skills)
         if has_skills:
             self.judge()

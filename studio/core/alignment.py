@@ -1,19 +1,10 @@
 """Multidimensional dynamic time warping (paper § Dynamic Time Warping, Eqs. for H and g).
 
-Local cost H(x, y) = Σ_d (r_x^d − t_y^d)² over the D = 8 scaled dimensions; accumulated cost
-g(x, y) = H(x, y) + min{g(x−1, y), g(x−1, y−1), g(x, y−1)}.
-
-The warping path is computed by **dtaidistance**'s C code (``dtw.warping_path_fast`` with its low-memory
-Hirschberg variant: at most 1000 × 1000 cells are held at once, ~8 MB, whatever the length). Measured in the
-same run on this machine, 1000 × 1100 8-D samples: 9–17 ms, against 95 ms for the anti-diagonal numpy version
-this module used before, identical path and distance. :func:`accumulated_cost` and :func:`warping_path` are
-the textbook double loop (for plots and as the tests' oracle).
-
-Demonstrations are averaged and resampled on a common time grid first (:func:`common_rate`): about
-:data:`DTW_RATE_HZ` (50 Hz), at least :data:`MIN_POINTS` samples for short demos (a 2 s gesture gets 200,
-not 20 at the former 10 Hz), at most :data:`MAX_POINTS` for long ones. The warping is interpolated back to
-full resolution (:func:`time_map`, :func:`inverse_time_map`).
-"""
+Local cost H(x, y) = Σ_d (r_x^d − t_y^d)² over the D scaled dimensions; accumulated cost g(x, y) = H(x, y) +
+min{g(x−1, y), g(x−1, y−1), g(x, y−1)}. The warping path is dtaidistance's C code (docs/decisions/005);
+:func:`accumulated_cost` and :func:`warping_path` are the textbook double loop (plots, the tests' oracle).
+Demos are resampled on a common grid (:func:`common_rate`, about :data:`DTW_RATE_HZ`) and the warping is
+interpolated back to full resolution (:func:`time_map`, :func:`inverse_time_map`)."""
 
 from __future__ import annotations
 
@@ -165,8 +156,7 @@ def smooth_warp(w: np.ndarray, sigma: float = WARP_SMOOTH_STEPS) -> np.ndarray:
 
     A DTW warping path is a staircase: the map interpolated from it changes slope abruptly at grid samples
     (from 0 where one series waits to 10× where it hurries), so a demonstration played through it jumps in
-    speed (measured on the scripted pick-and-place: 0.5 m/s lost within 2 ms, 440 m/s² where the demos'
-    smoothed series reach at most 18 m/s²). DTW only knows the match to about a grid step, so the map is
+    speed (docs/decisions/003). DTW only knows the match to about a grid step, so the map is
     smoothed over a couple of steps. Both ends are reflected oddly (w(−x) = 2 w(0) − w(x)): the first and last
     values are kept exactly, a linear map is unchanged, and the kernel being positive keeps it non-decreasing.
     """

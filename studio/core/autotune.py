@@ -1,34 +1,10 @@
-"""Suggest thresholds: search the key-point thresholds and k for the best held-out fidelity (GUI-free).
+"""Search the key-point thresholds and k for the best held-out fidelity (GUI-free): :func:`suggest`.
 
-What is searched: the Detail control (:mod:`studio.core.thresholds`: one number that moves the coupled
-thresholds ε2–ε7 and ε10–ε14 together, in real units that follow the demonstrations) and k, the number of
-clusters (a factor on the paper's default, the mean number of key-points per demo). A candidate is scored by
-**held-out fidelity**: for each fold, the skill's path is learned from all demonstrations but one
-(:func:`studio.core.pipeline.learn_path`, 50 Hz) and compared with the one left out (normalised DTW, the
-paper's squared cost); the score is the mean over folds ÷ the demos' mean pairwise normalised DTW (G/R held
-out, lower is better). With more than :data:`MAX_FOLDS` demos, that many evenly spread demos are left out.
-
-Search: the current settings ("before"), then Detail −2, −1, 0, 1, 2 with the default k, then ±0.5 around the
-best and k × 0.75 and × 1.3 at the best (about 10 candidates × 3 folds). A candidate must be better by 2 % to
-displace one with less detail (fewer key-points generalise better when the figures tie).
-
-Speed: "before" is scored in this process first, which derives the demos' series and DTW maps; the other
-candidates are then evaluated in :data:`WORKERS` worker processes **forked** for the search, which inherit all
-of that (no demo is pickled, nothing is computed twice). Threads do not help here: measured in the same run,
-16 learns took 5.9 s serially and 6.2 s on two threads, since hmmlearn and the key-point scan hold the GIL. A
-persistent "forkserver" pool was tried first: each worker had to receive the demos and derive their series and
-DTW maps again, and the first search took 4.2 s against 2.6 s in one process (bench_quality.py, load 3–5).
-One candidate per task
-so the progress callback moves and a cancel returns at once. Each worker keeps the demos and their derived
-series and DTW maps between batches of the same search. Budget ≤ 5 s for 3 demos × 30,000 samples; figures
-in bench/README.md (bench/bench_quality.py).
-
-Usage (GUI: on a work thread, then apply ``result.settings`` and ``result.n_clusters`` as one undoable change)::
-
-    cancel = threading.Event()
-    result = suggest(demos, current=settings, progress=lambda f, msg: ..., cancel=cancel)
-    if not result.cancelled: apply(result.settings, result.n_clusters); show(result.summary)
-"""
+Searched: ``detail`` (:mod:`studio.core.thresholds`) and k (a factor on the paper's default). The score is
+held-out G/R: the path learned without one demo (:func:`studio.core.pipeline.learn_path`) against that demo,
+over at most :data:`MAX_FOLDS` folds. The current settings first, then coarse ``detail`` values, then around
+the best and other k; the current thresholds stay (``changed`` False) unless something does better.
+Candidates run in worker processes (docs/decisions/011)."""
 
 from __future__ import annotations
 
@@ -52,9 +28,9 @@ from studio.core.types import Demo, KeypointParams
 WORKERS = max(1, min(2, os.cpu_count() or 1))
 #: At most this many demos are left out in turn.
 MAX_FOLDS = 3
-#: Coarse Detail values tried first.
+#: Coarse ``detail`` values tried first.
 COARSE_DETAIL = (-2.0, -1.0, 0.0, 1.0, 2.0)
-#: k factors tried at the best Detail.
+#: k factors tried at the best ``detail``.
 K_FACTORS = (0.75, 1.3)
 #: Relative improvement needed to prefer more detail or a different k.
 MARGIN = 0.02
@@ -62,7 +38,7 @@ MARGIN = 0.02
 
 @dataclass(frozen=True)
 class Candidate:
-    """One point of the search: Detail, a factor on the default k (1 = the paper's k), or fixed values.
+    """One point of the search: ``detail``, a factor on the default k (1 = the paper's k), or fixed values.
 
     ``fixed`` holds thresholds to use as they are (the teacher's current ones for "before"); ``k`` a fixed k.
     """
@@ -92,10 +68,10 @@ class Score:
 
 @dataclass(frozen=True)
 class TuneResult:
-    """What Suggest found.
+    """What the search found.
 
     Attributes:
-        settings: the suggested :class:`ThresholdSettings` (Detail; every threshold automatic).
+        settings: the suggested :class:`ThresholdSettings` (``detail``; every threshold automatic).
         params: the same as the fourteen values in real units for these demos.
         n_clusters: the suggested k, or None for the paper's default (mean key-points per demo).
         before, after: held-out figures of the current settings and of the suggestion.
@@ -103,6 +79,8 @@ class TuneResult:
         seconds: wall time.
         cancelled: the search was cancelled (``settings`` is then the best found so far, or the current one).
         complete: every planned candidate was scored (False when cancelled or out of time).
+        changed: the suggestion differs from the current thresholds (False: they are already good — nothing
+            did better by :data:`MARGIN` than the defaults, or at all than the teacher's own values).
     """
 
     settings: ThresholdSettings
@@ -114,6 +92,7 @@ class TuneResult:
     seconds: float
     cancelled: bool
     complete: bool
+    changed: bool = True
 
 
 # -- the work (runs in the worker processes, or in-process with workers=1) -------------------------------------
@@ -190,7 +169,7 @@ def _fork_pool(workers: int) -> ProcessPoolExecutor:
 
 
 def warm_up(workers: int = WORKERS) -> None:
-    """Load the learning pipeline ahead of the first Suggest (the workers are forked from this process)."""
+    """Load the learning pipeline ahead of the first search (the workers are forked from this process)."""
     from studio.core import pipeline, quality  # noqa: F401
 
 
@@ -203,7 +182,7 @@ def shutdown() -> None:
 
 
 def _fingerprint(demos: Sequence[Demo]) -> str:
-    """A cheap content key of the demos: a worker that already holds them (a second Suggest on the same demos)
+    """A cheap content key of the demos: a worker that already holds them (a second search on the same demos)
     keeps their derived series and DTW maps."""
     h = hashlib.blake2b(digest_size=12)
     for d in demos:
@@ -326,7 +305,7 @@ def _rounds(
 ) -> tuple[Candidate, Score, Score, int, bool]:
     """The search itself: (best candidate, its score, "before", candidates scored, every round done).
 
-    Round 1: "before" and the coarse Detail values (Detail 0 is the incumbent the others challenge); round 2:
+    Round 1: "before" and the coarse ``detail`` values (0 is the incumbent the others challenge); round 2:
     ±0.5 around the best; round 3: other k at the best. A round starts only within the time budget.
     """
     nothing = Score(math.inf, math.inf, math.nan, math.nan)
@@ -363,7 +342,7 @@ def suggest(
     workers: int = WORKERS,
     budget_s: float = 5.0,
 ) -> TuneResult:
-    """Search Detail and k for the best held-out fidelity (module docstring).
+    """Search ``detail`` and k for the best held-out fidelity (module docstring; docs/decisions/011).
 
     Args:
         demos: the shown demonstrations (at least two).
@@ -371,7 +350,7 @@ def suggest(
         n_clusters: the k in use (None = the paper's default).
         generalization: the mode to tune for (default: the pipeline's default).
         progress: called with (fraction 0…1, plain-words step) as candidates finish, from this thread.
-        cancel: set it to stop; :func:`suggest` then returns within about 50 ms with ``cancelled=True``.
+        cancel: set it to stop; :func:`suggest` then returns early with ``cancelled=True``.
         workers: processes to use (1 = in this process, no pool).
         budget_s: stop starting new rounds after this many seconds (the result says ``complete=False``).
 
@@ -395,9 +374,17 @@ def suggest(
         best_c, best, before, evaluated, complete = _rounds(search, before_c, t0, budget_s)
     finally:
         search.close()
-    if search.cancelled:  # keep what the teacher has
+    defaults = n_clusters is None and (current is None or current == ThresholdSettings())
+    # the defaults stay unless something is clearly better; the teacher's own values unless something is as good
+    better = best.g_over_r < before.g_over_r * (1.0 - MARGIN) if defaults else best.g_over_r <= before.g_over_r
+    keep = math.isfinite(before.g_over_r) and not better
+    if search.cancelled or keep:  # keep what the teacher has
         settings = current if isinstance(current, ThresholdSettings) else ThresholdSettings()
         params, k = _params(before_c, stats), n_clusters
+        if keep and not search.cancelled:
+            best = before
+            if progress is not None:
+                progress(1.0, "Done")
     else:
         settings = ThresholdSettings(detail=best_c.detail)
         params = auto_params(stats, best_c.detail)
@@ -414,6 +401,7 @@ def suggest(
         seconds=time.perf_counter() - t0,
         cancelled=search.cancelled,
         complete=complete and not search.cancelled,
+        changed=not keep and not search.cancelled,
     )
 
 

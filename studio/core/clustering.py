@@ -1,29 +1,10 @@
 """k-means codebook over all demonstrations' key-points (paper § Clustering).
 
-Key-points are the paper's 8-D vectors x, y, z, qw, qx, qy, qz, gripper. Raw units would let the gripper
-(0–100 %) swamp metres and quaternion units, so each group is divided by a physical scale first
-(:class:`FeatureScale`): by default 5 cm of position (a quarter of the demos' size for smaller gestures,
-:meth:`FeatureScale.for_demos`), 0.1 quaternion units (≈ 0.2 rad of rotation) and 25 % of gripper opening
-weigh the same. Quaternions are put in one hemisphere (q and −q are the same
-orientation) before averaging. k defaults to the mean number of key-points per demonstration (the paper's
-choice). Clusters are numbered by the mean normalised time (0 at a demo's start, 1 at its end) of their
-members, so cluster i comes before cluster i + 1 in a typical demonstration: the left–right HMM's states
-inherit that order.
-
-k-means itself is a few lines of numpy (k-means++ seeding and Lloyd iterations, as in scikit-learn's
-``KMeans``): the inputs are tiny (tens of 8-D points) and scikit-learn's per-fit overhead (parameter
-validation, OpenMP thread pools) was 5–50 ms a fit on this 2-core machine, most of the 30 ms a slider
-move may take. tests/core/test_clustering.py checks the result against scikit-learn's.
-
-scikit-learn's ``KMeans`` is wired in too (``backend="sklearn"``, same starts: time quantiles plus k-means++
-seeds from ``sklearn.cluster.kmeans_plusplus``, inside ``threadpoolctl.threadpool_limits(1)``) and measured
-in the same run (bench/bench_quality.py, "slider" rows; 3 demos × 30,000 samples, 96 key-points, k = 32,
-load average 4–5 on the 2 cores): re-extract + re-cluster median 37–41 ms with this module's k-means
-(clustering 17–19 ms) against 65–70 ms with scikit-learn (clustering 47 ms; 44–51 ms with two starts
-instead of four). A single scikit-learn fit from given centres costs 1.4 ms, but its k-means++ seeding 7 ms
-and the thread-limit context 6 ms a call: the 30 ms slider budget is missed by scikit-learn, so this
-module's k-means stays the default (:data:`BACKEND`).
-"""
+Key-points are 8-D (x, y, z, qw, qx, qy, qz, gripper); each group is divided by a physical scale first
+(:class:`FeatureScale`) so no unit swamps the others, and quaternions are put in one hemisphere. k defaults to
+the mean number of key-points per demonstration (the paper's choice). Clusters are numbered by the mean
+normalised time of their members, so the left–right HMM's states inherit the task's order. k-means is a few
+lines of numpy (scikit-learn is the test's oracle and ``backend="sklearn"``): docs/decisions/006."""
 
 from __future__ import annotations
 
@@ -35,9 +16,15 @@ import numpy as np
 from studio.core.errors import InvalidInput, NotEnoughData
 from studio.core.types import Demo, readonly
 
-#: k-means implementation: "numpy" (this module's Lloyd iterations, default: see the module docstring) or
+#: k-means implementation: "numpy" (this module's Lloyd iterations, default: docs/decisions/006) or
 #: "sklearn" (scikit-learn ``KMeans``).
 BACKEND = "numpy"
+#: Most key-points grouped at once (all demonstrations together) and most clusters: the work and memory of
+#: clustering and of the HMM grow with them (docs/decisions/051-memory-budget.md); beyond, refused in words.
+MAX_KEYPOINTS = 4_000
+MAX_K = 400
+#: k-means++ compares at most this many key-points pairwise (a random sample of them beyond it).
+SEED_SAMPLE = 2_000
 
 
 @dataclass(frozen=True)
@@ -134,8 +121,7 @@ class Clustering:
 
 
 def _sq_dist(X: np.ndarray, C: np.ndarray) -> np.ndarray:
-    # einsum, not X @ C.T: for these tiny products OpenBLAS's thread start-up cost 5–30 ms on the shared
-    # 2-core machine, einsum's single-threaded loop well under a millisecond.
+    # einsum, not X @ C.T: OpenBLAS starts its threads even for these tiny products (docs/decisions/006)
     d = np.sum(X * X, axis=1)[:, None] + np.sum(C * C, axis=1)[None, :] - 2.0 * np.einsum("ik,jk->ij", X, C)
     return np.maximum(d, 0.0)
 
@@ -236,20 +222,35 @@ def cluster(
 
     The first start is "time quantiles" (all key-points sorted by normalised time and cut into k groups),
     which already respects the task's order; ``n_init − 1`` k-means++ starts follow; the lowest distortion
-    wins. Deterministic for a given ``seed``. About 1 ms for 80 key-points.
+    wins. Deterministic for a given ``seed``.
 
     Raises:
         NotEnoughData: no key-points, or more clusters than distinct key-points.
         InvalidInput: k below 1.
     """
     scale = scale or FeatureScale.for_demos(demos)
+    m = sum(len(kp) for kp in keypoints)
+    if m > MAX_KEYPOINTS:
+        raise InvalidInput(
+            f"The demonstrations have {m:,} key-points together; at most {MAX_KEYPOINTS:,} can be grouped into a "
+            "skill (a demonstration usually has tens: these are noisy or very long recordings, or the key-point "
+            "thresholds are very fine). Use larger key-point thresholds, or trim or hide the longest demonstrations."
+        )
     X, _, u = keypoint_features(demos, keypoints)
-    m = X.shape[0]
     if m == 0:
         raise NotEnoughData("There are no key-points to group: record at least one demonstration.")
     k = default_n_clusters(keypoints) if n_clusters is None else int(n_clusters)
     if k < 1:
         raise InvalidInput(f"The number of clusters must be at least 1 (got {k}).")
+    if k > MAX_K:
+        raise InvalidInput(
+            f"{k:,} clusters are more than a skill can be learned with (at most {MAX_K:,}). "
+            + (
+                "The demonstrations have that many key-points each: use larger key-point thresholds."
+                if n_clusters is None
+                else "Choose fewer clusters."
+            )
+        )
     Xs = X / scale.divisors
     n_distinct = np.unique(np.round(Xs, 9), axis=0).shape[0]
     if k > n_distinct and n_clusters is None:
@@ -270,9 +271,10 @@ def cluster(
     else:
         inits = [quantiles]
         rng = np.random.default_rng(seed)
-        D = _sq_dist(Xs, Xs)
+        sample = Xs if m <= SEED_SAMPLE else Xs[np.sort(rng.choice(m, SEED_SAMPLE, replace=False))]
+        D = _sq_dist(sample, sample)
         for _ in range(max(0, n_init - 1)):
-            inits.append(kmeans_plusplus(Xs, k, rng, D=D))
+            inits.append(kmeans_plusplus(sample, k, rng, D=D))
         best: tuple[float, np.ndarray, np.ndarray] | None = None
         for init in inits:
             centers, labels_, inertia = lloyd(Xs, init)

@@ -1,15 +1,9 @@
 """From a learned skill to what the robot executes, and back: joint trajectory, execution plan, tracking report.
 
-* :func:`joint_trajectory` — the skill's Cartesian trajectory as joint angles the robot can play: whole-path
-  IK (:mod:`studio.core.ik_path`) timed within the joint velocity and acceleration limits at the taught
-  pace (:mod:`studio.core.timing`, toppra). A tracking failure never stretches the time line: unreachable
-  stretches keep the closest continuous pose and are reported by :func:`skill_feasibility`.
-* :func:`plan_execution` — one or both arms' joint trajectories as a single 14-joint plan at the robot's
-  rate, with a slow approach from where the arms are to the skill's start (rest to rest, within the limits);
-  this is what a :class:`~studio.robot_backend.base.RobotBackend` executes.
-* :func:`compare_execution` — a recording of the execution against the plan: joint and gripper-position
-  tracking error over time (what the studio draws beside the planned path).
-"""
+:func:`joint_trajectory`: whole-path IK (:mod:`studio.core.ik_path`) timed within the joint limits at the
+taught pace (:mod:`studio.core.timing`); unreachable stretches keep the closest continuous pose and are
+reported by :func:`skill_feasibility`. :func:`plan_execution`: one or both arms as one 14-joint plan with a
+slow approach from where the arms are. :func:`compare_execution`: a recording of the run against the plan."""
 
 from __future__ import annotations
 

@@ -1,23 +1,10 @@
 """The generalized trajectory (paper § Generalized Trajectory) and its joint-space execution (§ Robot Execution).
 
-The timed path points (centroids, or the mean of the key-points Viterbi assigned to each state, with
-zero-points removed) are joined by cubic smoothing-spline regression (scipy ``make_smoothing_spline``,
-penalised least squares Σ w (y − f)² + λ ∫ f''²) and sampled at the demonstrations' rate:
-
-* position and quaternion components are fitted together; λ = ``smoothing`` · h³ with h the median spacing
-  of the points in seconds (λ has units of s³, so this keeps the same amount of smoothing whatever the
-  pace), weights = number of key-points behind each point (×10 for the first and the last: the skill
-  must start and end where the demonstrations do; ``SMOOTHING`` was lowered from 0.02 to 0.005 after the
-  quality tests showed the end pose pulled 5–7 mm off by the smoother fit); quaternions are made sign-continuous before
-  the fit and renormalised after it;
-* the gripper is not splined: it is a step signal. Consecutive path points whose opening differs by less
-  than :data:`GRIPPER_LEVEL_TOL` form one level (their weighted mean: the learned opening and grasp width,
-  which the paper stresses); the step is half-way in time between the last point of one level and the
-  first of the next — both are gripper-event key-points at the grasp pose, so the step happens there.
-
-Execution (:func:`joint_trajectory`, re-exported from :mod:`studio.core.execution`): whole-path IK and
-timing within Baxter's joint velocity and acceleration limits at the taught pace (toppra).
-"""
+The timed path points are joined by a cubic smoothing spline (scipy ``make_smoothing_spline``), position and
+quaternion components together, weighted by the key-points behind each point (the ends most), and sampled at
+the demonstrations' rate; the gripper is a step signal between levels, switching at the gripper-event
+key-points. Choices and figures: docs/decisions/015. :func:`joint_trajectory` (from
+:mod:`studio.core.execution`) turns the path into timed joint angles."""
 
 from __future__ import annotations
 
@@ -38,6 +25,8 @@ END_WEIGHT = 10.0
 GRIPPER_LEVEL_TOL = 10.0
 #: Path points closer in time than this (s) are merged before the fit.
 MIN_SPACING_S = 0.02
+#: Seconds either side over which a path is bent onto a pinned pose (:func:`pin_poses`).
+PIN_S = 0.15
 
 
 def _merge_close(
@@ -100,7 +89,7 @@ def generalize(
         t_start, t_end: sampled interval (default the first and last point); outside the points the
             trajectory holds the end values.
         rate_hz: output rate.
-        smoothing: λ / h³ (see module docstring).
+        smoothing: λ / h³ (docs/decisions/015).
 
     Returns:
         A :class:`Demo` (t, position, unit sign-continuous orientation, step gripper).
@@ -143,13 +132,96 @@ def generalize(
     return Demo(t, pose[:, :3], q, g, name=name)
 
 
+def _mean_quat(qs: np.ndarray | list[np.ndarray]) -> np.ndarray:
+    qs = np.asarray(qs, dtype=np.float64)
+    qs = qs * np.where(qs @ qs[0] < 0, -1.0, 1.0)[:, None]
+    m = qs.mean(axis=0)
+    return m / np.linalg.norm(m)
+
+
+def pin_poses(
+    t: np.ndarray, position: np.ndarray, orientation: np.ndarray, pins: list[tuple[float, np.ndarray, np.ndarray]]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Bend a path so it passes exactly through each pin at its instant.
+
+    Args:
+        t: (N,) seconds; position (N, 3) m; orientation (N, 4) wxyz.
+        pins: (time s, position (3,), orientation wxyz (4,)) each; a pin's time is rounded to the nearest sample.
+
+    Returns:
+        (position, orientation): the difference at each pin's sample, faded out by a raised cosine over
+        :data:`PIN_S` (or half the way to the neighbouring pin, so each pin stays exact) on either side.
+    """
+    from scipy.spatial.transform import Rotation
+
+    pos = np.array(position, dtype=np.float64)
+    ori = np.array(orientation, dtype=np.float64)
+    if not pins:
+        return pos, ori
+    pins = sorted(pins, key=lambda p: p[0])
+    idx = [int(np.argmin(np.abs(t - p[0]))) for p in pins]
+    times = [float(t[i]) for i in idx]
+    corr_p = np.zeros_like(pos)
+    corr_r = np.zeros((pos.shape[0], 3))
+    for n, ((_, target, q_target), i) in enumerate(zip(pins, idx, strict=True)):
+        lo = min(PIN_S, (times[n] - times[n - 1]) / 2) if n > 0 else PIN_S
+        hi = min(PIN_S, (times[n + 1] - times[n]) / 2) if n + 1 < len(pins) else PIN_S
+        d = t - times[n]
+        half = np.where(d < 0, max(lo, 1e-9), max(hi, 1e-9))
+        w = np.where(np.abs(d) < half, 0.5 + 0.5 * np.cos(np.pi * np.clip(d / half, -1.0, 1.0)), 0.0)
+        w[i] = 1.0
+        corr_p += w[:, None] * (np.asarray(target, dtype=np.float64) - pos[i])
+        qt = np.asarray(q_target, dtype=np.float64)
+        qi = ori[i] * (1.0 if float(np.dot(ori[i], qt)) >= 0 else -1.0)
+        rel = Rotation.from_quat(np.r_[qt[1:], qt[0]]) * Rotation.from_quat(np.r_[qi[1:], qi[0]]).inv()
+        corr_r += w[:, None] * rel.as_rotvec()[None, :]
+    pos += corr_p
+    xyzw = (Rotation.from_rotvec(corr_r) * Rotation.from_quat(np.column_stack([ori[:, 1:], ori[:, :1]]))).as_quat()
+    wxyz = make_sign_continuous(np.column_stack([xyzw[:, 3], xyzw[:, :3]]))
+    if float(np.dot(wxyz[0], ori[0])) < 0:
+        wxyz = -wxyz
+    return pos, wxyz
+
+
+def demo_pins(demos: list[Demo], t: np.ndarray, gripper: np.ndarray) -> list[tuple[float, np.ndarray, np.ndarray]]:
+    """Where a path learned from ``demos`` must pass exactly: the demos' mean start and end pose at ``t``'s ends and,
+    when every demo and the path's gripper signal (``gripper`` at ``t``) act the same way, the demos' mean pose at
+    each grasp and release, at the path's switch."""
+    from studio.core.keypoints import gripper_events
+
+    pins = [
+        (float(t[k]), np.mean([d.position[k] for d in demos], axis=0), _mean_quat([d.orientation[k] for d in demos]))
+        for k in (0, -1)
+    ]
+    g = np.asarray(gripper, dtype=np.float64)
+    switches = np.flatnonzero(np.abs(np.diff(g)) > 1.0) + 1
+    acts = []
+    for d in demos:
+        ev = gripper_events(np.asarray(d.t), np.asarray(d.gripper))
+        dg = np.asarray(d.gripper)
+        acts.append([(bool(dg[b] < dg[a]), a, b) for a, b in zip(ev[0::2], ev[1::2], strict=True)])
+    kinds = {tuple(c for c, _, _ in a) for a in acts}
+    mine = tuple(bool(g[j] < g[j - 1]) for j in switches)
+    if len(kinds) != 1 or next(iter(kinds)) != mine:
+        return pins
+    for n, j in enumerate(switches):
+        both = [(d, a[n][1], a[n][2]) for d, a in zip(demos, acts, strict=True)]
+        p = np.mean([(d.position[a] + d.position[b]) / 2.0 for d, a, b in both], axis=0)
+        q = _mean_quat([d.orientation[(a + b) // 2] for d, a, b in both])
+        pins.append((float(t[j]), p, q))
+    return pins
+
+
 # Execution (whole-path IK and timing within the limits) lives in studio.core.execution; re-exported here.
 from studio.core.execution import joint_trajectory  # noqa: E402
 
 __all__ = [
     "GRIPPER_LEVEL_TOL",
+    "PIN_S",
     "SMOOTHING",
+    "demo_pins",
     "generalize",
     "gripper_steps",
     "joint_trajectory",
+    "pin_poses",
 ]

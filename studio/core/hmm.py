@@ -1,30 +1,10 @@
 """Discrete HMM over the codebook (paper § Model Learning using HMM); the only hmmlearn import.
 
-Ns = k hidden states, k symbols (the k-means clusters). The model is initialised with the Bakis
-left–right topology exactly as the paper's equations:
-
-    a_{i,i}   = (1 − 1/τ_i) / Z,   a_{i,i+1} = (1/τ_i) / Z,   a_{i,i+2} = (1/(4 τ_i)) / Z,
-    b_i(k)    = n_i(q_k) / τ_i,    π = [1, 0, …, 0],
-
-with every other transition zero. τ_i, "the amount of time spent in state i", and n_i(q_k) come from the
-standard initial segmentation of a left–right model: every demonstration's key-point sequence is cut into
-Ns equal consecutive parts, part i in state i. (Not "cluster i → state i": a task that comes back to the
-same place — pick-and-place there and back — visits one cluster at two different times, which a
-left–right model must explain with two different states; the uniform segmentation lets state i emit
-whatever symbols the demonstrations show at that stage of the task.) τ_i is the mean number of
-observation steps a demonstration spends in state i **counting the step that leaves it** (so a state seen
-once lasts two steps): with the bare count a state seen once would get a_{i,i} = 0, and since Baum–Welch
-keeps zeros at zero, no demonstration could ever place two consecutive key-points in one state. b_i is
-then normalised and mixed with a 1 % uniform floor: a demonstration whose
-key-points visit the clusters slightly out of order must remain possible under the left–right model.
-
-Baum–Welch (hmmlearn ``CategoricalHMM`` with ``init_params=""`` so it keeps these matrices, scaling
-implementation) trains on all demonstrations together (``lengths``). Transition zeros stay zero (hmmlearn
-never updates a zero entry); a Dirichlet prior of 1 + 1e-6 on the allowed entries keeps a state that no
-sequence reaches from ending with an all-zero row, which would break every later score/decode call.
-Viterbi decodes each demonstration; the forward algorithm scores each one and the most probable is the
-reference. States absent from the reference's decoded path are the paper's zero-points.
-"""
+Ns = k states and k symbols. The model starts as the paper's Bakis left–right topology (a_{i,i}, a_{i,i+1},
+a_{i,i+2} from the time τ_i spent in state i, b_i from the symbols seen there, π = [1, 0, …]) on a uniform
+segmentation of each demo's key-points; Baum–Welch (hmmlearn ``CategoricalHMM``) trains on all demos, Viterbi
+decodes each, the forward algorithm picks the most probable as the reference, and states absent from its path
+are the zero-points. Choices: docs/decisions/014."""
 
 from __future__ import annotations
 
@@ -59,7 +39,7 @@ PRIOR_EPS = 1e-6
 def bakis_init(
     sequences: Sequence[np.ndarray], n_states: int, n_symbols: int | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Left–right initial model from the codebook's segmentation (module docstring).
+    """Left–right initial model from the codebook's segmentation (docs/decisions/014).
 
     Args:
         sequences: one int array of symbols (cluster labels, time-ordered codebook) per demonstration.

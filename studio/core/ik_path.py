@@ -1,40 +1,10 @@
 """Whole-path inverse kinematics that keeps the path, and the feasibility check (paper § Robot Execution).
 
-The paper turns every pose of the generalized trajectory into joint angles with Baxter's IK service. Solved
-one pose at a time, each solve seeded by the previous one (how the studio did it first), a path that starts
-far from the seed goes wrong: measured on a skill learned from Cartesian pick-and-place demonstrations with
-no joint data (IK starting from Baxter's untuck pose), the tracker settled against a joint limit and kept
-only 19 % of the samples within 1 mm, up to 0.33 m off — although every pose on that path is reachable.
-This module solves the path as one problem:
-
-1. **Start.** The first pose is solved from several seeds: the given one (in the studio the reference
-   demonstration's first joints), Baxter's untuck pose, mid-range, and random seeds drawn with a fixed seed.
-   A solution within :data:`SEED_POSTURE_RAD` of the given seed is the taught posture and is used first;
-   the others are ranked by their distance from the joint limits.
-2. **Continuation along knots** (:func:`solve_path`). Knots every ~6 cm / ~0.3 rad / 1 s along the
-   path; each is solved by damped least squares from the previous knot's joints, with a null-space term
-   that pushes joints out of the outer 10 % of their range (it does not move the gripper, so the taught
-   posture is kept elsewhere). A knot that does not converge is approached in smaller steps (bisection
-   along the path, up to 16 steps); then from restarts (the previous joints pulled half-way to mid-range,
-   mid-range, the untuck pose, random seeds, each with a null-space pull towards mid-range), keeping only
-   solutions whose elbow stays on the same side (swivel angle within 90°, see
-   :meth:`~studio.core.kinematics.Baxter.elbow_swivel`) and taking the nearest in joint space. A restart
-   that lands in another posture (a jump) is carried backwards over the knots already solved: if the
-   whole earlier path can be done in that posture, it replaces it. Only then is a knot reported as
-   unreachable — with the closest pose the arm can take, continuous with its neighbours, so an
-   unreachable stretch never turns into a fast joint jump (which would slow the whole skill down). When
-   a start needed any recovery, up to two other start postures are tried and the best path is kept.
-3. **Refinement.** The joints between knots are a cubic spline (path parameter = the skill's time). Where
-   the spline's pose strays more than :data:`REFINE_POSITION_M` / :data:`REFINE_ORIENTATION_RAD` from the
-   path, a knot is added mid-way; all new knots are solved at once by a vectorised damped least-squares
-   (numpy over the batch, :meth:`~studio.core.kinematics.Baxter.pose_jacobian_batch`) from the spline's
-   value; repeated until the spline holds the path everywhere it is reachable.
-
-Single-pose solves use pinocchio's Jacobian and LAPACK's ``dposv`` directly (≈ 30 µs an iteration; numpy's
-``linalg.solve`` alone costs 15–45 µs on a 6 × 6 system here).
-
-:func:`feasibility` turns the per-sample errors into unreachable time spans and one plain sentence.
-"""
+:func:`solve_path` solves the skill's poses as one problem: the start from several seeds (the taught posture
+first), damped least squares along knots with a pull away from the joint limits, smaller steps and restarts
+that keep the elbow's side where a knot fails, and refinement between knots until the joint spline holds the
+path wherever it is reachable. :func:`feasibility` turns per-sample errors into unreachable time spans and one
+plain sentence. Why not pose by pose: docs/decisions/008."""
 
 from __future__ import annotations
 
@@ -677,7 +647,7 @@ def solve_path(
     *,
     max_starts: int = 3,
 ) -> PathSolution:
-    """Joint knots that follow a Cartesian gripper path (see the module docstring for the method).
+    """Joint knots that follow a Cartesian gripper path (the method: docs/decisions/008).
 
     Args:
         t: (N,) seconds, increasing (the skill's time line).

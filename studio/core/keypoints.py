@@ -1,39 +1,10 @@
 """Key-point extraction (paper § Key-point Extraction, the criteria with ε1–ε7 for P and ε8–ε14 for O).
 
-A sample becomes a key-point if, for position or for orientation, one of three tests holds:
-
-1. **corner**: the angle at the sample between the directions to its predecessor and its successor is
-   below 2π − ε1 (ε8 for orientation); a straight line has angle π.
-2. **pause**: the speed is below ε2 (ε9), more than ε3 (ε10) seconds after the last key-point, and the
-   pose is more than ε4 (ε11) away from the last key-point.
-3. **distance**: the pose is at least ε5 (ε12) away from the last key-point, more than ε6 (ε13) seconds
-   after it, and every sample since the last key-point stayed within ε7 (ε14) of it: the first exit
-   from the ball around the last key-point.
-
-The first and last samples and both ends of every gripper motion (the last sample before the gripper
-moves and the first after it settles) are always key-points. Speeds are per second and durations in
-seconds so the thresholds mean the same at any sampling rate; orientation distances are rotation angles
-(radians), so q and −q are the same orientation.
-
-Robustness to 1 kHz sensor noise (the paper's per-sample differences are dominated by noise at 1 kHz):
-
-* poses are smoothed by a 50 ms moving average (quaternions made sign-continuous first, renormalised);
-* speeds are central differences over ±20 ms of the smoothed signal;
-* the corner angle uses neighbours at an **arc-length stride** (3 cm of path — a fifteenth of the demo's
-  size for gestures smaller than 45 cm, at least 1 mm —, 0.08 rad of rotation) on the smoothed path
-  instead of the adjacent samples, so the angle measures the path's shape rather than the noise and does
-  not depend on how fast the arm moved; a run of consecutive samples below the
-  threshold is one corner, at its sharpest sample;
-* a corner must also be more than ε4 (ε11) from the last key-point, like a pause: an arm that stops at a
-  corner then yields one key-point, not a pause key-point and a corner key-point a few ms apart.
-
-Speed: :func:`precompute` derives everything that does not depend on ε once per demonstration
-(:class:`KeypointSeries`); :func:`extract_keypoints` then only thresholds and runs a sequential scan that
-jumps from candidate to candidate (the pause and distance tests depend on the last key-point, so the
-scan is sequential, but each step looks at short chunks of samples and stops at the earliest candidate
-found so far). ``tests/core/oracles.py`` holds a literal per-sample loop over the same series, the oracle
-the fast path is tested against.
-"""
+A sample becomes a key-point when a corner, pause or distance test holds for position or orientation; the
+first and last samples and both ends of every gripper motion always are. Speeds are per second and
+orientation distances rotation angles, so thresholds mean the same at any rate. :func:`precompute` derives the
+ε-independent series once per demo; :func:`extract_keypoints` only thresholds and scans. Robust to 1 kHz
+noise: docs/decisions/013; the tests' oracle: ``tests/core/oracles.py``."""
 
 from __future__ import annotations
 
@@ -203,7 +174,7 @@ def precompute(demo: Demo) -> KeypointSeries:
         demo: the demonstration (any sampling rate).
 
     Returns:
-        A :class:`KeypointSeries`; about 20 ms for 30,000 samples.
+        A :class:`KeypointSeries`.
     """
     n = len(demo)
     if n < 2:
@@ -358,7 +329,7 @@ def _next_keypoint(pos: _Tests, ori: _Tests, tau: int, ub: int, chunk: int) -> i
 
 
 def extract_from_series(s: KeypointSeries, params: KeypointParams) -> np.ndarray:
-    """The fast path: key-point indices from precomputed series (see module docstring).
+    """The fast path: key-point indices from precomputed series (the tests: :func:`extract_keypoints`).
 
     Per call, the ε-dependent masks (corners, stillness) are thresholded once over the whole demonstration;
     the sequential part then evaluates all six tests together on chunks of samples after the last key-point
@@ -410,6 +381,15 @@ def extract_keypoints(
     demo: Demo, params: KeypointParams | None = None, *, series: KeypointSeries | None = None
 ) -> np.ndarray:
     """Key-points of one demonstration (paper § Key-point Extraction).
+
+    A sample is a key-point if, for position (orientation), one of three tests holds:
+
+    1. corner: the angle between the directions to its neighbours (at an arc-length stride on the smoothed
+       path) is below 2π − ε1 (ε8), and the pose is more than ε4 (ε11) from the last key-point;
+    2. pause: the speed is below ε2 (ε9), more than ε3 (ε10) s after the last key-point, and the pose is more
+       than ε4 (ε11) from it;
+    3. distance: the pose is at least ε5 (ε12) from the last key-point, more than ε6 (ε13) s after it, and
+       every sample since stayed within ε7 (ε14) of it (the first exit from that ball).
 
     Args:
         demo: the demonstration.

@@ -4,7 +4,7 @@ The end-effector frame is ``<arm>_gripper``: the point between the fingertips, 0
 It is the frame the Baxter SDK reports as the endpoint pose and the one its IK service (which the paper
 uses for execution) solves for, so demonstrations, the learned skill and execution all speak of it.
 
-Poses are expressed in the URDF root frame ``base`` (Baxter's torso base), positions in metres and
+Poses are given in the URDF root frame ``base`` (Baxter's torso base), positions in metres and
 orientations as unit quaternions w, x, y, z.
 """
 
@@ -41,7 +41,7 @@ DH_TABLE: np.ndarray = readonly(
 DH_TABLE_EXACT_ALPHA: np.ndarray = readonly(
     np.column_stack([DH_TABLE[:, :2], np.round(DH_TABLE[:, 2] / 1.571) * math.pi / 2])
 )
-#: Joint offset that maps URDF joint angles onto the table's θ (measured: only s1 differs, by +π/2).
+#: Joint offset that maps URDF joint angles onto the table's θ (only s1 differs, by +π/2).
 DH_JOINT_OFFSET: np.ndarray = readonly([0.0, math.pi / 2, 0.0, 0.0, 0.0, 0.0, 0.0])
 #: Constant translation from ``<arm>_arm_mount`` to the DH base frame, metres.
 DH_BASE_OFFSET: np.ndarray = readonly([0.055695, 0.0, 0.011038])
@@ -55,10 +55,8 @@ EE_FRAME = "{arm}_gripper"
 #: (moveit_robots) and 1.0 rad/s² (RethinkRobotics/baxter_simulator) for every joint — and would slow down
 #: every demonstration, which the robot itself made under a person's hand. CoppeliaSim's Baxter model
 #: (PyRep ``BaxterLeft``) uses 4 rad/s². We take 4 rad/s² for the shoulder and elbow (s0–e1, URDF speed
-#: 1.5 rad/s reached in 0.375 s) and 8 rad/s² for the lighter wrist (w0–w2, 4 rad/s in 0.5 s). Measured
-#: on the scripted teacher's pick-and-place demonstrations (minimum-jerk human reaching): peaks of
-#: 1.5–2.5 rad/s² at the shoulder and up to 5 rad/s² at e1, so a skill's smoothed path keeps the taught
-#: pace except in its fastest reaches, which are slowed just enough.
+#: 1.5 rad/s reached in 0.375 s) and 8 rad/s² for the lighter wrist (w0–w2, 4 rad/s in 0.5 s); the scripted
+#: teacher's demonstrations stay below them except in their fastest reaches (docs/decisions/010).
 ACCELERATION_LIMITS: np.ndarray = readonly([4.0, 4.0, 4.0, 4.0, 8.0, 8.0, 8.0])
 
 
@@ -139,7 +137,6 @@ def dh_fk(q: np.ndarray, table: np.ndarray = DH_TABLE) -> np.ndarray:
     return T
 
 
-
 def _mix(row: list[Any], col: np.ndarray) -> Any:
     """Σ_k row[k]·col[k], skipping the zero entries of ``col`` (the placements are mostly axis permutations)."""
     out: Any = 0.0
@@ -177,9 +174,8 @@ class _ArmChain:
         """Gripper rotation (N, 3, 3) and position (N, 3) in the world for joint angles Q (N, 7).
 
         Works on the nine rotation entries as separate (N,) arrays with plain element-wise arithmetic and
-        skips the placements' zero entries (they are axis permutations). Measured on the shared 2-core
-        machine this is 3-5x faster than stacked (N,3,3) matrix products, whose BLAS threads contend
-        with other work.
+        skips the placements' zero entries (they are axis permutations), rather than stacked (N,3,3) matrix
+        products, whose BLAS threads contend with other work (bench/README.md, "Kinematics").
         """
         rot, pos, _, _ = self._chain(Q, joints=False)
         return rot, pos
@@ -187,7 +183,7 @@ class _ArmChain:
     def pose_jacobian_columns(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Gripper rotation (N, 3, 3), position (N, 3) and the 6×7 Jacobian (N, 6, 7) for joint angles Q (N, 7).
 
-        The Jacobian is expressed in the world-aligned frame at the gripper point (pinocchio's
+        The Jacobian is given in the world-aligned frame at the gripper point (pinocchio's
         ``LOCAL_WORLD_ALIGNED``): rows vx, vy, vz, wx, wy, wz. Each joint turns about its frame's z axis,
         so column i is (z_i × (p − o_i), z_i) with o_i, z_i that joint's origin and axis — the same
         element-wise arithmetic as :meth:`pose_columns`, vectorised over N.
@@ -403,10 +399,9 @@ class Baxter:
     ) -> IkResult:
         """Full 6-D pose IK by damped least squares, clamped to the URDF joint limits at every step.
 
-        Damped least squares (Levenberg–Marquardt with adaptive damping on the SE(3) log error) is used
-        rather than a QP (pink): it needs no extra solver package, converges in a handful of iterations from
-        a nearby seed (the studio always warm-starts from the current pose), and limit clamping keeps every
-        iterate valid. A target the arm cannot reach ends at the closest pose found, ``converged=False``.
+        Damped least squares (Levenberg–Marquardt with adaptive damping on the SE(3) log error); clamping keeps
+        every iterate within the limits. Meant to be warm-started from a nearby pose (how it compares with pink:
+        docs/decisions/009). A target the arm cannot reach ends at the closest pose found, ``converged=False``.
 
         Args:
             arm: "left" or "right".

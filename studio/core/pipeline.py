@@ -2,44 +2,9 @@
 
 key-points (keypoints.py) ▸ k-means codebook (clustering.py) ▸ Bakis HMM, Baum–Welch, Viterbi, forward
 selection of the reference (hmm.py) ▸ multidimensional DTW of every demo against the reference
-(alignment.py) ▸ timed path points without zero-points ▸ smoothing spline (generalize.py) ▸ IK (optional).
-
-Path points ("spline_through"):
-
-* ``"state-means"`` (default): the reference's key-points are taken in order as (Viterbi state, k-means
-  cluster) pairs; each pair gives one point, the mean of all demos' key-points with that same state and
-  cluster, timed by the mean of their DTW-aligned times. Usually a pair is just a state; keeping the
-  cluster too matters when Viterbi lets one state absorb two different key-points of the reference (a
-  self-transition) — e.g. the start and the end of a gripper motion at the same pose: one point per state
-  would drop one of them, and the gripper would switch half-way to the neighbouring point, centimetres
-  away from the grasp;
-* ``"centroids"`` (the paper): the k-means centroid of the pair's cluster, timed the same way (not by all
-  the cluster's members: a cluster visited twice, as in pick-and-place there and back, has members at two
-  different times).
-
-The quality tests (tests/core/test_pipeline.py) measure both on the scripted teacher's demonstrations;
-state-means land closer to the demos' start and end poses and to the grasp poses, because a k-means
-cluster can mix key-points from different parts of the task that Viterbi keeps apart by their order.
-
-Generalisation ("generalization", recorded in ``Skill.generalization``):
-
-* ``"paper"``: the paper's cubic smoothing spline through the timed path points above, DTW on the paper's
-  8-D series (the reference mode);
-* ``"aligned-mean"`` (default): every demonstration is aligned to the HMM's reference demonstration by DTW
-  and, at each instant of the reference, the demos' (50 ms smoothed) poses at the matched instants are
-  averaged. The path keeps the demos' shape between key-points (a spline through ~20 points cuts corners
-  and flattens loops) and starts and ends exactly at their mean start and end. Each demo's time map is
-  smoothed over two DTW grid steps (:func:`~studio.core.alignment.smooth_warp`; DTW's staircase made the
-  average jump in speed: 440 m/s² on the scripted pick-and-place, whose demos' smoothed series stay under
-  18 m/s², which the joint timing then had to slow down for), and quaternions are averaged on the
-  reference's side instant by instant (:func:`_aligned_mean`). The gripper is paper mode's
-  step signal (levels and switch times from the path points). DTW for this mode weights orientation down
-  and adds the direction of motion (:data:`DTW_ORIENTATION_WEIGHT`, :data:`DTW_DIRECTION_WEIGHT`).
-  Measured by bench/bench_quality.py on 36 shapes × 3 and 7 demos: median F/B1 0.53 against 0.79 for paper
-  mode, worst 0.99 against 1.79, start/end within 0.1 mm against up to 48 mm. Pinning the average to
-  landmarks (the key-points the demos share with the reference by Viterbi state and cluster) was tried and
-  measured no better (corners worse: 6.5 mm against 3.7 mm at 15 cm), so the alignment is DTW's alone.
-"""
+(alignment.py) ▸ timed path points without zero-points ▸ the path: the paper's smoothing spline
+(generalize.py, ``generalization="paper"``) or the demos averaged along their DTW alignment
+(``"aligned-mean"``, the default) ▸ IK (optional). Why these defaults: docs/decisions/003 and 004."""
 
 from __future__ import annotations
 
@@ -55,9 +20,10 @@ from scipy.interpolate import PchipInterpolator
 from studio.core import alignment, hmm, quality
 from studio.core.clustering import FeatureScale, align_hemisphere, cluster, default_n_clusters
 from studio.core.errors import InvalidInput, NotEnoughData
-from studio.core.generalize import SMOOTHING, generalize, joint_trajectory
+from studio.core.generalize import SMOOTHING, demo_pins, generalize, joint_trajectory, pin_poses
 from studio.core.keypoints import KeypointCache
 from studio.core.kinematics import Baxter, make_sign_continuous
+from studio.core.routes import Routes, find_routes
 from studio.core.thresholds import ThresholdSettings
 from studio.core.types import (
     ARMS,
@@ -67,14 +33,14 @@ from studio.core.types import (
     KeypointParams,
     Recording,
     Skill,
+    SkillRoute,
     check_arm,
 )
 
 SPLINE_THROUGH = ("state-means", "centroids")
 #: DTW features besides the scaled pose: orientation is weighted down (on a drawn shape the hand's small
 #: wobble would steer the alignment as much as the path does) and the unit direction of motion is added
-#: (it turns sharply at a corner, so corners align exactly). Chosen on the shape suite (bench_quality.py):
-#: 7 demos × 36 shapes, largest corner error at 15 cm 4.8 mm → 0.9 mm, worst F/B1 0.985 → 0.961.
+#: (it turns sharply at a corner, so corners align exactly); chosen on the shape suite (docs/decisions/003).
 DTW_ORIENTATION_WEIGHT = 0.3
 DTW_DIRECTION_WEIGHT = 0.5
 
@@ -128,25 +94,49 @@ class AlignmentCache:
 
     def __init__(self, size: int = 64) -> None:
         self.size = size
-        self._maps: dict[tuple, tuple[weakref.ref, weakref.ref, np.ndarray]] = {}
+        self._maps: dict[tuple, tuple[tuple[weakref.ref, ...], Any]] = {}
 
-    def get(self, ref: Demo, demo: Demo, key: tuple, compute: Callable[[], np.ndarray]) -> np.ndarray:
-        k = (id(ref), id(demo), *key)
+    def get(self, ref: Demo, demo: Demo, key: tuple, compute: Callable[[], Any]) -> Any:
+        return self.get_set((ref, demo), key, compute)
+
+    def get_set(self, demos: Sequence[Demo], key: tuple, compute: Callable[[], Any]) -> Any:
+        """The value for these demos (in this order) and key, computed once while they all live."""
+        k = (*(id(d) for d in demos), len(demos), *key)
         hit = self._maps.get(k)
-        if hit is not None and hit[0]() is ref and hit[1]() is demo:
-            return hit[2]
+        if hit is not None and len(hit[0]) == len(demos) and all(r() is d for r, d in zip(hit[0], demos, strict=True)):
+            return hit[1]
         value = compute()
         if len(self._maps) >= self.size:
             try:
                 self._maps.pop(next(iter(self._maps)), None)
             except (StopIteration, RuntimeError):
                 pass
-        self._maps[k] = (weakref.ref(ref), weakref.ref(demo), value)
+        self._maps[k] = (tuple(weakref.ref(d) for d in demos), value)
         return value
 
 
 _SERIES_CACHE = KeypointCache()
 _ALIGN_CACHE = AlignmentCache()
+_ROUTES_CACHE = AlignmentCache(16)
+
+
+def routes_of(demos: Sequence[Demo]) -> Routes:
+    """Which demonstrations go which way (:func:`studio.core.routes.find_routes`, remembered per set of demos)."""
+    demos = list(demos)
+    return _ROUTES_CACHE.get_set(demos, ("routes",), lambda: find_routes(demos))
+
+
+def _route_demos(demos: list[Demo], route: int | None, split: bool = True) -> tuple[Routes, int, list[Demo]]:
+    """(the routes, the one to learn, its demonstrations): all demos when they go one way (or ``split`` is False)."""
+    found = routes_of(demos) if split else Routes()
+    if not found:
+        if route not in (None, 0):
+            raise InvalidInput("Your demonstrations all go the same way: there is no other way to choose.")
+        return found, 0, demos
+    r = found.default if route is None else int(route)
+    if not 0 <= r < len(found):
+        raise InvalidInput(f"Your demonstrations go {len(found)} ways: choose one of them (got way {r + 1}).")
+    return found, r, [demos[i] for i in found.routes[r].demos]
 
 
 @dataclass(frozen=True, eq=False)
@@ -169,6 +159,28 @@ class _Model:
 
 def _inverse(warp: PchipInterpolator, lo: float, hi: float, tau: np.ndarray) -> np.ndarray:
     return np.asarray(warp(np.clip(tau, lo, hi)), dtype=np.float64)
+
+
+def _dtw_series(X: np.ndarray, scale: FeatureScale, ref_quat: np.ndarray, dtw_features: str) -> np.ndarray:
+    """The DTW features of a resampled (N, 8) series: scaled; for "shape", orientation weighted down and the
+    direction of motion added, faded out where the hand is slower than usual (at rest it is only noise)."""
+    X = _scaled(X, scale, ref_quat)
+    if dtw_features == "paper":
+        return X
+    X[:, 3:7] *= DTW_ORIENTATION_WEIGHT
+    v = np.gradient(X[:, :3], axis=0)
+    n = np.linalg.norm(v, axis=1, keepdims=True)
+    tan = v / np.maximum(n, 1e-12) * np.minimum(1.0, n / max(float(np.median(n)), 1e-12))
+    return np.column_stack([X, DTW_DIRECTION_WEIGHT * tan])
+
+
+def _warp_to(
+    mapped: np.ndarray, grid: np.ndarray, t0: float, tau: np.ndarray, tau_t0: float
+) -> Callable[[np.ndarray], np.ndarray]:
+    """The smoothed, monotone inverse of a DTW time map: time on the average's line (from its start) -> demo time
+    (from its start)."""
+    warp = PchipInterpolator(tau, alignment.smooth_warp(alignment.inverse_time_map(mapped - tau_t0, grid - t0, tau)))
+    return functools.partial(_inverse, warp, float(tau[0]), float(tau[-1]))
 
 
 def _fit(
@@ -219,15 +231,7 @@ def _fit(
     ac = align_cache or _ALIGN_CACHE
 
     def series(i: int) -> np.ndarray:
-        X = _scaled(alignment.resample(demos[i].t, demos[i].features, grids[i]), scale, ref_quat)
-        if dtw_features == "paper":
-            return X
-        X[:, 3:7] *= DTW_ORIENTATION_WEIGHT
-        # direction of motion, faded out where the hand is slower than usual (at rest it is only noise)
-        v = np.gradient(X[:, :3], axis=0)
-        n = np.linalg.norm(v, axis=1, keepdims=True)
-        tan = v / np.maximum(n, 1e-12) * np.minimum(1.0, n / max(float(np.median(n)), 1e-12))
-        return np.column_stack([X, DTW_DIRECTION_WEIGHT * tan])
+        return _dtw_series(alignment.resample(demos[i].t, demos[i].features, grids[i]), scale, ref_quat, dtw_features)
 
     aligned: list[np.ndarray] = []
     inverse: list[Callable[[np.ndarray], np.ndarray]] = []
@@ -244,12 +248,9 @@ def _fit(
 
         mapped = ac.get(ref_demo, d, key, compute)
         aligned.append(np.interp(tk, grids[i], mapped) - ref_demo.t[0])
-        g0, m0 = grids[i] - d.t[0], mapped - ref_demo.t[0]
         # The demo's time at each step of the reference's grid, smoothed (a DTW staircase would jerk the
         # average), monotone C¹ in between (PCHIP).
-        tau = grids[ref] - ref_demo.t[0]
-        warp = PchipInterpolator(tau, alignment.smooth_warp(alignment.inverse_time_map(m0, g0, tau)))
-        inverse.append(functools.partial(_inverse, warp, float(tau[0]), float(tau[-1])))
+        inverse.append(_warp_to(mapped, grids[i], float(d.t[0]), grids[ref] - ref_demo.t[0], float(ref_demo.t[0])))
     # 5. timed path points
     times_all = np.concatenate(aligned)
     labels_all = np.concatenate(cl.labels)
@@ -287,20 +288,23 @@ def _fit(
     )
 
 
-def _aligned_mean(demos: list[Demo], fm: _Model, t: np.ndarray, cache: KeypointCache) -> np.ndarray:
-    """(len(t), 7) position and orientation: at each time of the reference, the mean of all demos (their
-    50 ms smoothed series) at the time DTW matched to it.
+def _mean_pose(
+    demos: list[Demo], inverse: list[Callable[[np.ndarray], np.ndarray]], ref: int, t: np.ndarray, cache: KeypointCache
+) -> tuple[np.ndarray, np.ndarray]:
+    """(len(t), 7) position and orientation and (len(t),) gripper: at each time of the reference, the mean of all
+    demos (their 50 ms smoothed series) at the time DTW matched to it.
 
     Quaternions are averaged on one side: the reference's (sign-continuous) series keeps its own sign, and
     each other demo's quaternion takes the sign of the reference's at the same instant. (Against one fixed
     quaternion instead, a hand that turns past 180° from it flips sign there and the average jumps.)"""
     acc = np.zeros((t.shape[0], 7))
+    grip = np.zeros(t.shape[0])
     q_ref: np.ndarray | None = None
-    for d in [fm.ref, *(i for i in range(len(demos)) if i != fm.ref)]:
+    for d in [ref, *(i for i in range(len(demos)) if i != ref)]:
         demo = demos[d]
         ser = cache.series(demo)
         td_all = np.asarray(demo.t) - demo.t[0]
-        w = np.clip(fm.inverse[d](t), 0.0, td_all[-1])
+        w = np.clip(inverse[d](t), 0.0, td_all[-1])
         pos = np.column_stack([np.interp(w, td_all, ser.position[:, k]) for k in range(3)])
         q = np.column_stack([np.interp(w, td_all, ser.orientation[:, k]) for k in range(4)])
         if q_ref is None:
@@ -309,9 +313,15 @@ def _aligned_mean(demos: list[Demo], fm: _Model, t: np.ndarray, cache: KeypointC
             q *= np.where(np.einsum("ij,ij->i", q, q_ref) < 0, -1.0, 1.0)[:, None]
         acc[:, :3] += pos
         acc[:, 3:] += q
+        grip += np.interp(w, td_all, np.asarray(demo.gripper, dtype=np.float64))
     acc /= len(demos)
     acc[:, 3:] /= np.linalg.norm(acc[:, 3:], axis=1, keepdims=True)
-    return acc
+    return acc, grip / len(demos)
+
+
+def _aligned_mean(demos: list[Demo], fm: _Model, t: np.ndarray, cache: KeypointCache) -> np.ndarray:
+    """(len(t), 7) position and orientation of the aligned mean (:func:`_mean_pose`)."""
+    return _mean_pose(demos, fm.inverse, fm.ref, t, cache)[0]
 
 
 def _trajectory(
@@ -337,8 +347,11 @@ def _trajectory(
     )
     if generalization == "paper":
         return traj
-    pose = _aligned_mean(demos, fm, np.asarray(traj.t), cache)
-    return Demo(traj.t, pose[:, :3], make_sign_continuous(pose[:, 3:]), traj.gripper, name="learned skill")
+    t = np.asarray(traj.t)
+    pose = _aligned_mean(demos, fm, t, cache)
+    pins = demo_pins(demos, t, traj.gripper)
+    pos, ori = pin_poses(t, pose[:, :3], make_sign_continuous(pose[:, 3:]), pins)
+    return Demo(traj.t, pos, ori, traj.gripper, name="learned skill")
 
 
 def learn_skill(
@@ -356,6 +369,8 @@ def learn_skill(
     keypoints: Sequence[np.ndarray] | None = None,
     cache: KeypointCache | None = None,
     align_cache: AlignmentCache | None = None,
+    route: int | None = None,
+    split_routes: bool = True,
 ) -> Skill:
     """Learn a skill from demonstrations (paper § Task Learning).
 
@@ -366,13 +381,17 @@ def learn_skill(
         seed: seed for k-means and hmmlearn.
         arm: if given, also solve IK for ``skill.joint_trajectory``, seeded by the reference demo's joints.
         baxter: the robot model (default :meth:`Baxter.load`).
-        spline_through: paper mode's path points, "state-means" (default) or "centroids" (module docstring).
-        generalization: "aligned-mean" (default) or "paper" (module docstring).
+        spline_through: paper mode's path points, "state-means" (default) or "centroids" (docs/decisions/004).
+        generalization: "aligned-mean" (default) or "paper" (docs/decisions/003).
         smoothing: spline smoothing (see :mod:`studio.core.generalize`).
         scale: feature scaling for clustering and DTW (default :meth:`FeatureScale.for_demos`).
         keypoints: precomputed key-point indices per demo (e.g. from the slider's cache).
         cache: a :class:`KeypointCache` to reuse derived series.
         align_cache: an :class:`AlignmentCache` to reuse DTW maps (default: a process-wide one).
+        route: when the demos go several ways (:func:`routes_of`), which one to learn (index into
+            ``skill.routes``; default: the way most demos go). The skill learns from that way's demos only.
+        split_routes: False learns from every demo even when they go several ways (a part of an object-relative
+            skill, whose parts must keep every demo).
 
     Returns:
         The :class:`Skill`.
@@ -382,7 +401,8 @@ def learn_skill(
         InvalidInput: malformed input (NaN, mismatched lengths are rejected when the Demo is built).
         IkFailed: with ``arm``, the skill's start is out of reach.
     """
-    demos = _validate(demos)
+    everyone = demos = _validate(demos)
+    found, chosen, demos = _route_demos(demos, route, split_routes)
     if params is None:
         from studio.core.thresholds import auto_params
 
@@ -446,6 +466,9 @@ def learn_skill(
         spline_through=spline_through,
         demo_names=tuple(d.name for d in demos),
         generalization=generalization,
+        routes=tuple(SkillRoute(tuple(everyone[i].name for i in r.demos), r.at) for r in found.routes),
+        route=chosen,
+        route_where=found.where,
     )
 
 
@@ -460,11 +483,19 @@ def learn_path(
     cache: KeypointCache | None = None,
     align_cache: AlignmentCache | None = None,
     keypoints: Sequence[np.ndarray] | None = None,
+    route: int | None = None,
 ) -> Demo:
     """The generalized trajectory only, sampled at ``rate_hz`` (no IK, no :class:`Skill`): what the auto-tune
     scores and the live preview draws. Same stages and results as :func:`learn_skill` at a lower rate
-    (``keypoints``: the key-point indices per demo for ``params``, when already extracted)."""
-    demos = _validate(demos)
+    (``keypoints``: the key-point indices per demo for ``params``, when already extracted; ``route``: as for
+    :func:`learn_skill`)."""
+    everyone = _validate(demos)
+    found, _, demos = _route_demos(everyone, route)
+    if keypoints is not None and found:
+        if len(keypoints) != len(everyone):
+            raise InvalidInput("There must be one list of key-points per demonstration.")
+        keep = {id(d) for d in demos}
+        keypoints = [k for d, k in zip(everyone, keypoints, strict=True) if id(d) in keep]
     if params is None:
         from studio.core.thresholds import auto_params
 
@@ -499,6 +530,8 @@ class PreviewPath:
         g_over_r: in-sample fidelity G/R against the shown demos (NaN with one demo).
         distance: root-mean-square distance to the demos, m (the "within … on average" figure).
         message: plain words when no path could be made (too few key-points, …), else "".
+        routes: the ways the demos go when more than one; the path follows ``routes[route]`` and the figures
+            are against that way's demos.
     """
 
     t: np.ndarray
@@ -508,6 +541,8 @@ class PreviewPath:
     g_over_r: float
     distance: float
     message: str = ""
+    routes: tuple[SkillRoute, ...] = ()
+    route: int = 0
 
 
 class _DemoCurves:
@@ -547,13 +582,14 @@ def preview_path(
     align_cache: AlignmentCache | None = None,
     rate_hz: float = 50.0,
     keypoints: Sequence[np.ndarray] | None = None,
+    route: int | None = None,
 ) -> PreviewPath:
     """Re-extract key-points, re-cluster, re-train the HMM and regenerate the path for the live preview.
 
-    Budget: ≤ 150 ms for 3 demos × 30,000 samples with warm caches (pass the slider's :class:`KeypointCache`;
-    DTW maps are cached across calls since they do not depend on ε); see bench/bench_quality.py. Never raises
-    for thresholds that find too few key-points: the message says what to do instead. ``keypoints``: the
-    key-point indices per demo for ``params`` when already extracted (the slider's view has them).
+    Pass the slider's :class:`KeypointCache` (DTW maps are cached across calls since they do not depend on ε;
+    speed: bench/bench_quality.py). Never raises for thresholds that find too few key-points: the message says
+    what to do instead. ``keypoints``: the key-point indices per demo for ``params`` when already extracted
+    (the slider's view has them).
     """
     from studio.core import quality
     from studio.core.errors import StudioError
@@ -561,6 +597,9 @@ def preview_path(
     demos = _validate(demos)
     kc = cache or _SERIES_CACHE
     kps = [kc.extract(d, params) for d in demos] if keypoints is None else [np.asarray(k) for k in keypoints]
+    found = routes_of(demos)
+    way = found.default if found and (route is None or not 0 <= route < len(found)) else int(route or 0)
+    ways = tuple(SkillRoute(tuple(demos[i].name for i in r.demos), r.at) for r in found.routes)
     try:
         traj = learn_path(
             demos,
@@ -571,13 +610,18 @@ def preview_path(
             cache=kc,
             align_cache=align_cache,
             keypoints=kps,
+            route=way if found else None,
         )
     except StudioError as exc:
-        return PreviewPath(np.zeros(0), np.zeros((0, 3)), kps, 0, float("nan"), float("nan"), str(exc))
+        return PreviewPath(np.zeros(0), np.zeros((0, 3)), kps, 0, float("nan"), float("nan"), str(exc), ways, way)
+    used = kps
+    if found:
+        demos = [demos[i] for i in found.routes[way].demos]
+        used = [kps[i] for i in found.routes[way].demos]
     curves, r = _PREVIEW_CURVES.get(demos)
     c = quality.curve(traj, 300)
     g = float(np.mean([quality.ndtw(c, x) for x in curves]))
-    k = default_n_clusters(kps) if n_clusters is None else int(n_clusters)
+    k = default_n_clusters(used) if n_clusters is None else int(n_clusters)
     return PreviewPath(
         t=np.asarray(traj.t),
         position=np.asarray(traj.position),
@@ -585,6 +629,8 @@ def preview_path(
         n_clusters=k,
         g_over_r=g / r if r and r > 0 else float("nan"),
         distance=float(np.sqrt(g)),
+        routes=ways,
+        route=way,
     )
 
 
@@ -594,7 +640,7 @@ def judge_skill(
     """How good a learned skill is, measured against the demonstrations it learned from (in the skill's order):
     the :class:`~studio.core.quality.QualityReport` with held-out fidelity (at most ``folds`` demos left out in
     turn, learned with the skill's thresholds and mode; with ``fixed_k`` the skill's k, else the default) and
-    its :func:`~studio.core.quality.verdict`. About 0.3–1 s for 3 demos × 20,000 samples.
+    its :func:`~studio.core.quality.verdict`.
     """
     from studio.core.errors import StudioError
 

@@ -1,23 +1,7 @@
-"""Rotations and unit quaternions (w, x, y, z), in one place; scipy's ``Rotation``/``Slerp`` where they do
-the job, plain numpy where a same-run benchmark shows scipy cannot meet the budget.
-
-``bench/bench_rotations.py`` measures both on 30,000 rotations (one demonstration at 1 kHz); the figures
-that decided each function (median ms, this 2-core machine shared with other jobs, scipy 1.17; own vs scipy):
-
-* :func:`matrix_from_quat_wxyz` — scipy (1.2 ms; the numpy version it replaced took 11 ms).
-* :func:`quat_wxyz_from_matrix` — own, Shepperd's method (37 vs 78 ms): it runs inside ``Baxter.fk_batch``
-  for every recorded sample, whose budget is 50 ms for 30,000 samples.
-* :func:`rotation_angle` (1.0 vs 198 ms) and :func:`quat_angle` (11 vs 133 ms) — own, from the dot product:
-  scipy composes the two rotations first, and composition is the slow part; the key-point series call them
-  per sample.
-* :func:`relative_rotvec` — own (20 vs 307 ms), same reason; :func:`relative_axis` is its cheaper sibling
-  when only the direction matters (1.7 ms).
-* :func:`rotvec_matrix`, :func:`slerp` — scipy (a few rotations at a time, never in a loop over samples).
-* :func:`make_sign_continuous` — numpy (scipy has no such operation): q and −q are the same rotation, and a
-  series must not jump between them.
-
-All functions take arrays of shape (…, 4) for quaternions and (…, 3, 3) for matrices unless stated.
-"""
+"""Rotations and unit quaternions (w, x, y, z), in one place: scipy's ``Rotation``/``Slerp`` where they do the
+job, plain numpy where a same-run benchmark shows scipy is too slow for a per-sample series (which function is
+which, and the figures: docs/decisions/007). :func:`make_sign_continuous` keeps a series from jumping between
+q and −q. All functions take arrays of shape (…, 4) for quaternions and (…, 3, 3) for matrices unless stated."""
 
 from __future__ import annotations
 

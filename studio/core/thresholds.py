@@ -1,40 +1,10 @@
-"""Key-point thresholds that follow the demonstrations, a "detail" control, and teacher-set values (GUI-free).
+"""Key-point thresholds that follow the demonstrations, one ``detail`` number, and teacher-set values (GUI-free).
 
-The paper's fourteen thresholds are physical (metres, seconds, m/s, radians). Fixed values suit one kind of
-task only: tuned on 20–30 s arm tasks, they find 2 key-points on a 5 cm gesture. Here the **automatic**
-values are derived from what was shown (:class:`DemoStats`: the demos' size, path length, duration, speed
-and the speed of the hand at rest) and from one **detail** number, and any threshold the teacher set by hand
-is kept as it is.
-
-Automatic values (``detail`` = d, 0 by default; each step of +1 asks for about 1.6× as many key-points):
-
-* ε5 travel distance = path length ÷ (:data:`KEYPOINTS_PER_DEMO` · 1.6^d), at most half the size;
-  ε7 travel radius = 2 · ε5 (the two interact: ε7 = ε5 with a small ε5 yields *fewer* key-points, because the
-  arm leaves the ε7 ball before ε6 has passed);
-* ε6 travel wait = ε3 pause wait = a third of the typical time between two such key-points
-  (ε5 ÷ mean speed), between 20 ms and 0.5 s;
-* ε4 pause distance = ε5 ÷ 2 (a pause or a corner closer than that to the previous key-point is the same
-  place);
-* ε2 pause speed = a tenth of the mean speed, but at least twice the speed measured while the hand rests
-  (sensor noise and tremor), between 1 mm/s and 5 cm/s;
-* ε1 corner sharpness stays at 2π − 2.2 (an angle needs no scale: the corner test's arc-length stride
-  itself follows the demo's size, see :mod:`studio.core.keypoints`);
-* orientation: ε12 turn amount = the rotation the hand goes through ÷ the same count, between 0.15 and
-  0.6 rad, ε14 = 2 · ε12, ε11 = ε12 ÷ 2, ε13 = ε10 = ε6; ε8 and ε9 keep their defaults.
-
-The sliders keep showing and storing real units: :meth:`ThresholdSettings.resolve` turns the settings into a
-plain :class:`~studio.core.types.KeypointParams` for the demos at hand.
-
-How "automatic" and "set by the teacher" are represented (for the GUI and the session file): a
-:class:`ThresholdSettings` holds ``detail`` and ``teacher`` (a mapping of the thresholds the teacher set by
-hand to their values in real units); every threshold not in ``teacher`` is automatic. Moving a slider is
-``settings.set("eps5", 0.03)``; "back to automatic" for one slider is ``settings.auto("eps5")``, for all
-``settings.all_auto()``; the Detail control is ``settings.with_detail(d)`` (moves the automatic thresholds
-together, leaves the teacher's). Saved as ``settings.as_dict()`` = ``{"detail": 0.0, "teacher": {"eps5": 0.03}}``
-next to the resolved ``params`` (which older studios read); a session saved before this existed is read with
-:meth:`ThresholdSettings.from_params`: a value that differs from the old fixed default counts as the
-teacher's, the others become automatic.
-"""
+:func:`auto_params` derives the paper's fourteen thresholds (metres, seconds, m/s, radians) from what was
+shown (:class:`DemoStats`) and ``detail``. A :class:`ThresholdSettings` holds ``detail`` and ``teacher`` (the
+thresholds set by hand, in real units; every other one is automatic); :meth:`ThresholdSettings.resolve` gives
+the :class:`~studio.core.types.KeypointParams` for the demos at hand, and :meth:`ThresholdSettings.from_params`
+reads older sessions. Why: docs/decisions/012."""
 
 from __future__ import annotations
 
@@ -53,7 +23,7 @@ from studio.core.types import Demo, KeypointParams
 KEYPOINTS_PER_DEMO = 20.0
 #: Each step of detail multiplies the aimed count by this.
 DETAIL_STEP = 1.6
-#: The Detail control's range (fewer ↔ more key-points).
+#: The range of ``detail`` (fewer ↔ more key-points).
 DETAIL_MIN, DETAIL_MAX = -3.0, 3.0
 #: The fourteen names.
 NAMES: tuple[str, ...] = tuple(f.name for f in fields(KeypointParams))
@@ -120,7 +90,18 @@ class DemoStats:
 
 
 def auto_params(stats: DemoStats | Sequence[Demo], detail: float = 0.0) -> KeypointParams:
-    """The automatic thresholds for these demonstrations (module docstring) at ``detail``.
+    """The automatic thresholds for these demonstrations at ``detail`` (each step of +1 asks for about 1.6× as
+    many key-points; why they follow the demos: docs/decisions/012).
+
+    * ε5 travel distance = path length ÷ (:data:`KEYPOINTS_PER_DEMO` · 1.6^d), at most half the size;
+      ε7 travel radius = 2 · ε5 (ε7 = ε5 with a small ε5 yields *fewer* key-points: the arm leaves the ε7
+      ball before ε6 has passed);
+    * ε6 travel wait = ε3 pause wait = a third of the typical time between two such key-points (ε5 ÷ mean
+      speed), between 20 ms and 0.5 s; ε4 pause distance = ε5 ÷ 2;
+    * ε2 pause speed = a tenth of the mean speed, at least twice the speed of the hand at rest, between
+      1 mm/s and 5 cm/s; ε1 corner sharpness stays at 2π − 2.2 (an angle needs no scale);
+    * orientation: ε12 = the rotation the hand goes through ÷ the same count, between 0.15 and 0.6 rad,
+      ε14 = 2 · ε12, ε11 = ε12 ÷ 2, ε13 = ε10 = ε6; ε8 and ε9 keep their defaults.
 
     Args:
         stats: :class:`DemoStats` or the demonstrations themselves.
@@ -155,7 +136,7 @@ def auto_params(stats: DemoStats | Sequence[Demo], detail: float = 0.0) -> Keypo
 
 @dataclass(frozen=True)
 class ThresholdSettings:
-    """Detail plus the thresholds the teacher set by hand (see module docstring).
+    """``detail`` plus the thresholds the teacher set by hand (every other threshold is automatic).
 
     Attributes:
         detail: fewer (−) ↔ more (+) key-points, [DETAIL_MIN, DETAIL_MAX]; 0 is the automatic default.
@@ -194,7 +175,7 @@ class ThresholdSettings:
         return replace(self, teacher={**self.teacher, name: float(value)})
 
     def set_many(self, values: Mapping[str, float]) -> ThresholdSettings:
-        """Several values at once (e.g. Suggest applied as one change the teacher can undo)."""
+        """Several values at once (e.g. a suggestion applied as one change the teacher can undo)."""
         return replace(self, teacher={**self.teacher, **{k: float(v) for k, v in values.items()}})
 
     def auto(self, name: str) -> ThresholdSettings:
@@ -231,7 +212,8 @@ class ThresholdSettings:
         return cls(0.0, teacher)
 
 
-def detail_params(stats: DemoStats | Sequence[Demo], detail: float, teacher: Mapping[str, float] | None = None
+def detail_params(
+    stats: DemoStats | Sequence[Demo], detail: float, teacher: Mapping[str, float] | None = None
 ) -> KeypointParams:
     """Shorthand: ``ThresholdSettings(detail, teacher).resolve(stats)``."""
     return ThresholdSettings(detail, dict(teacher or {})).resolve(stats)

@@ -1,35 +1,10 @@
 """Timing a joint path within Baxter's joint velocity and acceleration limits (toppra), at the taught pace.
 
-The joint path comes from :mod:`studio.core.ik_path` as a function q(s) of the skill's own time s (what
-the demonstrations' pace says). Executing it at that pace (ṡ = 1) is the goal; where a joint would exceed
-its velocity limit (URDF) or acceleration limit (:data:`~studio.core.kinematics.ACCELERATION_LIMITS`),
-the motion must slow down along the same path, and no more than needed.
-
-**toppra** (time-optimal path parametrisation by reachability analysis, Pham & Pham 2018) does exactly that:
-it finds the fastest ṡ(s) along a fixed geometric path under joint velocity and acceleration limits.
-Adding the constraint ṡ ≤ 1 (a :class:`PaceConstraint`, toppra's canonical form with only the bound
-ṡ² ≤ 1) turns "fastest" into "the taught pace wherever it is feasible, slower only where a limit requires".
-**ruckig** was considered and not used: it generates time-optimal *point-to-point* (state-to-state) motions
-and, in its open-source version, cannot follow intermediate waypoints, so it would leave the taught
-Cartesian path between them; a path parametrisation keeps the path exactly.
-
-toppra's solver loop is Python (about 70–150 µs a grid point on this 2-core machine, measured: 1000 grid
-points of a 23 s path took 140–175 ms). So toppra runs only on the windows that need it: the taught pace is
-checked at every sample (vectorised); each stretch where a limit would be exceeded (or where the robot
-must start from rest or come to rest) is padded by :data:`WINDOW_PAD_S` on each side, and toppra times that
-window with ṡ = 1 at both ends (0 at a rest end), on a grid of ≤ :data:`MAX_GRID` points. Everywhere else
-ṡ = 1 exactly, so a skill within the limits keeps its duration to the millisecond. A window whose ends toppra
-cannot join (e.g. too little room to slow down) is widened and solved again.
-
-Between two pieces of a path (where the arm has to change posture, see ``PathSolution.breaks``) the
-robot comes to rest, moves in a straight joint-space line (a trapezoidal speed profile, time-optimal for
-a straight line under per-joint velocity and acceleration limits, computed in closed form) and goes on.
-
-Between grid points toppra's constant-acceleration segments can overshoot a limit slightly; the result is
-checked at the output rate by finite differences (what a 1 kHz controller sees) and, if a limit is
-exceeded, solved again with tighter limits (by less than 1 %: on the same grid; otherwise on a finer one too).
-toppra's constraint objects are built once per set of limits (building one formats its limits into strings).
-"""
+The joint path q(s) from :mod:`studio.core.ik_path` runs at the skill's own pace (ṡ = 1) wherever that is
+within the limits; toppra (with the :class:`PaceConstraint` ṡ ≤ 1) slows it along the same path only in the
+windows where a limit requires, and between pieces of a path the arm rests and moves in a straight joint-space
+line (trapezoidal profile). The result is checked at the output rate and solved again with tighter limits if
+needed. Why toppra, and why in windows: docs/decisions/010."""
 
 from __future__ import annotations
 
@@ -53,6 +28,9 @@ LIMIT_MARGIN = 0.97
 WINDOW_PAD_S = 0.5
 #: Largest number of toppra grid points in one window; grid spacing is 10 ms below that.
 MAX_GRID = 1500
+#: Most samples a timed joint trajectory may have: its arrays and the work of making them grow with it
+#: (about 350 bytes a sample at the peak; docs/decisions/051-memory-budget.md).
+MAX_TIMED_SAMPLES = 1_500_000
 GRID_STEP_S = 0.01
 #: Largest deviation (rad) of the joint path from straight chords between grid points.
 GRID_TOLERANCE_RAD = 2e-5
@@ -131,7 +109,7 @@ _CONSTRAINTS: dict[tuple[bytes, bytes, float], list[Any]] = {}
 
 def _constraints(vlim: np.ndarray, alim: np.ndarray, pace: float) -> list[Any]:
     """toppra's joint velocity and acceleration constraints and the pace constraint, built once per set of limits
-    (they hold no path; building them formats their limits into strings, ~0.2 ms each)."""
+    (they hold no path; building them formats their limits into strings)."""
     key = (vlim.tobytes(), alim.tobytes(), float(pace))
     cons = _CONSTRAINTS.get(key)
     if cons is None:
@@ -165,6 +143,18 @@ class _Segment:
         return 2.0 * ds / max(self.v0 + self.v1, 1e-9)
 
 
+def _timed_samples(total: float, rate_hz: float) -> int:
+    """Samples of a timed trajectory lasting ``total`` s at ``rate_hz``, refused beyond :data:`MAX_TIMED_SAMPLES`."""
+    M = max(1, math.ceil(total * rate_hz - 1e-9)) + 1
+    if M > MAX_TIMED_SAMPLES:
+        raise InvalidInput(
+            f"Within its speed limits the robot would need {total / 60:,.0f} minutes to follow this skill, longer "
+            f"than the {MAX_TIMED_SAMPLES / rate_hz / 60:,.0f} minutes a skill can be planned for: the learned path "
+            "is very long or jittery. Teach it with smoother movements, or in shorter parts."
+        )
+    return M
+
+
 def _grid(spl: CubicSpline, a: float, b: float, refine: float) -> np.ndarray:
     """toppra grid points on [a, b]: every :data:`GRID_STEP_S`, denser where the joint path bends.
 
@@ -173,7 +163,9 @@ def _grid(spl: CubicSpline, a: float, b: float, refine: float) -> np.ndarray:
     motion, and the limits must hold between grid points too); computed here vectorised, not by bisection.
     """
     fine = np.linspace(a, b, max(3, math.ceil((b - a) * 2000) + 1))
-    curv = np.max(np.abs(spl(fine, 2)), axis=1)
+    curv = np.concatenate(  # a chunk at a time: a long path has millions of fine points
+        [np.max(np.abs(spl(fine[i : i + 100_000], 2)), axis=1) for i in range(0, fine.shape[0], 100_000)]
+    )
     density = np.maximum(1.0 / GRID_STEP_S, np.sqrt(curv / (2.0 * GRID_TOLERANCE_RAD))) / refine
     cum = np.concatenate([[0.0], np.cumsum(0.5 * (density[1:] + density[:-1]) * np.diff(fine))])
     n = int(min(MAX_GRID / refine, max(2.0, math.ceil(cum[-1])))) + 1
@@ -444,7 +436,7 @@ def _retime_once(
         items.append(item)
         now += T
     total = now
-    M = max(1, math.ceil(total * rate_hz - 1e-9)) + 1
+    M = _timed_samples(total, rate_hz)
     t = np.arange(M) / rate_hz
     S = np.empty(M)
     Q = np.empty((M, vlim.shape[0]))

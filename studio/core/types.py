@@ -14,6 +14,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from studio.core.errors import InvalidInput
+from studio.core.frames import ObjectFrames
 
 ARMS: tuple[str, str] = ("left", "right")
 JOINT_SUFFIXES: tuple[str, ...] = ("s0", "s1", "e0", "e1", "w0", "w1", "w2")
@@ -25,6 +26,10 @@ ALL_ARM_JOINTS: tuple[str, ...] = ARM_JOINTS["left"] + ARM_JOINTS["right"]
 #: importing the pipeline.
 GENERALIZATIONS: tuple[str, str] = ("aligned-mean", "paper")
 DEFAULT_GENERALIZATION = "aligned-mean"
+#: Where a skill keeps its path (see :mod:`studio.core.segments`): "objects" (each stretch in the frame of the
+#: object it acts on; the default) or "robot" (the paper's: one path in the robot's frame).
+FRAMES: tuple[str, str] = ("objects", "robot")
+DEFAULT_FRAMES = "objects"
 
 
 def readonly(a: np.ndarray | list | tuple, dtype: type = np.float64) -> np.ndarray:
@@ -113,7 +118,7 @@ class Demo:
     @functools.cached_property
     def extent(self) -> float:
         """The largest side of the positions' bounding box, m (0 when empty); computed once (the arrays are
-        read-only), since every slider step of the studio asks for it (3 ms a demo of 30,000 samples)."""
+        read-only), since every slider step of the studio asks for it."""
         return float(np.max(np.ptp(self.position, axis=0))) if len(self) else 0.0
 
     @property
@@ -317,6 +322,19 @@ def _unpack_list(d: dict[str, np.ndarray], name: str, dtype: type) -> list[np.nd
     return [readonly(data[off[i] : off[i + 1]], dtype=dtype) for i in range(len(off) - 1)]
 
 
+@dataclass(frozen=True)
+class SkillRoute:
+    """One way the demonstrations went, as a skill remembers it.
+
+    Attributes:
+        demos: the names of the demonstrations that went this way.
+        at: (3,) m, their mean where the ways are farthest apart.
+    """
+
+    demos: tuple[str, ...]
+    at: tuple[float, float, float]
+
+
 @dataclass(frozen=True, eq=False)
 class Skill:
     """A learned skill: the generalized trajectory plus everything the panels draw.
@@ -343,6 +361,13 @@ class Skill:
         generalization: how the trajectory was made: "paper" (the spline through the timed states) or
             "aligned-mean" (the demos averaged along their DTW alignment to the reference); skills saved before the
             mode existed were paper mode.
+        frames: for a skill that follows the objects (:mod:`studio.core.segments`), its segments in their
+            objects' frames and the places the demonstrations covered; then ``trajectory``, ``joint_trajectory``,
+            ``centroids`` and ``path_points`` are placed where the objects were when it was placed last. None: the
+            path is in the robot's frame (the paper's way).
+        routes: the ways the demonstrations went when they went more than one way (else empty); the skill is
+            learned from the demonstrations of ``routes[route]`` only (``demo_names``).
+        route: which of ``routes`` was learned; route_where: (3,) m, all demos' mean where the ways part most.
     """
 
     trajectory: Demo
@@ -367,6 +392,10 @@ class Skill:
     spline_through: str = "state-means"
     demo_names: tuple[str, ...] = ()
     generalization: str = "paper"
+    frames: ObjectFrames | None = None
+    routes: tuple[SkillRoute, ...] = ()
+    route: int = 0
+    route_where: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         for name in (
@@ -417,7 +446,14 @@ class Skill:
             "spline_through": np.array(self.spline_through),
             "demo_names": np.array(list(self.demo_names), dtype=str),
             "generalization": np.array(self.generalization),
+            "route": np.array(self.route, dtype=np.int64),
+            "route_names": np.array([n for r in self.routes for n in r.demos], dtype=str),
+            "route_sizes": np.array([len(r.demos) for r in self.routes], dtype=np.int64),
+            "route_at": np.array([r.at for r in self.routes], dtype=np.float64).reshape(-1, 3),
+            "route_where": np.array(self.route_where, dtype=np.float64),
         }
+        if self.frames is not None:
+            d.update(self.frames.to_arrays())
         _pack_list(d, "keypoints", self.keypoints, np.int64)
         _pack_list(d, "labels", self.labels, np.int64)
         _pack_list(d, "paths", self.paths, np.int64)
@@ -486,9 +522,32 @@ class Skill:
                 spline_through=str(d["spline_through"]),
                 demo_names=tuple(str(x) for x in np.asarray(d["demo_names"]).reshape(-1)),
                 generalization=str(d["generalization"]) if "generalization" in d else "paper",
+                frames=ObjectFrames.from_arrays(d),
+                **_routes_from_arrays(d),
             )
         except KeyError as exc:
             raise InvalidInput(f"The saved skill is incomplete: {exc.args[0]} is missing.") from exc
+
+
+def _routes_from_arrays(d: dict[str, np.ndarray]) -> dict:
+    """The routes of a saved skill (none in files from before routes were found)."""
+    if "route_sizes" not in d:
+        return {}
+    names = [str(x) for x in np.asarray(d["route_names"]).reshape(-1)]
+    sizes = np.asarray(d["route_sizes"], dtype=np.int64).reshape(-1)
+    at = np.asarray(d["route_at"], dtype=np.float64).reshape(-1, 3)
+    where = np.asarray(d["route_where"], dtype=np.float64).reshape(-1)
+    if int(sizes.sum()) != len(names) or at.shape[0] != sizes.shape[0] or where.shape != (3,) or np.any(sizes < 1):
+        raise InvalidInput("The saved skill's routes are damaged.")
+    off = np.concatenate([[0], np.cumsum(sizes)])
+    routes = tuple(
+        SkillRoute(tuple(names[off[i] : off[i + 1]]), (float(a[0]), float(a[1]), float(a[2])))
+        for i, a in enumerate(at)
+    )
+    route = int(d["route"])
+    if routes and not 0 <= route < len(routes):
+        raise InvalidInput("The saved skill's routes are damaged.")
+    return {"routes": routes, "route": route, "route_where": (float(where[0]), float(where[1]), float(where[2]))}
 
 
 __all__ = [
@@ -500,6 +559,7 @@ __all__ = [
     "KeypointParams",
     "Recording",
     "Skill",
+    "SkillRoute",
     "check_arm",
     "readonly",
 ]

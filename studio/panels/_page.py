@@ -1,18 +1,8 @@
 """Page behaviour the GUI library does not offer, installed once per server as a small script every tab runs.
 
-* **Arrow keys stay in the control that has the focus.** viser's camera orbits on arrow keys pressed anywhere
-  but in a text box; on a focused slider, ArrowRight then both moved the slider and started a camera orbit,
-  and on software WebGL each orbit frame costs 200–700 ms of the page's main thread (measured in headless
-  Chromium, bench/bench_live.py): the slider's answer from the studio waited behind it (median 1.2 s from the
-  key press to the new key-point counts on the page, against 0.1 s with this script). A key event whose
-  target is a slider, an input or a button stops at ``document.body``, before the camera's listener on
-  ``document`` sees it (React handles it first, at its root inside the body).
-* **Every control's hint is on its label too**: the hint (viser shows it when the pointer rests on the
-  control) becomes the ``title`` of the control's label, refreshed when the panel changes.
-
-The script is sent as viser's ``RunJavascriptMessage`` (what viser itself uses to load Plotly), which viser
-replays to every tab that connects later.
-"""
+Arrow keys stay in the control that has the focus (viser's camera would also orbit on them; why:
+docs/decisions/018), and every control's hint is also the ``title`` of its label. The script is sent as
+viser's ``RunJavascriptMessage``, which viser replays to every tab that connects later."""
 
 from __future__ import annotations
 

@@ -142,9 +142,8 @@ class KeypointsPanel:
     # -- drawing -----------------------------------------------------------------------------------------
     def _on_view(self) -> None:
         """A new key-point view: the counts and values at once; the markers with the live path computed next
-        (one scene update per step: without a GPU each frame costs the page 0.13–0.3 s, during which nothing else
-        arrives, so a second update would wait for the first one's frame — bench/bench_live.py), or at once when
-        no live path follows."""
+        (one scene update per step: without a GPU a second update would wait for the first one's frame,
+        docs/decisions/018), or at once when no live path follows."""
         view = self.ctl.keypoints.view
         if view is None:
             return

@@ -33,6 +33,7 @@ class PreviewPanel:
         self.speed = gui.add_dropdown("Speed", options=list(SPEEDS), initial_value="1×")
         self.time = gui.add_slider("Time (s)", min=0.0, max=1.0, step=0.01, initial_value=0.0)
         self.show_path = gui.add_checkbox("Show the learned path", initial_value=ctl.view.shown(Layer.LEARNED_PATH))
+        self.reach = gui.add_html(self._reach_html())  # objects where no demonstration put them
         self.task = gui.add_html(self._task_html())  # the task result in words (see _task_html)
         self.run_btn = gui.add_button(
             "Run on robot",
@@ -171,7 +172,21 @@ class PreviewPanel:
 
     # -- the task result (what the learned skill does with the objects), self-contained --------------------
     def _on_task(self) -> None:
-        self.task.content = self._task_html()
+        with self.server.atomic():
+            self.reach.content = self._reach_html()
+            self.task.content = self._task_html()
+
+    def _reach_html(self) -> str:
+        said, note = self.ctl.placed.warnings(), self.ctl.placed.note()
+        if not said and not note:
+            return ""
+        head = "The objects are somewhere new." if said else "Good to know."
+        items = "".join(f"<li>{html.escape(s)}</li>" for s in (said or [note]))
+        return (
+            f'<div class="reach-warning" data-outside="{str(bool(said)).lower()}" style="font-size:0.9em;'
+            f'border-left:4px solid #b45309;padding:2px 8px;margin:4px 0"><b style="color:#b45309">{head}</b>'
+            f'<ul style="margin:2px 0 2px 16px;padding:0">{items}</ul></div>'
+        )
 
     def _task_html(self) -> str:
         result = self.ctl.scene.task_result()

@@ -127,12 +127,10 @@ class RobotPanel:
 class _FastPose:
     """Places every frame of the URDF: fixed joints once, movable joints only when their value changed.
 
-    ViserUrdf sets frame poses only in ``update_cfg`` (viser 1.1.1), which recomputes all 56 frames through
-    yourdfpy's scene graph (~12 ms a pose, most of a core at 60 Hz). Here the fixed joints' frames (arm
-    mounts at ±0.22 m / ±45°, hands, gripper bases, head screen, ...) are placed once from their URDF
-    origin when the panel is built, and each moving joint is one quaternion product in plain floats
-    (~20 µs a pose). ``tests/test_robot_drawing.py`` composes what the server sends to the browser and
-    compares every link with pinocchio's FK.
+    The fixed joints' frames (arm mounts, hands, gripper bases, head screen, ...) are placed once from their URDF
+    origin when the panel is built, and each moving joint is one quaternion product in plain floats, instead of
+    ``ViserUrdf.update_cfg`` recomputing every frame (why: docs/decisions/020). ``tests/test_robot_drawing.py``
+    composes what the server sends to the browser and compares every link with pinocchio's FK.
     """
 
     MOVABLE = ("revolute", "continuous", "prismatic")

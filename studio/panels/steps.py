@@ -1,15 +1,9 @@
 """Step panel: which step the teacher is at (Teach, Key-points, Train, Preview, Sessions), the "Show" toggles of
 the scene's layers, and "Reset view".
 
-viser's tab group tells the server nothing when a browser switches tabs (``GuiTabGroupHandle`` has no change
-event in viser 1.1.1), so the step is a dropdown the server hears (a button group was tried: its "Train" and
-"Preview" buttons read like the panels' own buttons): choosing a step sets the controller's step
-(:meth:`studio.controller.View.set_step`), every tab shows that step's section, and each panel draws the
-layers the step shows (:attr:`studio.controller.Topic.VIEW`). Like the rest of the GUI the step is shared by
-every browser tab.
-
-Arrow keys on a slider stay on the slider: :mod:`studio.panels._page`.
-"""
+The step is a dropdown the server hears (docs/decisions/019): choosing one sets the controller's step
+(:meth:`studio.controller.View.set_step`), every tab shows that step's section, and each panel draws the layers
+the step shows (:attr:`studio.controller.Topic.VIEW`). Arrow keys on a slider stay on it: :mod:`studio.panels._page`."""
 
 from __future__ import annotations
 

@@ -96,6 +96,10 @@ class TeachPanel:
                 "Discard", icon=viser.Icon.TRASH, disabled=True, hint="Stop and throw this demonstration away."
             )
             self.rec_status = gui.add_markdown("Not recording.")
+            # where to put the objects for the next take (a skill that follows them learns more places)
+            self.next_place = gui.add_markdown(ctl.placed.suggestion())
+            for topic in (Topic.SKILL, Topic.SESSION):
+                ctl.events.on(topic, lambda: setattr(self.next_place, "content", ctl.placed.suggestion()))
 
         with gui.add_folder("Grippers", order=1):
             self.grip_width: dict[str, viser.GuiSliderHandle[float]] = {}

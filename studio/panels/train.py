@@ -8,11 +8,11 @@ import html
 import numpy as np
 import viser
 
-from studio.controller import MODE_WORDS, Controller, SkillVerdict, Step, Topic, UsedDemo
+from studio.controller import FRAME_WORDS, MODE_WORDS, Controller, SkillVerdict, Step, Topic, UsedDemo
 from studio.core.quality import Remedy
-from studio.core.types import DEFAULT_GENERALIZATION, Skill
+from studio.core.types import DEFAULT_FRAMES, DEFAULT_GENERALIZATION, Skill
 from studio.panels._charts import heatmap_svg, position_plot_svg
-from studio.words import SHARED_REMEDIES, Remedies, fit_note, verdict_lines
+from studio.words import SHARED_REMEDIES, Remedies, fit_note, route_label, verdict_lines
 
 _LEVEL_COLOR = {"good": "#15803d", "fair": "#b45309", "poor": "#b91c1c"}
 #: The knob that would help, said with the studio's own controls.
@@ -21,6 +21,7 @@ REMEDIES: Remedies = {
     Remedy.MORE_KEYPOINTS: "press Suggest, or move Detail towards more key-points",
     Remedy.SHARPER_CORNERS: "press Suggest, or lower Corner sharpness",
     Remedy.REDO_DEMO: "re-record or hide it",
+    Remedy.CHOOSE_ROUTE: "choose another way under Way",
 }
 #: The one line that explains the per-demo list.
 FIT_EXPLANATION = (
@@ -45,6 +46,14 @@ class TrainPanel:
         self.progress = gui.add_progress_bar(0.0, animated=True, visible=False)
         self.status = gui.add_markdown(self._status_text())
         self.verdict = gui.add_html("")
+        self.way = gui.add_dropdown(
+            "Way",
+            options=("—",),
+            visible=False,
+            hint="Your demonstrations go more than one way: the skill learns one of them, never a path between "
+            "them. Choose which; it is learned again at once.",
+        )
+        self._ways: dict[str, tuple[str, int]] = {}
         with gui.add_folder("How the skill is made", expand_by_default=False):
             self.mode = gui.add_dropdown(
                 "Path",
@@ -54,6 +63,14 @@ class TrainPanel:
                 "default) keeps their shape between key-points; 'Paper's spline' is the paper's method, for the "
                 "curious. Press Train again after changing it.",
             )
+            self.frames = gui.add_dropdown(
+                "Places",
+                options=tuple(FRAME_WORDS.values()),
+                initial_value=FRAME_WORDS[ctl.training.frames],
+                hint="'Follow the objects' (the default) learns each part of the task relative to the object it acts "
+                "on, so the skill still works when you move the objects; 'Fixed places' is the paper's method: the "
+                "robot goes where your demonstrations went. Press Train again after changing it.",
+            )
         with gui.add_folder("What the robot learned"):
             self.summary = gui.add_html("")
             self.heatmap = gui.add_html("")
@@ -61,6 +78,8 @@ class TrainPanel:
             self.plots = gui.add_html("")
         self.train_btn.on_click(ctl.guarded("Could not start training")(self._on_train))
         self.mode.on_update(ctl.guarded("Could not change how the skill is made")(self._on_mode))
+        self.frames.on_update(ctl.guarded("Could not change how the skill is made")(self._on_frames))
+        self.way.on_update(ctl.guarded("Could not learn the other way")(self._on_way))
         ctl.events.on(Topic.SKILL, self.refresh)
         ctl.events.on(Topic.SESSION, self.refresh)
         ctl.events.on(Topic.DEMOS, self.refresh)  # renamed / deleted / trimmed demos: labels, plots and status
@@ -92,6 +111,37 @@ class TrainPanel:
         mode = next((m for m, words in MODE_WORDS.items() if words == self.mode.value), DEFAULT_GENERALIZATION)
         self.ctl.training.set_generalization(mode)
 
+    def _on_frames(self, event: viser.GuiEvent) -> None:
+        if event.client is None:
+            return
+        frames = next((f for f, words in FRAME_WORDS.items() if words == self.frames.value), DEFAULT_FRAMES)
+        self.ctl.training.set_frames(frames)
+    def _on_way(self, event: viser.GuiEvent) -> None:
+        choice = self._ways.get(self.way.value)
+        if event.client is None or choice is None or self.ctl.training.busy:
+            return
+        arm, route = choice
+        sk = self.ctl.training.skills().get(arm)
+        if sk is not None and sk.route != route:
+            self.ctl.training.set_route(arm, route)
+
+    def _refresh_way(self, skills: dict[str, Skill]) -> None:
+        """The Way chooser: one entry per way of each arm whose demonstrations go several ways."""
+        ways: dict[str, tuple[str, int]] = {}
+        current = ""
+        several = sum(1 for sk in skills.values() if sk.routes) > 1
+        for arm, sk in skills.items():
+            for i in range(len(sk.routes)):
+                label = (f"{arm.capitalize()} arm, " if several else "") + route_label(sk.routes, i)
+                ways[label] = (arm, i)
+                if i == sk.route and not current:
+                    current = label
+        self._ways = ways
+        if ways:
+            self.way.options = tuple(ways)
+            self.way.value = current
+        self.way.visible = bool(ways)
+
     def _on_training(self) -> None:
         busy = self.ctl.training.busy
         with self.server.atomic():
@@ -100,6 +150,7 @@ class TrainPanel:
             self.progress.value = 100.0 if busy else 0.0
             self.status.content = self._status_text()
             self.mode.value = MODE_WORDS[self.ctl.training.generalization]
+            self.frames.value = FRAME_WORDS[self.ctl.training.frames]
 
     def refresh(self) -> None:
         """Redraw the verdict and the results of the current skill(s)."""
@@ -117,6 +168,7 @@ class TrainPanel:
             self.plots.content = "".join(plots)
             self.status.content = self._status_text()
             self.mode.value = MODE_WORDS[self.ctl.training.generalization]
+            self._refresh_way(self.ctl.training.skills())
 
     # -- the verdict ---------------------------------------------------------------------------------------
     def _verdict_html(self, verdicts: dict[str, SkillVerdict]) -> str:

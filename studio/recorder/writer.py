@@ -1,20 +1,10 @@
 """Records the robot's joint-state stream into a demonstration, crash-safe.
 
-What is recorded (paper § Data Collection): every streamed sample's time stamp, all 14 joint angles, both
-gripper openings, and the forward-kinematics pose (position + w,x,y,z quaternion) of each taught arm.
-
-Crash safety: samples go to an append-only file (:mod:`studio.recorder.files`) as they arrive (a writer
-thread drains the stream every ``flush_interval`` ≤ 1 s, computes FK, appends, flushes to the operating
-system, and fsyncs about once a second), so whatever prefix survives a crash is readable. Memory stays
-bounded while recording (only the not-yet-written samples are held).
-
-Typical use (the controller)::
-
-    rec = Recorder(backend, session.recording_dir, arms=("left",), name="demo 4")
-    rec.start()             # ... the teacher moves the arm ...
-    recording = rec.stop()  # a Recording; the file stays on disk until saved
-    session.add_recording(recording); rec.discard()   # or rec.save_to(session)
-"""
+Every streamed sample's time, 14 joint angles, both gripper openings and the FK pose of each taught arm
+(paper § Data Collection) go to an append-only file as they arrive (:mod:`studio.recorder.files`; a writer
+thread drains, appends and flushes, and fsyncs about once a second), so whatever survives a crash is
+readable and memory stays bounded (docs/decisions/025). Use: ``rec = Recorder(backend, folder, arms=...);
+rec.start(); recording = rec.stop(); session.add_recording(recording); rec.discard()``."""
 
 from __future__ import annotations
 
@@ -43,11 +33,12 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
-#: Longest recording accepted (simulated seconds); past it the recorder stops by itself and says so.
-MAX_SECONDS = 4 * 3600.0
+#: Longest recording accepted (simulated seconds); past it the recorder stops by itself and says so (a session
+#: keeps demonstrations up to 1 hour at 1 kHz: studio.storage.format.MAX_SAMPLES).
+MAX_SECONDS = 3600.0
 #: Samples the writer turns into rows at once (FK temporaries stay a few MB).
 DRAIN_CHUNK = 32_768
-#: Samples allowed to wait for the writer before the producer is made to wait (~100 s at 1 kHz).
+#: Samples allowed to wait for the writer before the producer is made to wait (100 s of the stream at 1 kHz).
 MAX_PENDING = 100_000
 
 

@@ -1,22 +1,9 @@
 """The robot backend interface: what the studio needs from a robot, simulated, replayed or real.
 
-A real-robot backend is one module implementing :class:`RobotBackend` (``rosbridge.RosbridgeBaxter`` speaks
-to a real Baxter). Joint order everywhere is :data:`studio.core.types.ALL_ARM_JOINTS` (left s0..w2, then right
-s0..w2); grippers are percent open, 0 = closed .. 100 = open, columns left, right.
-
-Executing a skill (what "Run on robot" does)::
-
-    plan = plan_execution({"left": skill.joint_trajectory}, backend.state().q, backend.state().gripper)
-    backend.execute(plan)              # returns at once; the robot streams joint states as it moves
-    backend.progress()                 # ExecutionProgress: state, plan time reached, fraction, message
-    backend.stop_motion()              # controlled stop: slows down along the path to rest
-    backend.emergency_stop()           # halts within one control cycle; refuses motion until cleared
-    backend.clear_emergency_stop()
-
-A plan is followed by the robot's own controller within its limits; its joint states stream to every
-subscriber as during a demonstration, so a :class:`~studio.recorder.Recorder` records the execution and
-:func:`studio.core.execution.compare_execution` compares it with the plan.
-"""
+A backend implements :class:`RobotBackend`: it streams joint states (:class:`JointStateBatch`) to its
+subscribers, follows joint and gripper commands, and executes a plan (``execute``, ``progress``,
+``stop_motion``, ``emergency_stop``, ``clear_emergency_stop``). Joint order everywhere is
+:data:`studio.core.types.ALL_ARM_JOINTS` (left s0..w2, then right); grippers are percent open, 0 = closed."""
 
 from __future__ import annotations
 

@@ -1,14 +1,7 @@
-"""How the simulated Baxter moves and what its sensors report (used by :mod:`studio.robot_backend.simulated`).
-
-* :class:`SimArms`: both arms and grippers — true state, targets, velocity, limits, the sample counter —
-  and the samples they produce towards their targets, along a plan's targets, or along given targets.
-* :func:`rate_limited`, :func:`rate_limited_series`: towards a target (or per-sample targets) at most one
-  velocity step per sample — how commanded joints and the grippers move.
-* :func:`follow`: per-sample targets followed within the velocity *and* acceleration limits — how a plan
-  is executed; a plan within the limits is reproduced exactly.
-* :class:`Sensors`: Gaussian noise and encoder quantisation on what is streamed (the true state stays exact).
-* :func:`checked`: numbers given to the simulator, checked (shape, finite) with a plain message.
-"""
+"""How the simulated Baxter moves and what its sensors report (used by :mod:`studio.robot_backend.simulated`):
+:class:`SimArms` (true state, targets, limits), :func:`rate_limited` and :func:`follow` (towards targets
+within the velocity, and acceleration, limits), :class:`Sensors` (noise and encoder quantisation on what is
+streamed) and :func:`checked` (numbers given to the simulator, checked with a plain message)."""
 
 from __future__ import annotations
 

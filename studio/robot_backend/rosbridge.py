@@ -1,17 +1,10 @@
 """A real Baxter through rosbridge (roslibpy): the ROS 1 topics the robot really speaks, over a websocket.
 
-Topics and messages are :mod:`~studio.robot_backend.rosbridge_link`; reading them,
-:mod:`~studio.robot_backend.rosbridge_state`; a plan's clock, :mod:`~studio.robot_backend.rosbridge_run`.
-
-* **State**: joint states by name (gripper-only messages make no sample), ``/robot/state`` (enabled,
-  stopped, error, e-stop), each gripper's state and type. No fresh joint state for :data:`STALE_S` or a
-  closed socket is a lost connection: nothing is sent, a run fails, and nothing resumes on reconnecting.
-* **Enable** as ``robot_enable.py``: reset when stopped, publish enable until the state says enabled.
-* **Runs**: the speed ratio is set to 1 (the plan keeps the limits itself), targets are sent at
-  ``command_rate_hz`` on the wall clock; the robot's e-stop, disable or error ends the run in words.
-* **Emergency stop**: a hold at the measured joints, then ``/robot/set_super_stop``; "halted" once the robot
-  says it stopped. Releasing it resets and enables the robot.
-"""
+Joint states by name stream to the subscribers; ``/robot/state`` and the grippers' state decide what
+the robot can do (docs/decisions/040); a closed socket or a stale stream is a lost connection (041); targets
+are republished at ``command_rate_hz`` while live (022), a run's on the wall clock at speed ratio 1; the
+emergency stop is a hold plus the robot's own stop. Topics: :mod:`.rosbridge_link`; what it reports:
+:mod:`.rosbridge_state`; a plan's clock, enabling: :mod:`.rosbridge_run`."""
 
 from __future__ import annotations
 
@@ -72,7 +65,7 @@ def _cols(arm: str) -> slice:
 
 
 class RosbridgeBaxter(RobotBackend):
-    """A real Baxter over rosbridge (see the module docstring).
+    """A real Baxter over rosbridge (topics: :mod:`.rosbridge_link`; decisions 022, 040, 041).
 
     Args:
         url: the rosbridge websocket, e.g. ``ws://baxter.local:9090``.

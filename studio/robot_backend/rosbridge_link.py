@@ -1,28 +1,9 @@
-"""Baxter's ROS 1 topics and messages as rosbridge carries them, and the connection (roslibpy).
+"""Baxter's ROS 1 topics and messages as rosbridge carries them, and the connection (roslibpy, asyncio).
 
-Used by :mod:`studio.robot_backend.rosbridge` (the backend). Topics, as in the Baxter SDK:
-
-================================================  ==================================  ===============
-topic                                             type                                direction
-================================================  ==================================  ===============
-``/robot/joint_states``                           ``sensor_msgs/JointState``          robot → studio
-``/robot/end_effector/<arm>_gripper/state``       ``baxter_core_msgs/EndEffectorState``  robot → studio
-``/robot/end_effector/<arm>_gripper/properties``  ``baxter_core_msgs/EndEffectorProperties``  robot → studio
-``/robot/state``                                  ``baxter_core_msgs/AssemblyState``  robot → studio
-``/robot/limb/<arm>/joint_command``               ``baxter_core_msgs/JointCommand``   studio → robot
-``/robot/limb/<arm>/set_speed_ratio``             ``std_msgs/Float64``                studio → robot
-``/robot/end_effector/<arm>_gripper/command``     ``baxter_core_msgs/EndEffectorCommand``  studio → robot
-``/robot/set_super_enable``                       ``std_msgs/Bool``                   studio → robot
-``/robot/set_super_reset``, ``/robot/set_super_stop``  ``std_msgs/Empty``             studio → robot
-``/robot/joint_state_publish_rate``               ``std_msgs/UInt16``                 studio → robot
-================================================  ==================================  ===============
-
-Joint commands are position commands (``mode`` 1, ``POSITION_MODE``) for the seven joints of one arm, by
-name; gripper commands are ``command="go"``, ``args='{"position": <0..100>}'``, addressed to the gripper's
-hardware id. roslibpy's asyncio transport runs one background event loop (no Twisted reactor). roslibpy queues
-what is published while the connection is down and sends it on reconnecting: :meth:`RosLink.publish` drops it
-instead, so nothing stale ever reaches the robot.
-"""
+Topics as in the Baxter SDK (:data:`JOINT_STATES` and the others below): joint, robot and gripper states come
+from the robot; joint commands (position mode, one arm by name), speed ratios, gripper commands (by hardware
+id), enable, reset, stop and the joint-state rate go to it. :meth:`RosLink.publish` drops a message while the
+socket is down (roslibpy would queue it and send it on reconnecting). Used by :mod:`.rosbridge`."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""What a real Baxter reports, read from its messages: joint states (matched by name, stamps checked), the
-robot's state (``baxter_core_msgs/AssemblyState``) and each gripper's state and properties.
+"""What a real Baxter reports: joint states (by name, stamps checked), its ``AssemblyState`` and each
+gripper's state and properties.
 
 Used by :mod:`studio.robot_backend.rosbridge`. Joint states that name no arm joint (Baxter's gripper-only
 and head messages) make no sample; a message with a non-finite stamp or value is dropped; a stamp that jumps

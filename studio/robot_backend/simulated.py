@@ -1,31 +1,9 @@
-"""A simulated Baxter: both arms (14 joints) and both grippers on simulated time at 1 kHz.
+"""A simulated Baxter: both arms (14 joints) and both grippers on simulated time at 1 kHz, as the paper records.
 
-The paper raises Baxter's joint-state rate from 100 Hz to 1 kHz (§ Data Collection, Demonstrations); the
-simulator streams at the same rate. It follows commanded joint targets within the URDF's position and
-velocity limits (that is how a dragged gizmo or a slider moves the arm in kinesthetic mode) and moves the
-grippers 0 (closed) … 100 (open) at a finite speed, stopping at any width.
-
-Two ways to drive it:
-
-* **real time** — :meth:`start` runs a :class:`~studio.robot_backend._clock.BatchClock` that wakes every
-  ~15 ms of wall time and computes all due 1 ms samples at once, vectorised. Time stamps are ``k / rate``
-  for the sample counter ``k``: exact, gap-free, whatever the wakeup jitter. ``time_scale`` > 1 runs
-  faster than real time (tests).
-* **manual steps** — without :meth:`start`, :meth:`step` and :meth:`run_targets` advance simulated time
-  synchronously; generation of example sessions uses this to run far faster than real time, deterministic
-  by seed.
-
-**Executing a plan** (:meth:`execute`, "Run on robot"): the arms follow the plan's joint targets sample by
-sample with the simulator's own limits — the URDF velocity limits *and* the joint acceleration limits
-(:data:`~studio.core.kinematics.ACCELERATION_LIMITS`) — and the grippers follow theirs at the gripper
-speed; the joint states stream exactly as during a demonstration, so a recorder records the execution. A
-plan that respects the limits is reproduced exactly. :meth:`stop_motion` slows the plan's progress down to
-rest along its path; :meth:`emergency_stop` holds the arms from the first sample after the call (one
-control cycle) and ignores motion commands until :meth:`clear_emergency_stop`.
-
-How the arms move and what the sensors report is :mod:`~studio.robot_backend.motion`; the progress along a
-plan is :mod:`~studio.robot_backend.plan_follower`.
-"""
+In real time (:meth:`~SimulatedBaxter.start`) a batch clock wakes every few milliseconds and computes all
+due samples at once, time stamps exact (docs/decisions/021); without it, :meth:`~SimulatedBaxter.step` and
+:meth:`~SimulatedBaxter.run_targets` advance time synchronously (example sessions, tests). Commands and plans
+are followed within the velocity and acceleration limits (:mod:`.motion`, :mod:`.plan_follower`)."""
 
 from __future__ import annotations
 
@@ -64,7 +42,7 @@ from studio.robot_backend.sim_safety import SimFaults, SimSafety
 if TYPE_CHECKING:  # pragma: no cover
     from studio.core.execution import ExecutionPlan
 
-#: Gripper travel speed, percent of the full stroke per second (Baxter's electric gripper: ~0.5 s stroke).
+#: Gripper travel speed, percent of the full stroke per second (Baxter's electric gripper: half a second a stroke).
 GRIPPER_SPEED = 200.0
 #: Largest batch handed to listeners at once (a long stall is delivered as several batches).
 MAX_BATCH = 1000
@@ -182,7 +160,7 @@ class SimulatedBaxter(SimFaults, RobotBackend):
 
     # -- executing a plan ------------------------------------------------------------------------------------
     def execute(self, plan: ExecutionPlan) -> None:
-        """Follow ``plan`` from the next sample on (see the module docstring); returns at once."""
+        """Follow ``plan`` from the next sample on, within the velocity and acceleration limits; returns at once."""
         q_plan, g_plan = plan_targets(plan, self.rate_hz)
         with self._lock:
             if self._safety.ours:
@@ -197,7 +175,7 @@ class SimulatedBaxter(SimFaults, RobotBackend):
             self._arms.last_target = self._arms.q.copy()
 
     def stop_motion(self) -> None:
-        """Slow the plan down to rest along its path (about 0.1–1.5 s); without a plan, hold still."""
+        """Slow the plan down to rest along its path (0.1–1.5 s); without a plan, hold still."""
         with self._lock:
             a = self._arms
             if self._plan is None:

@@ -1,5 +1,6 @@
-"""Who may use the studio's server: :class:`Access` decides on every request (host, origin, key) and hooks that
-decision, and the upload caps, into viser's server (why there: docs/decisions/016)."""
+"""Who may use the studio's server: :class:`Access` decides on every request (host, origin, the page's address,
+key and path) and hooks that decision, the page's policy and the upload caps into viser's server
+(why there: docs/decisions/016; the page's address, key and path: 050)."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import hmac
 import http
 import inspect
 import logging
+import secrets
 import threading
 import time
 from collections.abc import Callable
@@ -15,17 +17,18 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from studio.core.errors import StudioError
 from studio.security.addresses import (
-    FOREIGN_SOURCE_PARAMS,
     KEY_PARAM,
     KEY_RE,
-    LOOPBACK_HOSTS,
+    WEBSOCKET_PARAM,
     WILDCARD_HOSTS,
-    cookie,
+    cookies,
+    host_name,
     is_loopback,
     new_key,
-    query_key,
+    read_target,
     split_host,
 )
+from studio.security.page import PageScripts, policy, read_page_scripts
 from studio.security.uploads import MAX_MESSAGE_BYTES, UploadLimit
 
 if TYPE_CHECKING:
@@ -51,6 +54,16 @@ REFUSED_TEXT = (
     "Only the studio's own page may control it. Open the address the studio printed when it started\n"
     "(http://127.0.0.1:{port}/?key=...) directly in your browser.\n"
 )
+ODD_ADDRESS_TEXT = (
+    "Teaching Studio: this address is refused.\n\n"
+    "It asks the studio's page for something the studio does not use (another server, a recording to play, or an\n"
+    "unknown setting). A link made by someone else can do that to take control of the studio, so nothing was\n"
+    "opened. Open the address the studio printed when it started (http://127.0.0.1:{port}/?key=...) exactly as\n"
+    "printed.\n"
+)
+#: Refusal reasons that mean "open the printed address" (the page then says so).
+_NEEDS_KEY = ("no key", "wrong key in the address")
+_ODD = "the address has parameters the studio's page does not use"
 
 
 @dataclass
@@ -60,10 +73,16 @@ class Verdict:
     action: Literal["pass", "refuse", "redirect"]
     reason: str = ""
     location: str = ""  # for "redirect"
+    #: for "pass": the request target viser gets (the launch's path and the checked query removed)
+    forward: str = "/"
 
 
 class Access:
     """Who may use the studio's server: its host, its key, its upload limits.
+
+    With a key, the printed address ``/?key=K`` answers with a redirect to ``/s/<path>/`` and a cookie named for
+    this launch, valid only under that path: the page and its websocket need both, and the browser never sends
+    the cookie to another server of this computer, which cannot guess the path (docs/decisions/050).
 
     Args:
         host: the address the server listens on (as given with ``--host``).
@@ -72,7 +91,11 @@ class Access:
     """
 
     def __init__(self, host: str, key: str | Literal[False] | None = None) -> None:
-        self.host = host.strip().lower()
+        raw = host.strip().lower()
+        name = raw if raw in WILDCARD_HOSTS else host_name(raw)
+        if name is None:
+            raise StudioError(f'"{host}" is not a computer name or address to listen on; use --host 127.0.0.1.')
+        self.host = name
         if key is False:
             if not is_loopback(self.host):
                 raise StudioError(
@@ -87,15 +110,16 @@ class Access:
             self.key = key
         else:
             raise StudioError("The key must be 16 to 128 characters long, made of letters, digits, '-' and '_' only.")
+        #: the page's path for this launch ("" without a key) and the cookie that holds the key under it
+        self.prefix = f"/s/{secrets.token_urlsafe(18)}" if self.key else ""
+        self.cookie_name = f"studio-{secrets.token_hex(6)}"
         #: the viser function the guard wraps (its qualified name) once the server listens; None before.
         self.hooked: str | None = None
         self.uploads: UploadLimit | None = None
+        self.scripts = PageScripts(None)
         self._last_log: dict[str, float] = {}
 
     # -- addresses ---------------------------------------------------------------------------------------
-    def cookie_name(self, port: int) -> str:
-        return f"studio-key-{port}"
-
     def url(self, port: int) -> str:
         """The address to open in the browser (with the key)."""
         host = "127.0.0.1" if self.host in WILDCARD_HOSTS else self.host
@@ -103,6 +127,10 @@ class Access:
             host = f"[{host}]"
         base = f"http://{host}:{port}"
         return f"{base}/?{KEY_PARAM}={self.key}" if self.key else base
+
+    def own_websocket(self, host_header: str) -> str:
+        """The websocket address the studio's page connects to, as its browser writes it."""
+        return f"ws://{host_header.strip()}{self.prefix}"
 
     # -- the decision ------------------------------------------------------------------------------------
     def _key_ok(self, candidate: str | None) -> bool:
@@ -117,7 +145,13 @@ class Access:
             return False
         if self.host in WILDCARD_HOSTS:
             return True
-        return name in LOOPBACK_HOSTS or name == self.host
+        return name == self.host or is_loopback(name)
+
+    def _under_prefix(self, path: str) -> str | None:
+        """The part of ``path`` after this launch's path ("/" for the page), or None when it is not under it."""
+        if path == self.prefix or path.startswith(self.prefix + "/"):
+            return path[len(self.prefix) :] or "/"
+        return None
 
     def decide(self, path: str, headers: Headers, local_port: int) -> Verdict:
         """Pass, refuse or redirect (key in the address → cookie) one request, from its target and headers."""
@@ -134,22 +168,29 @@ class Access:
             if origin not in (f"http://{host}", f"https://{host}"):
                 return Verdict("refuse", f"foreign origin {origins[0]!r}")
         upgrade = any("websocket" in v.lower() for v in headers.get_all("Upgrade"))
-        if not upgrade:
-            names = {part.partition("=")[0] for part in path.partition("?")[2].split("&")}
-            if names & FOREIGN_SOURCE_PARAMS:
-                return Verdict("refuse", "the address asks the page to use another server")
+        target = read_target(path)
+        if target is None:
+            return Verdict("refuse", "an unreadable address")
+        names = target.names()
+        allowed = {KEY_PARAM} if upgrade else {KEY_PARAM, WEBSOCKET_PARAM}
         if self.key is None:
-            return Verdict("pass")
-        in_address, without_key = query_key(path)
-        if in_address is not None:
-            if not self._key_ok(in_address):
+            allowed.discard(KEY_PARAM)
+        if names - allowed or len(target.values(KEY_PARAM)) > 1:
+            return Verdict("refuse", _ODD)
+        if any(v != self.own_websocket(hosts[0]) for v in target.values(WEBSOCKET_PARAM)):
+            return Verdict("refuse", "the address asks the page to use another server")
+        if self.key is None:
+            return Verdict("pass", forward=target.path)
+        in_address = target.values(KEY_PARAM)
+        if in_address:
+            if not self._key_ok(in_address[0]):
                 return Verdict("refuse", "wrong key in the address")
-            if upgrade:
-                return Verdict("pass")
-            location = "/" + without_key.lstrip("/")  # never "//host": a redirect stays on this server
-            return Verdict("redirect", location=location)
-        if self._key_ok(cookie(headers, self.cookie_name(local_port))):
-            return Verdict("pass")
+            if upgrade:  # a program (no browser, so no Origin and no cookie): the key in its own address
+                return Verdict("pass", forward="/")
+            return Verdict("redirect", location=self.prefix + "/")
+        rest = self._under_prefix(target.path)
+        if rest is not None and self._key_ok(cookies(headers).get(self.cookie_name)):
+            return Verdict("pass", forward=rest)
         return Verdict("refuse", "no key")
 
     def check(
@@ -157,7 +198,7 @@ class Access:
     ) -> Callable[[ServerConnection, Request], Any]:
         """A websockets ``process_request`` hook: :meth:`decide` first, then viser's own (``inner``)."""
         from websockets.datastructures import Headers
-        from websockets.http11 import Response
+        from websockets.http11 import Request, Response
 
         async def process_request(connection: ServerConnection, request: Request) -> Response | None:
             local_port = int(connection.local_address[1])
@@ -165,25 +206,33 @@ class Access:
             if verdict.action == "refuse":
                 self._log_refusal(verdict.reason, request)
                 page = not any("websocket" in v.lower() for v in request.headers.get_all("Upgrade"))
-                needs_key = page and verdict.reason in ("no key", "wrong key in the address")
-                text = (NEEDS_KEY_TEXT if needs_key else REFUSED_TEXT).format(port=local_port)
-                response = connection.respond(http.HTTPStatus.FORBIDDEN, text)
+                text = REFUSED_TEXT
+                if page and verdict.reason in _NEEDS_KEY:
+                    text = NEEDS_KEY_TEXT
+                elif page and verdict.reason in (_ODD, "the address asks the page to use another server"):
+                    text = ODD_ADDRESS_TEXT
+                response = connection.respond(http.HTTPStatus.FORBIDDEN, text.format(port=local_port))
                 _protect(response.headers)
                 return response
             if verdict.action == "redirect":
                 assert self.key is not None
                 headers = Headers()
                 headers["Location"] = verdict.location
-                headers["Set-Cookie"] = f"{self.cookie_name(local_port)}={self.key}; Path=/; HttpOnly; SameSite=Strict"
+                headers["Set-Cookie"] = f"{self.cookie_name}={self.key}; Path={self.prefix}; HttpOnly; SameSite=Strict"
                 headers["Cache-Control"] = "no-store"
                 headers["Content-Length"] = "0"
                 _protect(headers)
                 return Response(http.HTTPStatus.SEE_OTHER.value, "See Other", headers, b"")
-            result = inner(connection, request) if inner is not None else None
+            forwarded = Request(verdict.forward, request.headers)
+            result = inner(connection, forwarded) if inner is not None else None
             if inspect.isawaitable(result):
                 result = await result
             if result is not None:
-                _protect(result.headers)
+                csp = None
+                if result.headers.get("Content-Type", "").startswith("text/html"):
+                    csp = policy(self.scripts, self.own_websocket(request.headers.get("Host", "")))
+                    result.headers["Cache-Control"] = "no-store"
+                _protect(result.headers, csp)
             return result
 
         return process_request
@@ -199,13 +248,16 @@ class Access:
 
     # -- hooking into viser ------------------------------------------------------------------------------
     def start_viser(self, **kwargs: Any) -> viser.ViserServer:
-        """``viser.ViserServer(**kwargs)`` with every request checked and uploads capped (docs/decisions/016)."""
+        """``viser.ViserServer(**kwargs)`` with every request checked and uploads capped, on the port asked for."""
         import rich
         import viser
         import websockets.asyncio.server as wss
 
         access = self
         console = rich.get_console()
+        port = kwargs.get("port", 8080)
+        if not isinstance(port, int) or isinstance(port, bool) or not 0 <= port <= 65535:
+            raise StudioError(f"{port} is not a port number: ports go from 1 to 65535.")
 
         with _SERVE_LOCK:
             real_serve = wss.serve
@@ -223,10 +275,17 @@ class Access:
             finally:
                 setattr(wss, "serve", real_serve)  # noqa: B010
                 console.quiet = quiet
+        if port and server.get_port() != port:  # viser moves on to the next free port; the studio does not
+            server.stop()
+            raise StudioError(
+                f"Port {port} is already used by another program (perhaps another studio). Stop that program, or "
+                "choose another port with --port."
+            )
         try:
             if self.hooked is None:
                 raise StudioError("its web server no longer starts where the studio checks who connects")
             self.uploads = UploadLimit(server)
+            self.scripts = read_page_scripts(getattr(server._websock_server, "_http_server_root", None))
         except Exception as exc:
             server.stop()
             detail = str(exc) if isinstance(exc, StudioError) else f"{type(exc).__name__}: {exc}"
@@ -237,9 +296,13 @@ class Access:
         return server
 
 
-def _protect(headers: Headers) -> None:
-    """Headers for every answer: no framing by other sites, no address in Referer, no type sniffing."""
-    headers["Content-Security-Policy"] = "frame-ancestors 'self'"
+def _protect(headers: Headers, csp: str | None = None) -> None:
+    """Headers for every answer: no framing by other sites, no address in Referer, no type sniffing; the page's
+    own policy (``csp``) on the studio's page."""
+    for name in ("Content-Security-Policy", "X-Frame-Options", "Referrer-Policy", "X-Content-Type-Options"):
+        if name in headers:
+            del headers[name]
+    headers["Content-Security-Policy"] = csp or "frame-ancestors 'self'"
     headers["X-Frame-Options"] = "SAMEORIGIN"
     headers["Referrer-Policy"] = "no-referrer"
     headers["X-Content-Type-Options"] = "nosniff"

@@ -6,7 +6,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from studio.core.errors import StudioError
@@ -29,7 +29,8 @@ class _Transfer:
     client_id: int
     declared: int
     parts: int
-    seen: int = 0
+    #: indices of the parts viser kept (in range, each once): only those count
+    kept: set[int] = field(default_factory=set)
     received: int = 0
     last: float = 0.0
 
@@ -104,18 +105,20 @@ class UploadLimit:
         return False
 
     def _part(self, client_id: int, msg: Any) -> bool:
-        content = msg.content
+        content, index = msg.content, msg.part_index
         with self._lock:
             t = self._transfers.get(msg.transfer_uuid)
             if t is None or t.client_id != client_id or not isinstance(content, (bytes, bytearray, memoryview)):
                 return False  # a refused, finished or unknown upload: never buffered
+            if not isinstance(index, int) or isinstance(index, bool) or not 0 <= index < t.parts or index in t.kept:
+                return False  # viser would drop it (out of range, or again): it neither counts nor reaches viser
+            t.kept.add(index)
             t.received += len(content)
-            t.seen += 1
             t.last = time.monotonic()
             over = t.received > t.declared
             if over:
                 self._forget(msg.transfer_uuid)
-            elif t.seen >= t.parts:  # viser completes (or drops) the file with this part
+            elif len(t.kept) == t.parts:  # viser completes the file with this part
                 del self._transfers[msg.transfer_uuid]
         if over:
             self._refuse(

@@ -1,18 +1,9 @@
 """Session archives (.zip) for download and upload: export what loads, import only what validates.
 
-An uploaded archive is someone else's file, so what it may cost is bounded before anything is unpacked:
-
-1. its directory: one session folder, every name on the allow-list (matched whole), stored or deflated only;
-2. its manifest, read (at most 4 MB) and validated first;
-3. sizes, as the directory declares them (reading never yields more than declared): each listed file against
-   what the manifest allows it (a demo of N samples, a skill), the total against the disk space free and
-   against :data:`~studio.storage.format.ARCHIVE_DISK_PER_BYTE` times the upload (beyond a floor), the memory
-   the session would take against :data:`~studio.storage.format.ARCHIVE_MEMORY_PER_BYTE` times the upload;
-4. then only the files the manifest lists are unpacked into a temporary folder, the session is loaded with
-   full validation, and only then moved into place.
-
-On any problem nothing is added and the message names the archive and the problem.
-"""
+An uploaded archive is someone else's file: its directory, then its manifest, then the sizes it declares
+(against the manifest, the free disk and a multiple of the upload) are checked before anything is unpacked;
+then only the listed files are unpacked into a temporary folder, loaded with full validation and moved into
+place. On any problem nothing is added (docs/decisions/024)."""
 
 from __future__ import annotations
 
@@ -20,7 +11,6 @@ import io
 import json
 import os
 import shutil
-import uuid
 import zipfile
 import zlib
 from collections.abc import Callable
@@ -43,6 +33,7 @@ from studio.storage.format import (
     sanitize_name,
     what_went_wrong,
 )
+from studio.storage.fs import temporary_folder
 from studio.storage.limits import check_disk, size_text, write_failed
 from studio.storage.loading import demos_bytes, load_session, skills_bytes
 from studio.storage.manifest import Manifest
@@ -208,23 +199,20 @@ def import_zip(root: Path, data: bytes, final_name: Callable[[str], str], *, arc
         _check_memory(m, label, len(data))
         check_disk(root, sum(i.file_size for i in infos), label)
         root.mkdir(parents=True, exist_ok=True)
-        tmp_root = root / f".tmp-import-{uuid.uuid4().hex[:8]}"
-        tmp = tmp_root / sanitize_name(top)  # messages from loading name the session, not the temporary folder
         try:
-            tmp.mkdir(parents=True)
-            _unpack(zf, infos, top, tmp, label)
-            _check_memory(m, label, len(data), skills_bytes(tmp, m))  # skills: from their headers, now unpacked
-            try:
-                s = load_session(tmp)
-            except SessionFormatError as exc:
-                raise SessionFormatError(f"{label} cannot be imported. {what_went_wrong(exc)} {_NOTHING}") from exc
-            final = final_name(sanitize_name(top))
-            s.name = final
-            s._write_manifest()
-            os.rename(tmp, root / final)
+            with temporary_folder(root, "import") as tmp_root:  # held: a studio starting meanwhile leaves it
+                tmp = tmp_root / sanitize_name(top)  # messages from loading name the session, not the folder
+                tmp.mkdir()
+                _unpack(zf, infos, top, tmp, label)
+                _check_memory(m, label, len(data), skills_bytes(tmp, m))  # skills: from their headers, unpacked
+                try:
+                    s = load_session(tmp)
+                except SessionFormatError as exc:
+                    raise SessionFormatError(f"{label} cannot be imported. {what_went_wrong(exc)} {_NOTHING}") from exc
+                final = final_name(sanitize_name(top))
+                s.name = final
+                s._write_manifest()
+                os.rename(tmp, root / final)
         except OSError as exc:
-            raise write_failed(tmp, exc, doing="imported", subject=label, after=_NOTHING) from exc
-        finally:
-            if tmp_root.exists():
-                shutil.rmtree(tmp_root, ignore_errors=True)
+            raise write_failed(root, exc, doing="imported", subject=label, after=_NOTHING) from exc
     return final

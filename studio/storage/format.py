@@ -21,18 +21,24 @@ from studio.core.sampling import MAX_SECONDS
 FORMAT = "teaching-studio-session"
 #: Version of the manifest written today; see :mod:`studio.storage.manifest` for how it is extended.
 #: 2: the task scene and each demonstration's object events (a studio of version 1 would drop them).
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 MANIFEST = "session.json"
 DEMO_DIR = "demos"
 SKILL_DIR = "skills"
 #: The recorder's crash-safe files while recording (inside the session folder, not part of the format).
 RECORDING_DIR = ".recording"
+#: Demonstration files found in the session folder but not in its list, moved aside on opening (never deleted).
+RECOVERED_DIR = "recovered"
 #: The one place that knows where sessions live by default: the repository's ``sessions/`` folder.
 DEFAULT_ROOT = Path(__file__).resolve().parent.parent.parent / "sessions"
 
 # -- limits: bytes, counted from what a file declares, checked before anything is read or unpacked ------------
-#: Longest demonstration accepted: 6 hours at 1 kHz (the recorder stops by itself after 4).
-MAX_SAMPLES = 6 * 3600 * 1000
+#: Longest demonstration accepted: 1 hour at 1 kHz (the recorder stops by itself at 1 hour). The limits below
+#: keep the studio within 2 GB of memory whatever it is given (docs/decisions/051-memory-budget.md).
+MAX_SAMPLES = 3600 * 1000
+#: Most samples a manifest may list for one demonstration (earlier studios kept 6 hours): a longer one listed
+#: is a damaged manifest; one between this and MAX_SAMPLES is refused (or skipped) when it is opened.
+MAX_LISTED_SAMPLES = 6 * 3600 * 1000
 #: Longest demonstration or learned trajectory, seconds (whatever the sampling rate; Preview and export too).
 MAX_DURATION_S = MAX_SECONDS
 #: Shortest mean (and median) sampling interval, seconds (a 100 kHz stream; robots stream at 1 kHz at most).
@@ -41,9 +47,12 @@ MIN_TIME_STEP_S = 1e-5
 MAX_JOINT_RAD = 2 * math.pi
 #: Bytes a demonstration takes in memory per sample: t, 14 joints, 2 grippers as float64.
 DEMO_BYTES_PER_SAMPLE = 17 * 8
-#: Largest demonstration in memory (≈ 4.4 hours at 1 kHz), and largest session (demonstrations and skills).
-MAX_DEMO_BYTES = 2 * 1024**3
-MAX_SESSION_BYTES = 4 * 1024**3
+#: Largest demonstration in memory (≈ 66 minutes at 1 kHz), and largest session (demonstrations and skills).
+MAX_DEMO_BYTES = 512 * 1024**2
+MAX_SESSION_BYTES = 768 * 1024**2
+#: Samples of all shown demonstrations together that the studio derives poses, key-points and skills from;
+#: beyond it every n-th sample is used (the recordings themselves stay whole).
+WORK_SAMPLES = 1_000_000
 #: Largest learned skill file's arrays (bytes, as declared by its headers).
 MAX_SKILL_BYTES = 2 * 1024**3
 MAX_MANIFEST_BYTES = 4 * 1024 * 1024
@@ -163,6 +172,16 @@ def implausible(t: np.ndarray, q: np.ndarray) -> str | None:
     return None
 
 
+def recovered_note(n: int, folder: Path) -> str:
+    """What the teacher is told when opening moved ``n`` unlisted demonstration files into ``folder``."""
+    were, they = ("was", "it is") if n == 1 else ("were", "they are")
+    s = "" if n == 1 else "s"
+    return (
+        f'{n} recording{s} {were} not in the session list; {they} in Recovered (the folder "{folder}"). '
+        "Nothing was deleted."
+    )
+
+
 def unique_name(name: str, taken: set[str]) -> str:
     """``name``, or ``name (2)``, ``name (3)``… whichever is not ``taken``, within the 100-character limit."""
     if name not in taken:
@@ -177,10 +196,32 @@ def unique_name(name: str, taken: set[str]) -> str:
         i += 1
 
 
+class _KeyTwice(ValueError):
+    def __init__(self, key: str) -> None:
+        super().__init__(key)
+        self.key = key
+
+
+def _once(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """A JSON object whose keys are all different (JSON itself would silently keep the last of two)."""
+    out: dict[str, Any] = {}
+    for k, v in pairs:
+        if k in out:
+            raise _KeyTwice(k)
+        out[k] = v
+    return out
+
+
 def decode_manifest(raw: bytes, session: str) -> dict[str, Any]:
-    """The manifest's JSON object, or a plain-words :class:`SessionFormatError` for each way it can be damaged."""
+    """The manifest's JSON object, or a plain-words :class:`SessionFormatError` for each way it can be damaged
+    (a key written twice included: which of the two is right cannot be told)."""
     try:
-        m = json.loads(raw.decode("utf-8"))
+        m = json.loads(raw.decode("utf-8"), object_pairs_hook=_once)
+    except _KeyTwice as exc:
+        shown = exc.key if len(exc.key) <= 40 else exc.key[:37] + "..."
+        raise damaged(
+            session, MANIFEST, f'has the entry "{shown}" twice (a hand edit or a copy that went wrong?)'
+        ) from exc
     except UnicodeDecodeError as exc:
         raise damaged(session, MANIFEST, "is not readable text") from exc
     except RecursionError as exc:

@@ -1,13 +1,9 @@
 """The session folder on disk, treated as someone else may have left it: links, special files, leftovers.
 
-* :func:`read_capped` reads a session file only if it is a regular file (not a link, a FIFO or a device) and
-  at most so many bytes, checked before reading: ``session.json → /dev/zero`` or a FIFO never hangs the studio.
-* :func:`linked_folder` finds a folder of the session that is a link (or not a folder): the studio would write
-  and delete through it, outside the session. Loading refuses such a session; every change checks again.
-* :func:`changing` is held (an exclusive ``flock`` on the session folder) while a session's files change, by
-  any process; :func:`clean_leftovers` removes what a kill -9 left (temporary files, demo and skill files the
-  manifest does not list) only when no one holds it, so a save in progress elsewhere is never cleaned away.
-"""
+:func:`read_capped` reads only a regular file, at most so many bytes (a link to ``/dev/zero`` or a FIFO never
+hangs the studio); :func:`linked_folder` finds a session folder that is a link; :func:`changing` holds an
+exclusive ``flock`` while files change; :func:`clean_leftovers` cleans what a kill -9 left (unlisted demos go to
+``recovered/``) only when no one holds it; :func:`temporary_folder` holds the store's own temporary folders."""
 
 from __future__ import annotations
 
@@ -20,11 +16,21 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from studio.core.errors import SessionFormatError
-from studio.storage.format import DEMO_DIR, DEMO_FILE_RE, RECORDING_DIR, SKILL_DIR, SKILL_FILE_RE, damaged
+from studio.storage.format import (
+    DEMO_DIR,
+    DEMO_FILE_RE,
+    RECORDING_DIR,
+    RECOVERED_DIR,
+    SKILL_DIR,
+    SKILL_FILE_RE,
+    damaged,
+)
 
 #: The folders of a session; none may be a link.
-FOLDERS = (DEMO_DIR, SKILL_DIR, RECORDING_DIR)
+FOLDERS = (DEMO_DIR, SKILL_DIR, RECORDING_DIR, RECOVERED_DIR)
 TMP_PREFIX = ".tmp-"
+#: The store's temporary folders (in the sessions folder): ``.tmp-import-*``, ``.tmp-copy-*``.
+TMP_FOLDER_KINDS = ("import", "copy")
 
 
 def read_capped(path: Path, limit: int, *, session: str, rel: str) -> bytes:
@@ -108,43 +114,132 @@ def changing(path: Path) -> Iterator[None]:
         os.close(fd)  # releases the lock
 
 
-def clean_leftovers(path: Path, listed: Iterable[str]) -> list[str]:
-    """Remove what interrupted saves left in session folder ``path``; returns what was removed (relative paths).
+def clean_leftovers(path: Path, listed: Iterable[str]) -> tuple[list[str], list[str]]:
+    """Clean what interrupted saves left in session folder ``path``; returns (removed, moved to ``recovered/``),
+    relative paths.
 
-    Leftovers are temporary files (``.tmp-*``) in the session, ``demos`` and ``skills`` folders, and demo or
-    skill files that ``listed`` (the manifest's files) does not name. Nothing is removed while another process
-    or thread is changing the session (:func:`changing`): its temporary and new files are still being written.
+    Temporary files (``.tmp-*``) in the session, ``demos`` and ``skills`` folders and skill files that ``listed``
+    (the manifest's files) does not name are removed; demo files it does not name are moved to ``recovered/``
+    (a manifest put back from a backup lists fewer than the folder holds: they are never deleted). Nothing
+    happens while another process or thread is changing the session (:func:`changing`).
     """
     keep = set(listed)
     try:
         fd = os.open(path, os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC)
     except OSError:
-        return []
+        return [], []
     removed: list[str] = []
+    recovered: list[str] = []
     try:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
-            return []  # someone is saving right now; the next open cleans
+            return [], []  # someone is saving right now; the next open cleans
         for sub in ("", DEMO_DIR, SKILL_DIR):
-            folder = path / sub if sub else path
             if sub and linked_folder(path, (sub,)) is not None:
                 continue
+            folder = path / sub if sub else path
             try:
                 entries = list(os.scandir(folder))
             except OSError:
                 continue
             for e in entries:
                 rel = f"{sub}/{e.name}" if sub else e.name
-                temporary = e.name.startswith(TMP_PREFIX) and not e.is_dir(follow_symlinks=False)
-                orphan = bool(DEMO_FILE_RE.fullmatch(rel) or SKILL_FILE_RE.fullmatch(rel)) and rel not in keep
-                if temporary or orphan:
+                if rel in keep:
+                    continue
+                if DEMO_FILE_RE.fullmatch(rel):
+                    moved = _recover(path, e)
+                    if moved is not None:
+                        recovered.append(moved)
+                elif (e.name.startswith(TMP_PREFIX) and not e.is_dir(follow_symlinks=False)) or SKILL_FILE_RE.fullmatch(
+                    rel
+                ):
                     with contextlib.suppress(OSError):
                         os.unlink(e.path)
                         removed.append(rel)
     finally:
         os.close(fd)
-    return sorted(removed)
+    return sorted(removed), sorted(recovered)
+
+
+def _recover(path: Path, entry: os.DirEntry[str]) -> str | None:
+    """Move the unlisted demo file ``entry`` into ``recovered/`` under a free name (an identical copy already
+    there is enough); its new relative path, or None when it stays where it is."""
+    if linked_folder(path, (RECOVERED_DIR,)) is not None or entry.is_symlink():
+        return None
+    folder = path / RECOVERED_DIR
+    stem, ext = os.path.splitext(entry.name)
+    try:
+        folder.mkdir(exist_ok=True)
+        for i in range(1, 1000):
+            target = folder / (entry.name if i == 1 else f"{stem}-{i}{ext}")
+            if not target.exists():
+                os.rename(entry.path, target)  # the same folder tree: never a copy, never half a file
+                return f"{RECOVERED_DIR}/{target.name}"
+            if _same_file_content(Path(entry.path), target):
+                os.unlink(entry.path)
+                return f"{RECOVERED_DIR}/{target.name}"
+    except OSError:
+        pass
+    return None
+
+
+def _same_file_content(a: Path, b: Path) -> bool:
+    import filecmp
+
+    try:
+        return filecmp.cmp(a, b, shallow=False)
+    except OSError:
+        return False
+
+
+@contextlib.contextmanager
+def temporary_folder(root: Path, kind: str) -> Iterator[Path]:
+    """A new folder ``<root>/.tmp-<kind>-<random>`` held (``flock``) while in use, removed afterwards."""
+    import shutil
+    import uuid
+
+    assert kind in TMP_FOLDER_KINDS
+    tmp = root / f"{TMP_PREFIX}{kind}-{uuid.uuid4().hex[:8]}"
+    tmp.mkdir(parents=True)
+    fd = os.open(tmp, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield tmp
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+        os.close(fd)
+
+
+def clean_temporary_folders(root: Path) -> list[str]:
+    """Remove the store's temporary folders a killed studio left in ``root`` (none that another holds)."""
+    import shutil
+
+    removed: list[str] = []
+    try:
+        entries = list(os.scandir(root))
+    except OSError:
+        return removed
+    for e in entries:
+        if not any(e.name.startswith(f"{TMP_PREFIX}{k}-") for k in TMP_FOLDER_KINDS):
+            continue
+        if not e.is_dir(follow_symlinks=False):
+            continue
+        try:
+            fd = os.open(e.path, os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC)
+        except OSError:
+            continue
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(fd)
+            continue  # in use by another studio
+        try:
+            shutil.rmtree(e.path, ignore_errors=True)
+            removed.append(e.name)
+        finally:
+            os.close(fd)
+    return removed
 
 
 def check_changeable(path: Path, session: str) -> SessionFormatError | None:

@@ -22,7 +22,7 @@ def idle_bounds(
         return float(rec.t[0]), float(rec.t[-1])
     q = np.concatenate([rec.q[:, arm_columns(a)] for a in rec.arms], axis=1)
     g = rec.gripper[:, [gripper_column(a) for a in rec.arms]]
-    w = max(1, min(n, int(0.1 * n / max(rec.duration, 1e-9))))  # ~100 ms reference window
+    w = max(1, min(n, int(0.1 * n / max(rec.duration, 1e-9))))  # a 100 ms reference window
 
     def first_move(qq: np.ndarray, gg: np.ndarray) -> int:
         ref_q = np.median(qq[:w], axis=0)

@@ -72,6 +72,7 @@ def load_session(path: Path, *, skip_damaged: bool = False) -> Session:
         n_clusters=m.n_clusters,
         thresholds=settings_of(m),
         generalization=m.generalization,
+        frames=m.frames,
         precision=m.precision,
         skills_stale=m.skills_stale,
         objects=SessionObjects(m.scene if m.scene is not None else Scene()),

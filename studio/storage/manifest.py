@@ -1,22 +1,9 @@
 """``session.json``: the session's manifest as frozen dataclasses, validated when read from JSON.
 
-Versioning and extending (read before adding anything to the format):
-
-* ``version`` is :data:`~studio.storage.format.FORMAT_VERSION`. A studio refuses, in plain words, a
-  manifest written by a newer one (a higher version) and reads every older one.
-* **Adding an optional field** (the usual case): add it to the dataclass with a default, read it in
-  ``from_json`` with that default when it is absent (older files), write it in ``to_json``. No version change:
-  an older studio ignores keys it does not know. ``n_clusters``, ``hidden``, ``skills_stale``, ``thresholds``
-  and ``generalization`` were added this way.
-* **A change an older studio would misread** (a field changing meaning, data moving between files): bump
-  ``FORMAT_VERSION`` and register ``UPGRADES[old_version]``, a function turning the raw JSON of version
-  ``old_version`` into ``old_version + 1``; :meth:`Manifest.from_json` applies them in order before validating,
-  so the validation below only ever sees the current version. Version 2 added the task scene (``scene``) and
-  each demonstration's object events (``objects``): ``UPGRADES[1]`` reads a version-1 session as one on an
-  empty table, whose demonstrations have no object events.
-
-Loading never writes: an upgraded manifest is written in the new version the next time the session changes.
-"""
+To extend the format: an optional field gets a default, is read with it when absent and always written (no
+version change: an older studio ignores unknown keys). A change an older studio would misread bumps
+:data:`~studio.storage.format.FORMAT_VERSION` and adds ``UPGRADES[old]`` (raw JSON of ``old`` to ``old + 1``),
+applied before validation. A newer manifest is refused in plain words; loading never writes (docs/decisions/023)."""
 
 from __future__ import annotations
 
@@ -28,7 +15,7 @@ from typing import Any
 
 from studio.core.errors import InvalidInput, StudioError
 from studio.core.thresholds import ThresholdSettings
-from studio.core.types import ARMS, DEFAULT_GENERALIZATION, GENERALIZATIONS, KeypointParams
+from studio.core.types import ARMS, DEFAULT_FRAMES, DEFAULT_GENERALIZATION, FRAMES, GENERALIZATIONS, KeypointParams
 from studio.storage.format import (
     DEMO_FILE_RE,
     FORMAT,
@@ -36,8 +23,8 @@ from studio.storage.format import (
     MANIFEST,
     MAX_DEMOS,
     MAX_FILE_ID,
+    MAX_LISTED_SAMPLES,
     MAX_MANIFEST_BYTES,
-    MAX_SAMPLES,
     PRECISIONS,
     SKILL_DIR,
     SKILL_FILE_RE,
@@ -56,8 +43,13 @@ def _scene_added(raw: dict[str, Any]) -> dict[str, Any]:
     return {**raw, "version": 2, "scene": None}
 
 
+def _frames_added(raw: dict[str, Any]) -> dict[str, Any]:
+    """Version 2 -> 3: a session with skills (paths in the robot's frame) keeps learning them that way."""
+    return {**raw, "version": 3, "frames": "robot" if raw.get("skills") else DEFAULT_FRAMES}
+
+
 #: Upgrades of older manifests: ``UPGRADES[v]`` turns the raw JSON of version ``v`` into version ``v + 1``.
-UPGRADES: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {1: _scene_added}
+UPGRADES: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {1: _scene_added, 2: _frames_added}
 
 
 @dataclass(frozen=True)
@@ -137,6 +129,7 @@ class Manifest:
     thresholds: ThresholdSettings | None = None
     #: The generalisation mode training uses ("aligned-mean" or "paper").
     generalization: str = DEFAULT_GENERALIZATION
+    frames: str = DEFAULT_FRAMES  # where skills keep their path: "objects" (they follow them) or "robot"
 
     # -- writing ----------------------------------------------------------------------------------------------
     def to_json(self) -> dict[str, object]:
@@ -165,7 +158,7 @@ class Manifest:
         return {d.file for d in self.demos} | {s.file for s in self.skills.values()}
 
     def _learning_json(self) -> dict[str, object]:
-        out: dict[str, object] = {"generalization": self.generalization}
+        out: dict[str, object] = {"generalization": self.generalization, "frames": self.frames}
         if self.thresholds is not None:
             out["thresholds"] = self.thresholds.as_dict()
         return out
@@ -230,7 +223,8 @@ class Manifest:
             version=version,
             scene=m.scene(),
             thresholds=m.thresholds(),
-            generalization=m.generalization(),
+            generalization=m.choice("generalization", GENERALIZATIONS, DEFAULT_GENERALIZATION),
+            frames=m.choice("frames", FRAMES, DEFAULT_FRAMES),
         )
 
 
@@ -300,11 +294,11 @@ class _Reader:
         except (InvalidInput, TypeError, ValueError) as exc:
             raise self.bad(f'has invalid "thresholds" ({exc})') from exc
 
-    def generalization(self) -> str:
-        mode = self.raw.get("generalization", DEFAULT_GENERALIZATION)
-        if mode not in GENERALIZATIONS:
-            raise self.bad(f'has an unknown "generalization" {mode!r}')
-        return str(mode)
+    def choice(self, key: str, allowed: tuple[str, ...], default: str) -> str:
+        value = self.raw.get(key, default)
+        if value not in allowed:
+            raise self.bad(f'has an unknown "{key}" {value!r}')
+        return str(value)
 
     def n_clusters(self) -> int | None:
         try:
@@ -346,7 +340,7 @@ class _Reader:
         if not isinstance(da, list) or not da or any(a not in ARMS for a in da):
             raise self.bad(f"has invalid taught arms for demonstration {i + 1}")
         s = d.get("samples")
-        if not isinstance(s, int) or isinstance(s, bool) or not 0 < s <= MAX_SAMPLES:
+        if not isinstance(s, int) or isinstance(s, bool) or not 0 < s <= MAX_LISTED_SAMPLES:
             raise self.bad(f"has an invalid sample count for demonstration {i + 1}")
         hidden = d.get("hidden", False)
         if not isinstance(hidden, bool):

@@ -181,7 +181,7 @@ def _check_member(
 def load_demo(path: Path, session: str, entry: DemoEntry) -> Recording:
     """The demonstration in ``path`` as listed by ``entry`` in the manifest, fully validated."""
     rel, n = entry.file, entry.samples
-    if n * DEMO_BYTES_PER_SAMPLE > MAX_DEMO_BYTES:
+    if n > MAX_SAMPLES or n * DEMO_BYTES_PER_SAMPLE > MAX_DEMO_BYTES:
         raise damaged(
             session,
             rel,

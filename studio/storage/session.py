@@ -21,7 +21,7 @@ import numpy as np
 from studio.core.arms import normalize_arms
 from studio.core.errors import InvalidInput, StorageError
 from studio.core.thresholds import ThresholdSettings
-from studio.core.types import ARMS, DEFAULT_GENERALIZATION, GENERALIZATIONS, KeypointParams, Recording, Skill
+from studio.core.types import ARMS, DEFAULT_GENERALIZATION, FRAMES, GENERALIZATIONS, KeypointParams, Recording, Skill
 from studio.storage.atomic import atomic_write_bytes, atomic_write_npz
 from studio.storage.format import (
     DEMO_DIR,
@@ -63,7 +63,7 @@ def _locked(fn: Callable[Concatenate[Session, P], R]) -> Callable[Concatenate[Se
 #: What a failed change puts back (the in-memory state; files on disk are written atomically, manifest last).
 _STATE = (
     *("arms", "notes", "params", "n_clusters", "recordings", "hidden_demos", "skills", "skills_stale"),
-    *("skill_info", "precision", "_files", "_next_id", "objects", "thresholds", "generalization"),
+    *("skill_info", "precision", "_files", "_next_id", "objects", "thresholds", "generalization", "frames"),
 )
 
 
@@ -79,6 +79,7 @@ class Session:
         skills: arm -> learned :class:`Skill`; skill_info: arm -> what it was learned from and when.
         skills_stale: the demonstrations changed since the skills were learned.
         problems, recovery_message: plain-words notes from loading (skipped damaged files, crash recovery).
+        opened_instead: why this session was opened in place of the one asked for ("" normally).
         objects: the task scene and each demonstration's object events (:class:`SessionObjects`).
     """
 
@@ -91,6 +92,7 @@ class Session:
     n_clusters: int | None = None
     thresholds: ThresholdSettings = field(default_factory=ThresholdSettings)
     generalization: str = DEFAULT_GENERALIZATION
+    frames: str = FRAMES[0]
     recordings: list[Recording] = field(default_factory=list)
     hidden_demos: set[str] = field(default_factory=set)
     skills: dict[str, Skill] = field(default_factory=dict)
@@ -99,6 +101,7 @@ class Session:
     skill_info: dict[str, SkillEntry] = field(default_factory=dict)
     problems: list[str] = field(default_factory=list)
     recovery_message: str = ""
+    opened_instead: str = ""
     objects: SessionObjects = field(default_factory=SessionObjects)
     _files: list[str] = field(default_factory=list, repr=False)
     _next_id: int = field(default=1, repr=False)
@@ -154,8 +157,8 @@ class Session:
             raise InvalidInput("A demonstration needs at least two samples.")
         if len(rec) > MAX_SAMPLES:
             raise InvalidInput(
-                f"This demonstration is too long to keep ({rec.duration / 3600:.1f} hours); "
-                f"the limit is {MAX_SAMPLES // 3_600_000} hours. Trim it first."
+                f"This demonstration is too long to keep ({len(rec):,} samples, {rec.duration / 60:,.0f} minutes); "
+                f"a demonstration may have {MAX_SAMPLES:,} samples (an hour at 1,000 a second). Trim it first."
             )
         if len(self.recordings) >= MAX_DEMOS:
             raise InvalidInput(f"A session holds at most {MAX_DEMOS} demonstrations.")
@@ -250,12 +253,14 @@ class Session:
         self, params: KeypointParams | None = None, settings: ThresholdSettings | None = None, mode: str | None = None
     ) -> None:
         """Keep the ε values with the settings they come from (default: values off the old fixed defaults are the
-        teacher's, the others automatic), and/or the generalisation ``mode`` ("aligned-mean" or "paper")."""
-        if (params is not None and not isinstance(params, KeypointParams)) or mode not in (None, *GENERALIZATIONS):
+        teacher's, the others automatic), and/or a ``mode``: "aligned-mean"/"paper" or ``FRAMES`` "objects"/"robot"."""
+        modes = (None, *GENERALIZATIONS, *FRAMES)
+        if (params is not None and not isinstance(params, KeypointParams)) or mode not in modes:
             raise InvalidInput('Key-point thresholds must be a KeypointParams, the mode "aligned-mean" or "paper".')
+        self.frames = mode if mode in FRAMES else self.frames
         if params is not None:
             self.params, self.thresholds = params, settings or ThresholdSettings.from_params(params)
-        self.generalization = mode or self.generalization
+        self.generalization = mode if mode in GENERALIZATIONS else self.generalization
         self._write_manifest()
 
     @_locked
@@ -350,6 +355,7 @@ def _manifest(session: Session) -> Manifest:
         scene=session.objects.scene,
         thresholds=session.thresholds,
         generalization=session.generalization,
+        frames=session.frames,
     )
 
 

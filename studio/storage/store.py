@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import os
 import shutil
-import uuid
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,10 +26,12 @@ from studio.storage.format import (
     NAME_RE,
     PRECISIONS,
     RECORDING_DIR,
+    RECOVERED_DIR,
     check_session_name,
     now,
+    recovered_note,
 )
-from studio.storage.fs import clean_leftovers
+from studio.storage.fs import clean_leftovers, clean_temporary_folders, temporary_folder
 from studio.storage.limits import check_disk, reworded, write_failed
 from studio.storage.loading import load_session
 from studio.storage.manifest import Manifest
@@ -133,11 +134,19 @@ class SessionStore:
         if not path.is_dir() and not path.is_symlink():
             raise SessionFormatError(f'There is no session called "{name}" in {self.root}.')
         s = load_session(path, skip_damaged=skip_damaged)
-        # What a kill -9 during a save left: temporary files, files the manifest never came to list.
-        clean_leftovers(path, Manifest.read(path / MANIFEST, name).files())
+        # What a kill -9 during a save, or a manifest put back from a backup, left: temporary files are removed,
+        # demo files the manifest does not list are moved to recovered/ (never deleted).
+        _, moved = clean_leftovers(path, Manifest.read(path / MANIFEST, name).files())
+        notes = [recovered_note(len(moved), path / RECOVERED_DIR)] if moved else []
         if recover and (path / RECORDING_DIR).is_dir():
-            _, s.recovery_message = recover_recordings(path / RECORDING_DIR, add=s.add_recording)
+            _, message = recover_recordings(path / RECORDING_DIR, add=s.add_recording)
+            notes.insert(0, message)
+        s.recovery_message = " ".join(n for n in notes if n)
         return s
+
+    def clean_temporary(self) -> list[str]:
+        """Remove the temporary folders of uploads and copies a killed studio left (none in use elsewhere)."""
+        return clean_temporary_folders(self.root)
 
     def save(self, session: Session) -> None:
         """Write the whole session (manifest and any missing demo files) to its folder atomically."""
@@ -187,21 +196,18 @@ class SessionStore:
         # Only the session's own files, as regular files: never a link, nor what a link points to.
         files = [*original.demo_files, *(i.file for i in original.skill_info.values())]
         check_disk(self.root, sum((src / f).stat().st_size for f in files), f'The copy of "{name}"')
-        tmp = self.root / f".tmp-copy-{uuid.uuid4().hex[:8]}"
         try:
-            for rel in files:
-                (tmp / rel).parent.mkdir(parents=True, exist_ok=True)
-                shutil.copyfile(src / rel, tmp / rel, follow_symlinks=False)
-            original.path = tmp
-            original.name = new_name
-            original.created = now()
-            original._write_manifest()
-            os.rename(tmp, dst)
+            with temporary_folder(self.root, "copy") as tmp:
+                for rel in files:
+                    (tmp / rel).parent.mkdir(parents=True, exist_ok=True)
+                    shutil.copyfile(src / rel, tmp / rel, follow_symlinks=False)
+                original.path = tmp
+                original.name = new_name
+                original.created = now()
+                original._write_manifest()
+                os.rename(tmp, dst)
         except OSError as exc:
             raise write_failed(dst, exc, doing="copied") from exc
-        finally:
-            if tmp.exists():
-                shutil.rmtree(tmp, ignore_errors=True)
         return load_session(dst)
 
     def export_zip(self, name: str) -> bytes:

@@ -189,6 +189,4 @@ def bounded(events: Sequence[WorldEvent], limit: int = MAX_EVENTS) -> tuple[Worl
 def on_clock(events: Sequence[WorldEvent], t0: float, duration: float) -> tuple[WorldEvent, ...]:
     """Events of a live stream on a recording's clock: ``t0`` (the stream's time of the recording's first
     sample) becomes 0; times are kept within ``0..duration``, the "end" at ``duration``."""
-    return tuple(
-        replace(e, t=duration if e.kind == "end" else min(max(e.t - t0, 0.0), duration)) for e in events
-    )
+    return tuple(replace(e, t=duration if e.kind == "end" else min(max(e.t - t0, 0.0), duration)) for e in events)

@@ -61,6 +61,8 @@ class ObjectGoal:
         final: where it ended (mean).
         spread: largest distance of one demonstration's end position from ``final`` (m).
         demos: how many demonstrations agree on this (the others grasped it a different number of times).
+        relative_to: for a skill that follows the objects, the object each release is measured from (None: a
+            spot on the table); then ``releases`` and ``final`` are where the objects are now.
     """
 
     name: str
@@ -72,6 +74,12 @@ class ObjectGoal:
     spread: float
     demos: int
     landed_on: tuple[str | None, ...] = ()
+    relative_to: tuple[str | None, ...] = ()
+
+    def where(self, k: int = -1) -> str:
+        """Where release ``k`` should put the object, in words: "where you put it (on the pad)"."""
+        on = self.relative_to[k] if self.relative_to else None
+        return f"where you put it on the {on}" if on else "where you put it"
 
 
 @dataclass(frozen=True)
@@ -224,7 +232,7 @@ def _object_result(run: WorldRun, g: ObjectGoal) -> ObjectResult:
                     "because the gripper opened before it got there."
                 )
                 return ObjectResult(name, False, "dropped early", text, d)
-            off = describe_offset(np.asarray(pose.position) - target, "where you put it")
+            off = describe_offset(np.asarray(pose.position) - target, g.where(k))
             text = f"The {name} was released in the wrong place{when}: {off}"
             expected = g.landed_on[k] if k < len(g.landed_on) else None
             if expected is not None and pose.on != expected:
@@ -241,12 +249,15 @@ def _object_result(run: WorldRun, g: ObjectGoal) -> ObjectResult:
         return ObjectResult(name, False, "still held", text, None)
     d = float(np.linalg.norm(np.asarray(fp.position) - np.asarray(g.final)))
     if d > SUCCESS_TOL:
-        off = describe_offset(np.asarray(fp.position) - np.asarray(g.final), "where you put it")
+        off = describe_offset(np.asarray(fp.position) - np.asarray(g.final), g.where())
         again = ": it was picked up again afterwards" if len(grasps) > n else ""
         return ObjectResult(name, False, "moved", f"The {name} ended {off}{again}.", d)
-    return ObjectResult(
-        name, True, "works", f"The {name} ended {format_distance(d)} from where you put it — the skill works.", d
-    )
+    on = g.relative_to[-1] if g.relative_to else None
+    if on:
+        text = f"The {name} ended on the {on}, {format_distance(d)} off where you put it — the skill works."
+    else:
+        text = f"The {name} ended {format_distance(d)} from {g.where()} — the skill works."
+    return ObjectResult(name, True, "works", text, d)
 
 
 def _not_picked(run: WorldRun, g: ObjectGoal, k: int, t_prev: float, label: str) -> str:

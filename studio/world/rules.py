@@ -1,16 +1,10 @@
 """The grasp, carry and release rules, object by object (what a :class:`~studio.world.simulation.World` applies).
 
-The rules are simple and deterministic (no physics engine, no randomness):
-
-* the gripper's point is the ``<arm>_gripper`` frame of :mod:`studio.core.kinematics` (between the
-  fingertips); the gripper *closes* when its opening falls :data:`SWING` percent below its last maximum and
-  *opens* when it rises :data:`SWING` percent above its last minimum (any widths, any tempo, sensor noise);
-* closing with the gripper point within :data:`GRASP_XY_TOL` of a cup's or block's vertical axis and between
-  its bottom and a little above its top grasps it: it moves rigidly with the gripper, together with anything
-  resting on it. Closing anywhere else is a *miss* (recorded, for the task result's wording);
-* opening releases what the gripper holds straight down, upright and keeping its heading, onto the highest
-  surface under its centre (see :func:`studio.world.geometry.landing`).
-"""
+Simple and deterministic (no physics, no randomness): the gripper *closes* when its opening falls
+:data:`SWING` percent below its last maximum and *opens* when it rises as much above its last minimum;
+closing with the gripper point (between the fingertips) near a cup's or block's axis and height grasps it
+(with whatever rests on it), anywhere else is a *miss*; opening lets it down, upright, onto the highest
+surface under its centre (:func:`studio.world.geometry.landing`)."""
 
 from __future__ import annotations
 

@@ -188,7 +188,7 @@ class World:
 
     def _gripper_events(self, arm: str, det: Grip, t: np.ndarray, q: np.ndarray, col: np.ndarray) -> list[WorldEvent]:
         out: list[WorldEvent] = []
-        for k, g in enumerate(col.tolist()):  # ~0.4 µs a sample: no need to be clever
+        for k, g in enumerate(col.tolist()):
             action = det.step(g)
             if action is None:
                 continue

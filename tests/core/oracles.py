@@ -15,9 +15,9 @@ def extract_keypoints_reference(
 ) -> np.ndarray:
     """Literal per-sample implementation of the criteria over the same derived series (the test oracle).
 
-    Walks every sample in order, evaluates the six tests exactly as written in the module docstring and
-    the paper's equations, with the last key-point τ updated as it goes. About 100× slower than
-    :func:`studio.core.keypoints.extract_keypoints`.
+    Walks every sample in order, evaluates the six tests exactly as written in
+    :func:`studio.core.keypoints.extract_keypoints`' docstring and the paper's equations, with the last
+    key-point τ updated as it goes (far slower than the fast path: bench/README.md, "Learning pipeline").
     """
     p = params or KeypointParams()
     s = series if series is not None else precompute(demo)

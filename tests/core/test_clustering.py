@@ -86,8 +86,9 @@ def test_one_demo_k_equals_its_keypoints():
 
 def test_arm_that_never_moved_gets_a_plain_message():
     n = 500
-    still = Demo(np.arange(n) / 1000.0, np.tile([0.6, 0.2, 0.1], (n, 1)), np.tile([0, 0, 1.0, 0], (n, 1)),
-                 np.full(n, 100.0))
+    still = Demo(
+        np.arange(n) / 1000.0, np.tile([0.6, 0.2, 0.1], (n, 1)), np.tile([0, 0, 1.0, 0], (n, 1)), np.full(n, 100.0)
+    )
     with pytest.raises(NotEnoughData, match="barely moved"):
         cluster([still], [np.array([0, n - 1])])
     with pytest.raises(NotEnoughData, match="Choose at most 1"):

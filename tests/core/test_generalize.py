@@ -109,3 +109,20 @@ def test_joint_trajectory_slows_down_when_too_fast():
         a <= b.acceleration_limits("left") * (1 + 1e-9)
     )
     assert jt.position_error.max() < 1e-3
+
+
+def test_pinned_poses_are_met_exactly_and_the_rest_is_untouched():
+    from studio.core.generalize import pin_poses
+
+    t = np.linspace(0.0, 2.0, 201)
+    pos = np.column_stack([t, np.sin(t), np.zeros_like(t)])
+    ori = np.tile([1.0, 0.0, 0.0, 0.0], (t.shape[0], 1))
+    turned = np.array([np.cos(0.1), 0.0, 0.0, np.sin(0.1)])
+    pins = [(0.0, np.array([0.0, 0.01, 0.0]), ori[0]), (1.0, np.array([1.0, 0.9, 0.0]), turned)]
+    p, q = pin_poses(t, pos, ori, pins)
+    assert np.allclose(p[0], pins[0][1]) and np.allclose(p[100], pins[1][1])
+    assert abs(abs(float(q[100] @ turned)) - 1.0) < 1e-12
+    far = np.abs(t - 1.0) > 0.15
+    far &= t > 0.15
+    assert np.allclose(p[far], pos[far]) and np.allclose(q[far], ori[far])
+    assert np.allclose(np.linalg.norm(q, axis=1), 1.0)

@@ -272,3 +272,21 @@ def test_older_skill_files_load_as_paper_mode(tmp_path):
     back = Skill.from_arrays(arrays)
     assert back.generalization == "paper" and np.array_equal(back.trajectory.position, sk.trajectory.position)
     assert Skill.from_arrays(learn_skill(list(demos("stack-cup"))[:2]).to_arrays()).generalization == "aligned-mean"
+
+
+@pytest.mark.parametrize("style", ["careful", "loose"])
+def test_ends_land_on_the_demonstrations_mean_within_a_tenth_of_a_millimetre(style):
+    from studio.shapes import ShapeSpec, shape_demos
+
+    ds = list(shape_demos(ShapeSpec("spiral", 0.6, 1.5, style=style), 3))
+    tr = learn_skill(ds).trajectory
+    for k in (0, -1):
+        assert np.linalg.norm(tr.position[k] - np.mean([d.position[k] for d in ds], axis=0)) < 1e-4
+
+
+def test_grasp_and_release_land_on_the_demonstrations_mean_within_a_tenth_of_a_millimetre():
+    from studio.core import quality
+
+    ds = list(demos("pick-place", (0, 1, 2)))
+    checks, mismatch = quality.gripper_checks(skill("pick-place", (0, 1, 2)).trajectory, ds)
+    assert not mismatch and checks and max(c.error for c in checks) < 1e-4

@@ -86,7 +86,7 @@ def test_suggest_reports_progress_and_before_after_figures():
     # start from thresholds that cut the corners in paper mode: Suggest must find better ones
     bad = auto_params(ds, -3.0)
     r = autotune.suggest(ds, current=bad, generalization="paper", workers=1, progress=lambda f, m: seen.append((f, m)))
-    assert r.complete and not r.cancelled and r.evaluated == 10
+    assert r.complete and not r.cancelled and r.evaluated == 10 and r.changed
     assert r.after.g_over_r < 0.5 * r.before.g_over_r
     assert r.params == r.settings.resolve(ds) and r.settings.teacher == {}
     fr = [f for f, _ in seen]
@@ -123,3 +123,13 @@ def test_preview_path_follows_the_sliders():
         ds, KeypointParams(eps5=5.0, eps7=5.0, eps4=5.0, eps12=2.0, eps14=2.0, eps11=1.5), n_clusters=500
     )
     assert none.message and none.position.shape == (0, 3) and math.isnan(none.g_over_r)
+
+
+def test_suggest_leaves_good_defaults_alone_and_says_so():
+    from studio.words import tune_summary
+
+    ds = list(shape_demos(ShapeSpec("circle", 0.15, 2.0), 3))
+    r = autotune.suggest(ds, workers=1)
+    assert r.complete and not r.changed and r.settings == ThresholdSettings() and r.n_clusters is None
+    assert r.after == r.before and r.params == auto_params(ds)
+    assert tune_summary(r).startswith("Your thresholds are already good")

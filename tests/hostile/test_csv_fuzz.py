@@ -135,23 +135,28 @@ def test_fuzzed_csv_files_are_imported_plausibly_or_refused_in_plain_words(
 
 
 def test_a_csv_of_tiny_lines_is_refused_at_its_first_bad_line_without_holding_the_file(tmp_path: Path) -> None:
-    """180 MB of "00" lines after a valid header: reading it whole made 3.5 GB of line objects."""
-    p = tmp_path / "lines.csv"
-    with open(p, "wb") as f:
-        f.write((",".join(CSV_COLUMNS) + "\n").encode())
-        f.write(b"00\n" * 60_000_000)
-    code = f"""
-        import sys
-        from studio.core.errors import StudioError
-        from studio.csv_io import import_csv
-        try:
-            import_csv({str(p)!r})
-        except StudioError as exc:
-            print(exc)
-    """
-    proc = run_limited(code, memory=1024 * MiB, timeout=120)
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    assert '"lines.csv" line 2 has 1 values' in proc.stdout
+    """180 MB of "00" lines after a valid header: reading it whole made 3.5 GB of line objects. Now more lines than
+    a demonstration may have are refused from their count, before any is parsed; fewer are refused at the first."""
+    for lines, words in [
+        (60_000_000, '"lines.csv" holds 60,000,000 rows'),
+        (3_000_000, '"lines.csv" line 2 has 1 values'),
+    ]:
+        p = tmp_path / "lines.csv"
+        with open(p, "wb") as f:
+            f.write((",".join(CSV_COLUMNS) + "\n").encode())
+            f.write(b"00\n" * lines)
+        code = f"""
+            import sys
+            from studio.core.errors import StudioError
+            from studio.csv_io import import_csv
+            try:
+                import_csv({str(p)!r})
+            except StudioError as exc:
+                print(exc)
+        """
+        proc = run_limited(code, memory=1024 * MiB, timeout=120)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        assert words in proc.stdout, proc.stdout
 
 
 def test_one_endless_line_is_refused(tmp_path: Path) -> None:

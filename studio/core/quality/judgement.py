@@ -12,6 +12,7 @@ import numpy as np
 
 from studio.core.quality.metrics import GripperMismatch, OddIn
 from studio.core.quality.report import QualityReport
+from studio.core.types import SkillRoute
 
 NAN = float("nan")
 
@@ -38,6 +39,7 @@ class Remedy(StrEnum):
     MORE_DEMOS = "more demonstrations"  #: record one or two more
     REDO_DEMO = "redo the demonstration"  #: re-record or hide it
     WITHIN_REACH = "within reach"  #: teach closer to the robot, the gripper in a direction the arm can hold
+    CHOOSE_ROUTE = "choose the way"  #: choose which way the skill learns
 
 
 class Issue(StrEnum):
@@ -57,6 +59,7 @@ class Issue(StrEnum):
     SLOW = "slow"  #: the joints need longer than the demos took (time, durations)
     HELD_OUT = "held out"  #: learned without one demo, it misses that one (distance)
     OUTLIER = "outlier"  #: a demo differs a lot from the others (demo)
+    ROUTES = "routes"  #: the demos go several ways; the skill learned one of them (routes, route, where)
 
 
 @dataclass(frozen=True)
@@ -70,6 +73,7 @@ class Finding:
         action: "close" or "open" (gripper issues); demo: a demonstration's name (outliers).
         mismatch: how the gripper actions disagree (GRIPPER_MISMATCH).
         durations: the robot's duration, the shortest and the longest demo's, s (SLOW).
+        routes, route, where: the ways the demos went, the one learned and where they part most (ROUTES).
     """
 
     issue: Issue
@@ -81,6 +85,9 @@ class Finding:
     demo: str = ""
     mismatch: GripperMismatch | None = None
     durations: tuple[float, float, float] = (NAN, NAN, NAN)
+    routes: tuple[SkillRoute, ...] = ()
+    route: int = 0
+    where: tuple[float, float, float] = (NAN, NAN, NAN)
 
 
 @dataclass(frozen=True)
@@ -102,6 +109,8 @@ def _tolerance(size: float, share: float, floor: float) -> float:
 def _notes(r: QualityReport) -> list[Finding]:
     size = r.size
     notes: list[Finding] = []
+    if r.routes:
+        notes.append(Finding(Issue.ROUTES, Remedy.CHOOSE_ROUTE, routes=r.routes, route=r.route, where=r.route_where))
     tol_end = _tolerance(size, 0.01, 0.002)
     if r.start_error > tol_end:
         notes.append(Finding(Issue.START_OFF, distance=r.start_error))

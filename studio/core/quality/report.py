@@ -26,7 +26,7 @@ from studio.core.quality.metrics import (
     mean_squared_jerk,
     outliers,
 )
-from studio.core.types import Demo, Skill
+from studio.core.types import Demo, Skill, SkillRoute
 
 
 @dataclass(frozen=True)
@@ -48,6 +48,8 @@ class QualityReport:
         outliers: demos that differ a lot from the others.
         mode: the generalisation mode the skill used.
         demo_names: names in order.
+        routes: the ways the demonstrations went when more than one (the skill's ``routes``); route: which one
+            the skill learned (its demonstrations are ``demo_names``); route_where: (3,) m, where they part most.
     """
 
     n_demos: int
@@ -66,6 +68,9 @@ class QualityReport:
     outliers: tuple[Outlier, ...]
     mode: str = ""
     demo_names: tuple[str, ...] = field(default_factory=tuple)
+    routes: tuple[SkillRoute, ...] = ()
+    route: int = 0
+    route_where: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 def assess(
@@ -131,4 +136,7 @@ def assess(
         outliers=outs,
         mode=mode,
         demo_names=tuple(d.name for d in demos),
+        routes=skill.routes if isinstance(skill, Skill) else (),
+        route=skill.route if isinstance(skill, Skill) else 0,
+        route_where=skill.route_where if isinstance(skill, Skill) else (0.0, 0.0, 0.0),
     )

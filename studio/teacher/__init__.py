@@ -1,21 +1,10 @@
 """A scripted, human-like teacher: demonstrations of the paper's two tasks without a human.
 
-The simulated backend, the example session and the core's quality tests all learn from these plans.
-A plan is built the way a person moves a Baxter arm by hand in kinesthetic teaching:
-
-* a sequence of Cartesian key-frames (the paper's two tasks, in front of the robot, gripper pointing
-  down), each jittered per demonstration by a few centimetres (via-points) or a few millimetres (the
-  grasp and release poses, where the object leaves the teacher little freedom);
-* minimum-jerk motion between key-frames (Flash & Hogan's model of human reaching) along a slightly bowed
-  path, with a speed that varies per demonstration and per segment, and pauses of varying length;
-* the gripper closes to the object's width and opens again during pauses, in about half a second.
-
-Joint targets come from :meth:`Baxter.ik` on a few samples per second of the Cartesian path, each solve
-seeded by the previous one, then interpolated per segment with a clamped cubic (zero joint speed where a
-minimum-jerk segment starts and ends), checked against the URDF position and velocity limits (a segment
-that would be too fast is slowed down) and verified by forward kinematics. Sensor noise is added only by
-:func:`recording_from_plan`; the plan's joint targets are smooth.
-"""
+The simulated backend, the example sessions and the core's tests learn from these plans, built the way a
+person moves a Baxter arm by hand: jittered Cartesian key-frames, minimum-jerk motion along slightly bowed
+paths at varying speeds, pauses, and the gripper closing to the object's width. Joint targets come from
+:meth:`Baxter.ik`, interpolated per segment within the URDF limits and checked by FK; sensor noise is added
+only by :func:`recording_from_plan` (docs/decisions/026)."""
 
 from __future__ import annotations
 
@@ -31,8 +20,18 @@ from studio.core.errors import InvalidInput
 from studio.core.kinematics import Baxter
 from studio.core.rotations import matrix_from_quat_wxyz, quat_angle, quat_wxyz_from_matrix, rotvec_matrix, slerp
 from studio.core.types import Recording, check_arm, readonly
-
-TASKS: tuple[str, ...] = ("stack-cup", "pick-place")
+from studio.teacher.places import SITE_OBJECTS, USUAL, Place, Places
+from studio.teacher.tasks import (
+    PICK_PLACE_A,
+    PICK_PLACE_B,
+    PICK_PLACE_YAW_A,
+    PICK_PLACE_YAW_B,
+    STACK_CUP_HANDOVER,
+    STACK_CUP_STACK,
+    TASKS,
+    _Key,
+    _task_keys,
+)
 
 #: Gripper opening (percent) when holding each task's object and when open.
 GRIP_WIDTH = {"stack-cup": 46.0, "pick-place": 31.0}
@@ -43,15 +42,6 @@ JOINT_NOISE_RAD = 2.5e-4
 JOINT_QUANTUM_RAD = 2.0 * math.pi / 2**14
 GRIPPER_NOISE_PERCENT = 0.3
 
-#: Where the left arm's demonstrations act (base frame, metres; the right arm mirrors y and the yaws). The
-#: task scene (:mod:`studio.world.presets`) puts the objects here: the cup handed over in the air and the stack it
-#: goes on; the block at A (grasped turned by YAW_A) and the target pad at B.
-STACK_CUP_HANDOVER = (0.66, 0.47, 0.20)  # gripper point where the handed-over cup is taken
-STACK_CUP_STACK = (0.78, 0.14, 0.06)  # gripper point where it is let go over the stack
-PICK_PLACE_A = (0.72, 0.40, -0.03)  # gripper point grasping the block at its start
-PICK_PLACE_B = (0.64, 0.02, -0.03)  # gripper point placing it on the pad
-PICK_PLACE_YAW_A = 0.35
-PICK_PLACE_YAW_B = -0.25
 
 #: IK knots per second along a moving segment (the 1 kHz signal is a clamped cubic between them).
 _IK_RATE_HZ = 40.0
@@ -124,69 +114,6 @@ def _min_jerk(u: np.ndarray) -> np.ndarray:
     return u**3 * (10 - 15 * u + 6 * u * u)
 
 
-# -- the tasks ---------------------------------------------------------------------------------------------------
-
-
-@dataclass
-class _Key:
-    """A key-frame: pose, how it is approached and what happens there."""
-
-    position: np.ndarray
-    yaw: float
-    hold: float  # pause after arriving, s
-    speed: float  # nominal average speed of the motion that arrives here, m/s
-    grip: str | None = None  # "close" or "open" during the pause
-    kind: str = "via"  # "via" (jitter cm), "contact" (jitter mm), "home"
-
-
-def _task_keys(task: str, rng: np.random.Generator, home: np.ndarray) -> list[_Key]:
-    """The task's key-frames for the left arm (the right arm mirrors y), jittered per demonstration."""
-    P = np.array
-    if task == "stack-cup":
-        hand_over, stack = P(STACK_CUP_HANDOVER), P(STACK_CUP_STACK)
-        keys = [
-            _Key(home, 0.0, rng.uniform(0.8, 1.6), 0.1, kind="home"),
-            _Key(hand_over + P([0, 0, 0.10]), 0.0, rng.uniform(0.0, 0.4), 0.11),
-            _Key(hand_over, 0.0, rng.uniform(1.4, 2.2), 0.05, "close", "contact"),
-            _Key(hand_over + P([0, 0, 0.12]), 0.0, rng.uniform(0.0, 0.3), 0.08),
-            _Key(stack + P([0, 0, 0.16]), 0.0, rng.uniform(0.2, 0.6), 0.10),
-            _Key(stack, 0.0, rng.uniform(1.4, 2.2), 0.04, "open", "contact"),
-            _Key(stack + P([0, 0, 0.14]), 0.0, rng.uniform(0.1, 0.4), 0.08),
-            _Key(home, 0.0, rng.uniform(0.8, 1.5), 0.11, kind="home"),
-        ]
-    elif task == "pick-place":
-        a, b = P(PICK_PLACE_A), P(PICK_PLACE_B)
-        ya, yb = PICK_PLACE_YAW_A, PICK_PLACE_YAW_B
-        up = P([0, 0, 0.13])
-        keys = [
-            _Key(home, 0.0, rng.uniform(0.6, 1.2), 0.1, kind="home"),
-            _Key(a + up, ya, rng.uniform(0.1, 0.4), 0.15),
-            _Key(a, ya, rng.uniform(1.1, 1.6), 0.06, "close", "contact"),
-            _Key(a + up, ya, rng.uniform(0.0, 0.3), 0.10),
-            _Key(b + up, yb, rng.uniform(0.1, 0.4), 0.16),
-            _Key(b, yb, rng.uniform(1.1, 1.6), 0.06, "open", "contact"),
-            _Key(b + up, yb, rng.uniform(0.4, 0.8), 0.10),
-            _Key(b, yb, rng.uniform(1.1, 1.6), 0.06, "close", "contact"),
-            _Key(b + up, yb, rng.uniform(0.0, 0.3), 0.10),
-            _Key(a + up, ya, rng.uniform(0.1, 0.4), 0.16),
-            _Key(a, ya, rng.uniform(1.1, 1.6), 0.06, "open", "contact"),
-            _Key(a + up, ya, rng.uniform(0.0, 0.3), 0.10),
-            _Key(home, 0.0, rng.uniform(0.6, 1.2), 0.12, kind="home"),
-        ]
-    else:
-        raise InvalidInput(f'Unknown task "{task}": choose one of {", ".join(TASKS)}.')
-    out = []
-    for k in keys:
-        if k.kind == "home":
-            jit = rng.normal(0, 0.003, 3)
-        elif k.kind == "contact":
-            jit = np.concatenate([rng.normal(0, 0.004, 2), rng.normal(0, 0.002, 1)])
-        else:
-            jit = np.clip(rng.normal(0, 0.018, 3), -0.04, 0.04)
-        out.append(_Key(k.position + jit, k.yaw + rng.normal(0, 0.02), k.hold, k.speed, k.grip, k.kind))
-    return out
-
-
 def _mirror(p: np.ndarray) -> np.ndarray:
     return p * np.array([1.0, -1.0, 1.0])
 
@@ -211,12 +138,12 @@ class _Segment:
 
 
 def _plan_arm(
-    task: str, arm: str, rng: np.random.Generator, baxter: Baxter
+    task: str, arm: str, rng: np.random.Generator, baxter: Baxter, places: Places = USUAL
 ) -> tuple[list[tuple[str, float, object]], np.ndarray]:
     """Timeline of one arm: list of ("move", t0, _Segment) / ("hold", t0, duration) and the start q."""
     q_home = baxter.neutral(arm)
     home, home_ori = baxter.fk(arm, q_home)
-    keys = _task_keys(task, rng, _mirror(home) if arm == "right" else home)
+    keys = _task_keys(task, rng, _mirror(home) if arm == "right" else home, places)
     if arm == "right":
         keys = [_Key(_mirror(k.position), -k.yaw, k.hold, k.speed, k.grip, k.kind) for k in keys]
         keys[0].position = home + (keys[0].position - _mirror(home))
@@ -259,6 +186,10 @@ def _ik_segment(baxter: Baxter, arm: str, seg: _Segment, q_start: np.ndarray) ->
     q = q_start
     for j in range(n):
         res = baxter.ik(arm, pos[j], ori[j], q, max_iterations=200, position_tolerance=2e-5, orientation_tolerance=2e-4)
+        if not res.converged:  # far from the usual spots a solve can need more steps
+            res = baxter.ik(
+                arm, pos[j], ori[j], res.q, max_iterations=2000, position_tolerance=2e-5, orientation_tolerance=2e-4
+            )
         if not res.converged:  # pragma: no cover - the scripted key-frames are chosen reachable
             raise RuntimeError(
                 f"Teacher plan unreachable for the {arm} arm at t={tk[j]:.2f} s "
@@ -310,7 +241,9 @@ def _arm_joints(
 
 
 @lru_cache(maxsize=64)
-def teach(task: str, seed: int, arm: str = "left", rate_hz: float = 1000.0, noise: bool = True) -> TeacherPlan:
+def teach(
+    task: str, seed: int, arm: str = "left", rate_hz: float = 1000.0, noise: bool = True, places: Places = USUAL
+) -> TeacherPlan:
     """A human-like scripted demonstration of ``task`` (20–30 s, varied speed, pauses, jitter).
 
     Args:
@@ -320,6 +253,8 @@ def teach(task: str, seed: int, arm: str = "left", rate_hz: float = 1000.0, nois
         arm: "left", "right" (the task mirrored) or "both" (each arm its own variation, at once).
         rate_hz: output rate (Baxter streams at 1 kHz in the paper's setting).
         noise: default for :func:`recording_from_plan`; the plan itself is always noise-free.
+        places: where the task's objects stand (default: the usual spots, where the presets put them); the
+            same ``places`` go to :func:`studio.world.preset` for the matching scene.
 
     Returns:
         A :class:`TeacherPlan` (cached: the same arguments return the same read-only plan).
@@ -331,7 +266,7 @@ def teach(task: str, seed: int, arm: str = "left", rate_hz: float = 1000.0, nois
         raise InvalidInput(f"The sampling rate must be a positive number of samples per second (got {rate_hz}).")
     baxter = Baxter.load()
     rng = np.random.default_rng([seed, TASKS.index(task)])
-    timelines = {a: _plan_arm(task, a, rng, baxter) for a in arms}
+    timelines = {a: _plan_arm(task, a, rng, baxter, places) for a in arms}
     # Generous horizon; slowed segments only lengthen a plan by a little.
     horizon = max(sum(_item_len(it) for it in items) for items, _ in timelines.values())
     t = np.arange(math.ceil(horizon * 1.5 * rate_hz) + 1) / rate_hz
@@ -377,7 +312,7 @@ def _item_len(item: tuple[str, float, object]) -> float:
 def _gripper_signal(
     t: np.ndarray, grips: list[tuple[float, float, str]], task: str, rng: np.random.Generator
 ) -> np.ndarray:
-    """Opening (percent) over time: open at the start, a ~0.5 s ramp at 30 % into each action's pause."""
+    """Opening (percent) over time: open at the start, a 0.5 s ramp at 30 % into each action's pause."""
     g = np.full(t.shape[0], OPEN_WIDTH[task])
     level = OPEN_WIDTH[task]
     for t0, hold, action in grips:
@@ -405,4 +340,6 @@ def recording_from_plan(plan: TeacherPlan, noise: bool | None = None, name: str 
     return Recording(plan.t, q, g, plan.arms, name or f"{plan.task} #{plan.seed}")
 
 
-__all__ = ["GRIP_WIDTH", "OPEN_WIDTH", "TASKS", "GripperEvent", "TeacherPlan", "recording_from_plan", "teach"]
+__all__ = ["GRIP_WIDTH", "OPEN_WIDTH", "SITE_OBJECTS", "TASKS", "GripperEvent", "Place", "Places", "TeacherPlan"]
+__all__ += ["PICK_PLACE_A", "PICK_PLACE_B", "PICK_PLACE_YAW_A", "PICK_PLACE_YAW_B", "STACK_CUP_HANDOVER"]
+__all__ += ["STACK_CUP_STACK", "recording_from_plan", "teach"]

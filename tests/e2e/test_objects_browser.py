@@ -1,0 +1,132 @@
+"""In real Chromium, a skill that follows the objects: open the stack-cup example, train, choose the bottom cup and
+move it with its handle (the handle's update and drag-end messages, as the page sends them when dragged), read in
+Preview that the cup now stands where no demonstration put it and the adapted task result ("ended on the bottom
+cup"), preview it; screenshots from the front and the top before and after the move."""
+
+from __future__ import annotations
+
+import asyncio
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from playwright.sync_api import Page, expect
+from viser import _messages
+from viser.infra import ClientId
+
+from studio.app import Studio, build_app
+from tests.e2e import ui
+from tests.e2e.conftest import ARTIFACTS, free_port
+
+pytestmark = pytest.mark.e2e
+
+ROOT = Path(__file__).resolve().parents[2]
+VIEWS = {
+    "front": ((2.7, 0.25, 0.45), (0.4, 0.25, -0.1)),
+    "top": ((0.6, 0.25, 2.4), (0.72, 0.25, -0.07)),
+}
+
+
+def views(app: Studio, page: Page, out: Path, step: str) -> None:
+    client = next(iter(app.server.get_clients().values()))
+    for view, (pos, at) in VIEWS.items():
+        cam = client.camera
+        cam.up_direction = (0.0, 0.0, 1.0)
+        cam.position = pos
+        cam.look_at = at
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline and not np.allclose(cam.position, pos, atol=1e-3):
+            time.sleep(0.1)
+        time.sleep(1.0)
+        ui.dismiss_notifications(page, only_webgl=False)
+        page.screenshot(path=str(out / f"{step}-{view}.png"))
+
+
+def drag_handle(app: Studio, position: tuple[float, float, float], wxyz: tuple[float, float, float, float]) -> None:
+    """What the page sends when the object's handle is dragged to ``position`` and let go."""
+    scene = app.server.scene
+    client_id = ClientId(next(iter(app.server.get_clients())))
+    loop = app.server._event_loop
+    update = _messages.TransformControlsUpdateMessage("/objects_handle", wxyz, position)
+    end = _messages.TransformControlsDragEndMessage("/objects_handle")
+    for coro in (
+        scene._handle_transform_controls_updates(client_id, update),
+        scene._handle_transform_controls_drag_end(client_id, end),
+    ):
+        asyncio.run_coroutine_threadsafe(coro, loop).result(timeout=10)
+
+
+def drawn(app: Studio, prefix: str) -> np.ndarray:
+    handles = app.server.scene._handle_from_node_name
+    return np.array(next(h for n, h in handles.items() if n.startswith(prefix)).position, dtype=float)
+
+
+def test_move_the_cup_and_the_skill_follows_it(browser, tmp_path) -> None:
+    out = ARTIFACTS / "objects"
+    shutil.rmtree(out, ignore_errors=True)
+    out.mkdir(parents=True)
+    sessions = tmp_path / "sessions"
+    sessions.mkdir()
+    shutil.copytree(ROOT / "sessions" / "stack-cup", sessions / "stack-cup")
+    app = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
+    page = None
+    try:
+        page = ui.open_studio(browser, app.url())
+        ui.tab(page, "Train")
+        page.get_by_role("button", name="Train", exact=True).click()
+        ui.wait_text(page, "Trained", timeout=120)
+        ui.tab(page, "Preview")
+        task = page.locator(".task-result").first
+        expect(task).to_have_attribute("data-ok", "true", timeout=60_000)
+        expect(task).to_contain_text("ended on the bottom cup")
+        expect(page.locator('.reach-warning[data-outside="false"]')).to_contain_text("one place only")
+        views(app, page, out, "1-trained")
+        # Choose the bottom cup and drag its handle 6 cm to the robot's right.
+        ui.tab(page, "Teach")
+        ui.choose(page, "Object", "bottom cup")
+        handle = app.server.scene._handle_from_transform_controls_name["/objects_handle"]
+        assert wait(lambda: handle.visible)
+        before = np.array(handle.position, dtype=float)
+        target = (float(before[0]), float(before[1] - 0.06), float(before[2]))
+        w = [float(v) for v in handle.wxyz]
+        drag_handle(app, target, (w[0], w[1], w[2], w[3]))
+        moved = lambda: app.controller.scene.scene.object("bottom cup")  # noqa: E731
+        assert wait(lambda: abs(moved().position[1] - (before[1] - 0.06)) < 1e-6)
+        bottom = moved()
+        assert wait(lambda: abs(drawn(app, "/objects/bottom_cup")[1] - bottom.position[1]) < 1e-6)
+        # Preview: said before the run, and the adapted task result.
+        ui.tab(page, "Preview")
+        warn = page.locator('.reach-warning[data-outside="true"]').first
+        expect(warn).to_contain_text("You never showed me the bottom cup this far to the robot's right", timeout=60_000)
+        expect(task).to_have_attribute("data-ok", "true", timeout=60_000)
+        expect(task).to_contain_text("ended on the bottom cup")
+        text = task.inner_text()
+        (out / "task-result.txt").write_text(text + "\n" + warn.inner_text() + "\n")
+        # The preview plays the adapted skill: at its end the cup sits on the moved bottom cup.
+        ui.click_in_row(page, "Playback", "Play")
+        placed = app.controller.placed.get()["left"]
+        assert placed.joint_trajectory is not None and bool(np.all(placed.joint_trajectory.converged))
+        end = float(placed.joint_trajectory.t[-1] - placed.joint_trajectory.t[0])
+        app.controller.playback.seek_preview(end)
+
+        def on_bottom() -> bool:
+            cup = drawn(app, "/objects/cup")
+            return bool(np.hypot(cup[0] - bottom.position[0], cup[1] - bottom.position[1]) < 0.01)
+
+        assert wait(on_bottom), (drawn(app, "/objects/cup"), bottom.position)
+        views(app, page, out, "2-cup-moved")
+    finally:
+        if page is not None:
+            page.close()
+        app.stop()
+
+
+def wait(pred, timeout: float = 30.0) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if pred():
+            return True
+        time.sleep(0.05)
+    return bool(pred())
