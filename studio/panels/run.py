@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import html
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from typing import Literal
 
@@ -110,7 +111,7 @@ class RunPanel:
         self._last_light = 0.0
         self._shown = ""
         execution = ctl.execution
-        self.stop_btn.on_click(ctl.guarded("Could not stop the robot")(lambda _: execution.stop()))
+        self.stop_btn.on_click(self._stop)
         self.estop_btn.on_click(self._emergency_stop)
         self.enable_btn.on_click(ctl.guarded("Could not enable the robot")(lambda _: execution.robot.enable()))
         self.calibrate_btn.on_click(
@@ -127,8 +128,15 @@ class RunPanel:
     async def _emergency_stop(self, event: viser.GuiEvent) -> None:
         """Its own path: viser awaits this on its event loop (not its shared pool, where 300 other presses may
         wait), and the stop runs on a thread of its own."""
+        await self._urgent(self.ctl.execution.emergency_stop, event)
+
+    async def _stop(self, event: viser.GuiEvent) -> None:
+        """Stop takes the same path as the Emergency stop."""
+        await self._urgent(self.ctl.execution.stop, event)
+
+    async def _urgent(self, action: Callable[[], None], event: viser.GuiEvent) -> None:
         try:
-            await asyncio.get_running_loop().run_in_executor(self._estop_path, self.ctl.execution.emergency_stop)
+            await asyncio.get_running_loop().run_in_executor(self._estop_path, action)
         except Exception as exc:
             self.ctl.ctx.report(exc, title="Could not stop the robot", client=event.client)
 
