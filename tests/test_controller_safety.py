@@ -125,3 +125,15 @@ def test_moves_by_hand_start_from_the_measured_pose(rig: Rig) -> None:  # noqa: 
     ctl.teaching.move_joint(5, float(here[5]) + 0.01)  # w1: every other joint stays where it is measured
     qt = sim.targets()[0][:7]
     np.testing.assert_allclose(np.delete(qt, 5), np.delete(here, 5), atol=1e-9)
+
+
+def test_releasing_the_studios_stop_while_the_robots_button_is_pressed_says_so(rig: Rig) -> None:  # noqa: F811
+    ctl, sim, _ = rig
+    ctl.execution.emergency_stop()
+    sim.press_estop_button()
+    with pytest.raises(StudioError, match="emergency-stop button is pressed"):
+        ctl.execution.release_emergency_stop()
+    st = ctl.execution.status
+    assert not st.estop and st.message.startswith("The emergency stop is released, but the robot cannot move yet.")
+    assert "can move again" not in st.message
+    assert "emergency-stop button is pressed" in ctl.execution.why_not()

@@ -238,16 +238,22 @@ class ExecutionActions:
     def release_emergency_stop(self) -> None:
         """Allow motion again (the robot stays where it halted); the robot is reset and enabled (its own pressed
         emergency-stop button is told in words and keeps it stopped)."""
+        why = ""
         try:
             self.backend.clear_emergency_stop()
+        except StudioError as exc:
+            why = str(exc)
+            raise
         finally:
             self.teaching.forget_targets()
-            self._released()
+            self._released(why)
 
-    def _released(self) -> None:
+    def _released(self, why: str) -> None:
         with self._lock:
             st = self._status
-            if st.phase == "emergency-stopped":
+            if why:
+                msg = f"The emergency stop is released, but the robot cannot move yet. {why}"
+            elif st.phase == "emergency-stopped":
                 msg = f"The run ended with an emergency stop at {st.t:.1f} s of {st.duration:.1f} s; {RELEASED}"
             elif st.active or self._run is not None:
                 msg = st.message
