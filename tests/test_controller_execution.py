@@ -160,7 +160,8 @@ def test_a_sensor_like_a_real_robot_s_gives_a_small_tracking_error(trained: Path
         assert st.phase == "done" and report is not None
         assert 1e-5 < report.max_path_error < 3e-3, report.max_path_error  # encoder steps and noise, no more
         mm = float(re.match(r"The robot followed the plan within ([\d.]+) mm", st.result).group(1))  # type: ignore[union-attr]
-        assert mm == pytest.approx(report.max_path_error * 1000, abs=0.051)
+        verdict = ctl.execution.verdict
+        assert verdict is not None and mm == pytest.approx(verdict.tracking_error * 1000, abs=0.051)
         assert st.ok, st.result
         print(f"\nnoisy sensor: max {report.max_path_error * 1000:.2f} mm, rms {report.rms_path_error * 1000:.2f} mm")
     finally:

@@ -63,6 +63,32 @@ def robot(bed: BaxterBed) -> Iterator[RosbridgeBaxter]:
     r.stop()
 
 
+def settled(bed: BaxterBed) -> None:
+    """Wait until the enable messages of enabling (sent every 50 ms until the robot said so) have all arrived:
+    on a loaded machine one still on its way would enable the robot again after a test disables it."""
+    last = [-1]
+
+    def quiet() -> bool:
+        n = len(bed.by_op("publish", "/robot/set_super_enable"))
+        same, last[0] = n == last[0], n
+        return same
+
+    def quiet_a_while() -> bool:
+        if not quiet():
+            return False
+        time.sleep(0.3)
+        return quiet()
+
+    assert wait_for(quiet_a_while)
+
+
+def disable(bed: BaxterBed) -> None:
+    """The robot disabled from outside (its screen, another program)."""
+    settled(bed)
+    with bed.lock:
+        bed.enabled = False
+
+
 def test_the_robots_estop_mid_run_ends_it_in_words_and_nothing_is_sent(bed: BaxterBed, robot: RosbridgeBaxter) -> None:
     plan = plan_for(robot)
     robot.execute(plan)
@@ -92,8 +118,7 @@ def test_estopped_or_disabled_at_start_is_refused_in_words(bed: BaxterBed, robot
     bed.release_estop()
     robot.enable()  # reset, then enable, as robot_enable.py does
     assert robot.health().ready and bed.enabled
-    with bed.lock:
-        bed.enabled = False  # someone disabled it (another program, the robot's screen)
+    disable(bed)
     assert wait_for(lambda: robot.health().light == "connected")
     with pytest.raises(StudioError, match="The robot is disabled"):
         robot.execute(plan_for(robot))
@@ -102,8 +127,7 @@ def test_estopped_or_disabled_at_start_is_refused_in_words(bed: BaxterBed, robot
 def test_disabled_mid_run(bed: BaxterBed, robot: RosbridgeBaxter) -> None:
     robot.execute(plan_for(robot))
     assert wait_for(lambda: robot.progress().t > 0.5)
-    with bed.lock:
-        bed.enabled = False
+    disable(bed)
     assert wait_for(lambda: robot.progress().state == "failed")
     assert robot.progress().message.startswith("The robot was disabled at ")
 
