@@ -226,7 +226,7 @@ def measure(browser, app, stamps: dict[str, list[float]], steps: int) -> dict[st
 
 def measure_suggest(browser, app, repeats: int = 2) -> dict[str, list[float]]:
     """Suggest pressed in the page until "Undo suggestion" shows (applied), in the running studio; with the
-    auto-tune's forked worker processes and in one process (the work thread), alternately."""
+    studio's helper threads and in the work thread alone, alternately."""
     from playwright.sync_api import expect
 
     from tests.e2e import ui
@@ -389,7 +389,7 @@ def main() -> int:
                 with studio(tmp, session, True) as (app, _):
                     r = measure_suggest(browser, app)
                 print("[3x30k] Suggest thresholds pressed → applied (Undo shown), in the running studio:")
-                print(f"  forked worker processes:  {_fmt(r['workers'])}")
+                print(f"  helper threads:           {_fmt(r['workers'])}")
                 print(f"  one process:              {_fmt(r['one process'])}")
                 print(f"  applied in the studio:    {_fmt(r['applied'])}")
                 print(f"  (the search itself:       {_fmt(r['server'])})")

@@ -1,12 +1,13 @@
 """Quality benchmark: the learned skill against the demonstrations and against peer methods, in one run.
 
     bash scripts/bootstrap.sh "test,bench"   # the peers: tslearn, movement-primitives, gmr
-    .venv/bin/python bench/bench_quality.py [--quick] [--no-suggest] [--no-held] [--skip-timing] [--skip-quality]
+    nice -n 5 .venv/bin/python bench/bench_quality.py --jobs 2 --out /tmp/quality.json [--quick] [--no-suggest]
+    .venv/bin/python bench/bench_quality.py --report /tmp/quality.json   # the tables again, nothing computed
 
 Sets (human-like teacher, :mod:`studio.shapes`): six shapes at 3, 15 and 60 cm, 3 and 7 demos, drawn
 "careful" in 2 s and in 20 s and "loose" in 1.5 s (pen lands away from the start, no rest at the ends);
 multi-modal sets: 2 or 3 routes around obstacles at the same sizes, 3 and 7 demos, both styles; the
-scripted teacher's tasks (stack-cup, pick-place, both arms).
+scripted teacher's tasks (stack-cup, pick-place, both arms). ``--seed`` draws other demonstrations.
 
 Methods (positions; the peers from the demos' 50 ms smoothed positions over normalised time):
   mean      the plain (time-normalised) mean of the demos (B1: the Fréchet ratio's denominator)
@@ -18,21 +19,34 @@ Methods (positions; the peers from the demos' 50 ms smoothed positions over norm
   default   the studio's default (nothing touched)
 Measures: DTW ratio (G/R), Fréchet ratio (F/B1), held-out DTW ratio (learned without one demo, measured on it;
 every demo left out with 3 demos, 3 of 7), start/end error. Per set, "wins" of the default over each peer.
-Multi-modal: routes found, the learned path on one route. --quick: 15 cm, 3 demos, fewer sets (~2 min).
+Multi-modal: routes found; each method measured against the demos of the route its path is nearest to, and
+whether it follows one route (not between them).
+
+Speed: every process computes with one BLAS thread (several threads spin against each other on a loaded
+machine: gmr's EM took 20× longer); ``--jobs`` runs sets in forked processes; the peers' results are kept
+per set of demonstrations in ``--cache`` (they do not change when the studio does).
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
 import itertools
+import json
+import logging
 import math
+import multiprocessing
+import os
+import resource
 import statistics
 import sys
 import time
 import warnings
-from collections.abc import Callable
-from dataclasses import replace
+from collections.abc import Callable, Iterator
+from concurrent.futures import Executor, ProcessPoolExecutor, ThreadPoolExecutor, as_completed, wait
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -52,6 +66,11 @@ from studio.teacher import recording_from_plan, teach
 PEERS = ("mean", "DBA", "ProMP", "DMP", "GMR", "paper")
 STUDIO = ("default",)
 N_PEER = 250
+#: Change it when a peer's fit or a measure changes: the peers' cache is keyed on it.
+PEER_VERSION = "2"
+CACHE = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "teaching-studio" / "bench-quality"
+#: Two figures closer than this count as a tie.
+TIE = 5e-4
 
 
 def _load() -> str:
@@ -140,9 +159,74 @@ FIT: dict[str, Callable[[list[Demo]], np.ndarray]] = {
     "GMR": peer_gmr,
     "paper": studio_path("paper"),
 }
+#: Methods whose results are kept in the cache (the studio's own are always computed again).
+CACHED = ("mean", "DBA", "ProMP", "DMP", "GMR")
 
 
-# -- one set -----------------------------------------------------------------------------------------------------
+# -- the sets ----------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Case:
+    """One set of demonstrations: ``kind`` "shape", "routes" or "task"; ``what`` the shape, the number of routes
+    or the task; the demos are drawn in the process that measures them."""
+
+    kind: str
+    what: str
+    size: float | None
+    style: str
+    dur: float
+    n: int
+    seed: int = 0
+    arm: str = "left"
+    side: str = "left"
+
+    @property
+    def label(self) -> str:
+        if self.kind == "task":
+            both = f" both arms, {self.side}" if self.arm == "both" else ""
+            return f"{self.what}{both} ×{self.n}"
+        size = f"{(self.size or 0) * 100:.0f} cm"
+        head = self.what if self.kind == "shape" else f"{self.what} routes"
+        return f"{head} {size} {self.style} {self.dur:g} s ×{self.n}"
+
+    def demos(self) -> tuple[list[Demo], tuple[int, ...] | None]:
+        if self.kind == "shape":
+            spec = ShapeSpec(self.what, float(self.size or 0), self.dur, style=self.style)
+            return list(shape_demos(spec, self.n, first_seed=self.seed)), None
+        if self.kind == "routes":
+            size = float(self.size or 0)
+            demos, labels = route_demos(
+                int(self.what), size, self.dur, self.n, style=self.style, seed=round(size * 100) + self.n + self.seed
+            )
+            return list(demos), labels
+        b = Baxter.load()
+        plans = [teach(self.what, self.seed + s, arm=self.arm) for s in range(self.n)]
+        return [demo_from_recording(recording_from_plan(p), self.side, b) for p in plans], None
+
+
+def cases(
+    quick: bool, sizes: tuple[float, ...] | None, counts: tuple[int, ...] | None, kinds: tuple[str, ...], seed: int
+) -> Iterator[Case]:
+    sizes = sizes or ((0.15,) if quick else (0.03, 0.15, 0.6))
+    counts = counts or ((3,) if quick else (3, 7))
+    if "shapes" in kinds:
+        tempos = (("careful", 2.0), ("loose", 1.5)) if quick else (("careful", 2.0), ("careful", 20.0), ("loose", 1.5))
+        for size, n, shape, (style, dur) in itertools.product(sizes, counts, SHAPES, tempos):
+            yield Case("shape", shape, size, style, dur, n, seed)
+    if "routes" in kinds:
+        styles = (("careful", 2.0), ("loose", 1.5)) if quick else (("careful", 2.0), ("careful", 8.0), ("loose", 1.5))
+        for size, n, routes, (style, dur) in itertools.product(sizes, counts, ("2", "3"), styles):
+            yield Case("routes", routes, size, style, dur, n, seed)
+    if "tasks" in kinds:
+        for n, (task, arm) in itertools.product(
+            counts, (("stack-cup", "left"), ("pick-place", "left"), ("pick-place", "both"))
+        ):
+            for side in ("left", "right") if arm == "both" else (arm,):
+                yield Case("task", task, None, "", 0.0, n, seed, arm, side)
+
+
+# -- measuring one set -------------------------------------------------------------------------------------------
 
 
 def _folds(n: int) -> list[int]:
@@ -161,10 +245,13 @@ class Ref:
         self.start = np.mean([d.position[0] for d in demos], axis=0)
         self.end = np.mean([d.position[-1] for d in demos], axis=0)
 
-    def score(self, pos: np.ndarray) -> dict:
-        f = Q.fidelity(Q.arc_resample(pos), self.curves, r=self.r, b1_frechet=self.b1f)
+    def score(self, pos: np.ndarray, among: list[int] | None = None) -> dict[str, float]:
+        """G/R, F/B1 and the start/end error; ``among``: against these demos only (the ratios keep the whole
+        set's spread and B1, so methods compare on one scale)."""
+        curves = self.curves if among is None else [self.curves[i] for i in among]
+        f = Q.fidelity(Q.arc_resample(pos), curves, r=self.r, b1_frechet=self.b1f)
         ends = max(np.linalg.norm(pos[0] - self.start), np.linalg.norm(pos[-1] - self.end))
-        return {"G/R": f.g_over_r, "F/B1": f.f_over_b1, "ends": float(ends), "path": pos}
+        return {"G/R": f.g_over_r, "F/B1": f.f_over_b1, "ends": float(ends)}
 
     def held_out(self, fit: Callable[[list[Demo]], np.ndarray]) -> float:
         out = []
@@ -177,203 +264,259 @@ class Ref:
         return float(np.mean(out)) / self.r
 
 
-def evaluate(demos: list[Demo], *, suggest: bool, held: bool = True) -> dict[str, dict]:
-    ref = Ref(demos)
-    res: dict[str, dict] = {}
-    for name, fit in FIT.items():
-        t0 = time.perf_counter()
+def _fingerprint(demos: list[Demo]) -> str:
+    h = hashlib.blake2b(digest_size=16)
+    h.update(PEER_VERSION.encode())
+    for d in demos:
+        for a in (d.t, d.position, d.orientation, d.gripper):
+            h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
+    return h.hexdigest()
+
+
+class PeerCache:
+    """The peers' results per set of demonstrations, one JSON file each (written whole, then renamed)."""
+
+    def __init__(self, root: Path | None) -> None:
+        self.root = root
+
+    def get(self, key: str, method: str) -> dict | None:
+        if self.root is None:
+            return None
+        f = self.root / f"{key}-{method}.json"
         try:
-            res[name] = ref.score(fit(demos))
-        except StudioError as exc:
-            res[name] = {"G/R": math.inf, "F/B1": math.inf, "ends": math.inf, "error": str(exc)}
-        res[name]["held"] = ref.held_out(fit) if held else math.nan
-        res[name]["seconds"] = time.perf_counter() - t0
+            return json.loads(f.read_text())
+        except (OSError, ValueError):
+            return None
+
+    def put(self, key: str, method: str, value: dict) -> None:
+        if self.root is None:
+            return
+        self.root.mkdir(parents=True, exist_ok=True)
+        tmp = self.root / f".{key}-{method}.{os.getpid()}.tmp"
+        tmp.write_text(json.dumps(value))
+        tmp.replace(self.root / f"{key}-{method}.json")
+
+
+def _nearest(pos: np.ndarray, curves: list[np.ndarray], truth: tuple[int, ...]) -> tuple[int, bool]:
+    """The route a path is nearest to (mean Fréchet to its demos) and whether it follows that route alone (less
+    than half as far from it as from any other)."""
+    c = Q.arc_resample(pos)
+    per = {r: float(np.mean([Q.frechet(c, curves[i]) for i, t in enumerate(truth) if t == r])) for r in set(truth)}
+    near = min(per, key=lambda r: per[r])
+    return near, per[near] < 0.5 * min(v for r, v in per.items() if r != near)
+
+
+def _measure(
+    fit: Callable[[list[Demo]], np.ndarray],
+    ref: Ref,
+    held: bool,
+    truth: tuple[int, ...] | None = None,
+) -> dict[str, Any]:
+    t0 = time.perf_counter()
+    try:
+        pos = fit(ref.demos)
+    except StudioError as exc:
+        return {"G/R": math.inf, "F/B1": math.inf, "ends": math.inf, "held": math.nan, "error": str(exc)}
+    out: dict[str, Any] = ref.score(pos)
+    if truth is not None:  # against the demos of the route it follows
+        near, one = _nearest(pos, ref.curves, truth)
+        out.update(ref.score(pos, [i for i, t in enumerate(truth) if t == near]), route=near, one=one, held=math.nan)
+    else:
+        out["held"] = ref.held_out(fit) if held else math.nan
+    out["seconds"] = time.perf_counter() - t0
+    return out
+
+
+def evaluate(case: Case, *, suggest: bool, held: bool, cache: PeerCache) -> dict[str, Any]:
+    """Every method on one set: {"res": {method: figures}, "found": routes found…} (JSON-able)."""
+    t_start = time.perf_counter()
+    demos, truth = case.demos()
+    ref = Ref(demos)
+    key = _fingerprint(demos) + ("-r" if truth else "") + ("-h" if held else "")
+    res: dict[str, dict[str, Any]] = {}
+    for name, fit in FIT.items():
+        hit = cache.get(key, name) if name in CACHED else None
+        res[name] = hit if hit is not None else _measure(fit, ref, held, truth)
+        if hit is None and name in CACHED:
+            cache.put(key, name, res[name])
     t0 = time.perf_counter()
     sk = learn_skill(demos)
-    d = res["default"] = ref.score(np.asarray(sk.trajectory.position))
-    d["skill"] = sk
-    d["held"] = ref.held_out(studio_path("aligned-mean")) if held else math.nan
+    pos = np.asarray(sk.trajectory.position)
+    d = res["default"] = _measure(lambda _: pos, ref, False, truth)
+    if held and truth is None:
+        d["held"] = ref.held_out(studio_path("aligned-mean"))
     d["seconds"] = time.perf_counter() - t0
     size = Q.extent(demos)
-    corners = Q.corner_checks(sk.trajectory, demos, size)
-    d["corner"] = max((x.error for x in corners), default=math.nan)
-    g, _ = Q.gripper_checks(sk.trajectory, demos)
-    d["grip"] = max((x.error for x in g), default=math.nan)
-    if suggest:
-        t0 = time.perf_counter()
-        tr = autotune.suggest(demos)
-        sk2 = learn_skill(demos, tr.params, n_clusters=tr.n_clusters)
-        res["suggest"] = ref.score(np.asarray(sk2.trajectory.position))
-        res["suggest"].update(
-            changed=tr.changed,
-            seconds=time.perf_counter() - t0,
-            before=tr.before.g_over_r,
-            after=tr.after.g_over_r,
-        )
-        res["suggest"]["held"] = (
-            ref.held_out(lambda dd: np.asarray(learn_path(dd, tr.params, n_clusters=tr.n_clusters).position))
-            if held
-            else math.nan
-        )
-    return res
+    d["corner"] = max((x.error for x in Q.corner_checks(sk.trajectory, demos, size)), default=math.nan)
+    d["grip"] = max((x.error for x in Q.gripper_checks(sk.trajectory, demos)[0]), default=math.nan)
+    row: dict[str, Any] = {"case": asdict(case), "label": case.label, "res": res}
+    if truth is not None:
+        index = {x.name: i for i, x in enumerate(demos)}
+        groups = sorted(tuple(index[n] for n in r.demos) for r in sk.routes)
+        want = sorted(tuple(i for i, t in enumerate(truth) if t == r) for r in sorted(set(truth)))
+        row["found"] = groups == want
+    if suggest and truth is None:
+        row["res"]["suggest"] = _suggest(demos, ref, held)
+    row["seconds"] = time.perf_counter() - t_start
+    return row
 
 
-# -- the sets ----------------------------------------------------------------------------------------------------
-
-
-def shape_cases(quick: bool, sizes: tuple[float, ...] | None = None):
-    """(label, size, demos, route labels or None)."""
-    sizes = sizes or ((0.15,) if quick else (0.03, 0.15, 0.6))
-    counts = (3,) if quick else (3, 7)
-    tempos = (("careful", 2.0), ("loose", 1.5)) if quick else (("careful", 2.0), ("careful", 20.0), ("loose", 1.5))
-    for shape, size, (style, dur), n in itertools.product(SHAPES, sizes, tempos, counts):
-        spec = ShapeSpec(shape, size, dur, style=style)
-        label = f"{shape} {size * 100:.0f} cm {style} {dur:g} s ×{n}"
-        yield label, size, list(shape_demos(spec, n)), None
-
-
-def route_cases(quick: bool, sizes: tuple[float, ...] | None = None):
-    sizes = sizes or ((0.15,) if quick else (0.03, 0.15, 0.6))
-    counts = (3,) if quick else (3, 7)
-    styles = (("careful", 2.0), ("loose", 1.5)) if quick else (("careful", 2.0), ("careful", 8.0), ("loose", 1.5))
-    for routes, size, (style, dur), n in itertools.product((2, 3), sizes, styles, counts):
-        demos, labels = route_demos(routes, size, dur, n, style=style, seed=round(size * 100) + n)
-        yield f"{routes} routes {size * 100:.0f} cm {style} {dur:g} s ×{n}", size, list(demos), labels
-
-
-def task_cases(quick: bool):
-    b = Baxter.load()
-    counts = (3,) if quick else (3, 7)
-    for task, arm in (("stack-cup", "left"), ("pick-place", "left"), ("pick-place", "both")):
-        for n in counts:
-            plans = [teach(task, s, arm=arm) for s in range(n)]
-            for a in ("left", "right") if arm == "both" else (arm,):
-                label = f"{task}{' both arms, ' + a if arm == 'both' else ''} ×{n}"
-                yield label, None, [demo_from_recording(recording_from_plan(p), a, b) for p in plans], None
+def _suggest(demos: list[Demo], ref: Ref, held: bool) -> dict[str, Any]:
+    t0 = time.perf_counter()
+    tr = autotune.suggest(demos)
+    secs = time.perf_counter() - t0
+    sk2 = learn_skill(demos, tr.params, n_clusters=tr.n_clusters)
+    out: dict[str, Any] = ref.score(np.asarray(sk2.trajectory.position))
+    out.update(changed=tr.changed, seconds=secs, before=tr.before.g_over_r, after=tr.after.g_over_r)
+    out["held"] = (
+        ref.held_out(lambda dd: np.asarray(learn_path(dd, tr.params, n_clusters=tr.n_clusters).position))
+        if held
+        else math.nan
+    )
+    return out
 
 
 def _fmt(x: float | None, spec: str = ".2f") -> str:
     return "—" if x is None or not math.isfinite(x) else format(x, spec)
 
 
-# -- routes ------------------------------------------------------------------------------------------------------
-
-
-def route_check(res: dict, demos: list[Demo], truth: tuple[int, ...]) -> dict:
-    """Were the routes found (the same grouping as the teacher's), does the learned path follow one route?"""
-    sk = res["default"]["skill"]
-    index = {d.name: i for i, d in enumerate(demos)}
-    groups = [tuple(index[n] for n in r.demos) for r in sk.routes]
-    want = sorted(tuple(i for i, t in enumerate(truth) if t == r) for r in sorted(set(truth)))
-    found = sorted(groups) == want
-    # the learned path is on one route: much closer to that route's demos than to any other route's
-    c = Q.arc_resample(np.asarray(sk.trajectory.position))
-    curves = [Q.curve(d) for d in demos]
-    per_route = {r: np.mean([Q.frechet(c, curves[i]) for i, t in enumerate(truth) if t == r]) for r in set(truth)}
-    near = min(per_route, key=lambda r: per_route[r])
-    others = [v for r, v in per_route.items() if r != near]
-    one = per_route[near] < 0.5 * min(others)
-    return {"found": found, "one": one, "route": near}
-
-
 # -- the tables --------------------------------------------------------------------------------------------------
 
 
-def _row(label: str, res: dict, methods: list[str]) -> str:
-    d = res["default"]
-    cells = "".join(f"{_fmt(res[m]['G/R']):>6}{_fmt(res[m]['F/B1']):>6}{_fmt(res[m]['held']):>6} " for m in methods)
-    return f"{label:<36}{cells}{_fmt(d['ends'] * 1000, '.2f'):>8}"
+def _row(row: dict, methods: list[str]) -> str:
+    res = row["res"]
+    cells = "".join(
+        f"{_fmt(res[m]['G/R']):>6}{_fmt(res[m]['F/B1']):>6}{_fmt(res[m]['held']):>6} " for m in methods if m in res
+    )
+    line = f"{row['label']:<36}{cells}{_fmt(res['default']['ends'] * 1000, '.2f'):>8}"
+    if "found" in row:
+        on = "one route" if res["default"].get("one") else "BETWEEN"
+        line += f"  routes {'found' if row['found'] else 'MISSED'}, {on}"
+    return line
 
 
-def _summary(rows: list[tuple[str, float | None, dict]], methods: list[str], title: str) -> None:
+def _compare(d: np.ndarray, p: np.ndarray, worst: bool = False) -> str:
+    a, b = (float(np.max(d)), float(np.max(p))) if worst else (float(np.nanmedian(d)), float(np.nanmedian(p)))
+    if not (math.isfinite(a) and math.isfinite(b)):
+        return "—"
+    if abs(a - b) <= TIE:
+        return "tied"
+    return "ahead" if a < b else f"behind by {a - b:.3f}"
+
+
+def summary(rows: list[dict], methods: list[str], title: str, held: bool = True) -> None:
+    methods = [m for m in methods if all(m in r["res"] for r in rows)]
     print(f"\n-- {title}: {len(rows)} sets --")
     print(
         f"{'method':<9}{'med DTW':>9}{'med Fréchet':>12}{'worst Fré':>10}{'held-out':>9}{'ends mm':>9}"
         f"{'  default wins (DTW / Fréchet / held-out)':<40}"
     )
+
+    def col(m: str, k: str) -> np.ndarray:
+        return np.array([r["res"][m][k] for r in rows], dtype=float)
+
     for m in methods:
-        g = np.array([x[2][m]["G/R"] for x in rows])
-        f = np.array([x[2][m]["F/B1"] for x in rows])
-        h = np.array([x[2][m]["held"] for x in rows])
-        e = np.array([x[2][m]["ends"] for x in rows])
+        g, f, h, e = (col(m, k) for k in ("G/R", "F/B1", "held", "ends"))
         wins = ""
         if m != "default":
-            dg = np.array([x[2]["default"]["G/R"] for x in rows])
-            df = np.array([x[2]["default"]["F/B1"] for x in rows])
-            dh = np.array([x[2]["default"]["held"] for x in rows])
+            dg, df, dh = (col("default", k) for k in ("G/R", "F/B1", "held"))
             wins = f"  {int(np.sum(dg < g))} / {int(np.sum(df < f))} / {int(np.sum(dh < h))} of {len(rows)}"
+        one = ""
+        if "one" in rows[0]["res"][m]:
+            one = f"  on one route in {sum(bool(r['res'][m].get('one')) for r in rows)}"
+        hm = float(np.nanmedian(h)) if held and np.isfinite(h).any() else math.nan
         print(
             f"{m:<9}{_fmt(float(np.median(g)), '.3f'):>9}{_fmt(float(np.median(f)), '.3f'):>12}"
-            f"{_fmt(float(np.max(f)), '.3f'):>10}{_fmt(float(np.nanmedian(h)), '.3f'):>9}"
-            f"{_fmt(float(np.max(e)) * 1000, '.2f'):>9}{wins}"
+            f"{_fmt(float(np.max(f)), '.3f'):>10}{_fmt(hm, '.3f'):>9}"
+            f"{_fmt(float(np.max(e)) * 1000, '.2f'):>9}{wins}{one}"
         )
-    d = {k: np.array([x[2]["default"][k] for x in rows]) for k in ("G/R", "F/B1", "held", "ends")}
-    ahead = []
     for m in methods:
         if m == "default":
             continue
-        p = {k: np.array([x[2][m][k] for x in rows]) for k in ("G/R", "F/B1", "held")}
-        ok = (
-            np.median(d["G/R"]) < np.median(p["G/R"])
-            and np.median(d["F/B1"]) < np.median(p["F/B1"])
-            and np.max(d["F/B1"]) < np.max(p["F/B1"])
-            and np.nanmedian(d["held"]) < np.nanmedian(p["held"])
-        )
-        ahead.append(f"{m} {'ahead' if ok else 'NOT ahead'}")
-    print("  default vs peers (median DTW, median and worst Fréchet, held-out DTW): " + ", ".join(ahead))
-    print(f"  default end error: worst {float(np.max(d['ends'])) * 1000:.3f} mm (target 0.1 mm)")
+        parts = [
+            f"DTW {_compare(col('default', 'G/R'), col(m, 'G/R'))}",
+            f"Fréchet {_compare(col('default', 'F/B1'), col(m, 'F/B1'))}",
+            f"worst Fréchet {_compare(col('default', 'F/B1'), col(m, 'F/B1'), worst=True)}",
+        ]
+        if held:
+            parts.append(f"held-out {_compare(col('default', 'held'), col(m, 'held'))}")
+        print(f"  default vs {m}: " + ", ".join(parts))
+    print(f"  default end error: worst {float(np.max(col('default', 'ends'))) * 1000:.3f} mm (target 0.1 mm)")
 
 
-def quality_suite(
-    quick: bool, suggest: bool, sizes: tuple[float, ...] | None = None, tasks: bool = True, held: bool = True
-) -> None:
+def report(rows: list[dict], suggest: bool) -> None:
     methods = [*PEERS, *STUDIO, *(["suggest"] if suggest else [])]
-    rows: list[tuple[str, float | None, dict]] = []
-    routes: list[tuple[str, float | None, dict, dict]] = []
-    print("\n== quality: per set, per method DTW ratio, Fréchet ratio, held-out DTW ratio ==")
+    print("\n== summary ==")
+    kinds = {k: [r for r in rows if r["case"]["kind"] == k] for k in ("shape", "routes", "task")}
+    shapes = kinds["shape"]
+    for size in sorted({r["case"]["size"] for r in shapes}):
+        for n in sorted({r["case"]["n"] for r in shapes}):
+            sub = [r for r in shapes if r["case"]["size"] == size and r["case"]["n"] == n]
+            if sub:
+                summary(sub, methods, f"human-like shapes, {size * 100:.0f} cm, {n} demos")
+    if shapes:
+        summary(shapes, methods, "human-like shapes, all")
+        for style, dur in sorted({(r["case"]["style"], r["case"]["dur"]) for r in shapes}):
+            sub = [r for r in shapes if r["case"]["style"] == style and r["case"]["dur"] == dur]
+            summary(sub, methods, f"human-like shapes, {style} {dur:g} s")
+    if kinds["task"]:
+        summary(kinds["task"], methods, "the scripted teacher's tasks")
+    routes = kinds["routes"]
+    if routes:
+        summary(
+            routes, methods, "multi-modal sets (against the demos of the route each path is nearest to)", held=False
+        )
+        found = sum(bool(r["found"]) for r in routes)
+        print(f"  routes found in {found} of {len(routes)} sets ({100 * found / len(routes):.0f} %, target ≥ 95 %)")
+    if suggest:
+        sg = [r for r in rows if "suggest" in r["res"] and r["case"]["kind"] != "routes"]
+        secs = [r["res"]["suggest"]["seconds"] for r in sg]
+        worse = [r["label"] for r in sg if r["res"]["suggest"]["held"] > r["res"]["default"]["held"] * 1.0001]
+        changed = sum(bool(r["res"]["suggest"]["changed"]) for r in sg)
+        print(
+            f"  Suggest (one process): median {statistics.median(secs):.1f} s a set (max {max(secs):.1f} s); changed "
+            f"the thresholds in {changed} of {len(sg)} sets; held-out DTW worse than the default's in {len(worse)}"
+            + (f" ({', '.join(worse[:5])})" if worse else "")
+        )
+
+
+def _work(case: Case, suggest: bool, held: bool, cache_dir: str | None) -> dict:
+    return evaluate(case, suggest=suggest, held=held, cache=PeerCache(Path(cache_dir) if cache_dir else None))
+
+
+def _warm() -> None:
+    """Compile tslearn's numba code once, before the workers fork (each would compile it again)."""
+    peer_dba(list(shape_demos(ShapeSpec("circle", 0.15, 1.0), 2)))
+
+
+def quality_suite(args: argparse.Namespace) -> list[dict]:
+    suggest, held = not args.no_suggest, not args.no_held
+    methods = [*PEERS, *STUDIO, *(["suggest"] if suggest else [])]
+    kinds = tuple(k for k in ("shapes", "routes", "tasks") if k not in (args.skip or ()))
+    todo = list(
+        cases(args.quick, tuple(args.sizes) if args.sizes else None, tuple(args.counts or ()), kinds, args.seed)
+    )
+    cache_dir = None if args.no_cache else str(args.cache)
+    print(f"\n== quality: {len(todo)} sets, per method DTW ratio, Fréchet ratio, held-out DTW ratio ==")
     print(f"{'set':<36}" + "".join(f"{m:>18} " for m in methods) + f"{'ends mm':>8}")
     t0 = time.perf_counter()
-    cases = itertools.chain(
-        shape_cases(quick, sizes), route_cases(quick, sizes), task_cases(quick) if tasks and not sizes else ()
-    )
-    for label, size, demos, truth in cases:
-        res = evaluate(demos, suggest=suggest, held=held)
-        line = _row(label, res, methods)
-        if truth is not None:
-            rc = route_check(res, demos, truth)
-            routes.append((label, size, res, rc))
-            line += f"  routes {'found' if rc['found'] else 'MISSED'}, {'one route' if rc['one'] else 'BETWEEN'}"
-        else:
-            rows.append((label, size, res))
-        print(line, flush=True)
-    print(f"({len(rows) + len(routes)} sets in {time.perf_counter() - t0:.0f} s)")
-    print("\n== summary ==")
-    shapes = [x for x in rows if x[1] is not None]
-    for size in sorted({x[1] for x in shapes}):
-        for n in (3, 7):
-            sub = [x for x in shapes if x[1] == size and x[0].endswith(f"×{n}")]
-            if sub:
-                _summary(sub, methods, f"human-like shapes, {size * 100:.0f} cm, {n} demos")
-    if shapes:
-        _summary(shapes, methods, "human-like shapes, all")
-    tk = [x for x in rows if x[1] is None]
-    if tk:
-        _summary(tk, methods, "the scripted teacher's tasks")
-    if routes:
-        _summary([(a, b, c) for a, b, c, _ in routes], methods, "multi-modal sets (measured against every demo)")
-        found = sum(x[3]["found"] for x in routes)
-        one = sum(x[3]["one"] for x in routes)
-        print(f"  routes found in {found} of {len(routes)} sets ({100 * found / len(routes):.0f} %, target ≥ 95 %);")
-        print(f"  the learned path follows one route in {one} of {len(routes)}")
-    if suggest:
-        secs = [x[2]["suggest"]["seconds"] for x in rows]
-        worse = [x[0] for x in rows if x[2]["suggest"]["held"] > x[2]["default"]["held"] * 1.0001]
-        changed = sum(bool(x[2]["suggest"]["changed"]) for x in rows)
-        print(
-            f"  Suggest: median {statistics.median(secs):.1f} s a set (max {max(secs):.1f} s); changed the thresholds "
-            f"in {changed} of {len(rows)} sets; held-out DTW worse than the default in {len(worse)} "
-            + (f"({', '.join(worse[:5])})" if worse else "")
-        )
+    rows: list[dict] = []
+    if args.jobs > 1:
+        _warm()
+        ctx = multiprocessing.get_context("fork")
+        with ProcessPoolExecutor(args.jobs, mp_context=ctx) as pool:
+            futs = [pool.submit(_work, c, suggest, held, cache_dir) for c in todo]
+            for f in as_completed(futs):
+                rows.append(f.result())
+                print(_row(rows[-1], methods), flush=True)
+    else:
+        for c in todo:
+            rows.append(_work(c, suggest, held, cache_dir))
+            print(_row(rows[-1], methods), flush=True)
+    order = {c.label + str(c.seed): i for i, c in enumerate(todo)}
+    rows.sort(key=lambda r: order[r["label"] + str(r["case"]["seed"])])
+    print(f"({len(rows)} sets in {time.perf_counter() - t0:.0f} s, {_load()})")
+    return rows
 
 
 def _long_demos() -> list[Demo]:
@@ -386,7 +529,7 @@ def replace_name(d: Demo) -> Demo:
     return Demo(d.t[:n], d.position[:n], d.orientation[:n], d.gripper[:n], name=d.name)
 
 
-def _median_ms(fn, repeat: int) -> float:
+def _median_ms(fn: Callable[[], object], repeat: int) -> float:
     ts = []
     for _ in range(repeat):
         t0 = time.perf_counter()
@@ -426,48 +569,97 @@ def timing(quick: bool) -> None:
     print(f"live preview path (preview_path, warm caches): median {_median_ms(prev, rep):6.1f} ms  (budget 150 ms)")
     ms = _median_ms(lambda: learn_skill(demos, base, cache=cache), max(3, rep // 3))
     print(f"learn_skill (warm key-point cache):            median {ms:6.1f} ms")
-    results = {}
-    for label, w in (
-        ("in this process (1 core)", 1),
-        (f"{autotune.WORKERS} forked worker processes", autotune.WORKERS),
-    ):
-        autotune.shutdown()  # forget the demos: a first search
-        t0 = time.perf_counter()
-        autotune.suggest(demos, workers=w)
-        first = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        r = autotune.suggest(demos, workers=w)
-        again = time.perf_counter() - t0
-        results[label] = (first, again)
+    suggest_timing(demos, 1 if quick else 3)
+
+
+def _quiet() -> None:
+    logging.getLogger("hmmlearn").setLevel(logging.ERROR)  # as the studio's processes (studio/cli.py)
+
+
+def _cpu() -> float:
+    """CPU seconds of this process and of its children that ended (what a quiet machine would take)."""
+    ch = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return time.process_time() + ch.ru_utime + ch.ru_stime
+
+
+def suggest_timing(demos: list[Demo], repeat: int) -> None:
+    """Suggest where the studio runs it (the calling thread, or an executor the caller gives): a first search
+    (new demos) and the same demos again, against the calling thread alone in the same run. The CPU seconds of
+    the calling thread's search are what it takes on a quiet core (the wall time here waits for the CPU)."""
+    spawn = multiprocessing.get_context("spawn")
+    with ThreadPoolExecutor(2) as threads, ProcessPoolExecutor(2, mp_context=spawn, initializer=_quiet) as processes:
+        wait([processes.submit(autotune.warm_up) for _ in range(2)])  # warm: started, the pipeline loaded
+        where: dict[str, Executor | None] = {
+            "in the calling thread": None,
+            "2 threads (the studio's helpers)": threads,
+            "2 spawned processes (warm)": processes,
+        }
+        firsts: dict[str, list[float]] = {k: [] for k in where}
+        agains: dict[str, list[float]] = {k: [] for k in where}
+        cpu: list[float] = []
+        for rep in range(repeat):
+            for label, ex in where.items():
+                renamed = [
+                    Demo(d.t, d.position, d.orientation, d.gripper, name=f"{d.name}-{label}-{rep}") for d in demos
+                ]
+                c0, t0 = _cpu(), time.perf_counter()
+                r = autotune.suggest(renamed, executor=ex)
+                firsts[label].append(time.perf_counter() - t0)
+                if ex is None:
+                    cpu.append(_cpu() - c0)
+                t0 = time.perf_counter()
+                autotune.suggest(renamed, executor=ex)
+                agains[label].append(time.perf_counter() - t0)
+    base = statistics.median(firsts["in the calling thread"])
+    for label in where:
+        first, again = statistics.median(firsts[label]), statistics.median(agains[label])
         print(
-            f"Suggest, {label}: first search {first:5.2f} s, same demos again {again:5.2f} s  (budget 5 s; "
-            f"{r.evaluated} candidates × {min(3, len(demos))} folds)"
+            f"Suggest, {label:<33}: first search {first:5.2f} s (×{first / base:4.2f}), same demos again {again:5.2f} s"
+            f"  (median of {repeat}; {r.evaluated} candidates × {min(3, len(demos))} folds, "
+            f"{'complete' if r.complete else 'CUT SHORT'})"
         )
-    (f1, _), (f2, _) = results.values()
-    print(f"  workers ÷ one process, first search: ×{f1 / f2:.2f}")
+    print(
+        f"Suggest in the calling thread, CPU: median {statistics.median(cpu):5.2f} s (budget 2 s on a quiet machine; "
+        f"{_load()})"
+    )
+
+
+#: One BLAS thread per process (set before numpy loads: the bench runs itself again with them when missing).
+ONE_THREAD = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 
 def main() -> None:
+    if any(os.environ.get(k) != v for k, v in ONE_THREAD.items()):
+        os.execve(sys.executable, [sys.executable, *sys.argv], {**os.environ, **ONE_THREAD})
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="a subset (15 cm, 2 s, 3 demos; tasks with 3 demos)")
     ap.add_argument("--no-suggest", action="store_true", help="skip Suggest in the quality suite")
     ap.add_argument("--skip-timing", action="store_true")
     ap.add_argument("--skip-quality", action="store_true")
     ap.add_argument("--sizes", type=float, nargs="+", help="shape sizes in metres, 0.005-0.8 (default 0.03 0.15 0.6)")
-    ap.add_argument("--no-tasks", action="store_true", help="only the shapes (e.g. with --sizes 0.8)")
+    ap.add_argument("--counts", type=int, nargs="+", help="demos per set (default 3 7)")
+    ap.add_argument("--skip", nargs="+", choices=("shapes", "routes", "tasks"), help="leave out these kinds of sets")
+    ap.add_argument("--seed", type=int, default=0, help="draw other demonstrations (default 0)")
     ap.add_argument("--no-held", action="store_true", help="skip the held-out figures (faster)")
+    ap.add_argument("--jobs", type=int, default=1, help="sets measured at once in forked processes")
+    ap.add_argument("--cache", type=Path, default=CACHE, help=f"the peers' results (default {CACHE})")
+    ap.add_argument("--no-cache", action="store_true", help="compute the peers again, keep nothing")
+    ap.add_argument("--out", type=Path, help="write every set's figures as JSON (for --report)")
+    ap.add_argument("--report", type=Path, help="print the tables of a --out file; compute nothing")
     args = ap.parse_args()
+    if args.report:
+        data = json.loads(args.report.read_text())
+        report(data["rows"], data["suggest"])
+        return
+    _quiet()
     print(f"machine: {_load()} at start (2 cores shared)")
     if not args.skip_timing:
         timing(args.quick)
     if not args.skip_quality:
-        quality_suite(
-            args.quick,
-            not args.no_suggest,
-            tuple(args.sizes) if args.sizes else None,
-            not args.no_tasks,
-            not args.no_held,
-        )
+        rows = quality_suite(args)
+        if args.out:
+            args.out.write_text(json.dumps({"argv": sys.argv[1:], "suggest": not args.no_suggest, "rows": rows}))
+        report(rows, not args.no_suggest)
     autotune.shutdown()
 
 

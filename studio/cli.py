@@ -135,6 +135,8 @@ def main(argv: list[str] | None = None) -> int:
 
 def _dispatch(args: argparse.Namespace) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    for library in ("hmmlearn", "toppra"):  # their notes on convergence and solvers are not for the person
+        logging.getLogger(library).setLevel(logging.ERROR)
     try:
         if args.command == "serve":
             from studio.app import robot_backend, serve

@@ -21,7 +21,7 @@ from studio.core import sampling
 from studio.core.arms import normalize_arms
 from studio.core.errors import InvalidInput, NotEnoughData, StudioError
 from studio.core.quality import Remedy
-from studio.core.types import Recording, Skill
+from studio.core.types import Arm, Recording, Skill
 from studio.storage import DEFAULT_ROOT, Session, SessionStore
 from studio.words import SHARED_REMEDIES, Remedies, tune_summary
 from studio.words import verdict_lines as verdict_words
@@ -56,8 +56,8 @@ def _sessions_dir(args: argparse.Namespace) -> Path:
     return DEFAULT_ROOT if d is None else Path(d)
 
 
-def _arms(value: str | None, default: Sequence[str]) -> tuple[str, ...]:
-    return tuple(default) if value is None else normalize_arms(value)
+def _arms(value: str | None, default: Sequence[str]) -> tuple[Arm, ...]:
+    return normalize_arms(default if value is None else value)
 
 
 # -- learn ----------------------------------------------------------------------------------------------------
@@ -83,7 +83,7 @@ class _Quiet:
         log.info("%s: %s", title, body)
 
 
-def train(ctl: Controller, arms: Sequence[str] | None = None) -> dict[str, Skill]:
+def train(ctl: Controller, arms: Sequence[Arm] | None = None) -> dict[Arm, Skill]:
     """Train as the Train button does (the shown demonstrations, the session's thresholds and k) and wait for
     the skill and its verdict."""
     skills = ctl.training.train(arms).result()
@@ -163,7 +163,7 @@ def _fmt(x: float, spec: str = ".3g") -> str:
         return "—"
 
 
-def report(session: Session, skills: Mapping[str, Skill], elapsed: float | None = None) -> str:
+def report(session: Session, skills: Mapping[Arm, Skill], elapsed: float | None = None) -> str:
     """The plain-text learning report: per demo samples and key-points, k, log-likelihood, reference, quality."""
     lines = [f'Session "{session.name}": {len(session.recordings)} demonstrations, learned ' + ", ".join(skills)]
     if elapsed is not None:
@@ -175,7 +175,7 @@ def report(session: Session, skills: Mapping[str, Skill], elapsed: float | None 
     return "\n".join(lines)
 
 
-def _arm_report(session: Session, arm: str, sk: Skill) -> list[str]:
+def _arm_report(session: Session, arm: Arm, sk: Skill) -> list[str]:
     info = session.skill_info.get(arm)
     names = list(sk.demo_names or (info.demos if info is not None else ()))
     names = names or [r.name for r in session.recordings if arm in r.arms]
@@ -212,7 +212,7 @@ def _arm_report(session: Session, arm: str, sk: Skill) -> list[str]:
     return lines
 
 
-def _distances_to_demos(path: np.ndarray, recordings: list[Recording], arm: str) -> list[float]:
+def _distances_to_demos(path: np.ndarray, recordings: list[Recording], arm: Arm) -> list[float]:
     """How far the generalized path stays from each demonstration (mean nearest distance, m)."""
     if not recordings:
         return []

@@ -19,7 +19,7 @@ import numpy as np
 from studio.core import sampling
 from studio.core.arms import normalize_arms
 from studio.core.errors import InvalidInput, NotEnoughData
-from studio.core.types import ALL_ARM_JOINTS, ARM_JOINTS, ARMS, Recording, Skill, check_arm
+from studio.core.types import ALL_ARM_JOINTS, ARM_JOINTS, ARMS, Arm, Recording, Skill, check_arm
 from studio.storage.atomic import atomic_write
 from studio.storage.format import DEMO_BYTES_PER_SAMPLE, MAX_DEMO_BYTES, MAX_DURATION_S, MAX_SAMPLES, implausible
 from studio.storage.limits import size_text
@@ -290,7 +290,7 @@ def export_recording_csv(rec: Recording, path: str | os.PathLike[str]) -> None:
 
 
 def export_joint_trajectory_csv(
-    skills: Mapping[str, Skill],
+    skills: Mapping[Arm, Skill],
     path: str | os.PathLike[str],
     *,
     rest: np.ndarray | None = None,

@@ -18,7 +18,7 @@ from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation
 
 from studio.core.errors import InvalidInput
-from studio.core.types import Demo, check_arm, readonly
+from studio.core.types import Arm, Demo, check_arm, readonly
 
 if TYPE_CHECKING:
     from studio.core.kinematics import Baxter
@@ -116,7 +116,7 @@ class ShapeSpec:
     shape: str
     size: float
     duration: float
-    arm: str = "left"
+    arm: Arm = "left"
     style: str = "careful"
 
     def __post_init__(self) -> None:
@@ -283,7 +283,7 @@ def shape_corners(spec: ShapeSpec, seed: int = 0) -> np.ndarray:
 
 
 @lru_cache(maxsize=2)
-def ready_pose(arm: str = "left") -> np.ndarray:
+def ready_pose(arm: Arm = "left") -> np.ndarray:
     """(7,) joint angles holding the gripper at the drawing plane's centre, pointing forward: the seed for IK
     along a shape (the studio's untuck pose points the gripper down, too far from this for one IK solve)."""
     from studio.core.kinematics import Baxter
@@ -348,7 +348,7 @@ def check_reachable(
     return worst_p, worst_o
 
 
-def joint_angles(demo: Demo, arm: str, *, knots_hz: float = 50.0, baxter: Baxter | None = None) -> np.ndarray:
+def joint_angles(demo: Demo, arm: Arm, *, knots_hz: float = 50.0, baxter: Baxter | None = None) -> np.ndarray:
     """(N, 7) joint angles that draw ``demo`` with ``arm`` (IK at ``knots_hz``, cubic between), e.g. to seed
     execution like a recording's joints."""
     from studio.core.kinematics import Baxter

@@ -30,9 +30,9 @@ from typing import Any
 import numpy as np
 
 from studio.core.kinematics import Baxter
-from studio.core.types import ALL_ARM_JOINTS
+from studio.core.types import ALL_ARM_JOINTS, Arm
 
-ARMS = ("left", "right")
+ARMS: tuple[Arm, Arm] = ("left", "right")
 NAMES = sorted(["head_nod", "head_pan", "torso_t0", *ALL_ARM_JOINTS])
 FINGERS = {"left": ["l_gripper_l_finger_joint", "l_gripper_r_finger_joint"],
            "right": ["r_gripper_l_finger_joint", "r_gripper_r_finger_joint"]}  # fmt: skip
@@ -303,7 +303,7 @@ class BaxterBed:
             self.commands.append((time.monotonic(), arm, new.copy(), self.q[cols].copy()))
 
     def _on_gripper(self, arm: str, msg: dict[str, Any]) -> None:
-        g = self.grippers[arm]
+        g = self.grippers["left" if arm == "left" else "right"]
         if msg.get("id") != g.hid or g.kind != "electric":
             return
         cmd = msg.get("command")

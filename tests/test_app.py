@@ -18,6 +18,7 @@ import pytest
 from studio.app import Studio, build_app, exposure_warning, robot_urdf_path
 from studio.controller import PREVIEW, Step, Topic
 from studio.core.errors import StudioError
+from studio.core.types import Arm
 from studio.panels.keypoints import LABEL_GAP, MAX_LABELS
 from studio.recorder import Recorder
 from studio.robot_backend.simulated import SimulatedBaxter
@@ -64,7 +65,7 @@ def test_starts_on_the_session_and_follows_the_robot(app: Studio) -> None:
 
 def test_unreachable_handle_is_marked_and_told(app: Studio) -> None:
     ctl, teach, robot = app.controller, app.panels.teach, app.panels.robot
-    arm = "left"
+    arm: Arm = "left"
     pos, wxyz = ctl.baxter.fk(arm, ctl.teaching.arm_q(arm))
     far = ctl.teaching.move_gripper(arm, pos + np.array([3.0, 0.0, 0.0]), wxyz)
     assert not far.converged

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from studio.app import Studio, build_app
-from studio.controller import Layer, Step
+from studio.controller import REPLAY, Layer, Step
 from studio.controller.teaching import DISCARD_CONFIRM_S, REACH_HOLD_S
 from studio.core.rotations import matrix_from_quat_wxyz
 from studio.panels.steps import HOME_CAMERA_LOOK_AT, HOME_CAMERA_POSITION
@@ -91,7 +91,7 @@ def test_replaying_a_demo_moves_the_drawn_block(app: Studio) -> None:
     release = next(e for e in events if e.kind == "release")
     landed = release.pose("block")
     assert landed is not None and landed.on == "pad"
-    ctl.playback.seek("replay", release.t + 0.5, rec, lambda: rec)
+    ctl.playback.seek(REPLAY, release.t + 0.5, rec, lambda: rec)
     assert wait_for(lambda: np.allclose(panel._nodes["block"].position, landed.position, atol=1e-6))
 
 

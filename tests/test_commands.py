@@ -13,7 +13,7 @@ import pytest
 from studio import commands
 from studio.cli import main
 from studio.commands import EXAMPLES, build_example
-from studio.core.types import Demo, KeypointParams, Recording
+from studio.core.types import ARMS, Arm, Demo, KeypointParams, Recording
 from studio.csv_io import export_recording_csv
 from studio.storage import DEFAULT_ROOT, SessionStore
 from tests.conftest import RecordingNotifier
@@ -170,7 +170,8 @@ def test_learn_uses_the_sessions_k_and_remembers_each_arms_demos(
     s = store.create("both arms", arms=("left", "right"))
     n = 300
     q = np.tile([0.08, -1.0, -1.19, 1.94, 0.67, 1.03, -0.5] * 2, (n, 1))
-    for name, arms in (("l1", ("left",)), ("r1", ("right",)), ("l2", ("left",)), ("b", ("left", "right"))):
+    taught: list[tuple[str, tuple[Arm, ...]]] = [("l1", ("left",)), ("r1", ("right",)), ("l2", ("left",)), ("b", ARMS)]
+    for name, arms in taught:
         s.add_recording(Recording(np.arange(n) / 100.0, q, np.full((n, 2), 100.0), arms=arms, name=name))
     s.set_n_clusters(4)
     assert main(["learn", "both arms", "--sessions-dir", str(tmp_path)]) == 0

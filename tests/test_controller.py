@@ -12,6 +12,7 @@ import pytest
 from studio.controller import PREVIEW, REPLAY, Controller, Topic
 from studio.core.errors import NotEnoughData, SessionFormatError, StudioError
 from studio.core.quality import Issue
+from studio.core.types import Arm
 from studio.robot_backend.simulated import SimulatedBaxter
 from studio.storage import SessionStore
 from tests.conftest import RecordingNotifier, wait_for
@@ -44,7 +45,7 @@ def test_opens_the_session_and_follows_the_robot(ctl: Controller) -> None:
 
 
 def test_gizmo_ik_reachable_and_unreachable(ctl: Controller) -> None:
-    arm = "left"
+    arm: Arm = "left"
     seen: list[str] = []
     ctl.events.on(Topic.REACH, lambda: seen.append(ctl.teaching.reach_message()))
     pos, wxyz = ctl.baxter.fk(arm, ctl.teaching.arm_q(arm))

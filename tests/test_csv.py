@@ -9,9 +9,10 @@ from typing import cast
 import numpy as np
 import pytest
 
+from studio.core.arms import arm_columns
 from studio.core.errors import InvalidInput, NotEnoughData
 from studio.core.kinematics import Baxter
-from studio.core.types import Recording, Skill
+from studio.core.types import ARMS, Recording, Skill
 from studio.csv_io import (
     CSV_COLUMNS,
     JOINT_DECIMALS,
@@ -194,7 +195,8 @@ def test_exported_skills_respect_velocity_and_acceleration_limits_at_1khz(tmp_pa
     alim = np.concatenate([b.acceleration_limits("left"), b.acceleration_limits("right")])
     # the file rounds angles to 1e-8 rad: ±0.02 rad/s² of rounding noise in a second difference at 1 kHz
     assert np.all(v <= vlim + 1e-4) and np.all(a <= alim + 0.02)
-    for arm, cols in (("left", slice(0, 7)), ("right", slice(7, 14))):
+    for arm in ARMS:
+        cols = arm_columns(arm)
         jt = skills[arm].joint_trajectory
         assert jt is not None
         assert np.allclose(back.q[: len(jt), cols], jt.q, atol=1e-8)

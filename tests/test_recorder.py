@@ -14,9 +14,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from studio.core.arms import arm_columns
 from studio.core.errors import InvalidInput, RecordingError
 from studio.core.kinematics import Baxter
-from studio.core.types import Recording
+from studio.core.types import ARMS, Recording
 from studio.recorder import Recorder, pending_recordings, read_recording_file, recover_recordings
 from studio.robot_backend.base import JointStateBatch, RobotBackend, RobotState
 from studio.robot_backend.simulated import SimulatedBaxter
@@ -67,7 +68,8 @@ def test_records_time_joints_grippers_and_fk_pose_of_taught_arms(tmp_path: Path)
     assert r.name == "take 1" and r.arms == ("left", "right") and len(r) == 1500
     assert np.allclose(np.diff(r.t), 1e-3) and r.t[0] == 0.0
     b = Baxter.load()
-    for arm, cols in (("left", slice(0, 7)), ("right", slice(7, 14))):
+    for arm in ARMS:
+        cols = arm_columns(arm)
         pos, wxyz = b.fk_batch(arm, r.q[:, cols])
         assert np.allclose(demo.poses[arm][:, :3], pos) and np.allclose(demo.poses[arm][:, 3:], wxyz)
     assert r.gripper[-1, 1] == pytest.approx(10.0)

@@ -16,7 +16,7 @@ import pytest
 from studio.core.errors import InvalidInput, StudioError
 from studio.core.execution import plan_execution
 from studio.core.pipeline import learn_skill
-from studio.core.types import ARM_JOINTS
+from studio.core.types import ARM_JOINTS, Arm
 from studio.robot_backend.base import JointStateBatch
 from studio.robot_backend.rosbridge import RosbridgeBaxter, parse_robot_url
 from tests.baxter_bed import BaxterBed
@@ -192,7 +192,7 @@ def test_emergency_stop_holds_at_once_and_refuses_motion(
     caller, sent = threading.get_ident(), {}
     command = robot._joint_command
 
-    def spy(arm: str, q: np.ndarray) -> None:
+    def spy(arm: Arm, q: np.ndarray) -> None:
         if threading.get_ident() == caller:
             sent[arm] = [float(v) for v in q]
         command(arm, q)

@@ -111,7 +111,7 @@ def test_bad_commands_are_refused_in_plain_words() -> None:
     with pytest.raises(InvalidInput, match="7 numbers"):
         sim.command_joints("left", np.array([0, 0]))
     with pytest.raises(InvalidInput, match="arm"):
-        sim.command_joints("middle", np.zeros(7))
+        sim.command_joints("middle", np.zeros(7))  # type: ignore[arg-type]  # on purpose: an unknown arm
     with pytest.raises(InvalidInput):
         sim.command_gripper("left", float("nan"))
     q_before = sim.targets()[0]

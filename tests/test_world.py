@@ -11,6 +11,7 @@ import pytest
 from studio import teacher
 from studio.core.errors import InvalidInput, SessionFormatError
 from studio.core.kinematics import Baxter
+from studio.core.types import ARMS
 from studio.robot_backend.simulated import SimulatedBaxter
 from studio.teacher import TASKS, recording_from_plan, teach
 from studio.world import (
@@ -80,7 +81,7 @@ def test_presets_put_the_objects_where_the_teacher_acts() -> None:
     rng = np.random.default_rng(0)
     for sc in (preset("stack-cup", ("left", "right")), both):
         for o in sc.objects:
-            arms = [a for a in ("left", "right") if a in o.name] or ["left", "right"]
+            arms = [a for a in ARMS if a in o.name] or list(ARMS)
             for arm in arms:
                 top = np.asarray(o.position) + np.array([0.0, 0.0, o.size[2] + 0.02])
                 seeds = [b.neutral(arm), *b.random_configuration(arm, rng, 20)]

@@ -68,7 +68,8 @@ class Controller:
         # bound: a part is asked only once all exist); it subscribes to the events it follows itself.
         self.view = View(ctx.events)
         self.demos = Demos(ctx)
-        self.playback = Player(ctx, guard=lambda: self.execution.check_not_running())
+        self.placed = PlacedSkills(ctx)  # the skills where the objects are now: what preview and runs play
+        self.playback = Player(ctx, guard=lambda: self.execution.check_not_running(), skills=self.placed.get)
         self.scene = SceneActions(ctx, backend, player=self.playback)
         self.teaching = Teaching(ctx, backend, takes=self.scene, motion_guard=lambda d: self.execution.check_free(d))
         self.keypoints = KeypointTuning(ctx, self.demos)
@@ -88,11 +89,9 @@ class Controller:
             hands=self.teaching,
             training_busy=lambda: self.training.busy,
             unload_playback=self.playback.unload,
+            skills=self.placed.get,
+            warnings=self.placed.warnings,
         )
-        self.placed = PlacedSkills(ctx)  # the skills where the objects are now: what preview and runs play
-        self.playback.skills = self.placed.get
-        self.execution.warnings = self.placed.warnings
-        self.execution.skills = self.placed.get
         self.sessions = SessionActions(ctx, persist=self.keypoints.persist)
 
     @property

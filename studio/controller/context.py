@@ -1,6 +1,7 @@
 """What every part of the controller shares: the open session and its taught arms, one lock, the events,
-notifications, the pose the scene draws, the checks before the session changes, and one work thread for heavy
-jobs. Failures anywhere become plain-words notifications; the studio keeps running."""
+notifications, the pose the scene draws, the checks before the session changes, one work thread for heavy jobs
+and the helper threads they spread tasks over. Failures become plain-words notifications; the studio keeps
+running."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ from studio.controller.pose import Display
 from studio.core.arms import normalize_arms
 from studio.core.errors import InvalidInput, StudioError
 from studio.core.kinematics import Baxter
+from studio.core.types import Arm
 from studio.storage import Session, SessionStore
 
 log = logging.getLogger(__name__)
@@ -23,6 +25,8 @@ log = logging.getLogger(__name__)
 P = ParamSpec("P")
 R = TypeVar("R")
 Kind = Literal["error", "warning", "info", "success"]
+#: Helper threads (both cores of the target machine; docs/decisions/030 says why threads).
+HELPERS = 2
 
 
 class Notifier(Protocol):
@@ -54,6 +58,7 @@ class Context:
         events: the topics the views subscribe to.
         lock: guards the state the parts share (session switches, the recorder, training).
         display: which robot pose the scene draws (the live robot, or a replay's or preview's).
+        helpers: the threads a job on the work thread spreads its tasks over (Suggest's candidates).
         headless: a failed job on the work thread stays in its future (the caller raises it) instead of
             becoming a notification.
     """
@@ -71,9 +76,10 @@ class Context:
         self.headless = headless
         self._leaving: list[Callable[[str], None]] = []
         self._work = ThreadPoolExecutor(max_workers=1, thread_name_prefix="studio-work")
+        self.helpers = ThreadPoolExecutor(max_workers=HELPERS, thread_name_prefix="studio-helper")
 
     @property
-    def arms(self) -> tuple[str, ...]:
+    def arms(self) -> tuple[Arm, ...]:
         """The arm(s) taught in the open session."""
         return taught_arms(self.session)
 
@@ -151,9 +157,10 @@ class Context:
     def shutdown(self) -> None:
         """Drop queued work (a running job finishes on its own)."""
         self._work.shutdown(wait=False, cancel_futures=True)
+        self.helpers.shutdown(wait=False, cancel_futures=True)
 
 
-def taught_arms(session: Session) -> tuple[str, ...]:
+def taught_arms(session: Session) -> tuple[Arm, ...]:
     """The arm(s) ``session`` teaches ("left" when it names none that is valid)."""
     try:
         return normalize_arms(tuple(session.arms))

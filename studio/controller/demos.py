@@ -11,7 +11,7 @@ import numpy as np
 from studio.controller.context import Context
 from studio.controller.events import Topic
 from studio.core.errors import StudioError
-from studio.core.types import Demo, Recording
+from studio.core.types import Arm, Demo, Recording
 from studio.storage.format import WORK_SAMPLES
 
 #: Demo colours (RGB), distinct on the light background, never red (red marks the cluster centroids) and never
@@ -44,7 +44,7 @@ class DemoSummary:
     color: tuple[int, int, int]
     duration: float
     samples: int
-    arms: tuple[str, ...]
+    arms: tuple[Arm, ...]
     visible: bool
 
 
@@ -93,7 +93,7 @@ class Demos:
             for i, r in enumerate(self.recordings())
         ]
 
-    def demo(self, i: int, arm: str) -> Demo:
+    def demo(self, i: int, arm: Arm) -> Demo:
         """The 8-D Demo of recording ``i`` for ``arm`` (FK once, cached)."""
         return self.demo_of(self.recordings()[i], arm)
 
@@ -103,7 +103,7 @@ class Demos:
         total = sum(len(r) for r in self.recordings())
         return max(1, -(-total // WORK_SAMPLES))
 
-    def demo_of(self, rec: Recording, arm: str) -> Demo:
+    def demo_of(self, rec: Recording, arm: Arm) -> Demo:
         """The 8-D Demo of recording object ``rec`` for ``arm`` (FK once, cached), at :meth:`stride`."""
         from studio.core.pipeline import demo_from_recording
 
@@ -134,7 +134,7 @@ class Demos:
             kind="info",
         )
 
-    def gripper_marks(self, rec: Recording, arm: str) -> tuple[np.ndarray, np.ndarray]:
+    def gripper_marks(self, rec: Recording, arm: Arm) -> tuple[np.ndarray, np.ndarray]:
         """Where ``arm``'s gripper closed and where it opened in recording ``rec``: two (n, 3) arrays (m), with
         the same close/open rule as the objects (:func:`studio.world.gripper_actions`)."""
         from studio.world import gripper_actions
@@ -146,7 +146,7 @@ class Demos:
         opens = [pos[k] for k, a in actions if a == "open"]
         return np.reshape(closes, (-1, 3)), np.reshape(opens, (-1, 3))
 
-    def for_arm(self, arm: str) -> list[tuple[int, Demo]]:
+    def for_arm(self, arm: Arm) -> list[tuple[int, Demo]]:
         """(index, Demo) of every shown recording that taught ``arm`` (what learning uses)."""
         hidden = self.hidden
         return [

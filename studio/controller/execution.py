@@ -46,7 +46,7 @@ from studio.core.execution import (
     plan_execution,
 )
 from studio.core.ik_path import Feasibility
-from studio.core.types import Recording, Skill
+from studio.core.types import Arm, Recording, Skill
 from studio.robot_backend.base import ExecutionProgress, RobotBackend, RobotHealth
 from studio.world import TaskResult
 
@@ -72,7 +72,8 @@ class ExecutionActions:
     Args:
         objects: the objects on the table during a run; hands: whether a take is recorded, and forgetting the
             hand-moved targets once the robot moved by itself; training_busy, unload_playback: what a run
-            checks and does first.
+            checks and does first; skills: what a run plays (default: the session's, as learned); warnings:
+            objects where no demonstration put them, in words.
     """
 
     def __init__(
@@ -84,6 +85,8 @@ class ExecutionActions:
         hands: Hands,
         training_busy: Callable[[], bool],
         unload_playback: Callable[[], None],
+        skills: Callable[[], Mapping[Arm, Skill]] | None = None,
+        warnings: Callable[[], list[str]] = list,
     ) -> None:
         self.ctx = ctx
         self.backend = backend
@@ -104,10 +107,10 @@ class ExecutionActions:
         self.task: TaskResult | None = None
         self.verdict: RunVerdict | None = None
         self.robot = RobotActions(ctx, backend)
-        #: Objects where no demonstration put them, in words (set by the controller; told when a run starts).
-        self.warnings: Callable[[], list[str]] = list
-        #: The skills a run plays (set by the controller: placed where the objects are now).
-        self.skills: Callable[[], Mapping[str, Skill]] = lambda: ctx.session.skills
+        #: Objects where no demonstration put them, in words (told when a run starts).
+        self.warnings = warnings
+        #: The skills a run plays (the controller's: placed where the objects are now).
+        self.skills: Callable[[], Mapping[Arm, Skill]] = skills or (lambda: ctx.session.skills)
         ctx.on_leave(self._check_leave)
         ctx.events.on(Topic.SKILL, self._forget_last_run)
         ctx.events.on(Topic.SESSION, self._forget_last_run)
@@ -128,11 +131,11 @@ class ExecutionActions:
     def running(self) -> bool:
         return self._run is not None
 
-    def feasibility(self) -> dict[str, Feasibility]:
+    def feasibility(self) -> dict[Arm, Feasibility]:
         """arm -> whether the robot can follow its learned skill, in plain words (computed once per skill)."""
         return self._feasible.get(sampling.executable(self.skills()), self.ctx.baxter)
 
-    def unreachable_paths(self) -> dict[str, list[np.ndarray]]:
+    def unreachable_paths(self) -> dict[Arm, list[np.ndarray]]:
         """arm -> the stretches (each (n, 3) m) of its learned path the robot cannot follow, to draw in red."""
         pos = {a: s.trajectory.position for a, s in self.skills().items()}
         return {a: [pos[a][s.i_start : s.i_end + 2] for s in f.spans] for a, f in self.feasibility().items()}

@@ -18,7 +18,7 @@ from studio.controller.events import Topic
 from studio.core.errors import StudioError
 from studio.core.keypoints import KeypointCache
 from studio.core.thresholds import NAMES, DemoStats, ThresholdSettings
-from studio.core.types import Demo, KeypointParams
+from studio.core.types import Arm, Demo, KeypointParams
 from studio.storage import MAX_CLUSTERS, Session
 
 #: The thresholds are written to the session once they rested this long (never per slider step).
@@ -30,7 +30,7 @@ class KeypointItem:
     """The key-points of one shown demonstration for one arm: ``points`` (count, 3) positions, m."""
 
     index: int
-    arm: str
+    arm: Arm
     name: str
     color: tuple[int, int, int]
     count: int
@@ -44,20 +44,20 @@ class KeypointView:
     grows with every request (a newer request makes an older view stale)."""
 
     demos: tuple[KeypointItem, ...] = ()
-    centroids: dict[str, np.ndarray] = field(default_factory=dict)
-    k: dict[str, int] = field(default_factory=dict)
+    centroids: dict[Arm, np.ndarray] = field(default_factory=dict)
+    k: dict[Arm, int] = field(default_factory=dict)
     messages: tuple[str, ...] = ()
-    params: dict[str, KeypointParams] = field(default_factory=dict)
+    params: dict[Arm, KeypointParams] = field(default_factory=dict)
     settings: ThresholdSettings = field(default_factory=ThresholdSettings)
     version: int = 0
     #: arm -> the key-point indices of each shown demo (in the order of ``demos``).
-    indices: dict[str, list[np.ndarray]] = field(default_factory=dict)
+    indices: dict[Arm, list[np.ndarray]] = field(default_factory=dict)
 
 
 class ShownDemos(Protocol):
     """The shown demonstrations of an arm (:meth:`studio.controller.demos.Demos.for_arm`)."""
 
-    def for_arm(self, arm: str) -> list[tuple[int, Demo]]: ...
+    def for_arm(self, arm: Arm) -> list[tuple[int, Demo]]: ...
 
 
 #: Work done on the key-point thread after each new view while no newer request waits: ``follower(view,
@@ -97,7 +97,7 @@ class KeypointTuning:
         for topic in (Topic.DEMOS, Topic.SESSION, Topic.ARMS):
             ctx.events.on(topic, self.request)
 
-    def arms(self) -> tuple[str, ...]:
+    def arms(self) -> tuple[Arm, ...]:
         return self.ctx.arms
 
     def add_follower(self, follower: Follower) -> None:
@@ -109,7 +109,7 @@ class KeypointTuning:
         with self.ctx.lock:
             return self._settings
 
-    def shown_arm(self) -> str | None:
+    def shown_arm(self) -> Arm | None:
         """The arm whose values the sliders show: the first taught arm with shown demonstrations."""
         arms = self.arms()
         for arm in arms:
@@ -117,7 +117,7 @@ class KeypointTuning:
                 return arm
         return arms[0] if arms else None
 
-    def stats(self, arm: str) -> DemoStats | None:
+    def stats(self, arm: Arm) -> DemoStats | None:
         """What the automatic thresholds of ``arm`` follow (None without shown demonstrations); cached per set
         of demonstrations."""
         demos = tuple(d for _, d in self.demos.for_arm(arm))
@@ -130,7 +130,7 @@ class KeypointTuning:
         self._stats[arm] = (demos, st)
         return st
 
-    def params(self, arm: str | None = None, settings: ThresholdSettings | None = None) -> KeypointParams:
+    def params(self, arm: Arm | None = None, settings: ThresholdSettings | None = None) -> KeypointParams:
         """The fourteen values in real units for ``arm``'s shown demonstrations (default: :meth:`shown_arm`)."""
         settings = settings or self.settings()
         arm = arm or self.shown_arm()
@@ -212,6 +212,8 @@ class KeypointTuning:
     def _on_session(self) -> None:
         """Another session is open: take its settings and k (the old ones were kept before it changed)."""
         with self.ctx.lock:
+            if self.ctx.session is self._session:  # the same session again: its settings here are the newest
+                return
             session = self._session = self.ctx.session
             self._settings = session.thresholds
             self._k = session.n_clusters
@@ -225,10 +227,10 @@ class KeypointTuning:
 
         settings, k, version = self.settings(), self._k, self._version
         items: list[KeypointItem] = []
-        centroids: dict[str, np.ndarray] = {}
-        ks: dict[str, int] = {}
-        used: dict[str, KeypointParams] = {}
-        indices: dict[str, list[np.ndarray]] = {}
+        centroids: dict[Arm, np.ndarray] = {}
+        ks: dict[Arm, int] = {}
+        used: dict[Arm, KeypointParams] = {}
+        indices: dict[Arm, list[np.ndarray]] = {}
         messages: list[str] = []
         for arm in self.arms():
             demos = self.demos.for_arm(arm)
@@ -310,6 +312,6 @@ class KeypointTuning:
                 self.ctx.report(exc, title="Could not save the key-point settings")
 
 
-def _item(i: int, arm: str, d: Demo, ix: np.ndarray) -> KeypointItem:
+def _item(i: int, arm: Arm, d: Demo, ix: np.ndarray) -> KeypointItem:
     points = np.asarray(d.position)[ix] if len(ix) else np.zeros((0, 3))
     return KeypointItem(index=i, arm=arm, name=d.name, color=demo_color(i), count=len(ix), points=points)

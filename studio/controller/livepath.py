@@ -15,7 +15,7 @@ from studio.controller.context import Context
 from studio.controller.events import Topic
 from studio.controller.learning import Follower, KeypointView, ShownDemos
 from studio.core.keypoints import KeypointCache
-from studio.core.types import SkillRoute
+from studio.core.types import Arm, SkillRoute
 
 
 @dataclass(frozen=True)
@@ -32,7 +32,7 @@ class LivePath:
         routes, route: the ways the demonstrations go when more than one, and the one the path follows.
     """
 
-    arm: str
+    arm: Arm
     version: int
     position: np.ndarray
     distance: float
@@ -87,7 +87,7 @@ class LivePaths:
         demos: ShownDemos,
         tuning: KeypointSource,
         wanted: Callable[[], bool],
-        route: Callable[[str], int | None] = lambda arm: None,
+        route: Callable[[Arm], int | None] = lambda arm: None,
     ) -> None:
         from studio.core.pipeline import AlignmentCache
 
@@ -96,7 +96,7 @@ class LivePaths:
         self.tuning = tuning
         self.wanted = wanted
         self.route = route  #: the way the teacher chose for an arm (None: the way most demonstrations go)
-        self.paths: dict[str, LivePath] = {}
+        self.paths: dict[Arm, LivePath] = {}
         self.align_cache = AlignmentCache()
         self.computed_ms: float = math.nan  # how long the last set of paths took (for the bench)
         tuning.add_follower(self.follow)
@@ -114,7 +114,7 @@ class LivePaths:
             return
         t0 = time.perf_counter()
         mode = self.ctx.session.generalization
-        out: dict[str, LivePath] = {}
+        out: dict[Arm, LivePath] = {}
         try:
             for arm, params in view.params.items():
                 demos = [d for _, d in self.demos.for_arm(arm)]

@@ -10,7 +10,7 @@ from __future__ import annotations
 import threading
 
 from studio.controller.context import Context
-from studio.core.types import Skill
+from studio.core.types import Arm, Skill
 from studio.world.reach import one_place, outside, suggestion
 from studio.world.relative import objects_now
 
@@ -23,13 +23,13 @@ class PlacedSkills:
         self._lock = threading.Lock()
         self._cache: dict[str, tuple[Skill, object, Skill]] = {}
 
-    def get(self) -> dict[str, Skill]:
+    def get(self) -> dict[Arm, Skill]:
         """arm -> the skill to play with the objects where they are now."""
         from studio.core.segments import place_skill
 
         session = self.ctx.session
         scene = session.objects.scene
-        out: dict[str, Skill] = {}
+        out: dict[Arm, Skill] = {}
         for arm, skill in dict(session.skills).items():
             if skill.frames is None:
                 out[arm] = skill

@@ -8,7 +8,7 @@ playback is loaded; the scene follows it while it is shown (:class:`~studio.cont
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from typing import Literal
+from enum import StrEnum
 
 import numpy as np
 
@@ -17,13 +17,20 @@ from studio.controller.events import Topic
 from studio.controller.pose import PoseSource
 from studio.core import sampling
 from studio.core.errors import NotEnoughData, StudioError
-from studio.core.types import Recording, Skill
+from studio.core.types import Arm, Recording, Skill
 from studio.robot_backend.base import JointStateBatch
 from studio.robot_backend.replay import ReplayBackend
 
-PlaybackKind = Literal["preview", "replay"]
-PREVIEW: PlaybackKind = "preview"
-REPLAY: PlaybackKind = "replay"
+
+class PlaybackKind(StrEnum):
+    """What a playback plays: the learned skill, or a recorded demonstration."""
+
+    PREVIEW = "preview"
+    REPLAY = "replay"
+
+
+PREVIEW = PlaybackKind.PREVIEW
+REPLAY = PlaybackKind.REPLAY
 #: Samples per second of the preview recording.
 PREVIEW_RATE_HZ = 100.0
 
@@ -85,15 +92,21 @@ class Player:
     Args:
         guard: refuses (raises, in plain words) to show a playback while the robot runs a skill: the scene
             shows the real robot then.
+        skills: the skills the preview plays (default: the session's, as learned).
     """
 
-    def __init__(self, ctx: Context, guard: Callable[[], None] = lambda: None) -> None:
+    def __init__(
+        self,
+        ctx: Context,
+        guard: Callable[[], None] = lambda: None,
+        skills: Callable[[], Mapping[Arm, Skill]] | None = None,
+    ) -> None:
         self.ctx = ctx
         self.display = ctx.display
         self.guard = guard
         self._loaded: Playback | None = None
-        #: The skills the preview plays (set by the controller: placed where the objects are now).
-        self.skills: Callable[[], Mapping[str, Skill]] = lambda: ctx.session.skills
+        #: The skills the preview plays (the controller's: placed where the objects are now).
+        self.skills: Callable[[], Mapping[Arm, Skill]] = skills or (lambda: ctx.session.skills)
         ctx.events.on(Topic.SKILL, self.unload_preview)
         ctx.events.on(Topic.SESSION, self._on_session)
 

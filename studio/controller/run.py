@@ -14,7 +14,7 @@ import shutil
 import tempfile
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
@@ -25,7 +25,7 @@ from studio.core.errors import StudioError
 from studio.core.execution import ExecutionPlan, RunVerdict, TrackingReport, compare_execution, skill_feasibility
 from studio.core.ik_path import Feasibility
 from studio.core.kinematics import Baxter
-from studio.core.types import Recording, Skill
+from studio.core.types import Arm, Recording, Skill
 from studio.recorder import Recorder
 from studio.robot_backend.base import ExecutionProgress, JointStateBatch, RobotBackend, RobotHealth
 from studio.world import TaskResult, format_distance
@@ -102,8 +102,8 @@ class RunPaths:
     ``executed``, where the gripper really went. ``key`` changes whenever they do."""
 
     key: tuple[int, ...] = ()
-    approach: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
-    executed: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
+    approach: dict[Arm, np.ndarray] = dataclasses.field(default_factory=dict)
+    executed: dict[Arm, np.ndarray] = dataclasses.field(default_factory=dict)
 
 
 class Trace:
@@ -247,9 +247,9 @@ class FeasibilityCache:
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
-        self._hits: dict[str, tuple[Skill, Feasibility]] = {}
+        self._hits: dict[Arm, tuple[Skill, Feasibility]] = {}
 
-    def get(self, skills: dict[str, Skill], baxter: Baxter) -> dict[str, Feasibility]:
+    def get(self, skills: Mapping[Arm, Skill], baxter: Baxter) -> dict[Arm, Feasibility]:
         out = {}
         for arm, skill in skills.items():
             with self._lock:

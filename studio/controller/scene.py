@@ -18,7 +18,7 @@ import numpy as np
 
 from studio.controller.context import Context
 from studio.controller.events import Topic
-from studio.controller.playback import Playback
+from studio.controller.playback import Playback, PlaybackKind
 from studio.core.errors import StudioError
 from studio.core.types import ARMS, Recording
 from studio.robot_backend.base import RobotBackend
@@ -181,7 +181,7 @@ class SceneActions:
         rec = pb.recording
         if self._played is None or self._played[0] is not pb:
             start = None
-            if pb.kind == "replay":
+            if pb.kind == PlaybackKind.REPLAY:
                 i = next((k for k, r in enumerate(self.ctx.session.recordings) if r is pb.key), None)
                 start = self.demo_start(i) if i is not None else None
             self._played = (pb, World(self.scene, self.ctx.baxter, start=start), 0)

@@ -14,6 +14,7 @@ from studio.controller.events import Topic
 from studio.controller.learning import ShownDemos
 from studio.core.errors import NotEnoughData, StudioError
 from studio.core.thresholds import ThresholdSettings
+from studio.core.types import Arm
 from studio.words import tune_summary
 
 if TYPE_CHECKING:
@@ -50,7 +51,7 @@ class Thresholds(Protocol):
     @property
     def k(self) -> int | None: ...
     def settings(self) -> ThresholdSettings: ...
-    def shown_arm(self) -> str | None: ...
+    def shown_arm(self) -> Arm | None: ...
     def restore(self, settings: ThresholdSettings, k: int | None) -> None: ...
 
 
@@ -62,7 +63,8 @@ class Suggesting:
         self.demos = demos
         self.tuning = tuning
         self.state = SuggestState()
-        #: Worker processes for the search (the auto-tune's default: both cores).
+        #: Where the search runs: None, the work thread and the helper threads (``ctx.helpers``); 1, the work
+        #: thread alone.
         self.workers: int | None = None
         self._cancel = threading.Event()
         self._undo: tuple[ThresholdSettings, int | None] | None = None
@@ -74,7 +76,7 @@ class Suggesting:
             self.state = replace(self.state, **changes)  # type: ignore[arg-type]
         self.ctx.emit(Topic.SUGGEST)
 
-    def start(self, arm: str | None = None) -> Future[None]:
+    def start(self, arm: Arm | None = None) -> Future[None]:
         """Start a search on the demonstrations of ``arm`` (default: the arm the sliders show) on the work
         thread; the result is applied as one change when it completes."""
         from studio.core import autotune
@@ -101,7 +103,7 @@ class Suggesting:
                 self._set(fraction=float(fraction), step=step)
 
         def job() -> None:
-            kwargs = {} if self.workers is None else {"workers": self.workers}
+            executor = self.ctx.helpers if self.workers != 1 else None
             res = autotune.suggest(
                 demos,
                 current=settings,
@@ -109,7 +111,7 @@ class Suggesting:
                 generalization=mode,
                 progress=progress,
                 cancel=self._cancel,
-                **kwargs,
+                executor=executor,
             )
             if res.cancelled:
                 self._set(running=False, summary="Suggest was stopped: your thresholds are unchanged.")

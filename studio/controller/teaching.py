@@ -17,7 +17,7 @@ from studio.controller.events import Topic
 from studio.core.arms import arm_columns, arm_of_joint, gripper_column, normalize_arms
 from studio.core.errors import InvalidInput, StorageError, StudioError
 from studio.core.kinematics import IkResult
-from studio.core.types import ARMS, Recording
+from studio.core.types import ARMS, Arm, Recording
 from studio.recorder import Recorder
 from studio.robot_backend.base import JointStateBatch, RobotBackend
 from studio.storage import Session
@@ -71,8 +71,8 @@ class Teaching:
         self.display = ctx.display
         self.takes = takes
         self.motion_guard = motion_guard
-        self.reach: dict[str, Reach] = {}
-        self._targets: dict[str, np.ndarray] = {}
+        self.reach: dict[Arm, Reach] = {}
+        self._targets: dict[Arm, np.ndarray] = {}
         self._ik_lock = {arm: threading.Lock() for arm in ARMS}
         self._recorder: Recorder | None = None
         self._session: Session = ctx.session
@@ -113,12 +113,12 @@ class Teaching:
         """(2,) latest gripper openings of the live robot, percent."""
         return self.display.live.get()[3].copy()
 
-    def arm_q(self, arm: str) -> np.ndarray:
+    def arm_q(self, arm: Arm) -> np.ndarray:
         return self.robot_q()[arm_columns(arm)]
 
     # -- arms ----------------------------------------------------------------------------------------------
     @property
-    def selected_arms(self) -> tuple[str, ...]:
+    def selected_arms(self) -> tuple[Arm, ...]:
         """The taught arm(s), as the open session keeps them."""
         return self.ctx.arms
 
@@ -141,7 +141,7 @@ class Teaching:
             raise StudioError(f'Stop the recording before {doing}: it is being recorded into "{self._session.name}".')
 
     # -- moving the robot ----------------------------------------------------------------------------------
-    def move_gripper(self, arm: str, position: np.ndarray, wxyz: np.ndarray) -> IkResult:
+    def move_gripper(self, arm: Arm, position: np.ndarray, wxyz: np.ndarray) -> IkResult:
         """IK to the handle's pose from the arm's current joints, then command the robot.
 
         An unreachable target still moves the arm to the closest pose found; :attr:`reach` says so
@@ -156,13 +156,13 @@ class Teaching:
         self._set_reach(arm, Reach(bool(res.converged), (float(p[0]), float(p[1]), float(p[2])), time.monotonic()))
         return res
 
-    def _set_reach(self, arm: str, reach: Reach) -> None:
+    def _set_reach(self, arm: Arm, reach: Reach) -> None:
         old = self.reach.get(arm)
         self.reach[arm] = reach
         if old is None or old != reach:
             self.ctx.emit(Topic.REACH)
 
-    def forget_reach(self, arms: tuple[str, ...] = ARMS, *, older_than: float | None = None) -> None:
+    def forget_reach(self, arms: tuple[Arm, ...] = ARMS, *, older_than: float | None = None) -> None:
         """Stop telling that ``arms`` could not reach their handle (all of it, or what was decided more than
         ``older_than`` seconds ago): the arm was moved otherwise, or the handle is back on the gripper."""
         now = time.monotonic()
@@ -172,7 +172,7 @@ class Teaching:
         if gone:
             self.ctx.emit(Topic.REACH)
 
-    def unreachable(self, arm: str) -> bool:
+    def unreachable(self, arm: Arm) -> bool:
         r = self.reach.get(arm)
         return r is not None and not r.ok
 
@@ -183,12 +183,12 @@ class Teaching:
                 return f"The {arm} gripper cannot reach the handle's position: the arm stops at the closest pose."
         return ""
 
-    def _target_arm(self, arm: str) -> np.ndarray:
+    def _target_arm(self, arm: Arm) -> np.ndarray:
         with self.ctx.lock:
             t = self._targets.get(arm)
         return np.array(t) if t is not None else self.arm_q(arm)
 
-    def command_arm(self, arm: str, q: np.ndarray) -> None:
+    def command_arm(self, arm: Arm, q: np.ndarray) -> None:
         with self.ctx.lock:
             self._targets[arm] = np.array(q, dtype=np.float64)
         self.backend.command_joints(arm, q)
@@ -203,7 +203,7 @@ class Teaching:
         q[index % 7] = value
         self.command_arm(arm, q)
 
-    def set_gripper(self, arm: str, width: float) -> None:
+    def set_gripper(self, arm: Arm, width: float) -> None:
         """Gripper opening in percent (0 = closed, 100 = open)."""
         self.motion_guard("moving the gripper by hand")
         self.display.show_live()
@@ -214,7 +214,7 @@ class Teaching:
         with self.ctx.lock:
             self._targets.clear()
 
-    def gripper_width(self, arm: str) -> float:
+    def gripper_width(self, arm: Arm) -> float:
         return float(self.robot_gripper()[gripper_column(arm)])
 
     # -- recording -----------------------------------------------------------------------------------------

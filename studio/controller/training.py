@@ -18,7 +18,7 @@ from studio.core.frames import DemoObjects
 from studio.core.keypoints import KeypointCache
 from studio.core.quality import DemoFit, Verdict
 from studio.core.thresholds import ThresholdSettings
-from studio.core.types import FRAMES, GENERALIZATIONS, Demo, KeypointParams, Recording, Skill
+from studio.core.types import FRAMES, Arm, Demo, Generalization, KeypointParams, Recording, Skill
 from studio.world.relative import demo_objects, objects_now
 
 #: How each choice of frames is called in the Train panel.
@@ -27,9 +27,9 @@ FRAME_WORDS = {
     "robot": "Fixed places (the paper: one path in the robot's frame)",
 }
 #: How each generalisation mode is called in the Train panel.
-MODE_WORDS = {
-    "aligned-mean": "Follow the demonstrations (average of your demonstrations, aligned in time)",
-    "paper": "Paper's spline (a smooth curve through the learned states, as in the paper)",
+MODE_WORDS: dict[Generalization, str] = {
+    Generalization.ALIGNED_MEAN: "Follow the demonstrations (average of your demonstrations, aligned in time)",
+    Generalization.PAPER: "Paper's spline (a smooth curve through the learned states, as in the paper)",
 }
 
 
@@ -57,7 +57,7 @@ class SkillVerdict:
 class DemoSource(ShownDemos, Protocol):
     """The demonstrations learning reads (:class:`~studio.controller.demos.Demos`)."""
 
-    def demo_of(self, rec: Recording, arm: str) -> Demo: ...
+    def demo_of(self, rec: Recording, arm: Arm) -> Demo: ...
 
 
 class Settings(Protocol):
@@ -68,7 +68,7 @@ class Settings(Protocol):
     @property
     def k(self) -> int | None: ...
     def settings(self) -> ThresholdSettings: ...
-    def params(self, arm: str | None = None, settings: ThresholdSettings | None = None) -> KeypointParams: ...
+    def params(self, arm: Arm | None = None, settings: ThresholdSettings | None = None) -> KeypointParams: ...
     def persist(self, force: bool = False) -> None: ...
 
 
@@ -86,23 +86,22 @@ class Training:
         self.judging = False
         #: The newest judgement under way or done (training starts one when it finishes).
         self.judgement: Future[None] | None = None
-        self._verdicts: dict[str, SkillVerdict] = {}
-        self._routes: dict[str, int] = {}
+        self._verdicts: dict[Arm, SkillVerdict] = {}
+        self._routes: dict[Arm, int] = {}
         ctx.on_leave(self._check_leave)
         ctx.events.on(Topic.SESSION, self._on_session)
 
-    def skills(self) -> dict[str, Skill]:
+    def skills(self) -> dict[Arm, Skill]:
         return dict(self.ctx.session.skills)
 
     # -- generalisation mode -------------------------------------------------------------------------------
     @property
-    def generalization(self) -> str:
+    def generalization(self) -> Generalization:
         """The mode the next training uses ("aligned-mean", the default, or "paper")."""
         return self.ctx.session.generalization
 
-    def set_generalization(self, mode: str) -> None:
-        if mode not in GENERALIZATIONS:
-            raise StudioError(f'Unknown way to generalise "{mode}".')
+    def set_generalization(self, mode: Generalization | str) -> None:
+        mode = Generalization.of(mode)
         with self.ctx.lock:
             if mode == self.ctx.session.generalization:
                 return
@@ -128,11 +127,11 @@ class Training:
             raise StudioError(f"Wait for the training to finish before {doing}.")
 
     # -- which way, when the demonstrations go several ways ---------------------------------------------------
-    def chosen_route(self, arm: str) -> int | None:
+    def chosen_route(self, arm: Arm) -> int | None:
         """The way the teacher chose for ``arm`` (index into its skill's ``routes``), or None for the default."""
         return self._routes.get(arm)
 
-    def set_route(self, arm: str, route: int) -> Future[dict[str, Skill] | None]:
+    def set_route(self, arm: Arm, route: int) -> Future[dict[Arm, Skill] | None]:
         """Learn ``arm``'s skill from the demonstrations of another way (see :attr:`Skill.routes`), at once."""
         sk = self.ctx.session.skills.get(arm)
         if sk is None or not 0 <= int(route) < len(sk.routes):
@@ -142,7 +141,7 @@ class Training:
         return self.train()
 
     # -- training ------------------------------------------------------------------------------------------
-    def train(self, arms: Sequence[str] | None = None) -> Future[dict[str, Skill] | None]:
+    def train(self, arms: Sequence[Arm] | None = None) -> Future[dict[Arm, Skill] | None]:
         """Learn the skill of every taught arm (or of ``arms``) from the shown demos on the work thread, then
         judge it."""
         from studio.core.pipeline import learn_skill, routes_of
@@ -170,12 +169,12 @@ class Training:
         relative = {arm: self._objects(arm, demos) for arm, demos in per_arm.items()} if frames == "objects" else {}
         now = objects_now(session.objects.scene)
 
-        def way(arm: str, demos: list[Demo]) -> int | None:
+        def way(arm: Arm, demos: list[Demo]) -> int | None:
             r = routes.get(arm)
             return r if r is not None and r < len(routes_of(demos)) else None  # the demos changed since
 
-        def job() -> dict[str, Skill]:
-            out = {}
+        def job() -> dict[Arm, Skill]:
+            out: dict[Arm, Skill] = {}
             for arm, demos in per_arm.items():
                 objs = relative.get(arm)
                 if objs is not None and not isinstance(objs, str):
@@ -198,7 +197,7 @@ class Training:
                 )
             return out
 
-        def done(skills: dict[str, Skill]) -> None:
+        def done(skills: dict[Arm, Skill]) -> None:
             names = {arm: [d.name for _, d in per_arm[arm]] for arm in skills}
             first: KeypointParams | None = next(iter(params.values()), None)
             with self.ctx.lock:
@@ -224,7 +223,7 @@ class Training:
         fut.add_done_callback(lambda f: self._finished())
         return fut
 
-    def _objects(self, arm: str, demos: list[tuple[int, Demo]]) -> list[DemoObjects] | str:
+    def _objects(self, arm: Arm, demos: list[tuple[int, Demo]]) -> list[DemoObjects] | str:
         """The objects and ``arm``'s contacts of each demonstration, or why the skill cannot follow them."""
         from studio.core.segments import plan
 
@@ -245,7 +244,7 @@ class Training:
             self.ctx.emit(Topic.TRAINING)
 
     # -- the verdict ---------------------------------------------------------------------------------------
-    def verdicts(self) -> dict[str, SkillVerdict]:
+    def verdicts(self) -> dict[Arm, SkillVerdict]:
         """arm -> the judgement of its current skill (only once judged; see :attr:`judging`)."""
         with self.ctx.lock:
             skills = self.ctx.session.skills
@@ -277,7 +276,7 @@ class Training:
         self.judgement = fut
         return fut
 
-    def _judge_one(self, arm: str, skill: Skill, fixed_k: bool) -> SkillVerdict:
+    def _judge_one(self, arm: Arm, skill: Skill, fixed_k: bool) -> SkillVerdict:
         from studio.core.pipeline import judge_skill
         from studio.core.quality import demo_fits
 
@@ -306,7 +305,7 @@ class Training:
             self.judge()
 
     # -- what the panels show ------------------------------------------------------------------------------
-    def skill_demo_names(self, arm: str) -> list[str]:
+    def skill_demo_names(self, arm: Arm) -> list[str]:
         """Names of the demonstrations the current skill of ``arm`` was learned from, in the skill's order
         (the order of its log-likelihoods and key-points), as they were called then."""
         sk = self.ctx.session.skills.get(arm)
@@ -315,7 +314,7 @@ class Training:
         info = self.ctx.session.skill_info.get(arm)
         return [str(n) for n in (sk.demo_names or (info.demos if info is not None else ()))]
 
-    def skill_demos(self, arm: str) -> list[UsedDemo]:
+    def skill_demos(self, arm: Arm) -> list[UsedDemo]:
         """Every demonstration the current skill of ``arm`` was learned from, in the skill's order."""
         by_name = {r.name: (i, r) for i, r in enumerate(self.ctx.session.recordings)}
         out: list[UsedDemo] = []
@@ -327,7 +326,7 @@ class Training:
                 out.append(UsedDemo(nm, None, None))
         return out
 
-    def ik_failures(self, arm: str) -> np.ndarray:
+    def ik_failures(self, arm: Arm) -> np.ndarray:
         """(n, 3) positions of the learned path the arm cannot reach exactly."""
         sk = self.ctx.session.skills.get(arm)
         jt = sk.joint_trajectory if sk is not None else None

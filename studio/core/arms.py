@@ -9,28 +9,28 @@ from __future__ import annotations
 from collections.abc import Iterable
 
 from studio.core.errors import InvalidInput
-from studio.core.types import ARMS, check_arm
+from studio.core.types import ARMS, Arm, check_arm
 
-_COLUMNS = {"left": slice(0, 7), "right": slice(7, 14)}
-_GRIPPER = {"left": 0, "right": 1}
+_COLUMNS: dict[Arm, slice] = {"left": slice(0, 7), "right": slice(7, 14)}
+_GRIPPER: dict[Arm, int] = {"left": 0, "right": 1}
 
 
-def arm_columns(arm: str) -> slice:
+def arm_columns(arm: Arm) -> slice:
     """The columns of ``arm``'s 7 joints in a (…, 14) joint array."""
     return _COLUMNS[check_arm(arm)]
 
 
-def gripper_column(arm: str) -> int:
+def gripper_column(arm: Arm) -> int:
     """The column of ``arm``'s gripper in a (…, 2) gripper array."""
     return _GRIPPER[check_arm(arm)]
 
 
-def arm_of_joint(index: int) -> str:
+def arm_of_joint(index: int) -> Arm:
     """The arm that joint ``index`` (0–13, order ALL_ARM_JOINTS) belongs to."""
     return "left" if index < 7 else "right"
 
 
-def normalize_arms(arms: str | Iterable[str]) -> tuple[str, ...]:
+def normalize_arms(arms: str | Iterable[str]) -> tuple[Arm, ...]:
     """A choice of taught arm(s) as a tuple in the canonical order ("left" before "right").
 
     Accepts "left", "right", "both" (an unknown single name raises :class:`InvalidInput`), or any iterable of

@@ -4,18 +4,16 @@ Searched: ``detail`` (:mod:`studio.core.thresholds`) and k (a factor on the pape
 held-out G/R: the path learned without one demo (:func:`studio.core.pipeline.learn_path`) against that demo,
 over at most :data:`MAX_FOLDS` folds. The current settings first, then coarse ``detail`` values, then around
 the best and other k; the current thresholds stay (``changed`` False) unless something does better.
-Candidates run in worker processes (docs/decisions/011)."""
+Candidates run here or in the caller's ``executor`` (docs/decisions/030)."""
 
 from __future__ import annotations
 
 import hashlib
 import math
-import multiprocessing
-import os
 import threading
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, Executor, Future, wait
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,8 +22,6 @@ from studio.core.errors import NotEnoughData, StudioError
 from studio.core.thresholds import DemoStats, ThresholdSettings, auto_params
 from studio.core.types import Demo, KeypointParams
 
-#: Worker processes (both cores of the target machine).
-WORKERS = max(1, min(2, os.cpu_count() or 1))
 #: At most this many demos are left out in turn.
 MAX_FOLDS = 3
 #: Coarse ``detail`` values tried first.
@@ -95,8 +91,10 @@ class TuneResult:
     changed: bool = True
 
 
-# -- the work (runs in the worker processes, or in-process with workers=1) -------------------------------------
+# -- the work (in the calling thread, or a task of the caller's executor) -----------------------------------------
 
+#: The last search's demos and derived data in this process, by search token (a worker keeps them between its
+#: tasks; a second search on the same demos reuses them).
 _STATE: dict[str, tuple] = {}
 
 
@@ -148,33 +146,24 @@ def _score(c: Candidate, st: tuple, folds: Sequence[int]) -> Score:
     )
 
 
-def _evaluate(
-    token: str, demos: list[Demo], generalization: str, folds: list[int], cands: list[Candidate]
-) -> list[Score]:
-    st = _state(token, demos, generalization)
+def evaluate(
+    token: str, demos: list[Demo] | None, generalization: str, folds: list[int], cands: list[Candidate]
+) -> list[Score] | None:
+    """One task: score ``cands`` for the search ``token`` (picklable, for an executor of processes). ``demos`` may
+    be None when this process already holds the search's data; then None is returned if it does not."""
+    if demos is None and token not in _STATE:
+        return None
+    st = _state(token, demos or [], generalization)
     return [_score(c, st, folds) for c in cands]
 
 
-# -- the pool ----------------------------------------------------------------------------------------------------
-
-
-def _evaluate_inherited(token: str, folds: list[int], cands: list[Candidate]) -> list[Score]:
-    """In a forked worker: the search's demos, series and DTW maps were inherited from the parent."""
-    st = _STATE[token]
-    return [_score(c, st, folds) for c in cands]
-
-
-def _fork_pool(workers: int) -> ProcessPoolExecutor:
-    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("fork"))
-
-
-def warm_up(workers: int = WORKERS) -> None:
-    """Load the learning pipeline ahead of the first search (the workers are forked from this process)."""
+def warm_up() -> None:
+    """Load the learning pipeline (a worker process's first task, ahead of the first search)."""
     from studio.core import pipeline, quality  # noqa: F401
 
 
 def shutdown() -> None:
-    """Forget the last search's demos and derived data (workers live only during a search)."""
+    """Forget the last search's demos and derived data in this process."""
     _STATE.clear()
 
 
@@ -208,14 +197,14 @@ def _better(a: Score, ca: Candidate, b: Score, cb: Candidate) -> bool:
 
 
 class _Search:
-    """One search's scoring: "before" here (it derives the demos' series and DTW maps), the other candidates in
-    this process or in worker processes forked after that (they inherit them); counts progress, honours cancel."""
+    """One search's scoring: "before" here (it derives the demos' series and DTW maps), the other candidates here
+    or as tasks of ``executor``; counts progress, honours cancel."""
 
     def __init__(
         self,
         demos: list[Demo],
         generalization: str,
-        workers: int,
+        executor: Executor | None,
         progress: Callable[[float, str], None] | None,
         cancel: threading.Event | None,
     ) -> None:
@@ -224,10 +213,9 @@ class _Search:
         self.folds = _folds(len(demos))
         self.token = f"{_fingerprint(demos)}-{generalization}"
         self.st = _state(self.token, demos, generalization)
-        self.workers = workers
+        self.executor = executor
         self.progress = progress
         self.cancel = cancel
-        self.pool: ProcessPoolExecutor | None = None
         self.done = 0
         self.planned = 1 + len(COARSE_DETAIL) + 2 + len(K_FACTORS)
         self.cancelled = False
@@ -242,34 +230,38 @@ class _Search:
         return self.cancelled
 
     def first(self, before_c: Candidate) -> Score | None:
-        """Score "before" in this process, then start the workers (they inherit what it derived)."""
+        """Score "before" in this thread (it derives the demos' series and DTW maps)."""
         self.report("Measuring the current thresholds")
         if self.stopped():
             return None
         score = _score(before_c, self.st, self.folds)
         self.done += 1
-        if self.workers > 1:
-            self.pool = _fork_pool(self.workers)
         return score
 
     def run(self, cands: list[Candidate], msg: str) -> list[Score] | None:
-        """Score candidates (one per task across the workers); None if cancelled."""
-        if self.pool is None:
+        """Score candidates (one per task of the executor); None if cancelled."""
+        if self.executor is None:
             out = []
             for c in cands:
                 if self.stopped():
                     return None
-                out.extend(_evaluate(self.token, self.demos, self.generalization, self.folds, [c]))
+                out.append(_score(c, self.st, self.folds))
                 self.done += 1
                 self.report(msg)
             return out
-        futs = {self.pool.submit(_evaluate_inherited, self.token, self.folds, [c]): i for i, c in enumerate(cands)}
+        futs = {self._submit(c): i for i, c in enumerate(cands)}
         res: list[Score | None] = [None] * len(cands)
         pending: set[Future] = set(futs)
         while pending:
             done, pending = wait(pending, timeout=0.05, return_when=FIRST_COMPLETED)
             for f in done:
-                res[futs[f]] = f.result()[0]
+                scores = f.result()
+                if scores is None:  # a worker without the search's data: send it the demos
+                    again = self._submit(cands[futs[f]], with_demos=True)
+                    futs[again] = futs[f]
+                    pending.add(again)
+                    continue
+                res[futs[f]] = scores[0]
                 self.done += 1
                 self.report(msg)
             if self.stopped():
@@ -278,10 +270,10 @@ class _Search:
                 return None
         return [r for r in res if r is not None]
 
-    def close(self) -> None:
-        if self.pool is not None:
-            self.pool.shutdown(wait=False, cancel_futures=True)
-            self.pool = None
+    def _submit(self, c: Candidate, *, with_demos: bool = False) -> Future[list[Score] | None]:
+        assert self.executor is not None
+        demos = self.demos if with_demos else None
+        return self.executor.submit(evaluate, self.token, demos, self.generalization, self.folds, [c])
 
 
 def _before(current: ThresholdSettings | KeypointParams | None, stats: DemoStats, k: int | None) -> Candidate:
@@ -339,7 +331,7 @@ def suggest(
     generalization: str | None = None,
     progress: Callable[[float, str], None] | None = None,
     cancel: threading.Event | None = None,
-    workers: int = WORKERS,
+    executor: Executor | None = None,
     budget_s: float = 5.0,
 ) -> TuneResult:
     """Search ``detail`` and k for the best held-out fidelity (module docstring; docs/decisions/011).
@@ -351,7 +343,7 @@ def suggest(
         generalization: the mode to tune for (default: the pipeline's default).
         progress: called with (fraction 0…1, plain-words step) as candidates finish, from this thread.
         cancel: set it to stop; :func:`suggest` then returns early with ``cancelled=True``.
-        workers: processes to use (1 = in this process, no pool).
+        executor: runs the candidates after "before" (threads, or processes the caller started); None: here.
         budget_s: stop starting new rounds after this many seconds (the result says ``complete=False``).
 
     Raises:
@@ -369,11 +361,8 @@ def suggest(
     generalization = generalization or DEFAULT_GENERALIZATION
     stats = DemoStats.of(demos)
     before_c = _before(current, stats, n_clusters)
-    search = _Search(demos, generalization, workers, progress, cancel)
-    try:
-        best_c, best, before, evaluated, complete = _rounds(search, before_c, t0, budget_s)
-    finally:
-        search.close()
+    search = _Search(demos, generalization, executor, progress, cancel)
+    best_c, best, before, evaluated, complete = _rounds(search, before_c, t0, budget_s)
     defaults = n_clusters is None and (current is None or current == ThresholdSettings())
     # the defaults stay unless something is clearly better; the teacher's own values unless something is as good
     better = best.g_over_r < before.g_over_r * (1.0 - MARGIN) if defaults else best.g_over_r <= before.g_over_r
@@ -419,10 +408,10 @@ def _suggested_k(demos: list[Demo], params: KeypointParams, k_factor: float) -> 
 __all__ = [
     "COARSE_DETAIL",
     "K_FACTORS",
-    "WORKERS",
     "Candidate",
     "Score",
     "TuneResult",
+    "evaluate",
     "shutdown",
     "suggest",
     "warm_up",

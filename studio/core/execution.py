@@ -26,7 +26,7 @@ from studio.core.ik_path import (
 )
 from studio.core.kinematics import Baxter, matrix_from_quat_wxyz
 from studio.core.timing import _trapezoid, _trapezoid_progress, retime
-from studio.core.types import ALL_ARM_JOINTS, ARMS, Demo, JointTrajectory, Recording, check_arm, readonly
+from studio.core.types import ALL_ARM_JOINTS, ARMS, Arm, Demo, JointTrajectory, Recording, check_arm, readonly
 
 #: A start pose farther than this from anything the arm can reach refuses the whole skill (IkFailed).
 START_POSITION_M = 0.01
@@ -61,7 +61,7 @@ def _pose_at(trajectory: Demo, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def joint_trajectory(
     trajectory: Demo,
-    arm: str,
+    arm: Arm,
     q_seed: np.ndarray,
     baxter: Baxter | None = None,
     *,
@@ -173,7 +173,7 @@ class ExecutionPlan:
     t: np.ndarray
     q: np.ndarray
     gripper: np.ndarray
-    arms: tuple[str, ...]
+    arms: tuple[Arm, ...]
     skill_start: float
     skill_time: np.ndarray
     rate_hz: float
@@ -226,7 +226,7 @@ def _check_in_limits(q_now: np.ndarray, b: Baxter) -> None:
 
 
 def plan_execution(
-    joint_trajectories: Mapping[str, JointTrajectory],
+    joint_trajectories: Mapping[Arm, JointTrajectory],
     q_now: np.ndarray,
     gripper_now: np.ndarray,
     baxter: Baxter | None = None,
@@ -339,10 +339,10 @@ class TrackingReport:
     t: np.ndarray
     plan_time: np.ndarray
     joint_error: np.ndarray
-    position_error: dict[str, np.ndarray]
-    path_error: dict[str, np.ndarray]
-    planned_position: dict[str, np.ndarray]
-    executed_position: dict[str, np.ndarray]
+    position_error: dict[Arm, np.ndarray]
+    path_error: dict[Arm, np.ndarray]
+    planned_position: dict[Arm, np.ndarray]
+    executed_position: dict[Arm, np.ndarray]
     gripper_error: np.ndarray
     offset: float
     completed: float

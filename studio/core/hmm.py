@@ -8,7 +8,6 @@ are the zero-points. Choices: docs/decisions/014."""
 
 from __future__ import annotations
 
-import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -17,18 +16,6 @@ from hmmlearn.hmm import CategoricalHMM
 
 from studio.core.errors import InvalidInput, LearningFailed
 from studio.core.types import readonly
-
-
-def _quiet_rounding_dips(record: logging.LogRecord) -> bool:
-    """hmmlearn only logs (never raises) when the likelihood dips by float rounding; keep that quiet.
-
-    A filter on hmmlearn's logger, installed once: thread-safe, unlike toggling the logger's level
-    around each fit.
-    """
-    return record.levelno >= logging.ERROR
-
-
-logging.getLogger("hmmlearn.base").addFilter(_quiet_rounding_dips)
 
 #: Uniform share of each emission row at initialisation (keeps out-of-order symbols possible).
 EMISSION_FLOOR = 0.01

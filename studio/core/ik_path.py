@@ -20,7 +20,7 @@ from scipy.linalg import lapack
 
 from studio.core.errors import InvalidInput
 from studio.core.kinematics import Baxter, matrix_from_quat_wxyz
-from studio.core.types import check_arm, readonly
+from studio.core.types import Arm, check_arm, readonly
 
 #: A sample is executed faithfully when the gripper is within these of the skill (the acceptance bar).
 ACCEPT_POSITION_M = 1e-3
@@ -177,7 +177,7 @@ class UnreachableSpan:
 class Feasibility:
     """Whether the robot can execute the whole skill, and in plain words where it cannot."""
 
-    arm: str
+    arm: Arm
     spans: tuple[UnreachableSpan, ...] = field(default_factory=tuple)
     message: str = ""
 
@@ -226,7 +226,7 @@ class _PathSolver:
     (:meth:`batch_solve`). Seeding, tracking, recovery and refinement along the path are the functions
     after it."""
 
-    def __init__(self, baxter: Baxter, arm: str, t: np.ndarray, position: np.ndarray, R: np.ndarray) -> None:
+    def __init__(self, baxter: Baxter, arm: Arm, t: np.ndarray, position: np.ndarray, R: np.ndarray) -> None:
         self.b = baxter
         self.arm = arm
         self.model, self.fid = baxter._reduced[arm]
@@ -641,7 +641,7 @@ def solve_path(
     t: np.ndarray,
     position: np.ndarray,
     wxyz: np.ndarray,
-    arm: str,
+    arm: Arm,
     q_seed: np.ndarray,
     baxter: Baxter | None = None,
     *,
@@ -740,7 +740,7 @@ def feasibility(
     t: np.ndarray,
     position_error: np.ndarray,
     orientation_error: np.ndarray,
-    arm: str,
+    arm: Arm,
     *,
     min_gap_s: float = 0.05,
     reachable: Callable[[int], bool] | None = None,
@@ -786,7 +786,7 @@ def feasibility(
     return Feasibility(arm, tuple(spans), _feasibility_message(arm, spans))
 
 
-def _feasibility_message(arm: str, spans: list[UnreachableSpan]) -> str:
+def _feasibility_message(arm: Arm, spans: list[UnreachableSpan]) -> str:
     first = spans[0]
     when = (
         f"{_fmt_s(first.t_start)} s"

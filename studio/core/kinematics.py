@@ -23,7 +23,7 @@ import pinocchio as pin
 
 from studio.core.errors import InvalidInput
 from studio.core.rotations import make_sign_continuous, matrix_from_quat_wxyz, quat_angle, quat_wxyz_from_matrix
-from studio.core.types import ARM_JOINTS, ARMS, check_arm, readonly
+from studio.core.types import ARM_JOINTS, ARMS, Arm, check_arm, readonly
 
 #: The paper's Table I (Denavit–Hartenberg, standard convention): rows (d, a, alpha) for joints 1..7.
 DH_TABLE: np.ndarray = readonly(
@@ -149,7 +149,7 @@ def _mix(row: list[Any], col: np.ndarray) -> Any:
 class _ArmChain:
     """One arm as seven z-axis revolute joints with fixed placements: FK vectorised over N configurations."""
 
-    def __init__(self, model: pin.Model, arm: str) -> None:
+    def __init__(self, model: pin.Model, arm: Arm) -> None:
         names = ARM_JOINTS[arm]
         self.joint_ids = [model.getJointId(n) for n in names]
         self.idx_q = np.array([model.joints[j].idx_q for j in self.joint_ids])
@@ -266,24 +266,24 @@ class Baxter:
         return cls(baxter_urdf_path())
 
     # -- limits -------------------------------------------------------------------------------------------
-    def lower_limits(self, arm: str) -> np.ndarray:
+    def lower_limits(self, arm: Arm) -> np.ndarray:
         """(7,) lower joint limits of ``arm`` in radians (URDF)."""
         return self._chains[check_arm(arm)].lower.copy()
 
-    def upper_limits(self, arm: str) -> np.ndarray:
+    def upper_limits(self, arm: Arm) -> np.ndarray:
         """(7,) upper joint limits of ``arm`` in radians (URDF)."""
         return self._chains[check_arm(arm)].upper.copy()
 
-    def velocity_limits(self, arm: str) -> np.ndarray:
+    def velocity_limits(self, arm: Arm) -> np.ndarray:
         """(7,) joint velocity limits of ``arm`` in rad/s (URDF)."""
         return self._chains[check_arm(arm)].velocity.copy()
 
-    def acceleration_limits(self, arm: str) -> np.ndarray:
+    def acceleration_limits(self, arm: Arm) -> np.ndarray:
         """(7,) joint acceleration limits of ``arm`` in rad/s² (see :data:`ACCELERATION_LIMITS`)."""
         check_arm(arm)
         return np.array(ACCELERATION_LIMITS, dtype=np.float64)
 
-    def neutral(self, arm: str) -> np.ndarray:
+    def neutral(self, arm: Arm) -> np.ndarray:
         """A comfortable working configuration in front of the robot (the Baxter SDK's "untuck" pose)."""
         q = np.array([0.08, -1.0, -1.19, 1.94, 0.67, 1.03, -0.50])
         if check_arm(arm) == "right":
@@ -291,7 +291,7 @@ class Baxter:
         return q
 
     # -- forward kinematics -------------------------------------------------------------------------------
-    def fk(self, arm: str, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def fk(self, arm: Arm, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Gripper pose for one configuration.
 
         Args:
@@ -311,7 +311,7 @@ class Baxter:
         quat = np.array([w, x, y, z]) if w >= 0 else -np.array([w, x, y, z])
         return np.array(M.translation), quat / np.linalg.norm(quat)
 
-    def fk_batch(self, arm: str, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def fk_batch(self, arm: Arm, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Gripper poses for N configurations, vectorised.
 
         Args:
@@ -333,7 +333,7 @@ class Baxter:
         rot, pos = chain.pose_columns(Q)
         return pos, make_sign_continuous(quat_wxyz_from_matrix(rot))
 
-    def pose_jacobian_batch(self, arm: str, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def pose_jacobian_batch(self, arm: Arm, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Gripper rotations (N, 3, 3), positions (N, 3) and Jacobians (N, 6, 7) for N configurations.
 
         The Jacobian maps joint velocities to the gripper's linear and angular velocity in world axes
@@ -341,11 +341,11 @@ class Baxter:
         """
         return self._chains[check_arm(arm)].pose_jacobian_columns(np.asarray(Q, dtype=np.float64))
 
-    def rotations_batch(self, arm: str, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def rotations_batch(self, arm: Arm, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Gripper rotation matrices (N, 3, 3) and positions (N, 3) for N configurations (no quaternions)."""
         return self._chains[check_arm(arm)].pose_columns(np.asarray(Q, dtype=np.float64))
 
-    def elbow_swivel(self, arm: str, q: np.ndarray) -> float:
+    def elbow_swivel(self, arm: Arm, q: np.ndarray) -> float:
         """Swivel angle (rad) of the elbow about the shoulder–wrist line; 0 = elbow straight up.
 
         A 7-joint arm reaches one gripper pose with the elbow anywhere on a circle about the line from
@@ -387,7 +387,7 @@ class Baxter:
     # -- inverse kinematics -------------------------------------------------------------------------------
     def ik(
         self,
-        arm: str,
+        arm: Arm,
         position: np.ndarray,
         wxyz: np.ndarray,
         q_seed: np.ndarray,
@@ -466,7 +466,7 @@ class Baxter:
             iterations=iterations,
         )
 
-    def _reduced_data(self, arm: str) -> pin.Data:
+    def _reduced_data(self, arm: Arm) -> pin.Data:
         key = f"rdata_{arm}"
         d = getattr(self._local, key, None)
         if d is None:
@@ -474,18 +474,18 @@ class Baxter:
             setattr(self._local, key, d)
         return d
 
-    def clamp(self, arm: str, q: np.ndarray) -> np.ndarray:
+    def clamp(self, arm: Arm, q: np.ndarray) -> np.ndarray:
         """Joint angles clipped into the URDF limits."""
         c = self._chains[check_arm(arm)]
         return np.clip(np.asarray(q, dtype=np.float64), c.lower, c.upper)
 
-    def random_configuration(self, arm: str, rng: np.random.Generator, n: int | None = None) -> np.ndarray:
+    def random_configuration(self, arm: Arm, rng: np.random.Generator, n: int | None = None) -> np.ndarray:
         """Uniform random joint angles within the limits: (7,) or (n, 7)."""
         c = self._chains[check_arm(arm)]
         size = (7,) if n is None else (n, 7)
         return rng.uniform(c.lower, c.upper, size=size)
 
-    def hand_in_mount(self, arm: str, q: np.ndarray) -> np.ndarray:
+    def hand_in_mount(self, arm: Arm, q: np.ndarray) -> np.ndarray:
         """(4, 4) transform from ``<arm>_arm_mount`` to ``<arm>_hand_link`` from the URDF (for the DH check)."""
         check_arm(arm)
         q = _as_array("joint angles", q, (7,))

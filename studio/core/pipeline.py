@@ -18,7 +18,7 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 
 from studio.core import alignment, hmm, quality
-from studio.core.clustering import FeatureScale, align_hemisphere, cluster, default_n_clusters
+from studio.core.clustering import Clustering, FeatureScale, align_hemisphere, cluster, default_n_clusters
 from studio.core.errors import InvalidInput, NotEnoughData
 from studio.core.generalize import SMOOTHING, demo_pins, generalize, joint_trajectory, pin_poses
 from studio.core.keypoints import KeypointCache
@@ -29,7 +29,9 @@ from studio.core.types import (
     ARMS,
     DEFAULT_GENERALIZATION,
     GENERALIZATIONS,
+    Arm,
     Demo,
+    Generalization,
     KeypointParams,
     Recording,
     Skill,
@@ -45,7 +47,7 @@ DTW_ORIENTATION_WEIGHT = 0.3
 DTW_DIRECTION_WEIGHT = 0.5
 
 
-def demo_from_recording(rec: Recording, arm: str, baxter: Baxter | None = None) -> Demo:
+def demo_from_recording(rec: Recording, arm: Arm, baxter: Baxter | None = None) -> Demo:
     """One arm of a recording as the paper's 8-D demonstration (forward kinematics of every sample).
 
     Args:
@@ -145,8 +147,8 @@ class _Model:
 
     kps: list[np.ndarray]
     k: int
-    cl: Any
-    model: Any
+    cl: Clustering
+    model: hmm.HmmResult
     ref: int
     aligned: list[np.ndarray]  # key-point times of each demo on the reference's time line (from its start)
     own: list[np.ndarray]  # key-point times of each demo on its own time line (from its start)
@@ -360,7 +362,7 @@ def learn_skill(
     *,
     n_clusters: int | None = None,
     seed: int = 0,
-    arm: str | None = None,
+    arm: Arm | None = None,
     baxter: Baxter | None = None,
     spline_through: str = "state-means",
     generalization: str = DEFAULT_GENERALIZATION,
@@ -465,7 +467,7 @@ def learn_skill(
         params=params,
         spline_through=spline_through,
         demo_names=tuple(d.name for d in demos),
-        generalization=generalization,
+        generalization=Generalization.of(generalization),
         routes=tuple(SkillRoute(tuple(everyone[i].name for i in r.demos), r.at) for r in found.routes),
         route=chosen,
         route_where=found.where,
@@ -670,7 +672,7 @@ def learn_arms(
     seed: int = 0,
     baxter: Baxter | None = None,
     generalization: str = DEFAULT_GENERALIZATION,
-) -> dict[str, Skill]:
+) -> dict[Arm, Skill]:
     """One skill per taught arm, each with its joint trajectory.
 
     Args:
@@ -688,9 +690,9 @@ def learn_arms(
     b = baxter or Baxter.load()
     if arms is None:
         arms = [a for a in ARMS if any(a in r.arms for r in recordings)]
-    out: dict[str, Skill] = {}
-    for arm in arms:
-        check_arm(arm)
+    out: dict[Arm, Skill] = {}
+    for name in arms:
+        arm = check_arm(name)
         demos = [demo_from_recording(r, arm, b) for r in recordings if arm in r.arms]
         if not demos:
             raise NotEnoughData(f"No demonstration teaches the {arm} arm.")

@@ -76,9 +76,25 @@ def _profile(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return path, np.linalg.norm(a[path[:, 0]] - b[path[:, 1]], axis=1)
 
 
-def route_distances(demos: Sequence[Demo]) -> np.ndarray:
-    """(D, D) route distance of every two demos (m; see the module docstring)."""
+def _bridged(cs: list[np.ndarray]) -> list[np.ndarray]:
+    """Each curve with its own start and end offsets from the curves' mean start and end taken out, faded
+    linearly along its length: ways that differ between shared ends stand out, ends that differ do not."""
+    start = np.mean([c[0] for c in cs], axis=0)
+    end = np.mean([c[-1] for c in cs], axis=0)
+    out = []
+    for c in cs:
+        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(c, axis=0), axis=1))])
+        u = (s / s[-1] if s[-1] > 0 else np.linspace(0.0, 1.0, len(c)))[:, None]
+        out.append(c - (1.0 - u) * (c[0] - start) - u * (c[-1] - end))
+    return out
+
+
+def route_distances(demos: Sequence[Demo], *, bridge: bool = False) -> np.ndarray:
+    """(D, D) route distance of every two demos (m; see the module docstring); ``bridge``: compared with their
+    start and end offsets faded out (:func:`_bridged`; for parts of a task whose ends move with the objects)."""
     cs = _curves(demos)
+    if bridge:
+        cs = _bridged(cs)
     n = len(cs)
     M = np.zeros((n, n))
     for i in range(n):
@@ -104,14 +120,15 @@ def _is_split(M: np.ndarray, labels: np.ndarray, size: float) -> bool:
     return between > max(ROUTE_SHARE * size, ROUTE_RATIO * within)
 
 
-def find_routes(demos: Sequence[Demo]) -> Routes:
-    """Which demonstrations go which way (:class:`Routes`; empty with fewer than 2 demos or one route)."""
+def find_routes(demos: Sequence[Demo], *, bridge: bool = False) -> Routes:
+    """Which demonstrations go which way (:class:`Routes`; empty with fewer than 2 demos or one route);
+    ``bridge``: see :func:`route_distances`."""
     from studio.core.quality import extent
 
     demos = list(demos)
     if len(demos) < 2 or len({_gripper_actions(d) for d in demos}) > 1:
         return Routes()  # fewer than two, or not the same task (the gripper used differently)
-    M = route_distances(demos)
+    M = route_distances(demos, bridge=bridge)
     size = extent(demos)
     labels = None
     for k in range(min(3, len(demos)), 1, -1):
@@ -123,7 +140,7 @@ def find_routes(demos: Sequence[Demo]) -> Routes:
         return Routes()
     groups = sorted((tuple(int(i) for i in np.flatnonzero(labels == g)) for g in np.unique(labels)), key=min)
     ends = [np.mean([demos[i].position[-1] for i in g], axis=0) for g in groups]
-    if max(float(np.linalg.norm(a - b)) for a in ends for b in ends) > ROUTE_SHARE * size:
+    if not bridge and max(float(np.linalg.norm(a - b)) for a in ends for b in ends) > ROUTE_SHARE * size:
         return Routes()  # not ways to the same place: different tasks (an odd demonstration is named elsewhere)
     return _where(demos, groups)
 

@@ -13,7 +13,7 @@ import numpy as np
 
 from studio.core.arms import arm_columns, gripper_column
 from studio.core.errors import InvalidInput
-from studio.core.types import Skill
+from studio.core.types import Arm, Skill
 
 #: Longest trajectory sampled, seconds (the session format's limit on a demonstration, too). A skill longer
 #: than this (a hostile file, a time axis stretched ×10⁶) is refused before any grid is allocated.
@@ -22,12 +22,12 @@ MAX_SECONDS = 6 * 3600.0
 MAX_GRID_SAMPLES = 4_000_000
 
 
-def executable(skills: Mapping[str, Skill]) -> dict[str, Skill]:
+def executable(skills: Mapping[Arm, Skill]) -> dict[Arm, Skill]:
     """The skills that have a joint trajectory (IK was run), by arm."""
     return {a: s for a, s in skills.items() if s.joint_trajectory is not None}
 
 
-def duration(skills: Mapping[str, Skill]) -> float:
+def duration(skills: Mapping[Arm, Skill]) -> float:
     """Seconds until the longest joint trajectory ends (0 without any).
 
     Raises:
@@ -67,7 +67,7 @@ def _joints(t_src: np.ndarray, q: np.ndarray, t_new: np.ndarray) -> np.ndarray:
     return np.asarray(CubicSpline(t_src, q, axis=0)(np.minimum(t_new, t_src[-1])))
 
 
-def native_rate(skills: Mapping[str, Skill], default: float = 100.0) -> float:
+def native_rate(skills: Mapping[Arm, Skill], default: float = 100.0) -> float:
     """Samples per second of the joint trajectories as timed (the highest when the arms differ)."""
     rates = [
         1.0 / float(np.median(np.diff(jt.t)))
@@ -78,7 +78,7 @@ def native_rate(skills: Mapping[str, Skill], default: float = 100.0) -> float:
 
 
 def sample_joints(
-    skills: Mapping[str, Skill], t: np.ndarray, rest_q: np.ndarray, rest_gripper: np.ndarray
+    skills: Mapping[Arm, Skill], t: np.ndarray, rest_q: np.ndarray, rest_gripper: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Joints (N, 14) rad and grippers (N, 2) percent of ``skills`` at times ``t`` (N,) s from their start.
 

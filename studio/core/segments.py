@@ -34,7 +34,7 @@ from studio.core.frames import (
     turn,
 )
 from studio.core.kinematics import Baxter
-from studio.core.types import DEFAULT_GENERALIZATION, Demo, KeypointParams, Skill
+from studio.core.types import DEFAULT_GENERALIZATION, Arm, Demo, Generalization, KeypointParams, Skill
 
 #: Frames whose landing spreads differ by less than this (m) are equally good: the more specific one is kept.
 TIE_M = 0.005
@@ -261,7 +261,7 @@ def learn_relative(
     *,
     now: Sequence[ObjectAt] | None = None,
     seed: int = 0,
-    arm: str | None = None,
+    arm: Arm | None = None,
     baxter: Baxter | None = None,
     generalization: str = DEFAULT_GENERALIZATION,
 ) -> Skill:
@@ -371,7 +371,7 @@ def _combine(
         params=params,
         spline_through=parts[0].spline_through,
         demo_names=names,
-        generalization=generalization,
+        generalization=Generalization.of(generalization),
         frames=frames,
     )
 
@@ -393,7 +393,7 @@ def place_skill(
     skill: Skill,
     now: Sequence[ObjectAt],
     *,
-    arm: str | None = None,
+    arm: Arm | None = None,
     baxter: Baxter | None = None,
     q_seed: np.ndarray | None = None,
 ) -> Skill:

@@ -68,7 +68,6 @@ def _toppra() -> tuple[ModuleType, ModuleType, ModuleType, type]:
     import toppra.constraint as constraint
     from toppra.constraint.linear_constraint import LinearConstraint
 
-    logging.getLogger("toppra").setLevel(logging.ERROR)
     return ta, algo, constraint, LinearConstraint
 
 

@@ -10,22 +10,43 @@ import functools
 import math
 import numbers
 from dataclasses import dataclass, fields
+from enum import StrEnum
+from typing import Literal, TypeGuard
 
 import numpy as np
 
 from studio.core.errors import InvalidInput
 from studio.core.frames import ObjectFrames
 
-ARMS: tuple[str, str] = ("left", "right")
+#: One of Baxter's arms.
+Arm = Literal["left", "right"]
+ARMS: tuple[Arm, Arm] = ("left", "right")
 JOINT_SUFFIXES: tuple[str, ...] = ("s0", "s1", "e0", "e1", "w0", "w1", "w2")
-ARM_JOINTS: dict[str, tuple[str, ...]] = {arm: tuple(f"{arm}_{s}" for s in JOINT_SUFFIXES) for arm in ARMS}
+ARM_JOINTS: dict[Arm, tuple[str, ...]] = {arm: tuple(f"{arm}_{s}" for s in JOINT_SUFFIXES) for arm in ARMS}
 #: The 14 arm joints in the order the backend streams them (and the Baxter SDK CSV lists them).
 ALL_ARM_JOINTS: tuple[str, ...] = ARM_JOINTS["left"] + ARM_JOINTS["right"]
-#: Generalisation modes (see :mod:`studio.core.pipeline`): "aligned-mean" (the default) and "paper" (the
-#: paper's spline through the states, the reference). Here so that storage can check a saved choice without
-#: importing the pipeline.
-GENERALIZATIONS: tuple[str, str] = ("aligned-mean", "paper")
-DEFAULT_GENERALIZATION = "aligned-mean"
+
+
+class Generalization(StrEnum):
+    """How training makes one path of the learned states (see :mod:`studio.core.pipeline`); here so that storage
+    can check a saved choice without importing the pipeline."""
+
+    #: The demonstrations averaged along their alignment to the reference (the default).
+    ALIGNED_MEAN = "aligned-mean"
+    #: The paper's spline through the timed states (the reference).
+    PAPER = "paper"
+
+    @classmethod
+    def of(cls, name: str) -> Generalization:
+        """The mode called ``name``; an unknown one raises :class:`InvalidInput` in plain words."""
+        try:
+            return cls(name)
+        except ValueError:
+            raise InvalidInput(f'Unknown way to generalise "{name}".') from None
+
+
+GENERALIZATIONS: tuple[Generalization, ...] = tuple(Generalization)
+DEFAULT_GENERALIZATION = Generalization.ALIGNED_MEAN
 #: Where a skill keeps its path (see :mod:`studio.core.segments`): "objects" (each stretch in the frame of the
 #: object it acts on; the default) or "robot" (the paper's: one path in the robot's frame).
 FRAMES: tuple[str, str] = ("objects", "robot")
@@ -39,9 +60,14 @@ def readonly(a: np.ndarray | list | tuple, dtype: type = np.float64) -> np.ndarr
     return out
 
 
-def check_arm(arm: str) -> str:
+def is_arm(name: object) -> TypeGuard[Arm]:
+    """Whether ``name`` is "left" or "right"."""
+    return name in ARMS
+
+
+def check_arm(arm: str) -> Arm:
     """Return ``arm`` if it is "left" or "right", else raise :class:`InvalidInput`."""
-    if arm not in ARMS:
+    if not is_arm(arm):
         raise InvalidInput(f'Unknown arm "{arm}": choose "left" or "right".')
     return arm
 
@@ -142,7 +168,7 @@ class Recording:
     t: np.ndarray
     q: np.ndarray
     gripper: np.ndarray
-    arms: tuple[str, ...] = ("left",)
+    arms: tuple[Arm, ...] = ("left",)
     name: str = "demo"
 
     def __post_init__(self) -> None:
@@ -172,11 +198,11 @@ class Recording:
     def duration(self) -> float:
         return float(self.t[-1] - self.t[0]) if len(self) else 0.0
 
-    def arm_q(self, arm: str) -> np.ndarray:
+    def arm_q(self, arm: Arm) -> np.ndarray:
         """(N, 7) joint angles of one arm."""
         return self.q[:, :7] if check_arm(arm) == "left" else self.q[:, 7:]
 
-    def arm_gripper(self, arm: str) -> np.ndarray:
+    def arm_gripper(self, arm: Arm) -> np.ndarray:
         """(N,) gripper opening of one arm, percent."""
         return self.gripper[:, 0] if check_arm(arm) == "left" else self.gripper[:, 1]
 
@@ -265,7 +291,7 @@ class JointTrajectory:
     position_error: np.ndarray
     orientation_error: np.ndarray
     converged: np.ndarray
-    arm: str
+    arm: Arm
     gripper: np.ndarray | None = None
     skill_time: np.ndarray | None = None
 
@@ -387,11 +413,11 @@ class Skill:
     path_points: np.ndarray
     path_states: np.ndarray
     joint_trajectory: JointTrajectory | None = None
-    arm: str | None = None
+    arm: Arm | None = None
     params: KeypointParams = KeypointParams()
     spline_through: str = "state-means"
     demo_names: tuple[str, ...] = ()
-    generalization: str = "paper"
+    generalization: Generalization = Generalization.PAPER
     frames: ObjectFrames | None = None
     routes: tuple[SkillRoute, ...] = ()
     route: int = 0
@@ -492,13 +518,14 @@ class Skill:
                     d["joint_position_error"],
                     d["joint_orientation_error"],
                     d["joint_converged"],
-                    str(d["joint_arm"]),
+                    check_arm(str(d["joint_arm"])),
                     d["joint_gripper"] if "joint_gripper" in d else None,
                     d["joint_skill_time"] if "joint_skill_time" in d else None,
                 )
             names = [f.name for f in fields(KeypointParams)]
             params = KeypointParams(**{n: float(v) for n, v in zip(names, np.asarray(d["params"]), strict=True)})
-            arm = str(d["arm"]) or None
+            name = str(d["arm"])
+            arm = name if is_arm(name) else None
             return cls(
                 trajectory=traj,
                 keypoints=_unpack_list(d, "keypoints", np.int64),
@@ -521,7 +548,7 @@ class Skill:
                 params=params,
                 spline_through=str(d["spline_through"]),
                 demo_names=tuple(str(x) for x in np.asarray(d["demo_names"]).reshape(-1)),
-                generalization=str(d["generalization"]) if "generalization" in d else "paper",
+                generalization=Generalization.of(str(d.get("generalization", Generalization.PAPER))),
                 frames=ObjectFrames.from_arrays(d),
                 **_routes_from_arrays(d),
             )

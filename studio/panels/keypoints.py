@@ -13,7 +13,7 @@ import viser
 
 from studio.controller import Controller, KeypointView, Layer, LivePath, Step, Topic
 from studio.core.thresholds import DETAIL_MAX, DETAIL_MIN
-from studio.core.types import ARMS
+from studio.core.types import ARMS, Arm
 from studio.panels._charts import dashes
 from studio.panels._sliders import SPECS, ThresholdSliders
 from studio.panels._suggest import SuggestControls
@@ -176,7 +176,7 @@ class KeypointsPanel:
         self.counts.content = counts_html(view)
         self.thresholds.show_counts()
         arm = self.ctl.keypoints.shown_arm()
-        if arm in view.params:
+        if arm in view.params and view.settings == self.ctl.keypoints.settings():  # a stale view: the next one shows
             self.thresholds.sync(params=view.params[arm])
         self._sync_k(view)
 
@@ -292,7 +292,7 @@ class KeypointsPanel:
         self._closed = True
 
 
-def live_html(paths: dict[str, LivePath]) -> str:
+def live_html(paths: dict[Arm, LivePath]) -> str:
     """The live path's figure in words (class ``live-path``, ``data-version``: the key-point view it shows)."""
     if not paths:
         return '<div class="live-path" data-version="-1" style="font-size:0.85em"></div>'

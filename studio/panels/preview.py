@@ -11,7 +11,7 @@ import viser
 
 from studio.controller import PREVIEW, Controller, Layer, Topic
 from studio.core.ik_path import Feasibility
-from studio.core.types import ARMS
+from studio.core.types import ARMS, Arm
 from studio.panels._charts import APPROACH_COLOR, EXECUTED_COLOR, downsample_path, segments
 
 CYAN = (0, 200, 230)
@@ -208,7 +208,7 @@ class PreviewPanel:
             self.time.value = round(min(pos, self.time.max), 2)
 
 
-def _info(duration: float, feasibility: dict[str, Feasibility]) -> str:
+def _info(duration: float, feasibility: dict[Arm, Feasibility]) -> str:
     bad = [f.message for f in feasibility.values() if not f.ok]
     if bad:
         return f"Learned path ({duration:.1f} s) in cyan. In red: {' '.join(bad)} Press **Play** to watch it."

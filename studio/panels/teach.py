@@ -12,7 +12,7 @@ import viser
 from studio.controller import Controller, Step, Topic
 from studio.controller.teaching import REACH_HOLD_S
 from studio.core.arms import arm_columns
-from studio.core.types import ALL_ARM_JOINTS, ARMS
+from studio.core.types import ALL_ARM_JOINTS, ARMS, Arm
 
 JOINT_WORDS = {
     "s0": "shoulder turn",
@@ -102,7 +102,7 @@ class TeachPanel:
                 ctl.events.on(topic, lambda: setattr(self.next_place, "content", ctl.placed.suggestion()))
 
         with gui.add_folder("Grippers", order=1):
-            self.grip_width: dict[str, viser.GuiSliderHandle[float]] = {}
+            self.grip_width: dict[Arm, viser.GuiSliderHandle[float]] = {}
             for arm in ARMS:
                 grp = gui.add_button_group(f"{arm.capitalize()} gripper", options=("Open", "Close"))
                 w = gui.add_slider(
@@ -139,7 +139,7 @@ class TeachPanel:
         self.discard_btn.on_click(ctl.guarded("Could not discard the recording")(self._on_discard))
 
     # -- gizmo -> IK -> robot ------------------------------------------------------------------------------
-    def _make_gizmo_cb(self, arm: str) -> Callable[[viser.TransformControlsEvent], None]:
+    def _make_gizmo_cb(self, arm: Arm) -> Callable[[viser.TransformControlsEvent], None]:
         def cb(event: viser.TransformControlsEvent) -> None:
             phase = getattr(event, "phase", "update")  # viser versions before 1.0 send no phase
             if phase == "start":
@@ -185,7 +185,7 @@ class TeachPanel:
 
         return self.ctl.guarded("Could not move the joint")(cb)
 
-    def _make_grip_button_cb(self, arm: str) -> GuiCallback:
+    def _make_grip_button_cb(self, arm: Arm) -> GuiCallback:
         def cb(event: viser.GuiEvent) -> None:
             width = 100.0 if event.target.value == "Open" else 0.0
             self.ctl.teaching.set_gripper(arm, width)
@@ -193,7 +193,7 @@ class TeachPanel:
 
         return self.ctl.guarded("Could not move the gripper")(cb)
 
-    def _make_grip_width_cb(self, arm: str) -> GuiCallback:
+    def _make_grip_width_cb(self, arm: Arm) -> GuiCallback:
         def cb(event: viser.GuiEvent) -> None:
             if event.client is None:
                 return

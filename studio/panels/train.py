@@ -10,7 +10,7 @@ import viser
 
 from studio.controller import FRAME_WORDS, MODE_WORDS, Controller, SkillVerdict, Step, Topic, UsedDemo
 from studio.core.quality import Remedy
-from studio.core.types import DEFAULT_FRAMES, DEFAULT_GENERALIZATION, Skill
+from studio.core.types import DEFAULT_FRAMES, DEFAULT_GENERALIZATION, Arm, Skill
 from studio.panels._charts import heatmap_svg, position_plot_svg
 from studio.words import SHARED_REMEDIES, Remedies, fit_note, route_label, verdict_lines
 
@@ -53,7 +53,7 @@ class TrainPanel:
             hint="Your demonstrations go more than one way: the skill learns one of them, never a path between "
             "them. Choose which; it is learned again at once.",
         )
-        self._ways: dict[str, tuple[str, int]] = {}
+        self._ways: dict[str, tuple[Arm, int]] = {}
         with gui.add_folder("How the skill is made", expand_by_default=False):
             self.mode = gui.add_dropdown(
                 "Path",
@@ -125,9 +125,9 @@ class TrainPanel:
         if sk is not None and sk.route != route:
             self.ctl.training.set_route(arm, route)
 
-    def _refresh_way(self, skills: dict[str, Skill]) -> None:
+    def _refresh_way(self, skills: dict[Arm, Skill]) -> None:
         """The Way chooser: one entry per way of each arm whose demonstrations go several ways."""
-        ways: dict[str, tuple[str, int]] = {}
+        ways: dict[str, tuple[Arm, int]] = {}
         current = ""
         several = sum(1 for sk in skills.values() if sk.routes) > 1
         for arm, sk in skills.items():
@@ -171,7 +171,7 @@ class TrainPanel:
             self._refresh_way(self.ctl.training.skills())
 
     # -- the verdict ---------------------------------------------------------------------------------------
-    def _verdict_html(self, verdicts: dict[str, SkillVerdict]) -> str:
+    def _verdict_html(self, verdicts: dict[Arm, SkillVerdict]) -> str:
         skills = self.ctl.training.skills()
         if not skills:
             return ""
@@ -199,7 +199,7 @@ class TrainPanel:
         return "".join(blocks)
 
     # -- what it learned -----------------------------------------------------------------------------------
-    def _summary_html(self, arm: str, skill: Skill, used: list[UsedDemo], verdict: SkillVerdict | None) -> str:
+    def _summary_html(self, arm: Arm, skill: Skill, used: list[UsedDemo], verdict: SkillVerdict | None) -> str:
         names = [u.name if u.index is not None else f"{u.name} (renamed or deleted since)" for u in used]
         ref = int(skill.reference)
         zero = [int(z) for z in np.atleast_1d(skill.zero_points)]
@@ -256,7 +256,7 @@ class TrainPanel:
             f"{''.join(rows)}</table>{ik_note}</div>"
         )
 
-    def _plots(self, arm: str, skill: Skill, used: list[UsedDemo]) -> list[str]:
+    def _plots(self, arm: Arm, skill: Skill, used: list[UsedDemo]) -> list[str]:
         plots = []
         for j, u in enumerate(used):
             kps = skill.keypoints[j] if j < len(skill.keypoints) else np.zeros(0, dtype=int)

@@ -24,7 +24,7 @@ import numpy as np
 
 from studio.core.arms import arm_columns, normalize_arms
 from studio.core.errors import RecordingError
-from studio.core.types import Recording
+from studio.core.types import Arm, Recording
 from studio.recorder.files import FORMAT_VERSION, SUFFIX, RecordedDemo, columns, open_locked, read_recording_file
 from studio.robot_backend.base import JointStateBatch, RobotBackend
 
@@ -75,7 +75,7 @@ class Recorder:
         arms = normalize_arms(arms)
         self.backend = backend
         self.directory = Path(directory)
-        self.arms: tuple[str, ...] = arms
+        self.arms: tuple[Arm, ...] = arms
         self.name = str(name)
         self.flush_interval = min(max(float(flush_interval), 0.01), 1.0)
         self.max_seconds = float(max_seconds)
@@ -337,7 +337,7 @@ class _Rows:
     """Turns streamed samples into file rows: skips invalid and out-of-order samples (and counts them), stops
     at the length limit, clips the grippers, and appends the FK pose of each taught arm."""
 
-    def __init__(self, arms: tuple[str, ...], max_seconds: float, baxter: Baxter | None) -> None:
+    def __init__(self, arms: tuple[Arm, ...], max_seconds: float, baxter: Baxter | None) -> None:
         self.arms = arms
         self.max_seconds = max_seconds
         self._baxter = baxter

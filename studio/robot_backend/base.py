@@ -16,6 +16,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from studio.core.types import Arm
+
 if TYPE_CHECKING:  # pragma: no cover
     from studio.core.execution import ExecutionPlan
 
@@ -188,11 +190,11 @@ class RobotBackend(abc.ABC):
         """Register ``listener`` for every streamed batch; returns a function that unsubscribes it."""
 
     @abc.abstractmethod
-    def command_joints(self, arm: str, q: np.ndarray) -> None:
+    def command_joints(self, arm: Arm, q: np.ndarray) -> None:
         """Set the joint target (7,) rad of ``arm``; the robot moves there within its limits."""
 
     @abc.abstractmethod
-    def command_gripper(self, arm: str, width: float) -> None:
+    def command_gripper(self, arm: Arm, width: float) -> None:
         """Set the gripper target of ``arm``, percent open 0..100."""
 
     @abc.abstractmethod

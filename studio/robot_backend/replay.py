@@ -14,7 +14,7 @@ from collections.abc import Callable
 import numpy as np
 
 from studio.core.errors import InvalidInput, StudioError
-from studio.core.types import Recording
+from studio.core.types import Arm, Recording
 from studio.robot_backend._clock import BatchClock
 from studio.robot_backend.base import JointStateBatch, ListenerHub, RobotBackend, RobotState, StateListener
 
@@ -81,10 +81,10 @@ class ReplayBackend(RobotBackend):
     def subscribe(self, listener: StateListener) -> Callable[[], None]:
         return self._hub.subscribe(listener)
 
-    def command_joints(self, arm: str, q: np.ndarray) -> None:
+    def command_joints(self, arm: Arm, q: np.ndarray) -> None:
         """Ignored: a replay cannot be steered."""
 
-    def command_gripper(self, arm: str, width: float) -> None:
+    def command_gripper(self, arm: Arm, width: float) -> None:
         """Ignored: a replay cannot be steered."""
 
     def execute(self, plan: object) -> None:

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from studio.core.errors import InvalidInput, StudioError
-from studio.core.types import ARMS, check_arm
+from studio.core.types import ARMS, Arm, check_arm
 from studio.robot_backend.base import (
     ExecutionProgress,
     ListenerHub,
@@ -60,7 +60,7 @@ STALE_S = 0.2
 DEFAULT_RATIO, RUN_RATIO = 0.3, 1.0
 
 
-def _cols(arm: str) -> slice:
+def _cols(arm: Arm) -> slice:
     return slice(0, 7) if arm == "left" else slice(7, 14)
 
 
@@ -99,8 +99,8 @@ class RosbridgeBaxter(RobotBackend):
         self._lock = threading.RLock()
         self._watch = RobotWatch(self._hub.deliver, STALE_S)  # never waits for ``_lock``
         self._seq = 0
-        self._target: dict[str, np.ndarray] = {}
-        self._target_until: dict[str, float] = {}
+        self._target: dict[Arm, np.ndarray] = {}
+        self._target_until: dict[Arm, float] = {}
         self._run: PlanClock | None = None
         self._last_grip_cmd = np.full(2, np.nan)
         self._exec = ExecutionProgress()
@@ -168,7 +168,7 @@ class RosbridgeBaxter(RobotBackend):
         calibrate(lambda i: self._watch.grippers[i], lambda i, cmd: self._gripper_send(i, None, cmd), arms)
 
     # -- commands ---------------------------------------------------------------------------------------------
-    def _joint_command(self, arm: str, q: np.ndarray) -> None:
+    def _joint_command(self, arm: Arm, q: np.ndarray) -> None:
         if self._link.publish(JOINT_COMMAND.format(arm=arm), JOINT_COMMAND_TYPE, joint_command(arm, q)):
             self.commands_sent += 1
 
@@ -190,7 +190,7 @@ class RosbridgeBaxter(RobotBackend):
         if not h.ready:
             raise StudioError(h.message)
 
-    def command_joints(self, arm: str, q: np.ndarray) -> None:
+    def command_joints(self, arm: Arm, q: np.ndarray) -> None:
         """Move ``arm`` to ``q`` (7,) rad: republished at the command rate for :data:`COMMAND_HOLD_S`."""
         check_arm(arm)
         qa = np.asarray(q, dtype=np.float64)
@@ -202,7 +202,7 @@ class RosbridgeBaxter(RobotBackend):
             self._target_until[arm] = time.monotonic() + COMMAND_HOLD_S
             self._joint_command(arm, qa)
 
-    def command_gripper(self, arm: str, width: float) -> None:
+    def command_gripper(self, arm: Arm, width: float) -> None:
         i = ARMS.index(check_arm(arm))
         w = float(width)
         if not math.isfinite(w):

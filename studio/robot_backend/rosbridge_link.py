@@ -16,7 +16,7 @@ from urllib.parse import urlparse
 import numpy as np
 
 from studio.core.errors import InvalidInput, StudioError
-from studio.core.types import ARM_JOINTS
+from studio.core.types import ARM_JOINTS, Arm
 
 log = logging.getLogger(__name__)
 
@@ -67,7 +67,7 @@ def parse_robot_url(url: str) -> str:
     return f"{p.scheme}://{host}:{port}{p.path or ''}"
 
 
-def joint_command(arm: str, q: np.ndarray) -> dict[str, Any]:
+def joint_command(arm: Arm, q: np.ndarray) -> dict[str, Any]:
     """A ``baxter_core_msgs/JointCommand``: position mode, ``arm``'s seven joints by name."""
     return {"mode": POSITION_MODE, "command": [float(x) for x in q], "names": list(ARM_JOINTS[arm])}
 

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from studio.core.errors import InvalidInput, StudioError
-from studio.core.types import check_arm
+from studio.core.types import Arm, check_arm
 from studio.robot_backend._clock import BatchClock
 from studio.robot_backend.base import (
     ExecutionProgress,
@@ -129,7 +129,7 @@ class SimulatedBaxter(SimFaults, RobotBackend):
     def subscribe(self, listener: StateListener) -> Callable[[], None]:
         return self._hub.subscribe(listener)
 
-    def command_joints(self, arm: str, q: np.ndarray) -> None:
+    def command_joints(self, arm: Arm, q: np.ndarray) -> None:
         """Move ``arm`` towards ``q`` (7,) rad; targets outside the joint limits are clipped into them."""
         cols = slice(0, 7) if check_arm(arm) == "left" else slice(7, 14)
         qa = checked(f"{arm} arm joint angles", q, (7,))
@@ -139,7 +139,7 @@ class SimulatedBaxter(SimFaults, RobotBackend):
             a = self._arms
             a.qt[cols] = np.clip(qa, a.lower[cols], a.upper[cols])
 
-    def command_gripper(self, arm: str, width: float) -> None:
+    def command_gripper(self, arm: Arm, width: float) -> None:
         """Move ``arm``'s gripper towards ``width`` percent open (clipped to 0..100) at the gripper speed."""
         i = 0 if check_arm(arm) == "left" else 1
         w = checked(f"{arm} gripper opening", [width], (1,))[0]

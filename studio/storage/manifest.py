@@ -15,7 +15,16 @@ from typing import Any
 
 from studio.core.errors import InvalidInput, StudioError
 from studio.core.thresholds import ThresholdSettings
-from studio.core.types import ARMS, DEFAULT_FRAMES, DEFAULT_GENERALIZATION, FRAMES, GENERALIZATIONS, KeypointParams
+from studio.core.types import (
+    ARMS,
+    DEFAULT_FRAMES,
+    DEFAULT_GENERALIZATION,
+    FRAMES,
+    GENERALIZATIONS,
+    Arm,
+    Generalization,
+    KeypointParams,
+)
 from studio.storage.format import (
     DEMO_FILE_RE,
     FORMAT,
@@ -58,7 +67,7 @@ class DemoEntry:
 
     file: str
     name: str
-    arms: tuple[str, ...]
+    arms: tuple[Arm, ...]
     samples: int
     duration: float
     #: Hidden by the teacher: drawn faintly and left out of learning (optional, default False).
@@ -93,7 +102,7 @@ class SkillEntry:
     demos: tuple[str, ...] = ()
 
     @staticmethod
-    def for_arm(arm: str, learned: str, params: KeypointParams, demos: tuple[str, ...]) -> SkillEntry:
+    def for_arm(arm: Arm, learned: str, params: KeypointParams, demos: tuple[str, ...]) -> SkillEntry:
         return SkillEntry(file=f"{SKILL_DIR}/{arm}.npz", learned=learned, params=params.as_dict(), demos=demos)
 
     def to_json(self) -> dict[str, object]:
@@ -105,12 +114,12 @@ class Manifest:
     """Everything ``session.json`` holds. Build one with :meth:`from_json` (validates) or directly (writes)."""
 
     name: str
-    arms: tuple[str, ...]
+    arms: tuple[Arm, ...]
     created: str
     notes: str
     params: KeypointParams
     demos: tuple[DemoEntry, ...] = ()
-    skills: Mapping[str, SkillEntry] = field(default_factory=dict)
+    skills: Mapping[Arm, SkillEntry] = field(default_factory=dict)
     #: k chosen by hand (None: automatic).
     n_clusters: int | None = None
     precision: str = "float64"
@@ -128,7 +137,7 @@ class Manifest:
     #: file predates it: :func:`settings_of` then derives it from ``params``.
     thresholds: ThresholdSettings | None = None
     #: The generalisation mode training uses ("aligned-mean" or "paper").
-    generalization: str = DEFAULT_GENERALIZATION
+    generalization: Generalization = DEFAULT_GENERALIZATION
     frames: str = DEFAULT_FRAMES  # where skills keep their path: "objects" (they follow them) or "robot"
 
     # -- writing ----------------------------------------------------------------------------------------------
@@ -223,7 +232,7 @@ class Manifest:
             version=version,
             scene=m.scene(),
             thresholds=m.thresholds(),
-            generalization=m.choice("generalization", GENERALIZATIONS, DEFAULT_GENERALIZATION),
+            generalization=Generalization(m.choice("generalization", GENERALIZATIONS, DEFAULT_GENERALIZATION)),
             frames=m.choice("frames", FRAMES, DEFAULT_FRAMES),
         )
 
@@ -267,7 +276,7 @@ class _Reader:
             raise self.bad(f"has an unknown format version {v}")
         return v
 
-    def arms(self) -> tuple[str, ...]:
+    def arms(self) -> tuple[Arm, ...]:
         arms = self.need("arms", list)
         if not arms or any(a not in ARMS for a in arms) or len(set(arms)) != len(arms):
             raise self.bad('has invalid "arms" (must be "left" and/or "right")')
@@ -367,11 +376,11 @@ class _Reader:
         except StudioError as exc:
             raise self.bad(f"has a damaged task scene ({exc})") from exc
 
-    def skills(self) -> dict[str, SkillEntry]:
+    def skills(self) -> dict[Arm, SkillEntry]:
         skills = self.raw.get("skills", {})
         if not isinstance(skills, dict):
             raise self.bad('has invalid "skills"')
-        out: dict[str, SkillEntry] = {}
+        out: dict[Arm, SkillEntry] = {}
         for arm, s in skills.items():
             if arm not in ARMS or not isinstance(s, dict) or not isinstance(s.get("file"), str):
                 raise self.bad(f"has an invalid skill entry {arm!r}")

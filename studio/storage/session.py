@@ -21,7 +21,17 @@ import numpy as np
 from studio.core.arms import normalize_arms
 from studio.core.errors import InvalidInput, StorageError
 from studio.core.thresholds import ThresholdSettings
-from studio.core.types import ARMS, DEFAULT_GENERALIZATION, FRAMES, GENERALIZATIONS, KeypointParams, Recording, Skill
+from studio.core.types import (
+    ARMS,
+    DEFAULT_GENERALIZATION,
+    FRAMES,
+    GENERALIZATIONS,
+    Arm,
+    Generalization,
+    KeypointParams,
+    Recording,
+    Skill,
+)
 from studio.storage.atomic import atomic_write_bytes, atomic_write_npz
 from studio.storage.format import (
     DEMO_DIR,
@@ -85,20 +95,20 @@ class Session:
 
     name: str
     path: Path
-    arms: tuple[str, ...] = ("left",)
+    arms: tuple[Arm, ...] = ("left",)
     created: str = field(default_factory=now)
     notes: str = ""
     params: KeypointParams = field(default_factory=KeypointParams)
     n_clusters: int | None = None
     thresholds: ThresholdSettings = field(default_factory=ThresholdSettings)
-    generalization: str = DEFAULT_GENERALIZATION
+    generalization: Generalization = DEFAULT_GENERALIZATION
     frames: str = FRAMES[0]
     recordings: list[Recording] = field(default_factory=list)
     hidden_demos: set[str] = field(default_factory=set)
-    skills: dict[str, Skill] = field(default_factory=dict)
+    skills: dict[Arm, Skill] = field(default_factory=dict)
     precision: str = "float64"
     skills_stale: bool = False
-    skill_info: dict[str, SkillEntry] = field(default_factory=dict)
+    skill_info: dict[Arm, SkillEntry] = field(default_factory=dict)
     problems: list[str] = field(default_factory=list)
     recovery_message: str = ""
     opened_instead: str = ""
@@ -250,7 +260,10 @@ class Session:
     # -- parameters, notes, skills ------------------------------------------------------------------------
     @_locked
     def set_params(
-        self, params: KeypointParams | None = None, settings: ThresholdSettings | None = None, mode: str | None = None
+        self,
+        params: KeypointParams | None = None,
+        settings: ThresholdSettings | None = None,
+        mode: Generalization | str | None = None,
     ) -> None:
         """Keep the ε values with the settings they come from (default: values off the old fixed defaults are the
         teacher's, the others automatic), and/or a ``mode``: "aligned-mean"/"paper" or ``FRAMES`` "objects"/"robot"."""
@@ -260,7 +273,8 @@ class Session:
         self.frames = mode if mode in FRAMES else self.frames
         if params is not None:
             self.params, self.thresholds = params, settings or ThresholdSettings.from_params(params)
-        self.generalization = mode if mode in GENERALIZATIONS else self.generalization
+        if mode is not None and mode in GENERALIZATIONS:
+            self.generalization = Generalization(mode)
         self._write_manifest()
 
     @_locked
@@ -284,7 +298,7 @@ class Session:
     @_locked
     def set_skills(
         self,
-        skills: Mapping[str, Skill],
+        skills: Mapping[Arm, Skill],
         params: KeypointParams | None = None,
         demos: Iterable[str] | Mapping[str, Iterable[str]] | None = None,
     ) -> None:

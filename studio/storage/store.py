@@ -16,7 +16,7 @@ from pathlib import Path
 from studio.core.arms import normalize_arms
 from studio.core.errors import InvalidInput, SessionFormatError, StorageError
 from studio.core.thresholds import ThresholdSettings
-from studio.core.types import KeypointParams
+from studio.core.types import Arm, KeypointParams
 from studio.recorder import pending_recordings, recover_recordings
 from studio.storage import archive as _archive
 from studio.storage.atomic import atomic_write_npz
@@ -44,7 +44,7 @@ class SessionSummary:
 
     name: str
     demos: int
-    arms: tuple[str, ...]
+    arms: tuple[Arm, ...]
     created: str
     notes: str
     skills: tuple[str, ...]

@@ -19,7 +19,7 @@ from scipy.interpolate import CubicSpline
 from studio.core.errors import InvalidInput
 from studio.core.kinematics import Baxter
 from studio.core.rotations import matrix_from_quat_wxyz, quat_angle, quat_wxyz_from_matrix, rotvec_matrix, slerp
-from studio.core.types import Recording, check_arm, readonly
+from studio.core.types import ARMS, Arm, Recording, check_arm, readonly
 from studio.teacher.places import SITE_OBJECTS, USUAL, Place, Places
 from studio.teacher.tasks import (
     PICK_PLACE_A,
@@ -53,7 +53,7 @@ class GripperEvent(NamedTuple):
     """One gripper action of a plan: when it starts, which arm, "close" or "open", and the gripper pose."""
 
     time: float
-    arm: str
+    arm: Arm
     action: str
     position: np.ndarray
     wxyz: np.ndarray
@@ -78,7 +78,7 @@ class TeacherPlan:
     t: np.ndarray
     q: np.ndarray
     gripper: np.ndarray
-    arms: tuple[str, ...]
+    arms: tuple[Arm, ...]
     task: str
     seed: int
     events: list[GripperEvent]
@@ -89,7 +89,7 @@ class TeacherPlan:
     def duration(self) -> float:
         return float(self.t[-1] - self.t[0])
 
-    def event_poses(self, action: str, arm: str | None = None) -> list[GripperEvent]:
+    def event_poses(self, action: str, arm: Arm | None = None) -> list[GripperEvent]:
         """The events of one kind ("close" or "open"), optionally for one arm, in time order."""
         return [e for e in self.events if e.action == action and (arm is None or e.arm == arm)]
 
@@ -138,14 +138,14 @@ class _Segment:
 
 
 def _plan_arm(
-    task: str, arm: str, rng: np.random.Generator, baxter: Baxter, places: Places = USUAL
+    task: str, arm: Arm, rng: np.random.Generator, baxter: Baxter, places: Places = USUAL, detour: float = 0.0
 ) -> tuple[list[tuple[str, float, object]], np.ndarray]:
     """Timeline of one arm: list of ("move", t0, _Segment) / ("hold", t0, duration) and the start q."""
     q_home = baxter.neutral(arm)
     home, home_ori = baxter.fk(arm, q_home)
-    keys = _task_keys(task, rng, _mirror(home) if arm == "right" else home, places)
+    keys = _task_keys(task, rng, _mirror(home) if arm == "right" else home, places, detour)
     if arm == "right":
-        keys = [_Key(_mirror(k.position), -k.yaw, k.hold, k.speed, k.grip, k.kind) for k in keys]
+        keys = [_Key(_mirror(k.position), -k.yaw, k.hold, k.speed, k.grip, k.kind, bow=-k.bow) for k in keys]
         keys[0].position = home + (keys[0].position - _mirror(home))
         keys[-1].position = home + (keys[-1].position - _mirror(home))
     pace = rng.uniform(0.82, 1.3) * (1.25 if task == "pick-place" else 1.0)  # overall speed
@@ -168,7 +168,7 @@ def _plan_arm(
             if np.linalg.norm(side) < 1e-6:
                 side = np.array([1.0, 0.0, 0.0])
             side /= np.linalg.norm(side)
-            bow = side * rng.normal(0, 0.012) * min(1.0, d / 0.2)
+            bow = side * (k.bow + rng.normal(0, 0.012) * min(1.0, d / 0.2))
             seg = _Segment(t, dur, prev.position, k.position, oris[i - 1], oris[i], bow)
             items.append(("move", t, seg))
             t += dur
@@ -177,7 +177,7 @@ def _plan_arm(
     return items, q_home
 
 
-def _ik_segment(baxter: Baxter, arm: str, seg: _Segment, q_start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _ik_segment(baxter: Baxter, arm: Arm, seg: _Segment, q_start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """IK knots (times (K,), joints (K, 7)) along a segment, each solve seeded by the previous one."""
     n = max(3, math.ceil(seg.duration * _IK_RATE_HZ) + 1)
     tk = seg.t0 + np.linspace(0.0, seg.duration, n)
@@ -201,7 +201,7 @@ def _ik_segment(baxter: Baxter, arm: str, seg: _Segment, q_start: np.ndarray) ->
 
 
 def _arm_joints(
-    items: list[tuple[str, float, object]], q_home: np.ndarray, arm: str, baxter: Baxter, t: np.ndarray
+    items: list[tuple[str, float, object]], q_home: np.ndarray, arm: Arm, baxter: Baxter, t: np.ndarray
 ) -> tuple[np.ndarray, list[tuple[float, float, str]], float]:
     """(N, 7) joint targets at times ``t``, the gripper actions (t_start, hold length, action), end time."""
     vmax = baxter.velocity_limits(arm) * _VELOCITY_MARGIN
@@ -242,7 +242,13 @@ def _arm_joints(
 
 @lru_cache(maxsize=64)
 def teach(
-    task: str, seed: int, arm: str = "left", rate_hz: float = 1000.0, noise: bool = True, places: Places = USUAL
+    task: str,
+    seed: int,
+    arm: Arm = "left",
+    rate_hz: float = 1000.0,
+    noise: bool = True,
+    places: Places = USUAL,
+    detour: float = 0.0,
 ) -> TeacherPlan:
     """A human-like scripted demonstration of ``task`` (20–30 s, varied speed, pauses, jitter).
 
@@ -255,6 +261,8 @@ def teach(
         noise: default for :func:`recording_from_plan`; the plan itself is always noise-free.
         places: where the task's objects stand (default: the usual spots, where the presets put them); the
             same ``places`` go to :func:`studio.world.preset` for the matching scene.
+        detour: the first carry bows this far sideways at mid-way (m, ±20 % per demonstration; + is to the left
+            of the carry's direction, mirrored for the right arm): a way around an obstacle.
 
     Returns:
         A :class:`TeacherPlan` (cached: the same arguments return the same read-only plan).
@@ -266,15 +274,15 @@ def teach(
         raise InvalidInput(f"The sampling rate must be a positive number of samples per second (got {rate_hz}).")
     baxter = Baxter.load()
     rng = np.random.default_rng([seed, TASKS.index(task)])
-    timelines = {a: _plan_arm(task, a, rng, baxter, places) for a in arms}
+    timelines = {a: _plan_arm(task, a, rng, baxter, places, detour) for a in arms}
     # Generous horizon; slowed segments only lengthen a plan by a little.
     horizon = max(sum(_item_len(it) for it in items) for items, _ in timelines.values())
     t = np.arange(math.ceil(horizon * 1.5 * rate_hz) + 1) / rate_hz
     q = np.empty((t.shape[0], 14))
     grip = np.empty((t.shape[0], 2))
     ends = []
-    grip_actions: dict[str, list[tuple[float, float, str]]] = {}
-    for i_arm, a in enumerate(("left", "right")):
+    grip_actions: dict[Arm, list[tuple[float, float, str]]] = {}
+    for i_arm, a in enumerate(ARMS):
         cols = slice(0, 7) if a == "left" else slice(7, 14)
         if a not in timelines:
             q[:, cols] = baxter.neutral(a)

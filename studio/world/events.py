@@ -11,7 +11,7 @@ import numpy as np
 
 from studio.core.errors import InvalidInput, SessionFormatError
 from studio.core.rotations import matrix_from_quat_wxyz
-from studio.core.types import check_arm
+from studio.core.types import Arm, check_arm
 from studio.world.geometry import EVENT_KINDS, EVENTS_VERSION, KINDS, MAX_EVENTS, finite, finite3, finite4, yaw_of
 
 
@@ -91,7 +91,7 @@ class WorldEvent:
 
     t: float
     kind: str
-    arm: str | None
+    arm: Arm | None
     object: str | None
     gripper: tuple[float, float, float] | None
     poses: tuple[ObjectPose, ...]
@@ -124,7 +124,7 @@ class WorldEvent:
         return cls(
             t=finite("event time", [d["t"]], 1)[0],
             kind=kind,
-            arm=None if arm is None else str(arm),
+            arm=None if arm is None else check_arm(str(arm)),
             object=None if d.get("object") is None else str(d["object"]),
             gripper=None if g is None else finite3("gripper position", g),
             poses=tuple(ObjectPose.from_dict(p) for p in d.get("poses", [])),

@@ -9,6 +9,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from studio.core.frames import Contact, DemoObjects, ObjectAt, ObjectFrames, border_frames, to_world
+from studio.core.types import Arm
 from studio.world.events import ObjectPose, WorldEvent
 from studio.world.result import ObjectGoal, TaskGoal
 from studio.world.scene import Scene
@@ -18,7 +19,7 @@ def object_at(p: ObjectPose) -> ObjectAt:
     return ObjectAt(p.name, p.kind, p.position, p.yaw, p.on)
 
 
-def demo_objects(events: Sequence[WorldEvent], arm: str) -> DemoObjects | None:
+def demo_objects(events: Sequence[WorldEvent], arm: Arm) -> DemoObjects | None:
     """A demonstration's objects at its start and ``arm``'s grasps and releases (None without events)."""
     start = next((e for e in events if e.kind == "start"), None)
     if start is None:

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from studio.core.types import Arm
 from studio.world.events import WorldEvent
 from studio.world.geometry import GRASP_XY_TOL, SUCCESS_TOL
 from studio.world.simulation import WorldRun
@@ -67,7 +68,7 @@ class ObjectGoal:
 
     name: str
     kind: str
-    arm: str
+    arm: Arm
     start: tuple[float, float, float]
     releases: tuple[tuple[float, float, float], ...]
     final: tuple[float, float, float]

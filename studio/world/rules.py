@@ -14,6 +14,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from studio.core.rotations import quat_wxyz_from_matrix
+from studio.core.types import Arm
 from studio.world.events import ObjectPose, WorldEvent
 from studio.world.geometry import (
     GRASP_ABOVE_TOL,
@@ -125,10 +126,10 @@ class Objects:
     def poses(self) -> tuple[ObjectPose, ...]:
         return tuple(s.pose() for s in self.states.values())
 
-    def holding(self, arm: str) -> list[_State]:
+    def holding(self, arm: Arm) -> list[_State]:
         return [s for s in self.states.values() if s.held_by == arm]
 
-    def attach(self, arm: str, T_grip: np.ndarray) -> bool:
+    def attach(self, arm: Arm, T_grip: np.ndarray) -> bool:
         """Objects held by ``arm`` at the start (a replayed demonstration) follow its gripper from now on."""
         held = [s for s in self.holding(arm) if s.rel is None]
         inv = np.linalg.inv(T_grip)
@@ -136,12 +137,12 @@ class Objects:
             s.rel = inv @ s.T
         return bool(held)
 
-    def carry(self, arm: str, T_grip: np.ndarray) -> None:
+    def carry(self, arm: Arm, T_grip: np.ndarray) -> None:
         for s in self.holding(arm):
             if s.rel is not None:
                 s.T = T_grip @ s.rel
 
-    def close(self, arm: str, t: float, T_grip: np.ndarray) -> WorldEvent:
+    def close(self, arm: Arm, t: float, T_grip: np.ndarray) -> WorldEvent:
         """The gripper closed: grasp the graspable object around its point (from a stack, the top one)."""
         p = T_grip[:3, 3]
         best: _State | None = None
@@ -177,7 +178,7 @@ class Objects:
                     frontier.append(s.obj.name)
         return out
 
-    def open(self, arm: str, t: float, T_grip: np.ndarray) -> WorldEvent | None:
+    def open(self, arm: Arm, t: float, T_grip: np.ndarray) -> WorldEvent | None:
         """The gripper opened: what it holds drops straight down, upright, onto the highest surface below."""
         held = self.holding(arm)
         if not held:

@@ -7,12 +7,12 @@ import math
 import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from studio.core.errors import InvalidInput
-from studio.core.types import ARMS, check_arm
+from studio.core.types import ARMS, Arm, check_arm
 from studio.world.events import ObjectPose, WorldEvent
 from studio.world.geometry import transform
 from studio.world.rules import Grip, Objects
@@ -20,6 +20,7 @@ from studio.world.scene import Scene
 
 if TYPE_CHECKING:  # pinocchio is loaded only when a world is made (the session store reads scenes without it)
     from studio.core.kinematics import Baxter
+    from studio.robot_backend.base import JointStateBatch
 
 
 @dataclass(frozen=True, eq=False)
@@ -36,7 +37,7 @@ class WorldRun:
     events: tuple[WorldEvent, ...]
     final: tuple[ObjectPose, ...]
     path_t: np.ndarray
-    path: dict[str, np.ndarray]
+    path: dict[Arm, np.ndarray]
 
 
 class World:
@@ -83,11 +84,11 @@ class World:
             if scene is not None:
                 self._scene = scene
             self._objects = Objects(self._scene, start)
-            self._grips: dict[str, Grip] | None = None
+            self._grips: dict[Arm, Grip] | None = None
             self._events: list[WorldEvent] = []
             self._last: tuple[float, np.ndarray, np.ndarray] | None = None
             self._path_t: list[np.ndarray] = []
-            self._path: dict[str, list[np.ndarray]] = {arm: [] for arm in ARMS}
+            self._path: dict[Arm, list[np.ndarray]] = {arm: [] for arm in ARMS}
             self._path_bucket = -math.inf
             self.version += 1
 
@@ -117,7 +118,7 @@ class World:
         with self._lock:
             return list(self._events[mark:])
 
-    def held(self, arm: str) -> list[str]:
+    def held(self, arm: Arm) -> list[str]:
         """Names of the objects ``arm``'s gripper holds (the grasped one first)."""
         check_arm(arm)
         with self._lock:
@@ -135,7 +136,7 @@ class World:
             return ev
 
     # -- feeding --------------------------------------------------------------------------------------------
-    def on_batch(self, batch: Any) -> None:
+    def on_batch(self, batch: JointStateBatch) -> None:
         """``RobotBackend.subscribe`` listener: feed a :class:`JointStateBatch`."""
         self.feed(batch.t, batch.q, batch.gripper)
 
@@ -178,7 +179,7 @@ class World:
             return WorldRun(tuple(self._events), self._objects.poses(), path_t, path)
 
     # -- internals ------------------------------------------------------------------------------------------
-    def _first_sample(self, q0: np.ndarray, g0: np.ndarray) -> dict[str, Grip]:
+    def _first_sample(self, q0: np.ndarray, g0: np.ndarray) -> dict[Arm, Grip]:
         grips = {arm: Grip(float(g0[i])) for i, arm in enumerate(ARMS)}
         for arm in ARMS:  # objects held at the start (a replayed demonstration) follow this gripper
             if self._objects.attach(arm, self._gripper_T(arm, q0)):
@@ -186,7 +187,7 @@ class World:
         self._grips = grips
         return grips
 
-    def _gripper_events(self, arm: str, det: Grip, t: np.ndarray, q: np.ndarray, col: np.ndarray) -> list[WorldEvent]:
+    def _gripper_events(self, arm: Arm, det: Grip, t: np.ndarray, q: np.ndarray, col: np.ndarray) -> list[WorldEvent]:
         out: list[WorldEvent] = []
         for k, g in enumerate(col.tolist()):
             action = det.step(g)
@@ -211,7 +212,7 @@ class World:
         for arm in ARMS:
             self._path[arm].append(self.baxter.fk_batch(arm, q[idx, :7] if arm == "left" else q[idx, 7:])[0])
 
-    def _gripper_T(self, arm: str, q14: np.ndarray) -> np.ndarray:
+    def _gripper_T(self, arm: Arm, q14: np.ndarray) -> np.ndarray:
         p, wxyz = self.baxter.fk(arm, q14[:7] if arm == "left" else q14[7:])
         return transform(p, wxyz)
 

@@ -16,7 +16,7 @@ from functools import lru_cache
 import numpy as np
 
 from studio.core.kinematics import Baxter
-from studio.core.types import Demo, JointTrajectory
+from studio.core.types import Arm, Demo, JointTrajectory
 
 
 def _min_jerk(u: np.ndarray) -> np.ndarray:
@@ -25,7 +25,7 @@ def _min_jerk(u: np.ndarray) -> np.ndarray:
 
 
 def joint_space_pick_place(
-    seed: int, n: int = 3, arm: str = "left", rate: float = 1000.0, spread: float = 0.4, nkeys: int = 5
+    seed: int, n: int = 3, arm: Arm = "left", rate: float = 1000.0, spread: float = 0.4, nkeys: int = 5
 ) -> list[Demo]:
     """``n`` demonstrations (with joint angles) of one pick-and-place through ``nkeys`` random key postures."""
     b = Baxter.load()

@@ -24,7 +24,7 @@ from studio.core.ik_path import (
 )
 from studio.core.kinematics import Baxter, matrix_from_quat_wxyz
 from studio.core.pipeline import learn_skill
-from studio.core.types import Demo
+from studio.core.types import Arm, Demo
 from tests.core.execution_demos import cartesian_pick_place, joint_space_pick_place
 from tests.core.teacher_demos import demos as teacher_demos
 
@@ -34,14 +34,14 @@ def baxter() -> Baxter:
     return Baxter.load()
 
 
-def _tracked(baxter: Baxter, trajectory: Demo, q: np.ndarray, arm: str = "left") -> np.ndarray:
+def _tracked(baxter: Baxter, trajectory: Demo, q: np.ndarray, arm: Arm = "left") -> np.ndarray:
     rot, pos = baxter.rotations_batch(arm, q)
     pe = np.linalg.norm(pos - trajectory.position, axis=1)
     oe = rotation_angle(rot, matrix_from_quat_wxyz(trajectory.orientation))
     return (pe <= ACCEPT_POSITION_M) & (oe <= ACCEPT_ORIENTATION_RAD)
 
 
-def _limits_ok(baxter: Baxter, q: np.ndarray, t: np.ndarray, arm: str = "left") -> bool:
+def _limits_ok(baxter: Baxter, q: np.ndarray, t: np.ndarray, arm: Arm = "left") -> bool:
     dt = float(np.median(np.diff(t)))
     v = np.abs(np.diff(q, axis=0)) / dt
     a = np.abs(np.diff(q, 2, axis=0)) / dt**2

@@ -23,6 +23,7 @@ from studio.core.kinematics import (
     quat_angle,
     quat_wxyz_from_matrix,
 )
+from studio.core.types import Arm
 
 
 @pytest.fixture(scope="module")
@@ -46,7 +47,7 @@ KNOWN = {
 
 
 @pytest.mark.parametrize(("arm", "which"), sorted(KNOWN))
-def test_fk_known_configurations(baxter: Baxter, arm: str, which: str) -> None:
+def test_fk_known_configurations(baxter: Baxter, arm: Arm, which: str) -> None:
     q = {"zero": np.zeros(7), "lower": baxter.lower_limits(arm), "upper": baxter.upper_limits(arm)}[which]
     pos, quat = baxter.fk(arm, q)
     exp_pos, exp_quat = KNOWN[(arm, which)]
@@ -136,7 +137,7 @@ def test_dh_single_joint_matches_equation_2() -> None:
 # ---- IK -------------------------------------------------------------------------------------------------
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 2**31 - 1), arm=st.sampled_from(["left", "right"]))
-def test_ik_round_trip_from_nearby_seed(baxter: Baxter, seed: int, arm: str) -> None:
+def test_ik_round_trip_from_nearby_seed(baxter: Baxter, seed: int, arm: Arm) -> None:
     rng = np.random.default_rng(seed)
     q_true = baxter.random_configuration(arm, rng)
     pos, quat = baxter.fk(arm, q_true)
@@ -205,7 +206,7 @@ def test_bad_input_raises_studio_error(baxter: Baxter, call) -> None:
 
 def test_unknown_arm_message_is_plain(baxter: Baxter) -> None:
     with pytest.raises(InvalidInput, match='Unknown arm "middle": choose "left" or "right"'):
-        baxter.fk("middle", np.zeros(7))
+        baxter.fk("middle", np.zeros(7))  # type: ignore[arg-type]  # on purpose: an unknown arm
 
 
 # ---- quaternion helpers ---------------------------------------------------------------------------------

@@ -233,7 +233,7 @@ def test_bad_input_is_explained_in_plain_words():
     with pytest.raises(InvalidInput):
         learn_skill(d)  # type: ignore[arg-type]  # on purpose: a single Demo instead of a list
     with pytest.raises(InvalidInput):
-        learn_skill([d], arm="middle")
+        learn_skill([d], arm="middle")  # type: ignore[arg-type]  # on purpose: an unknown arm
     assert issubclass(NotEnoughData, StudioError)
 
 

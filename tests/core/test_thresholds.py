@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import itertools
 import math
+import multiprocessing
 import threading
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 
 import numpy as np
 import pytest
@@ -85,7 +87,7 @@ def test_suggest_reports_progress_and_before_after_figures():
     seen: list[tuple[float, str]] = []
     # start from thresholds that cut the corners in paper mode: Suggest must find better ones
     bad = auto_params(ds, -3.0)
-    r = autotune.suggest(ds, current=bad, generalization="paper", workers=1, progress=lambda f, m: seen.append((f, m)))
+    r = autotune.suggest(ds, current=bad, generalization="paper", progress=lambda f, m: seen.append((f, m)))
     assert r.complete and not r.cancelled and r.evaluated == 10 and r.changed
     assert r.after.g_over_r < 0.5 * r.before.g_over_r
     assert r.params == r.settings.resolve(ds) and r.settings.teacher == {}
@@ -94,21 +96,26 @@ def test_suggest_reports_progress_and_before_after_figures():
     assert "misses it by" in tune_summary(r)
 
 
-def test_suggest_uses_worker_processes_and_cancels_at_once():
+def test_suggest_runs_in_an_executor_the_caller_gives_and_cancels_at_once():
     ds = list(shape_demos(ShapeSpec("circle", 0.15, 2.0), 3))
-    a = autotune.suggest(ds, workers=1)
-    b = autotune.suggest(ds, workers=2)
-    assert (a.settings, a.n_clusters, a.after.g_over_r) == (b.settings, b.n_clusters, pytest.approx(b.after.g_over_r))
-    cancel = threading.Event()
-    cancel.set()
-    c = autotune.suggest(ds, workers=2, cancel=cancel, current=ThresholdSettings(1.0))
-    assert c.cancelled and not c.complete and c.settings == ThresholdSettings(1.0)
+    a = autotune.suggest(ds)
+    same = (a.settings, a.n_clusters, pytest.approx(a.after.g_over_r))
+    with ThreadPoolExecutor(2) as threads:
+        b = autotune.suggest(ds, executor=threads)
+    assert (b.settings, b.n_clusters, b.after.g_over_r) == same
+    with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("spawn")) as processes:
+        c = autotune.suggest(ds, executor=processes)  # the workers get the demos once, then keep them
+        assert (c.settings, c.n_clusters, c.after.g_over_r) == same
+        cancel = threading.Event()
+        cancel.set()
+        d = autotune.suggest(ds, executor=processes, cancel=cancel, current=ThresholdSettings(1.0))
+    assert d.cancelled and not d.complete and d.settings == ThresholdSettings(1.0)
     autotune.shutdown()
 
 
 def test_suggest_needs_two_demonstrations():
     with pytest.raises(NotEnoughData, match="at least two"):
-        autotune.suggest(list(shape_demos(ShapeSpec("circle", 0.15, 2.0), 1)), workers=1)
+        autotune.suggest(list(shape_demos(ShapeSpec("circle", 0.15, 2.0), 1)))
 
 
 def test_preview_path_follows_the_sliders():
@@ -129,7 +136,7 @@ def test_suggest_leaves_good_defaults_alone_and_says_so():
     from studio.words import tune_summary
 
     ds = list(shape_demos(ShapeSpec("circle", 0.15, 2.0), 3))
-    r = autotune.suggest(ds, workers=1)
+    r = autotune.suggest(ds)
     assert r.complete and not r.changed and r.settings == ThresholdSettings() and r.n_clusters is None
     assert r.after == r.before and r.params == auto_params(ds)
     assert tune_summary(r).startswith("Your thresholds are already good")

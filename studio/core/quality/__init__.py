@@ -32,6 +32,7 @@ from studio.core.quality.metrics import (
     Outlier,
     corner_checks,
     corner_stride,
+    demo_actions,
     execution,
     fidelity,
     find_corners,
@@ -39,6 +40,7 @@ from studio.core.quality.metrics import (
     mean_squared_jerk,
     outliers,
     shared_corners,
+    task_error,
 )
 from studio.core.quality.report import QualityReport, assess
 
@@ -69,6 +71,7 @@ __all__ = [
     "corner_checks",
     "corner_stride",
     "curve",
+    "demo_actions",
     "demo_fits",
     "execution",
     "extent",
@@ -83,6 +86,7 @@ __all__ = [
     "shared_corners",
     "smoothed",
     "spread",
+    "task_error",
     "time_normalised_mean",
     "verdict",
 ]

@@ -232,6 +232,23 @@ def _xyz(p: np.ndarray) -> tuple[float, float, float]:
     return (float(p[0]), float(p[1]), float(p[2]))
 
 
+def demo_actions(demo: Demo) -> list[tuple[str, np.ndarray, float]]:
+    """The demo's grasps and releases in order: ("close" or "open", where (3,) m, when s from its start)."""
+    return _gripper_actions(demo)
+
+
+def task_error(traj: Demo, actions: Sequence[tuple[str, np.ndarray, float]]) -> float:
+    """Root-mean-square distance (m) from where the path closes and opens the gripper to where one demo did
+    (:func:`demo_actions`): 0 when neither does, inf when the path closes and opens it differently."""
+    sw = _skill_switches(traj)
+    if [a for a, _ in sw] != [a for a, _, _ in actions]:
+        return math.inf
+    if not sw:
+        return 0.0
+    err = [float(np.sum((traj.position[j] - p) ** 2)) for (_, j), (_, p, _) in zip(sw, actions, strict=True)]
+    return math.sqrt(float(np.mean(err)))
+
+
 def _gripper_actions(demo: Demo) -> list[tuple[str, np.ndarray, float]]:
     from studio.core.keypoints import gripper_events
 
