@@ -1,6 +1,6 @@
 """Benchmark of execution: whole-path IK + timing within the limits, against the tracker it replaced.
 
-    .venv/bin/python bench/bench_execution.py [--quick] [--legacy N] [--only-30s]
+    .venv/bin/python bench/bench_execution.py [--quick] [--legacy N] [--only-30s] [--hard N]
 
 1. **200 learned trajectories from perturbed demonstrations**, each solved twice: IK seeded from the reference
    demonstration's first joints (what the studio does) and from Baxter's neutral pose (demos without joint
@@ -20,6 +20,8 @@
    rest to the path's speed at its two ends (|q̇|/a at the start and end).
 2. **Joint trajectory of a 30 s skill** (3 × 30,000-sample scripted demos chained, as bench_pipeline): median
    time of the new implementation and of the old one, same run, both seeds.
+4. **Issue 19's hidden case** (``--hard N``, alone): Cartesian-only pick-and-place through key postures over
+   80–95 % of each joint's range, IK from the neutral pose: tracked ÷ reachable samples.
 3. **The old tracker on a subset** (``--legacy N`` trajectories of part 1, each seed; a 20 s deadline each,
    since it doubles its IK rate while the path is lost): tracked share, duration ratio, time.
 
@@ -382,13 +384,40 @@ def report_legacy(legacy_rows: list[dict], legacy: int) -> None:
         )
 
 
+def bench_hard(b: Baxter, count: int) -> None:
+    """Part 4 (issue 19's hidden case): Cartesian-only pick-and-place through key postures over 80–95 % of each
+    joint's range (wrist rolled, elbow and shoulder near their limits), IK from the neutral pose; tracked ÷
+    reachable samples (multi-start IK on probes of each missed stretch), per set and over all."""
+    from tests.core.execution_demos import hard_cartesian_pick_place, tracked_of_reachable
+
+    print(f"\nhard Cartesian-only sets ({count}), IK from the neutral pose; load {_load()}")
+    tracked = reachable = 0.0
+    worst: list[tuple[float, str]] = []
+    for k in range(count):
+        spread = (0.8, 0.9, 0.95)[k % 3]
+        t0 = time.perf_counter()
+        sk = learn_skill(list(hard_cartesian_pick_place(k, spread)), arm="left")
+        el = time.perf_counter() - t0
+        assert sk.joint_trajectory is not None
+        tr_, re_ = tracked_of_reachable(b, sk.trajectory, sk.joint_trajectory)
+        tracked, reachable = tracked + tr_, reachable + re_
+        worst.append((tr_ / re_, f"seed {k} spread {spread}"))
+        print(f"  seed {k:3d} spread {spread}: {tr_ / re_ * 100:7.3f} % of reachable tracked, learned in {el:.1f} s")
+    worst.sort()
+    print(f"all: {tracked / reachable * 100:.3f} % of {reachable:.0f} reachable samples tracked; worst: {worst[:3]}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="30 trajectories instead of 200, fewer repetitions")
     ap.add_argument("--legacy", type=int, default=12, help="trajectories the old tracker is run on (each seed)")
     ap.add_argument("--only-30s", action="store_true", help="only part 2 (the 30 s skill timing)")
+    ap.add_argument("--hard", type=int, default=0, help="only part 4: N hard Cartesian-only sets (issue 19)")
     args = ap.parse_args()
     b = Baxter.load()
+    if args.hard:
+        bench_hard(b, args.hard)
+        return
     rng = np.random.default_rng(12)
     print(f"machine: load average {_load()} at start (2 cores shared)")
     bench_30s(b, args.quick)  # the 30 s skill first (quietest moment of the run)

@@ -5,6 +5,7 @@ path drawn on the plan with the "Robot's run" layer. (In Chromium: tests/e2e/tes
 from __future__ import annotations
 
 import dataclasses
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -18,6 +19,7 @@ from studio.core.execution import joint_trajectory
 from studio.panels._charts import EXECUTED_COLOR
 from studio.robot_backend.simulated import SimulatedBaxter
 from tests.conftest import free_port, wait_for
+from tests.viser_client import ViserClient
 
 
 @pytest.fixture
@@ -94,3 +96,59 @@ def test_the_run_is_shown_while_it_runs_and_after(app: Studio) -> None:
     ctl.training.train().result()
     assert wait_for(lambda: "/run/left/executed" not in nodes(app))
     assert 'data-phase="idle"' in run_panel.status.content and preview.run_result.content == ""
+
+
+def test_the_status_light_and_the_simulated_robots_faults_in_the_panel(app: Studio) -> None:
+    ctl, run_panel = app.controller, app.panels.run
+    assert 'data-light="enabled"' in run_panel.light.content and not run_panel.enable_btn.visible
+    ctl.execution.robot.cause("Press the robot's e-stop button")
+    assert 'data-light="e-stopped"' in run_panel.light.content
+    assert "emergency-stop button is pressed" in run_panel.light.content and run_panel.enable_btn.visible
+    ctl.execution.robot.cause("Release the robot's e-stop button")
+    ctl.execution.robot.enable()
+    assert 'data-light="enabled"' in run_panel.light.content and not run_panel.enable_btn.visible
+    ctl.execution.robot.cause("Disconnect the robot")
+    assert 'data-light="disconnected"' in run_panel.light.content
+    assert "Connection to the robot lost" in run_panel.light.content
+    ctl.execution.robot.cause("Reconnect the robot")
+    assert 'data-light="enabled"' in run_panel.light.content
+
+
+def test_the_emergency_stop_is_not_queued_behind_another_tabs_presses(
+    app: Studio, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """300 presses of Rename from another tab (each holding the studio's lock a moment, as a write to disk
+    does) wait in viser's shared pool; the Emergency stop pressed after them takes its own path."""
+    ctl = app.controller
+    sim = ctl.execution.backend
+    assert isinstance(sim, SimulatedBaxter)
+    done: list[int] = []
+
+    def slow_rename(i: int, name: str) -> None:  # the work of a rename: the lock held while writing
+        with ctl.ctx.lock:
+            time.sleep(0.02)
+        done.append(1)
+
+    monkeypatch.setattr(ctl.demos, "rename", slow_rename)
+    ctl.execution.run()
+    url = f"ws://127.0.0.1:{app.port}/?key={app.access.key}"
+    flood, tab = ViserClient(url), ViserClient(url)
+    try:
+        flood.set_value("Demo", ctl.demos.names()[0])
+        assert wait_for(lambda: app.panels.demos.demo_pick.value == ctl.demos.names()[0])
+        tab.wait_gui("Emergency stop")
+        for _ in range(300):
+            flood.set_value("Demo action", "Rename")
+        assert wait_for(lambda: len(done) > 0)
+        tab.set_value("Emergency stop", True)
+        assert wait_for(lambda: sim.emergency_stopped)
+        assert len(done) < 100, f"the emergency stop waited for {len(done)} presses of another tab"
+        st = ctl.execution.status
+        assert st.estop and st.message.startswith("Emergency stop: the robot halted."), st.message
+        assert wait_for(lambda: len(done) == 300, timeout=120)  # the other tab's presses were all done after it
+        # the run is judged once the studio's lock is free again (the presses held it)
+        assert wait_for(lambda: ctl.execution.status.phase == "emergency-stopped")
+        assert ctl.execution.status.message.startswith("Emergency stop: the robot halted at ")
+    finally:
+        flood.close()
+        tab.close()

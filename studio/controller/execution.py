@@ -19,24 +19,35 @@ import numpy as np
 from studio.controller.context import Context, Kind
 from studio.controller.events import Topic
 from studio.controller.run import (
+    ESTOP_WORDS,
     HELD,
     IDLE,
+    NOT_CONFIRMED,
     RELEASED,
     TITLES,
+    FeasibilityCache,
     Run,
     RunObjects,
     RunPaths,
     RunStatus,
+    abandon,
     ended,
     hold_still,
     judgement,
+    wait_confirmed,
 )
 from studio.core import sampling
 from studio.core.errors import StudioError
-from studio.core.execution import ExecutionPlan, TrackingReport, plan_execution, skill_feasibility
+from studio.core.execution import (
+    ExecutionPlan,
+    RunVerdict,
+    TrackingReport,
+    judge_run,
+    plan_execution,
+)
 from studio.core.ik_path import Feasibility
 from studio.core.types import Arm, Recording, Skill
-from studio.robot_backend.base import ExecutionProgress, RobotBackend
+from studio.robot_backend.base import ExecutionProgress, RobotBackend, RobotHealth
 from studio.world import TaskResult
 
 log = logging.getLogger(__name__)
@@ -88,12 +99,14 @@ class ExecutionActions:
         self._status = RunStatus()
         self._run: Run | None = None
         self._last: Run | None = None
-        self._feasible: dict[Arm, tuple[Skill, Feasibility]] = {}
+        self._feasible = FeasibilityCache()
         self._paths = RunPaths()
         self.plan: ExecutionPlan | None = None
         self.recording: Recording | None = None
         self.report: TrackingReport | None = None
         self.task: TaskResult | None = None
+        self.verdict: RunVerdict | None = None
+        self.robot = RobotActions(ctx, backend)
         #: Objects where no demonstration put them, in words (told when a run starts).
         self.warnings = warnings
         #: The skills a run plays (the controller's: placed where the objects are now).
@@ -120,31 +133,20 @@ class ExecutionActions:
 
     def feasibility(self) -> dict[Arm, Feasibility]:
         """arm -> whether the robot can follow its learned skill, in plain words (computed once per skill)."""
-        out = {}
-        for arm, skill in sampling.executable(self.skills()).items():
-            with self._lock:
-                hit = self._feasible.get(arm)
-            if hit is None or hit[0] is not skill:
-                assert skill.joint_trajectory is not None
-                hit = (skill, skill_feasibility(skill.joint_trajectory, skill.trajectory, self.ctx.baxter))
-                with self._lock:
-                    self._feasible[arm] = hit
-            out[arm] = hit[1]
-        return out
+        return self._feasible.get(sampling.executable(self.skills()), self.ctx.baxter)
 
     def unreachable_paths(self) -> dict[Arm, list[np.ndarray]]:
         """arm -> the stretches (each (n, 3) m) of its learned path the robot cannot follow, to draw in red."""
-        skills = self.skills()
-        out: dict[Arm, list[np.ndarray]] = {}
-        for arm, f in self.feasibility().items():
-            pos = np.asarray(skills[arm].trajectory.position)
-            out[arm] = [pos[s.i_start : s.i_end + 2] for s in f.spans]
-        return out
+        pos = {a: s.trajectory.position for a, s in self.skills().items()}
+        return {a: [pos[a][s.i_start : s.i_end + 2] for s in f.spans] for a, f in self.feasibility().items()}
 
     def why_not(self) -> str:
         """Why "Run on robot" cannot start now, in plain words ("" when it can)."""
         if self._status.estop:
             return "The emergency stop is on. When it is safe, press Release emergency stop, then run again."
+        health = self.backend.health()
+        if not health.ready:
+            return health.message
         if self._run is not None:
             return "The robot is already running the skill: wait for it to finish, or press Stop."
         if self.teaching.recording:
@@ -168,6 +170,9 @@ class ExecutionActions:
             raise StudioError(
                 f"The robot is running the learned skill: wait for it to finish, or press Stop, before {doing}."
             )
+        health = self.backend.health()
+        if not health.ready:
+            raise StudioError(health.message)
 
     def _check_leave(self, doing: str) -> None:
         if self.backend.progress().active:
@@ -195,7 +200,7 @@ class ExecutionActions:
             run = Run.start(plan, self.backend, self.scene, self.ctx.baxter)
             with self._lock:
                 self._run = self._last = run
-                self.plan, self.recording, self.report, self.task = plan, None, None, None
+                self.plan, self.recording, self.report, self.task, self.verdict = plan, None, None, None, None
                 self._status = RunStatus("running", 0.0, plan.duration, "The robot is running the skill.")
             run.thread = threading.Thread(target=self._follow, args=(run,), name="studio-run", daemon=True)
             run.thread.start()
@@ -213,20 +218,45 @@ class ExecutionActions:
         self.ctx.emit(Topic.EXECUTION)
 
     def emergency_stop(self) -> None:
-        """Halt the robot within one control cycle (whatever it does) and refuse motion until released."""
-        self.backend.emergency_stop()  # first, before anything else
+        """Halt the robot within one control cycle (whatever it does) and refuse motion until released; "halted"
+        is said only once the robot (or the simulator) confirmed it. Runs on its own path (the panel's), never
+        behind other work."""
+        result = self.backend.emergency_stop()  # first, before anything else
         with self._lock:
-            msg = "Emergency stop: the robot halted. Release the emergency stop to move it again."
-            self._status = dataclasses.replace(self._status, estop=True, message=msg if self._run else HELD)
+            msg = ESTOP_WORDS[result] if result != "halted" or self._run else HELD
+            self._status = dataclasses.replace(self._status, estop=True, message=msg)
+        if result == "sent":
+            threading.Thread(target=self._confirm_estop, name="studio-estop", daemon=True).start()
+        self.ctx.emit(Topic.EXECUTION)
+
+    def _confirm_estop(self) -> None:
+        confirmed = wait_confirmed(self.backend)
+        with self._lock:
+            if not self._status.estop:
+                return
+            msg = ESTOP_WORDS["halted"] if confirmed else NOT_CONFIRMED
+            self._status = dataclasses.replace(self._status, message=msg)
         self.ctx.emit(Topic.EXECUTION)
 
     def release_emergency_stop(self) -> None:
-        """Allow motion again (the robot stays where it halted)."""
-        self.backend.clear_emergency_stop()
-        self.teaching.forget_targets()
+        """Allow motion again (the robot stays where it halted); the robot is reset and enabled (its own pressed
+        emergency-stop button is told in words and keeps it stopped)."""
+        why = ""
+        try:
+            self.backend.clear_emergency_stop()
+        except StudioError as exc:
+            why = str(exc)
+            raise
+        finally:
+            self.teaching.forget_targets()
+            self._released(why)
+
+    def _released(self, why: str) -> None:
         with self._lock:
             st = self._status
-            if st.phase == "emergency-stopped":
+            if why:
+                msg = f"The emergency stop is released, but the robot cannot move yet. {why}"
+            elif st.phase == "emergency-stopped":
                 msg = f"The run ended with an emergency stop at {st.t:.1f} s of {st.duration:.1f} s; {RELEASED}"
             elif st.active or self._run is not None:
                 msg = st.message
@@ -257,12 +287,13 @@ class ExecutionActions:
             return
         try:
             judged = run.judge(p)
+            task_ok = None if judged.task is None else judged.task.ok
+            done = p.state == "done"
+            verdict = judge_run(run.plan, judged.recording, judged.report, p.fraction, task_ok, reached_end=done)
             with self._lock:
                 self.recording, self.report, self.task = judged.recording, judged.report, judged.task
-                result, ok = (
-                    judgement(p, judged.report, judged.task),
-                    p.state == "done" and (judged.task is None or judged.task.ok),
-                )
+                self.verdict = verdict
+                result, ok = judgement(p, verdict, judged.task), p.state == "done" and verdict.works
         except Exception as exc:
             log.exception("judging the run on the robot")
             result, ok = f"The run could not be compared with its plan ({exc}).", False
@@ -297,25 +328,64 @@ class ExecutionActions:
         with self._lock:
             if self._run is not None or (self.plan is None and self._status.phase == "idle"):
                 return
-            self.plan = self.recording = self.report = self.task = None
+            self.plan = self.recording = self.report = self.task = self.verdict = None
             self._last, self._paths = None, RunPaths()
             self._status = RunStatus(estop=self._status.estop, message=IDLE)
         self.ctx.emit(Topic.EXECUTION)
 
     def close(self) -> None:
-        """The studio stops: the robot stops (controlled) and a run in progress is abandoned (its recording is
-        deleted)."""
+        """The studio stops: the robot stops (controlled), a run in progress is abandoned (recording deleted)."""
         run = self._run
         if run is None:
             return
-        try:
-            self.backend.stop_motion()
-        except Exception:  # the connection to the robot may already be gone
-            log.exception("stopping the robot's run at shutdown")
-        run.cancel.set()
-        if run.thread is not None and run.thread is not threading.current_thread():
-            run.thread.join(timeout=2.0)
-        run.release()
+        abandon(run, self.backend)
 
 
-__all__ = ["ExecutionActions"]
+class RobotActions:
+    """The robot itself: its health (the status light), Enable robot, Calibrate grippers, and a simulated
+    robot's faults (its e-stop button, disabled, a lost connection) for the teacher to try."""
+
+    def __init__(self, ctx: Context, backend: RobotBackend) -> None:
+        self.ctx = ctx
+        self.backend = backend
+        self._warned = 0
+
+    def health(self) -> RobotHealth:
+        return self.backend.health()
+
+    def poll(self) -> RobotHealth:
+        """The robot's health now; a new faulty message from it (a bad stamp, …) is told to the teacher once."""
+        h = self.backend.health()
+        if h.warnings > self._warned:
+            self._warned = h.warnings
+            self.ctx.notify("The robot sent a faulty message", h.warning, kind="warning")
+        return h
+
+    def grippers(self) -> dict[str, str]:
+        """arm -> why its gripper cannot open and close on command ("" when it can)."""
+        return self.backend.grippers()
+
+    def enable(self) -> None:
+        """Reset (when stopped) and enable the robot; plain errors when it cannot."""
+        self.backend.enable()
+        self.ctx.emit(Topic.EXECUTION)
+
+    def calibrate_grippers(self) -> None:
+        """Calibrate the grippers that need it (the teacher agreed: each opens and closes once)."""
+        self.backend.calibrate_grippers()
+        self.ctx.emit(Topic.EXECUTION)
+
+    @property
+    def faults(self) -> tuple[str, ...]:
+        """The simulated robot's faults the teacher may cause (none for a real robot)."""
+        return tuple(self.backend.fault_switches())
+
+    def cause(self, fault: str) -> None:
+        switch = self.backend.fault_switches().get(fault)
+        if switch is None:
+            raise StudioError(f'This robot has no "{fault}" to try.')
+        switch()
+        self.ctx.emit(Topic.EXECUTION)
+
+
+__all__ = ["ExecutionActions", "RobotActions"]

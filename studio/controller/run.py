@@ -14,7 +14,7 @@ import shutil
 import tempfile
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
@@ -22,11 +22,12 @@ from typing import Protocol
 import numpy as np
 
 from studio.core.errors import StudioError
-from studio.core.execution import ExecutionPlan, TrackingReport, compare_execution
+from studio.core.execution import ExecutionPlan, RunVerdict, TrackingReport, compare_execution, skill_feasibility
+from studio.core.ik_path import Feasibility
 from studio.core.kinematics import Baxter
-from studio.core.types import Arm, Recording
+from studio.core.types import Arm, Recording, Skill
 from studio.recorder import Recorder
-from studio.robot_backend.base import ExecutionProgress, JointStateBatch, RobotBackend
+from studio.robot_backend.base import ExecutionProgress, JointStateBatch, RobotBackend, RobotHealth
 from studio.world import TaskResult, format_distance
 
 log = logging.getLogger(__name__)
@@ -42,6 +43,16 @@ HOLD_S = 0.3
 IDLE = "Nothing has run on the robot yet."
 HELD = "Emergency stop: the robot is held where it is. Release the emergency stop to move it again."
 RELEASED = "the emergency stop is released: the robot can move again."
+#: What the studio's emergency stop achieved (RobotBackend.emergency_stop), in words.
+ESTOP_WORDS = {
+    "halted": "Emergency stop: the robot halted. Release the emergency stop to move it again.",
+    "sent": "Emergency stop sent: waiting for the robot to confirm that it halted.",
+    "undelivered": "The emergency stop could not be delivered: the connection to the robot is lost. Use the "
+    "robot's own emergency-stop button.",
+}
+NOT_CONFIRMED = (
+    "The robot did not confirm the emergency stop within 2 s: use its own emergency-stop button if it still moves."
+)
 #: Notification titles at the end of a run.
 TITLES = {
     "done": "The robot finished the skill",
@@ -231,6 +242,49 @@ class Run:
             shutil.rmtree(self.folder, ignore_errors=True)
 
 
+class FeasibilityCache:
+    """Whether the robot can follow each arm's learned skill, computed once per skill."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._hits: dict[Arm, tuple[Skill, Feasibility]] = {}
+
+    def get(self, skills: Mapping[Arm, Skill], baxter: Baxter) -> dict[Arm, Feasibility]:
+        out = {}
+        for arm, skill in skills.items():
+            with self._lock:
+                hit = self._hits.get(arm)
+            if hit is None or hit[0] is not skill:
+                assert skill.joint_trajectory is not None
+                hit = (skill, skill_feasibility(skill.joint_trajectory, skill.trajectory, baxter))
+                with self._lock:
+                    self._hits[arm] = hit
+            out[arm] = hit[1]
+        return out
+
+
+def wait_confirmed(backend: RobotBackend, wait_s: float = 2.0) -> bool:
+    """Whether the robot says it is stopped within ``wait_s`` seconds (after the studio's emergency stop)."""
+    deadline = time.monotonic() + wait_s
+    while not backend.health().estopped:
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.01)
+    return True
+
+
+def abandon(run: Run, backend: RobotBackend) -> None:
+    """The studio stops during ``run``: the robot stops (controlled), the run's thread ends, its file goes."""
+    try:
+        backend.stop_motion()
+    except Exception:  # the connection to the robot may already be gone
+        log.exception("stopping the robot's run at shutdown")
+    run.cancel.set()
+    if run.thread is not None and run.thread is not threading.current_thread():
+        run.thread.join(timeout=2.0)
+    run.release()
+
+
 def hold_still(backend: RobotBackend) -> None:
     """A robot still going where it was moved by hand holds where it is, at rest for a few control cycles, so a
     plan starts from rest there; refused in plain words when it does not settle within :data:`HOLD_S`."""
@@ -272,17 +326,31 @@ def tracking_words(d: float) -> str:
     return format_distance(d)
 
 
-def judgement(p: ExecutionProgress, report: TrackingReport, task: TaskResult | None) -> str:
-    """The run in one or two sentences: how closely it followed the plan, then what happened to the objects."""
-    within = f"within {tracking_words(report.max_path_error)}"
-    if p.state == "done":
-        head = f"The robot followed the plan {within}"
-        if task is None:
-            return head + "."
-        return f"{head}; {task.text[:1].lower()}{task.text[1:]}"
-    pct = round(report.completed * 100)
-    head = f"Up to there ({pct}% of the run) the robot followed the plan {within}."
-    return head + (f" {task.text}" if task is not None else "")
+def judgement(p: ExecutionProgress, verdict: RunVerdict, task: TaskResult | None) -> str:
+    """The run in one or two sentences, judged on what the robot did (:class:`RunVerdict`): "the skill works"
+    only when the whole run was done, closely, with every gripper action, and the task result holds."""
+    if verdict.works and p.state == "done":
+        head = (
+            f"The robot followed the plan within {tracking_words(verdict.tracking_error)} at every moment and ended "
+            f"{tracking_words(verdict.final_error)} from its last pose"
+        )
+        return f"{head}; {task.text[:1].lower()}{task.text[1:]}" if task is not None else head + " — the skill works."
+    failed = verdict.failures() or [f"the run ended before its end ({p.state})"]
+    text = "The skill did not work: " + "; ".join(failed) + "."
+    if task is not None and not task.ok:
+        text += f" {task.text}"
+    return text
 
 
-__all__ = ["Judged", "Run", "RunPaths", "RunStatus", "Trace", "ended", "hold_still", "judgement", "tracking_words"]
+__all__ = [
+    "Judged",
+    "RobotHealth",
+    "Run",
+    "RunPaths",
+    "RunStatus",
+    "Trace",
+    "ended",
+    "hold_still",
+    "judgement",
+    "tracking_words",
+]

@@ -281,11 +281,7 @@ class Teaching:
         for msg in rec.messages:
             self.ctx.notify("Recording", msg, kind="warning")
         self.ctx.emit(Topic.DEMOS)
-        self.ctx.notify(
-            "Demonstration saved",
-            f"{recording.name}: {recording.duration:.1f} s, {len(recording):,} samples.",
-            kind="success",
-        )
+        self.ctx.notify("Demonstration saved", take_words(recording), kind="success")
 
     def discard_recording(self, by: object | None = None, *, now: float | None = None) -> bool:
         """Throw the running take away. From another browser tab than the one recording (``by``), the first
@@ -319,6 +315,19 @@ class Teaching:
             self.stop_recording()
         except Exception:
             log.exception("saving the running recording at shutdown")
+
+
+def take_words(recording: Recording) -> str:
+    """A saved take in words, with the rate its joint states really came at (as the robot stamped them)."""
+    n, d = len(recording), recording.duration
+    words = f"{recording.name}: {d:.1f} s, {n:,} samples"
+    if n < 3 or d <= 0:
+        return words + "."
+    gaps = np.diff(np.asarray(recording.t))
+    words += f", {(n - 1) / d:.0f} a second as the robot sent them"
+    if gaps.max() > max(5 * float(np.median(gaps)), 0.05):
+        words += f" (the longest gap between two was {gaps.max():.2f} s)"
+    return words + "."
 
 
 def _tab_id(tab: object | None) -> object | None:

@@ -205,6 +205,26 @@ class ExecutionPlan:
         return self.q[i], self.gripper[i]
 
 
+#: The longest plan (s) sent to a robot at once.
+MAX_PLAN_S = 600.0
+#: The robot's joints may read this far (rad) outside their limits (encoder noise at a limit).
+LIMIT_TOLERANCE = 0.02
+
+
+def _check_in_limits(q_now: np.ndarray, b: Baxter) -> None:
+    """Refuse, in plain words, to plan from a pose outside the joint limits (a faulty or hostile report)."""
+    lo = np.concatenate([b.lower_limits(a) for a in ARMS]) - LIMIT_TOLERANCE
+    hi = np.concatenate([b.upper_limits(a) for a in ARMS]) + LIMIT_TOLERANCE
+    bad = np.flatnonzero((q_now < lo) | (q_now > hi))
+    if bad.size:
+        j = int(bad[0])
+        raise InvalidInput(
+            f"The robot reports its {ALL_ARM_JOINTS[j]} joint at {q_now[j]:.3g} rad, outside the range it can move "
+            f"in ({math.degrees(lo[j]):.0f}° to {math.degrees(hi[j]):.0f}°): the studio does not plan a run from "
+            "there. Check the robot's joint readings."
+        )
+
+
 def plan_execution(
     joint_trajectories: Mapping[Arm, JointTrajectory],
     q_now: np.ndarray,
@@ -237,6 +257,7 @@ def plan_execution(
     arms = tuple(a for a in ARMS if a in joint_trajectories)
     for a in joint_trajectories:
         check_arm(a)
+    _check_in_limits(q_now, b)
     # approach: every arm that runs a skill moves (rest to rest, straight in joint space) to its first sample
     q_first = q_now.copy()
     g_first = g_now.copy()
@@ -251,6 +272,12 @@ def plan_execution(
     alim = np.concatenate([b.acceleration_limits(a) for a in ARMS]) * approach_speed
     T, v, acc = _trapezoid(dq, vlim, alim) if np.max(np.abs(dq)) > AT_START_RAD else (0.0, 0.0, 1.0)
     Tg = float(np.max(np.abs(dg))) / APPROACH_GRIPPER_SPEED if np.max(np.abs(dg)) > AT_START_PERCENT else 0.0
+    dur = max(float(jt.t[-1] - jt.t[0]) for jt in joint_trajectories.values())
+    if not max(T, Tg) + dur <= MAX_PLAN_S:
+        raise InvalidInput(
+            f"The run would take {(max(T, Tg) + dur) / 60:.0f} minutes, longer than the {MAX_PLAN_S / 60:.0f} "
+            "minutes the studio sends to the robot at once. Teach a shorter skill."
+        )
     na = math.ceil(max(T, Tg) * rate_hz) if max(T, Tg) > 0 else 0
     ta = np.arange(na) / rate_hz
     L = float(np.max(np.abs(dq)))
@@ -258,7 +285,6 @@ def plan_execution(
     q_app = q_now + np.outer(lam, dq)
     g_app = g_now + np.outer(np.clip(ta / Tg, 0.0, 1.0) if Tg > 0 else np.ones(na), dg)
     # the skills, on one time line at the plan rate (sample-and-hold of each arm's own samples)
-    dur = max(float(jt.t[-1] - jt.t[0]) for jt in joint_trajectories.values())
     ns = math.floor(dur * rate_hz + 1e-9) + 1
     ts = np.arange(ns) / rate_hz
     q_sk = np.tile(q_first, (ns, 1))
@@ -436,12 +462,126 @@ def compare_execution(
     )
 
 
+# -- what the robot did: the run's verdict ------------------------------------------------------------------
+
+#: "The skill works" needs all of these: this much of the plan done, the gripper this close to where the plan
+#: was at the same moment, and at the end this close to the plan's last pose, every gripper action done.
+COMPLETE_MIN = 0.99
+TRACK_MAX_M = 0.02
+FINAL_MAX_M = 0.005
+#: A gripper action is a change of the planned opening by at least this (percent); it is done when the
+#: recorded gripper moved at least half-way within :data:`GRIP_WAIT_S` after it.
+GRIP_CHANGE = 10.0
+GRIP_WAIT_S = 2.0
+
+
+@dataclass(frozen=True)
+class RunVerdict:
+    """A run judged on what the robot did.
+
+    Attributes:
+        completed: fraction of the plan done (0..1, the progress the robot reached).
+        tracking_error: largest distance (m) between the gripper and where the plan was at the same moment (a
+            run that ended early: from the planned path, since the plan went on where the robot did not).
+        same_time: ``tracking_error`` is the same-moment one (the run reached its end).
+        final_error: distance (m) between the gripper's last recorded position and the plan's last one.
+        grips_done, grips_planned: gripper actions (closing or opening) done and planned.
+        task_ok: the objects ended where the demonstrations put them (None: no object to check).
+    """
+
+    completed: float
+    tracking_error: float
+    final_error: float
+    grips_done: int
+    grips_planned: int
+    task_ok: bool | None
+    same_time: bool = True
+
+    @property
+    def works(self) -> bool:
+        return not self.failures()
+
+    def failures(self) -> list[str]:
+        """What failed and by how much, one plain phrase each ([] when the skill works)."""
+        out = []
+        if self.completed < COMPLETE_MIN:
+            out.append(f"the robot did {self.completed * 100:.0f} % of the run")
+        if self.tracking_error > TRACK_MAX_M:
+            where = "where the plan was at the same moment" if self.same_time else "the planned path"
+            out.append(f"its gripper was up to {_words(self.tracking_error)} from {where}")
+        if self.final_error > FINAL_MAX_M:
+            out.append(f"it ended {_words(self.final_error)} from the plan's last pose")
+        if self.grips_done < self.grips_planned:
+            out.append(f"it did {self.grips_done} of the {self.grips_planned} gripper actions")
+        if self.task_ok is False:
+            out.append("the objects did not end where you put them")
+        return out
+
+
+def _words(d: float) -> str:
+    return f"{max(d, 0.0001) * 1000:.1f} mm" if d < 0.01 else f"{d * 100:.1f} cm"
+
+
+def _grips(plan: ExecutionPlan, recording: Recording, offset: float) -> tuple[int, int]:
+    """Gripper actions of the executing arms: (done, planned)."""
+    done = planned = 0
+    for a in plan.arms:
+        i = 0 if a == "left" else 1
+        g = plan.gripper[:, i]
+        change = np.flatnonzero(np.abs(np.diff(g)) > 0)
+        k = 0
+        while k < len(change):  # one action: a run of changes, from rest to rest
+            j0 = j1 = change[k]
+            while k + 1 < len(change) and change[k + 1] - j1 <= 2:
+                k += 1
+                j1 = change[k]
+            k += 1
+            before, after = float(g[j0]), float(g[j1 + 1])
+            if abs(after - before) < GRIP_CHANGE:
+                continue
+            planned += 1
+            t0 = float(plan.t[j0]) + offset
+            win = (recording.t >= t0) & (recording.t <= float(plan.t[j1 + 1]) + offset + GRIP_WAIT_S)
+            moved = (recording.gripper[win, i] - before) / (after - before) if win.any() else np.zeros(1)
+            done += int(np.max(moved) >= 0.5)
+    return done, planned
+
+
+def judge_run(
+    plan: ExecutionPlan,
+    recording: Recording,
+    report: TrackingReport,
+    completed: float,
+    task_ok: bool | None,
+    baxter: Baxter | None = None,
+    *,
+    reached_end: bool = True,
+) -> RunVerdict:
+    """The :class:`RunVerdict` of a run: ``completed`` is the progress the robot reported (0..1);
+    ``reached_end``: the run was not cut short (stopped, failed), so it is judged at the same moment."""
+    b = baxter or Baxter.load()
+    final = 0.0
+    for a in plan.arms:
+        c = slice(0, 7) if a == "left" else slice(7, 14)
+        _, p_plan = b.rotations_batch(a, plan.q[-1:, c])
+        _, p_end = b.rotations_batch(a, recording.q[-1:, c])
+        final = max(final, float(np.linalg.norm(p_plan[0] - p_end[0])))
+    done, planned = _grips(plan, recording, report.offset)
+    track = report.max_position_error if reached_end else report.max_path_error
+    return RunVerdict(float(completed), track, final, done, planned, task_ok, reached_end)
+
+
 __all__ = [
     "ALL_ARM_JOINTS",
+    "COMPLETE_MIN",
+    "FINAL_MAX_M",
+    "TRACK_MAX_M",
     "ExecutionPlan",
+    "RunVerdict",
     "TrackingReport",
     "compare_execution",
     "joint_trajectory",
+    "judge_run",
     "plan_execution",
     "skill_feasibility",
 ]

@@ -46,6 +46,8 @@ BREAK_RAD_PER_M = 20.0
 MIN_PIECE_S = 0.1
 #: Elbow swivel change (rad) beyond which a restart solution is on the other side.
 ELBOW_SIDE_RAD = math.pi / 2
+#: Random seeds for other start postures (after the untuck pose, mid-range and the wrist turned over).
+START_SEEDS = 16
 #: Inside a stretch out of reach, restarts are tried after this much skill time (s), doubling each time.
 RESTART_BACKOFF_S = 0.25
 #: Elbow bend (e1, rad) below which the arm counts as straight: its elbow side is then undefined.
@@ -397,13 +399,34 @@ def _first_start(S: _PathSolver, q_seed: np.ndarray) -> np.ndarray | None:
     return q if S.ok(pe, oe, 5.0) else None
 
 
+def _wrist_flips(S: _PathSolver, q: np.ndarray) -> list[np.ndarray]:
+    """Seeds for the same gripper pose with the wrist turned over: w0 and w2 half a turn round, w1 mirrored
+    (exact for a spherical wrist, near it for Baxter's); those within the limits."""
+    out = []
+    for d0 in (math.pi, -math.pi):
+        for d2 in (math.pi, -math.pi):
+            f = q.copy()
+            f[4], f[5], f[6] = q[4] + d0, -q[5], q[6] + d2
+            if np.all(f >= S.lo) and np.all(f <= S.hi):
+                out.append(f)
+    return out
+
+
 def _other_starts(S: _PathSolver, q_seed: np.ndarray, exclude: list[np.ndarray], count: int) -> list[np.ndarray]:
-    """Up to ``count`` other solutions of the first pose, farthest from the joint limits first."""
+    """Up to ``count`` other solutions of the first pose, farthest from the joint limits first (the wrist
+    turned over first of all: a posture that keeps the wrist away from its limits along the whole path is
+    often that one)."""
     sols: list[tuple[float, np.ndarray]] = []
-    seeds = [S.neutral, S.mid, q_seed, *S.b.random_configuration(S.arm, S.rng, 8)]
+    flips = [f for q in exclude for f in _wrist_flips(S, q)]
+    seeds = [*flips, S.neutral, S.mid, q_seed, *S.b.random_configuration(S.arm, S.rng, START_SEEDS)]
+    near: list[tuple[float, np.ndarray]] = []  # within the acceptance bar only (a pose at the edge of reach)
     for seed in seeds:
         q, pe, oe = S.solve(0, seed, 200, pull="mid")
+        if not S.ok(pe, oe, 5.0) and pe < 0.05:  # the pull towards mid-range may hold it off a pose near a limit
+            q, pe, oe = S.solve(0, q, 100, pull="none")
         if not S.ok(pe, oe, 5.0):
+            if S.accept(pe, oe):
+                near.append((pe + 0.1 * oe, q))
             continue
         if any(float(np.max(np.abs(q - s))) < SEED_POSTURE_RAD for s in [*exclude, *(s for _, s in sols)]):
             continue
@@ -412,7 +435,8 @@ def _other_starts(S: _PathSolver, q_seed: np.ndarray, exclude: list[np.ndarray],
         if len(sols) >= 2 * count:
             break
     sols.sort(key=lambda m: m[0])
-    return [q for _, q in sols[:count]]
+    near.sort(key=lambda m: m[0])
+    return [q for _, q in (sols or near[:1])[:count]]
 
 
 def _restart(S: _PathSolver, i: int, q_prev: np.ndarray) -> np.ndarray | None:
@@ -557,7 +581,11 @@ def _refine(
                 split[bad_seg] = True
                 new = (idx[bad_seg] + idx[bad_seg + 1]) // 2
                 Qn, conv = S.batch_solve(new, spl(t[new]))
-                for k in np.flatnonzero(~conv):  # rare: solve from the left knot instead
+                # a knot that lands in another posture (near a singularity the undamped step slides along the
+                # arm's self-motion) would cut the path in two: it, too, is solved from the left knot instead
+                step = BREAK_RAD + BREAK_RAD_PER_M * (S.arc[new] - S.arc[idx[bad_seg]])
+                off = np.max(np.abs(Qn - Q[bad_seg]), axis=1) > step
+                for k in np.flatnonzero(~conv | off):  # rare
                     Qn[k], _, _, conv[k] = S.advance(Q[bad_seg[k]], int(idx[bad_seg[k]]), int(new[k]))
                 new_parts.append((new, Qn, conv))
         for j in np.flatnonzero(edge):
@@ -673,9 +701,9 @@ def solve_path(
         score = _score(ok, breaks, solver.jumps, solver.recoveries, Q, solver.lo, solver.hi)
         if best is None or score < best[0]:
             best = (score, Q, ok, pe, oe, solver.recoveries, solver.jumps, k)
-        # Another start posture can only help when the path was lost and found again in another posture, or
-        # the arm had to change posture on the way (e.g. right after a start from the neutral pose).
-        if solver.posture_failures == 0 and solver.jumps == 0 and breaks == 0:
+        # Another start posture can only help when the path was lost (found again in another posture, or not),
+        # or the arm had to change posture on the way (e.g. right after a start from the neutral pose).
+        if solver.posture_failures == 0 and solver.jumps == 0 and breaks == 0 and ok.all():
             break
     if best is None:  # the first pose is out of reach: follow as closely as possible from the best effort
         q0, _, _ = solver.solve(0, seed, 200, pull="mid")

@@ -50,6 +50,48 @@ class RobotState:
     moving: bool = False
 
 
+#: What the status light shows: "enabled" (ready to move), "connected" (heard, but disabled or in error),
+#: "e-stopped" (the robot's emergency stop is engaged), "disconnected" (nothing heard from the robot).
+LIGHTS = ("enabled", "connected", "e-stopped", "disconnected")
+
+
+@dataclass(frozen=True)
+class RobotHealth:
+    """The robot as it reports itself now.
+
+    Attributes:
+        connected: its joint states arrive (fresh) over an open connection.
+        enabled: its motors are enabled (it obeys motion commands).
+        estopped: its emergency stop is engaged (its button, a fault, or the studio's Emergency stop).
+        message: what is wrong, in plain words ("" when it is ready to move).
+        warnings: how many faulty messages were dropped or re-based so far; ``warning`` the latest, in words.
+    """
+
+    connected: bool = True
+    enabled: bool = True
+    estopped: bool = False
+    message: str = ""
+    warnings: int = 0
+    warning: str = ""
+
+    @property
+    def light(self) -> str:
+        """One of :data:`LIGHTS`."""
+        if not self.connected:
+            return "disconnected"
+        if self.estopped:
+            return "e-stopped"
+        return "enabled" if self.enabled and not self.message else "connected"
+
+    @property
+    def ready(self) -> bool:
+        return self.light == "enabled"
+
+
+#: What :meth:`RobotBackend.emergency_stop` achieved: the robot confirmed it halted; the stop was sent and the
+#: robot has not confirmed yet (watch :meth:`RobotBackend.health`); nothing could be sent (no connection).
+ESTOP_RESULTS = ("halted", "sent", "undelivered")
+
 #: Execution states reported by :meth:`RobotBackend.progress`.
 EXECUTION_STATES = ("idle", "running", "stopping", "done", "stopped", "emergency-stopped", "failed")
 
@@ -61,7 +103,8 @@ class ExecutionProgress:
     Attributes:
         state: one of :data:`EXECUTION_STATES`: "idle" (nothing executed yet), "running", "stopping" (slowing
             down after :meth:`RobotBackend.stop_motion`), "done" (the plan's end reached), "stopped",
-            "emergency-stopped", "failed" (the robot refused or lost the connection; see ``message``).
+            "emergency-stopped", "failed" (the robot stopped by itself, was disabled or in error, or the
+            connection was lost; see ``message``).
         t: plan time reached (s).
         duration: the plan's duration (s).
         started_at: backend time (s, the joint-state stream's clock) of the plan's t = 0; None before.
@@ -175,11 +218,33 @@ class RobotBackend(abc.ABC):
     def stop_motion(self) -> None:  # noqa: B027 - deliberately a no-op default (see above)
         """Controlled stop: slow down along the plan's path to rest within the limits (idempotent)."""
 
-    def emergency_stop(self) -> None:  # noqa: B027 - deliberately a no-op default (see above)
-        """Halt within one control cycle and refuse motion until :meth:`clear_emergency_stop` (idempotent)."""
+    def emergency_stop(self) -> str:
+        """Halt within one control cycle and refuse motion until :meth:`clear_emergency_stop` (idempotent);
+        returns one of :data:`ESTOP_RESULTS`. Must return quickly from any thread (it runs on its own path)."""
+        return "halted"
 
     def clear_emergency_stop(self) -> None:  # noqa: B027 - deliberately a no-op default (see above)
-        """Allow motion again after an emergency stop (the robot holds where it stopped)."""
+        """Allow motion again after an emergency stop (the robot holds where it stopped); raises
+        :class:`~studio.core.errors.StudioError` in plain words when the robot cannot be enabled."""
+
+    def enable(self) -> None:  # noqa: B027 - deliberately a no-op default (see above)
+        """Enable the robot's motors (after a reset when it was stopped); raises
+        :class:`~studio.core.errors.StudioError` in plain words when it cannot."""
+
+    def health(self) -> RobotHealth:
+        """Connected, enabled, e-stopped, and what is wrong (see :class:`RobotHealth`)."""
+        return RobotHealth()
+
+    def grippers(self) -> dict[str, str]:
+        """arm -> "" when its gripper opens and closes on command, otherwise why not, in plain words."""
+        return {"left": "", "right": ""}
+
+    def calibrate_grippers(self, arms: tuple[str, ...] = ("left", "right")) -> None:  # noqa: B027 - nothing to do
+        """Calibrate the grippers of ``arms`` that need it (the teacher agreed: they open and close once)."""
+
+    def fault_switches(self) -> dict[str, Callable[[], None]]:
+        """A simulated robot's faults the teacher may cause to try the studio's answers ({} for a real one)."""
+        return {}
 
     def progress(self) -> ExecutionProgress:
         """Where the current (or last) execution is."""

@@ -91,9 +91,10 @@ class ReplayBackend(RobotBackend):
         """Refused: a replay only plays back a recording."""
         raise StudioError("A demonstration is being replayed: go back to the live robot to run the skill.")
 
-    def emergency_stop(self) -> None:
+    def emergency_stop(self) -> str:
         """Pause the replay (it moves nothing, but an emergency stop must stop what is on screen too)."""
         self.stop()
+        return "halted"
 
     def state(self) -> RobotState:
         with self._lock:

@@ -1,9 +1,10 @@
 """A real Baxter through rosbridge (roslibpy): the ROS 1 topics the robot really speaks, over a websocket.
 
-Joint states, matched by name, stream to the subscribers like the simulator's; joint targets are position
-commands republished at ``command_rate_hz`` while a target is live (docs/decisions/022); grippers are
-addressed by their hardware id; ``start()`` enables the robot. :meth:`~RosbridgeBaxter.emergency_stop`
-publishes a hold at the measured joints at once. Topics and the connection: :mod:`.rosbridge_link`."""
+Joint states by name stream to the subscribers; ``/robot/state`` and the grippers' state decide what
+the robot can do (docs/decisions/040); a closed socket or a stale stream is a lost connection (041); targets
+are republished at ``command_rate_hz`` while live (022), a run's on the wall clock at speed ratio 1; the
+emergency stop is a hold plus the robot's own stop. Topics: :mod:`.rosbridge_link`; what it reports:
+:mod:`.rosbridge_state`; a plan's clock, enabling: :mod:`.rosbridge_run`."""
 
 from __future__ import annotations
 
@@ -12,7 +13,6 @@ import math
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -23,28 +23,29 @@ from studio.robot_backend.base import (
     ExecutionProgress,
     ListenerHub,
     RobotBackend,
+    RobotHealth,
     RobotState,
     StateListener,
 )
 from studio.robot_backend.rosbridge_link import (
-    ENABLE,
-    ENABLE_TYPE,
+    EMPTY_TYPE,
     GRIPPER_COMMAND,
     GRIPPER_COMMAND_TYPE,
-    GRIPPER_STATE,
-    GRIPPER_STATE_TYPE,
     JOINT_COMMAND,
     JOINT_COMMAND_TYPE,
-    JOINT_STATE_TYPE,
-    JOINT_STATES,
+    SPEED_RATIO,
+    SPEED_RATIO_TYPE,
     STATE_RATE,
     STATE_RATE_TYPE,
+    STOP,
     RosLink,
-    StateReader,
     gripper_command,
     joint_command,
+    open_topics,
     parse_robot_url,
 )
+from studio.robot_backend.rosbridge_run import PlanClock, calibrate, enable_robot, tick_forever, why_ended
+from studio.robot_backend.rosbridge_state import RobotWatch, gripper_words
 
 if TYPE_CHECKING:  # pragma: no cover
     from studio.core.execution import ExecutionPlan
@@ -53,60 +54,25 @@ log = logging.getLogger(__name__)
 
 #: Seconds a joint target from :meth:`RosbridgeBaxter.command_joints` keeps being republished.
 COMMAND_HOLD_S = 1.0
+#: No joint state for this long (s) while the command thread runs on time: the connection is lost.
+STALE_S = 0.2
+#: Baxter's default position-mode speed ratio (limb.py), restored after a run; a run uses :data:`RUN_RATIO`.
+DEFAULT_RATIO, RUN_RATIO = 0.3, 1.0
 
 
 def _cols(arm: Arm) -> slice:
     return slice(0, 7) if arm == "left" else slice(7, 14)
 
 
-class _Run:
-    """A plan being streamed to the robot: progress along it, one command tick at a time, and the report.
-
-    The progress advances by ``rate`` × the tick period each tick; a controlled stop lowers the rate to 0 in
-    about a second (so the robot slows down along the path).
-    """
-
-    def __init__(self, plan: ExecutionPlan, started_at: float) -> None:
-        self.plan = plan
-        self.p, self.rate, self.slowing = 0.0, 1.0, 0.0
-        self.progress = ExecutionProgress("running", 0.0, plan.duration, started_at, "The robot is running the skill.")
-
-    def stop(self, ticks: float) -> None:
-        """Slow down to rest in ``ticks`` command ticks (idempotent)."""
-        if self.progress.state == "stopping":
-            return
-        self.slowing = 1.0 / ticks
-        self.progress = replace(self.progress, state="stopping", message="The robot is stopping.")
-
-    def tick(self, period: float) -> tuple[np.ndarray, np.ndarray]:
-        """Advance one tick of ``period`` seconds; the joint (14,) and gripper (2,) targets there."""
-        if self.slowing:
-            self.rate = max(0.0, self.rate - self.slowing)
-        duration = self.plan.duration
-        self.p = min(self.p + self.rate * period, duration)
-        p = self.progress
-        state, msg = p.state, p.message
-        if self.p >= duration:
-            state, msg = "done", "The robot finished the skill."
-        elif state == "stopping" and self.rate <= 0.0:
-            state, msg = "stopped", f"The robot stopped at {self.p:.1f} s of {duration:.1f} s."
-        self.progress = ExecutionProgress(state, self.p, duration, p.started_at, msg)
-        return self.plan.at(self.p)
-
-    @property
-    def finished(self) -> bool:
-        return self.progress.state in ("done", "stopped")
-
-
 class RosbridgeBaxter(RobotBackend):
-    """A real Baxter over rosbridge (topics: :mod:`.rosbridge_link`; commands: docs/decisions/022).
+    """A real Baxter over rosbridge (topics: :mod:`.rosbridge_link`; decisions 022, 040, 041).
 
     Args:
         url: the rosbridge websocket, e.g. ``ws://baxter.local:9090``.
         command_rate_hz: rate of the joint commands while a target is live (Baxter's SDK uses 100 Hz).
         connect_timeout: seconds :meth:`start` waits for the connection.
         joint_state_rate_hz: if given, asks the robot to publish joint states at this rate (the paper: 1000).
-        enable: publish "enable" on start.
+        enable: enable the robot on start (a failure is shown by :meth:`health`, not raised).
         ros_factory: builds the roslibpy connection from the URL (tests inject their own).
     """
 
@@ -127,16 +93,15 @@ class RosbridgeBaxter(RobotBackend):
         self.rate_hz = float(joint_state_rate_hz or 100)
         self.connect_timeout = float(connect_timeout)
         self.joint_state_rate_hz = joint_state_rate_hz
-        self.enable = bool(enable)
+        self.enable_on_start = bool(enable)
         self._link = RosLink(self.url, self.connect_timeout, ros_factory)
         self._hub = ListenerHub()
         self._lock = threading.RLock()
-        self._state = StateReader()  # its own lock: the state callbacks never wait for ``_lock``
+        self._watch = RobotWatch(self._hub.deliver, STALE_S)  # never waits for ``_lock``
         self._seq = 0
-        # commands
         self._target: dict[Arm, np.ndarray] = {}
         self._target_until: dict[Arm, float] = {}
-        self._run: _Run | None = None
+        self._run: PlanClock | None = None
         self._last_grip_cmd = np.full(2, np.nan)
         self._exec = ExecutionProgress()
         self._estopped = False
@@ -150,27 +115,25 @@ class RosbridgeBaxter(RobotBackend):
         return self._thread is not None and self._thread.is_alive()
 
     def start(self) -> None:
-        """Connect, subscribe to the joint and gripper states, advertise the commands, enable the robot."""
+        """Connect, subscribe to the robot's state topics, advertise the commands, enable the robot."""
         with self._lock:
             if self.running:
                 return
             link = self._link
             link.connect()
-            link.topic(JOINT_STATES, JOINT_STATE_TYPE).subscribe(self._on_joint_state)
-            for i, arm in enumerate(ARMS):
-                link.topic(GRIPPER_STATE.format(arm=arm), GRIPPER_STATE_TYPE).subscribe(
-                    lambda m, i=i: self._on_gripper_state(i, m)
-                )
-                link.topic(JOINT_COMMAND.format(arm=arm), JOINT_COMMAND_TYPE).advertise()
-                link.topic(GRIPPER_COMMAND.format(arm=arm), GRIPPER_COMMAND_TYPE).advertise()
-            link.topic(ENABLE, ENABLE_TYPE).advertise()
-            if self.enable:
-                link.publish(ENABLE, ENABLE_TYPE, {"data": True})
+            w = self._watch
+            open_topics(link, w.on_joint_state, w.on_robot_state, w.on_gripper)
             if self.joint_state_rate_hz:
                 link.publish(STATE_RATE, STATE_RATE_TYPE, {"data": int(self.joint_state_rate_hz)})
             self._stop_evt.clear()
-            self._thread = threading.Thread(target=self._command_loop, name="rosbridge-commands", daemon=True)
+            args = (1.0 / self.command_rate_hz, self._command_tick, self._stop_evt, self._ping)
+            self._thread = threading.Thread(target=tick_forever, args=args, name="rosbridge-commands", daemon=True)
             self._thread.start()
+        if self.enable_on_start:
+            try:
+                self.enable()
+            except StudioError as exc:  # shown by health() and the Enable button; the studio still starts
+                log.warning("the robot was not enabled: %s", exc)
 
     def stop(self) -> None:
         """Stop commanding, unsubscribe and close the connection (the robot stays enabled and holds)."""
@@ -186,29 +149,46 @@ class RosbridgeBaxter(RobotBackend):
     def subscribe(self, listener: StateListener) -> Callable[[], None]:
         return self._hub.subscribe(listener)
 
-    # -- incoming ---------------------------------------------------------------------------------------------
-    def _on_joint_state(self, msg: dict[str, Any]) -> None:
-        batch = self._state.on_joint_state(msg)
-        if batch is not None:
-            self._hub.deliver(batch)
+    def _ping(self, sent: float) -> None:
+        self._link.call_soon(lambda: self._watch.ping(sent))
 
-    def _on_gripper_state(self, i: int, msg: dict[str, Any]) -> None:
-        self._state.on_gripper_state(i, msg)
+    # -- the robot's health -----------------------------------------------------------------------------------
+    def health(self) -> RobotHealth:
+        return self._watch.health(self._link.connected, self._estopped)
+
+    def grippers(self) -> dict[str, str]:
+        return self._watch.gripper_words()
+
+    def enable(self) -> None:
+        """As ``robot_enable.py``: wait for the robot's state, reset it when stopped, enable it (plain errors)."""
+        enable_robot(self._link, lambda: self._watch.robot)
+
+    def calibrate_grippers(self, arms: tuple[str, ...] = ARMS) -> None:
+        """Calibrate each electric gripper of ``arms`` that needs it (it opens and closes once); plain errors."""
+        calibrate(lambda i: self._watch.grippers[i], lambda i, cmd: self._gripper_send(i, None, cmd), arms)
 
     # -- commands ---------------------------------------------------------------------------------------------
     def _joint_command(self, arm: Arm, q: np.ndarray) -> None:
-        self._link.publish(JOINT_COMMAND.format(arm=arm), JOINT_COMMAND_TYPE, joint_command(arm, q))
-        self.commands_sent += 1
+        if self._link.publish(JOINT_COMMAND.format(arm=arm), JOINT_COMMAND_TYPE, joint_command(arm, q)):
+            self.commands_sent += 1
 
-    def _gripper_command(self, i: int, width: float) -> None:
+    def _gripper_send(self, i: int, width: float | None, command: str = "go") -> None:
         self._seq += 1
-        msg = gripper_command(self._state.hardware_id(i), width, self._seq)
+        msg = gripper_command(self._watch.grippers[i].hid, width, self._seq, command)
         self._link.publish(GRIPPER_COMMAND.format(arm=ARMS[i]), GRIPPER_COMMAND_TYPE, msg)
-        self._last_grip_cmd[i] = width
+        if width is not None:
+            self._last_grip_cmd[i] = width
 
-    def _require_connection(self) -> None:
-        if not self._link.open:
-            raise StudioError("The robot is not connected; start the studio with the robot reachable.")
+    def _ratio(self, arms: tuple[str, ...], ratio: float) -> None:
+        for arm in arms:
+            self._link.publish(SPEED_RATIO.format(arm=arm), SPEED_RATIO_TYPE, {"data": float(ratio)})
+
+    def _require_ready(self, doing: str) -> None:
+        if self._estopped:
+            raise StudioError(f"The emergency stop is on: release it before {doing}.")
+        h = self.health()
+        if not h.ready:
+            raise StudioError(h.message)
 
     def command_joints(self, arm: Arm, q: np.ndarray) -> None:
         """Move ``arm`` to ``q`` (7,) rad: republished at the command rate for :data:`COMMAND_HOLD_S`."""
@@ -217,16 +197,10 @@ class RosbridgeBaxter(RobotBackend):
         if qa.shape != (7,) or not np.all(np.isfinite(qa)):
             raise InvalidInput(f"The {arm} arm joint angles must be 7 finite numbers.")
         with self._lock:
-            if self._estopped:
-                log.info("emergency-stopped: joint command ignored")
-                return
-            self._require_connection()
-            self._hold(arm, qa.copy())
+            self._require_ready("moving the robot")
+            self._target[arm] = qa.copy()
+            self._target_until[arm] = time.monotonic() + COMMAND_HOLD_S
             self._joint_command(arm, qa)
-
-    def _hold(self, arm: Arm, q: np.ndarray) -> None:
-        self._target[arm] = q
-        self._target_until[arm] = time.monotonic() + COMMAND_HOLD_S
 
     def command_gripper(self, arm: Arm, width: float) -> None:
         i = ARMS.index(check_arm(arm))
@@ -234,40 +208,30 @@ class RosbridgeBaxter(RobotBackend):
         if not math.isfinite(w):
             raise InvalidInput(f"The {arm} gripper opening must be a number 0..100.")
         with self._lock:
-            if self._estopped:
-                log.info("emergency-stopped: gripper command ignored")
-                return
-            self._require_connection()
-            self._gripper_command(i, w)
+            self._require_ready("moving the gripper")
+            why = gripper_words(arm, self._watch.grippers[i])
+            if why:
+                raise StudioError(why)
+            self._gripper_send(i, w)
 
     def state(self) -> RobotState:
-        t, q, g = self._state.measured()
-        q, g = np.where(np.isnan(q), 0.0, q), np.where(np.isnan(g), 100.0, g)
-        return RobotState(t, _ro(q), _ro(g), moving=self._run is not None)
+        return self._watch.state(moving=self._run is not None)
 
     @property
     def has_state(self) -> bool:
-        """True once every arm joint has been heard from the robot."""
-        return self._state.complete
+        """True once every arm joint has been heard (and none is missing since)."""
+        return self._watch.reader.complete
 
     # -- execution --------------------------------------------------------------------------------------------
     def execute(self, plan: ExecutionPlan) -> None:
         with self._lock:
-            self._require_connection()
-            if self._estopped:
-                raise StudioError("The robot is emergency-stopped: release the emergency stop before running a skill.")
+            self._require_ready("running a skill")
             if self._run is not None:
                 raise StudioError("The robot is already running a skill: stop it first.")
-            if not self.has_state:
-                raise StudioError("No joint states from the robot yet; check that it is on and enabled.")
-            t, q, _ = self._state.measured()
-            off = float(np.max(np.abs(np.asarray(plan.q[0]) - q)))
-            if off > 0.02:
-                raise StudioError(
-                    f"The robot moved since the run was planned (by {math.degrees(off):.0f}° at one joint); "
-                    "press Run again to plan from where it is now."
-                )
-            self._run = _Run(plan, t)
+            t = self._watch.check_plan(plan.arms, plan.q[0], plan.gripper)
+            self._ratio(plan.arms, RUN_RATIO)
+            self._target.clear()
+            self._run = PlanClock(plan, t, time.monotonic())
             self._last_grip_cmd[:] = np.nan
             self._exec = self._run.progress
 
@@ -276,81 +240,88 @@ class RosbridgeBaxter(RobotBackend):
             if self._run is None:
                 self._target.clear()
                 return
-            self._run.stop(ticks=1.0 * self.command_rate_hz)  # to rest in about a second, along the path
+            self._run.stop(1.0)  # to rest in about a second, along the path
             self._exec = self._run.progress
 
-    def emergency_stop(self) -> None:
-        """Publish a hold at the measured joints now, from this thread, and stop commanding anything else."""
+    def emergency_stop(self) -> str:
+        """A hold at the measured joints and the robot's own stop, sent now from this thread (never queued)."""
         with self._lock:
             self._estopped = True
-            was_running = self._run is not None
-            self._run = None
+            run, self._run = self._run, None
             self._target.clear()
-            q = self._state.measured()[1]
-            if self._link.open and not np.any(np.isnan(q)):
+            if run is not None:
+                why = "Emergency stop sent: waiting for the robot to confirm that it halted."
+                self._exec = run.end("emergency-stopped", why)
+            if not self._link.connected:
+                return "undelivered"
+            fresh = self.health().connected
+            q = self._watch.reader.measured()[1]
+            if fresh and not np.any(np.isnan(q)):  # a hold at a stale pose, arriving late, would move the arm
                 for arm in ARMS:
-                    try:
-                        self._joint_command(arm, q[_cols(arm)])
-                    except Exception:  # the connection dropped: nothing more can be sent
-                        log.exception("emergency hold could not be sent")
-            if was_running or self._exec.active:
-                why = "Emergency stop: the robot holds where it is. Release the emergency stop to move it again."
-                self._exec = replace(self._exec, state="emergency-stopped", message=why)
+                    self._joint_command(arm, q[_cols(arm)])
+            sent = self._link.publish(STOP, EMPTY_TYPE, {})  # safe whenever it arrives
+        return "sent" if sent and fresh else "undelivered"
 
     def clear_emergency_stop(self) -> None:
+        """Release the studio's emergency stop: reset and enable the robot (plain errors when it cannot)."""
         with self._lock:
             self._estopped = False
+        self.enable()
 
     def progress(self) -> ExecutionProgress:
         with self._lock:
             return self._exec
 
-    def _command_loop(self) -> None:
-        period = 1.0 / self.command_rate_hz
-        next_t = time.monotonic()
-        while not self._stop_evt.is_set():
-            try:
-                self._command_tick(period)
-            except Exception:  # keep commanding: a lost message must not end the loop
-                log.exception("rosbridge command tick failed")
-            next_t += period
-            delay = next_t - time.monotonic()
-            if delay < 0:
-                next_t = time.monotonic()
-                delay = 0.0
-            self._stop_evt.wait(delay)
-
-    def _command_tick(self, period: float) -> None:
+    def _command_tick(self) -> None:
+        now = time.monotonic()
         with self._lock:
-            if self._estopped or not self._link.open:
-                return
+            h = self.health()
             run = self._run
             if run is not None:
-                q, g = run.tick(period)
-                arms = run.plan.arms
-                for arm in arms:
-                    self._joint_command(arm, q[_cols(arm)])
-                for i, arm in enumerate(ARMS):
-                    if arm in arms and not (abs(g[i] - self._last_grip_cmd[i]) < 0.5):
-                        self._gripper_command(i, float(g[i]))
-                self._exec = run.progress
-                if run.finished:
+                why = why_ended(h, self._watch.robot, run.progress, self._estopped)
+                if why:
+                    self._exec = run.end("failed", why)
                     self._run = None
-                    for arm in arms:  # hold the last target a moment, as after a gizmo move
-                        self._hold(arm, q[_cols(arm)])
+                    self._target.clear()
+                    if h.connected:
+                        self._ratio(run.plan.arms, DEFAULT_RATIO)
+                    return
+            if not h.connected:
+                self._target.clear()  # nothing resumes when the link comes back
                 return
-            now = time.monotonic()
-            for arm in list(self._target):
-                if now > self._target_until.get(arm, 0.0):
-                    del self._target[arm]
-                    continue
-                self._joint_command(arm, self._target[arm])
+            if self._estopped or h.estopped or run is None:
+                if self._estopped and self._exec.state == "emergency-stopped" and h.estopped:
+                    self._exec = ExecutionProgress(
+                        "emergency-stopped", self._exec.t, self._exec.duration, self._exec.started_at,
+                        "Emergency stop: the robot halted. Release the emergency stop to move it again.",
+                    )  # fmt: skip
+                if not self._estopped and not h.estopped:
+                    self._hold_tick(now)
+                return
+            self._run_tick(run, now)
+
+    def _run_tick(self, run: PlanClock, now: float) -> None:
+        q, g = run.advance(now)
+        arms = run.plan.arms
+        for arm in arms:
+            self._joint_command(arm, q[_cols(arm)])
+        for i, arm in enumerate(ARMS):
+            if arm in arms and not (abs(g[i] - self._last_grip_cmd[i]) < 0.5):
+                self._gripper_send(i, float(g[i]))
+        self._exec = run.progress
+        if run.finished:
+            self._run = None
+            self._ratio(arms, DEFAULT_RATIO)
+            for arm in arms:  # hold the last target a moment, as after a move by hand
+                self._target[arm] = q[_cols(arm)].copy()
+                self._target_until[arm] = now + COMMAND_HOLD_S
+
+    def _hold_tick(self, now: float) -> None:
+        for arm in list(self._target):
+            if now > self._target_until.get(arm, 0.0):
+                del self._target[arm]
+                continue
+            self._joint_command(arm, self._target[arm])
 
 
-def _ro(a: np.ndarray) -> np.ndarray:
-    a = np.ascontiguousarray(a)
-    a.setflags(write=False)
-    return a
-
-
-__all__ = ["COMMAND_HOLD_S", "RosbridgeBaxter", "parse_robot_url"]
+__all__ = ["COMMAND_HOLD_S", "STALE_S", "RosbridgeBaxter", "parse_robot_url"]

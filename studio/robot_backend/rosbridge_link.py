@@ -1,16 +1,14 @@
 """Baxter's ROS 1 topics and messages as rosbridge carries them, and the connection (roslibpy, asyncio).
 
-Topics as in the Baxter SDK (:data:`JOINT_STATES` and the others below): joint states and gripper states
-come from the robot; joint commands (position mode, one arm by name), gripper commands (``"go"`` to a
-position, by hardware id), enable and the joint-state rate go to it. Used by :mod:`.rosbridge`."""
+Topics as in the Baxter SDK (:data:`JOINT_STATES` and the others below): joint, robot and gripper states come
+from the robot; joint commands (position mode, one arm by name), speed ratios, gripper commands (by hardware
+id), enable, reset, stop and the joint-state rate go to it. :meth:`RosLink.publish` drops a message while the
+socket is down (roslibpy would queue it and send it on reconnecting). Used by :mod:`.rosbridge`."""
 
 from __future__ import annotations
 
 import json
 import logging
-import math
-import threading
-import time
 from collections.abc import Callable
 from typing import Any
 from urllib.parse import urlparse
@@ -18,8 +16,7 @@ from urllib.parse import urlparse
 import numpy as np
 
 from studio.core.errors import InvalidInput, StudioError
-from studio.core.types import ALL_ARM_JOINTS, ARM_JOINTS, Arm
-from studio.robot_backend.base import JointStateBatch
+from studio.core.types import ARM_JOINTS, Arm
 
 log = logging.getLogger(__name__)
 
@@ -33,12 +30,19 @@ GRIPPER_STATE = "/robot/end_effector/{arm}_gripper/state"
 GRIPPER_STATE_TYPE = "baxter_core_msgs/EndEffectorState"
 ENABLE = "/robot/set_super_enable"
 ENABLE_TYPE = "std_msgs/Bool"
+GRIPPER_PROPERTIES = "/robot/end_effector/{arm}_gripper/properties"
+GRIPPER_PROPERTIES_TYPE = "baxter_core_msgs/EndEffectorProperties"
+ROBOT_STATE = "/robot/state"
+ROBOT_STATE_TYPE = "baxter_core_msgs/AssemblyState"
+RESET = "/robot/set_super_reset"
+STOP = "/robot/set_super_stop"
+EMPTY_TYPE = "std_msgs/Empty"
+SPEED_RATIO = "/robot/limb/{arm}/set_speed_ratio"
+SPEED_RATIO_TYPE = "std_msgs/Float64"
 STATE_RATE = "/robot/joint_state_publish_rate"
 STATE_RATE_TYPE = "std_msgs/UInt16"
 #: baxter_core_msgs/JointCommand.POSITION_MODE
 POSITION_MODE = 1
-#: Hardware id of Rethink's electric parallel gripper (used until the gripper's state message says otherwise).
-DEFAULT_GRIPPER_ID = 65538
 
 
 def parse_robot_url(url: str) -> str:
@@ -68,123 +72,32 @@ def joint_command(arm: Arm, q: np.ndarray) -> dict[str, Any]:
     return {"mode": POSITION_MODE, "command": [float(x) for x in q], "names": list(ARM_JOINTS[arm])}
 
 
-def gripper_command(gripper_id: int, width: float, sequence: int) -> dict[str, Any]:
-    """A ``baxter_core_msgs/EndEffectorCommand`` moving the gripper to ``width`` percent open (0..100)."""
-    return {
-        "id": int(gripper_id),
-        "command": "go",
-        "args": json.dumps({"position": float(min(max(width, 0.0), 100.0))}),
-        "sender": "teaching-studio",
-        "sequence": sequence,
-    }
+def gripper_command(gripper_id: int, width: float | None, sequence: int, command: str = "go") -> dict[str, Any]:
+    """A ``baxter_core_msgs/EndEffectorCommand``: "go" to ``width`` percent open (0..100), or another command
+    ("calibrate", "reset") without arguments."""
+    args = json.dumps({"position": float(min(max(width, 0.0), 100.0))}) if width is not None else "{}"
+    return {"id": int(gripper_id), "command": command, "args": args, "sender": "teaching-studio", "sequence": sequence}
 
 
-def joint_state(msg: dict[str, Any]) -> tuple[list[Any], list[Any], float] | None:
-    """Joint names, positions and the header's time stamp (s) of a ``sensor_msgs/JointState``; None if malformed."""
-    try:
-        names = list(msg.get("name") or [])
-        pos = list(msg.get("position") or [])
-        stamp = (msg.get("header") or {}).get("stamp") or {}
-        return names, pos, float(stamp.get("secs", 0)) + 1e-9 * float(stamp.get("nsecs", 0))
-    except (TypeError, ValueError, AttributeError):
-        return None
-
-
-def gripper_state(msg: dict[str, Any]) -> tuple[float | None, int | None]:
-    """Opening (percent, clipped to 0..100) and hardware id of a ``baxter_core_msgs/EndEffectorState``, each
-    None when missing or invalid."""
-    try:
-        p: float | None = float(msg.get("position"))  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        return None, None
-    if p is not None and math.isfinite(p):
-        p = min(max(p, 0.0), 100.0)
-    else:
-        p = None
-    hid = msg.get("id")
-    return p, hid if isinstance(hid, int) and hid > 0 else None
-
-
-class StateReader:
-    """The robot's state as its messages tell it: joint angles matched by name, gripper openings and hardware
-    ids, time stamps (s since the first message, increasing).
-
-    Thread-safe with a lock of its own that is never held while calling out. roslibpy calls the state callbacks
-    while holding its event lock, and the backend publishes through roslibpy while holding its command lock, so
-    the callbacks must not wait on the command lock: they did, and ``start`` deadlocked in CI (2026-11-23).
-    """
-
-    def __init__(self) -> None:
-        self._lock = threading.Lock()
-        self._names = {n: i for i, n in enumerate(ALL_ARM_JOINTS)}
-        self.q = np.full(14, np.nan)
-        self.g = np.full(2, np.nan)
-        self.t = 0.0
-        self._stamp0: float | None = None
-        self._last_t = -math.inf
-        self.gripper_id = [DEFAULT_GRIPPER_ID, DEFAULT_GRIPPER_ID]
-
-    @property
-    def complete(self) -> bool:
-        """True once every arm joint has been heard."""
-        with self._lock:
-            return self._complete()
-
-    def _complete(self) -> bool:
-        return not np.any(np.isnan(self.q))
-
-    def measured(self) -> tuple[float, np.ndarray, np.ndarray]:
-        """(t, q (14,), gripper (2,)) as last heard, copies; NaN where not heard yet."""
-        with self._lock:
-            return self.t, self.q.copy(), self.g.copy()
-
-    def hardware_id(self, i: int) -> int:
-        """Gripper ``i``'s hardware id (for its commands)."""
-        with self._lock:
-            return self.gripper_id[i]
-
-    def on_joint_state(self, msg: dict[str, Any]) -> JointStateBatch | None:
-        """Take in a ``sensor_msgs/JointState``; the sample to stream, or None (malformed, not every arm joint
-        heard yet, or a repeated or older stamp: time must increase for the recorder)."""
-        fields = joint_state(msg)
-        if fields is None:
-            log.warning("ignoring a malformed joint state message")
-            return None
-        with self._lock:
-            return self._take(*fields)
-
-    def _take(self, names: list[Any], pos: list[Any], st: float) -> JointStateBatch | None:
-        for n, v in zip(names, pos, strict=False):
-            i = self._names.get(n)
-            if i is not None and isinstance(v, int | float) and math.isfinite(v):
-                self.q[i] = float(v)
-        if not self._complete():
-            return None
-        if st <= 0.0:
-            st = time.monotonic()
-        if self._stamp0 is None:
-            self._stamp0 = st
-        t = st - self._stamp0
-        if t <= self._last_t:
-            return None
-        self._last_t = self.t = t
-        g = np.where(np.isnan(self.g), 100.0, self.g)
-        return JointStateBatch(t=_ro(np.array([t])), q=_ro(self.q[None, :].copy()), gripper=_ro(g[None, :].copy()))
-
-    def on_gripper_state(self, i: int, msg: dict[str, Any]) -> None:
-        """Take in gripper ``i``'s ``baxter_core_msgs/EndEffectorState``."""
-        position, hardware_id = gripper_state(msg)
-        with self._lock:
-            if position is not None:
-                self.g[i] = position
-            if hardware_id is not None:
-                self.gripper_id[i] = hardware_id
-
-
-def _ro(a: np.ndarray) -> np.ndarray:
-    a = np.ascontiguousarray(a)
-    a.setflags(write=False)
-    return a
+def open_topics(
+    link: RosLink,
+    on_joint_state: Callable[[dict[str, Any]], None],
+    on_robot_state: Callable[[dict[str, Any]], None],
+    on_gripper: Callable[[int, dict[str, Any], bool], None],
+) -> None:
+    """Subscribe to the robot's state topics and advertise every command topic (advertise before publish)."""
+    link.topic(JOINT_STATES, JOINT_STATE_TYPE).subscribe(on_joint_state)
+    link.topic(ROBOT_STATE, ROBOT_STATE_TYPE).subscribe(on_robot_state)
+    for i, arm in enumerate(("left", "right")):
+        link.topic(GRIPPER_STATE.format(arm=arm), GRIPPER_STATE_TYPE).subscribe(lambda m, i=i: on_gripper(i, m, False))
+        link.topic(GRIPPER_PROPERTIES.format(arm=arm), GRIPPER_PROPERTIES_TYPE).subscribe(
+            lambda m, i=i: on_gripper(i, m, True)
+        )
+        link.topic(JOINT_COMMAND.format(arm=arm), JOINT_COMMAND_TYPE).advertise()
+        link.topic(SPEED_RATIO.format(arm=arm), SPEED_RATIO_TYPE).advertise()
+        link.topic(GRIPPER_COMMAND.format(arm=arm), GRIPPER_COMMAND_TYPE).advertise()
+    for name, typ in ((ENABLE, ENABLE_TYPE), (RESET, EMPTY_TYPE), (STOP, EMPTY_TYPE)):
+        link.topic(name, typ).advertise()
 
 
 class RosLink:
@@ -208,6 +121,26 @@ class RosLink:
         """True from :meth:`connect` until :meth:`close` (the connection may since have dropped)."""
         return self._ros is not None
 
+    @property
+    def connected(self) -> bool:
+        """The websocket is up now."""
+        ros = self._ros
+        return ros is not None and bool(getattr(ros, "is_connected", False))
+
+    def call_soon(self, fn: Callable[[], None]) -> None:
+        """Run ``fn`` on roslibpy's event loop (the one that reads the robot's messages); at once without one."""
+        loop = getattr(getattr(getattr(self._ros, "factory", None), "manager", None), "loop", None)
+        if loop is None or loop.is_closed():
+            fn()
+        else:
+            loop.call_soon_threadsafe(fn)
+
+    def on_close(self, fn: Callable[[], None]) -> None:
+        """Call ``fn`` (from roslibpy's thread) whenever the websocket closes."""
+        ros = self._ros
+        if ros is not None and hasattr(ros, "on"):
+            ros.on("close", lambda *_: fn())
+
     def connect(self) -> None:
         """Connect, unless connected already.
 
@@ -222,6 +155,7 @@ class RosLink:
         import roslibpy
 
         ros = roslibpy.Ros(self.url, transport="asyncio")
+        ros.factory.maxDelay = 2.0  # after a drop, try to reconnect every ≤ 2 s (not up to an hour apart)
         try:
             ros.run(timeout=self.connect_timeout)
         except Exception as exc:
@@ -241,10 +175,14 @@ class RosLink:
             t = self._topics[name] = roslibpy.Topic(self._ros, name, msg_type, queue_size=1)
         return t
 
-    def publish(self, name: str, msg_type: str, msg: dict[str, Any]) -> None:
+    def publish(self, name: str, msg_type: str, msg: dict[str, Any]) -> bool:
+        """Send ``msg`` now, or drop it when the connection is down (never queued); True when sent."""
         import roslibpy
 
+        if not self.connected:
+            return False
         self.topic(name, msg_type).publish(roslibpy.Message(msg))
+        return True
 
     def detach(self) -> Any:
         """Unsubscribe and unadvertise every topic, forget the connection and return it (for :meth:`disconnect`,
@@ -271,14 +209,4 @@ class RosLink:
                 log.debug("closing the rosbridge connection", exc_info=True)
 
 
-__all__ = [
-    "DEFAULT_GRIPPER_ID",
-    "POSITION_MODE",
-    "RosLink",
-    "StateReader",
-    "gripper_command",
-    "gripper_state",
-    "joint_command",
-    "joint_state",
-    "parse_robot_url",
-]
+__all__ = ["POSITION_MODE", "RosLink", "gripper_command", "joint_command", "open_topics", "parse_robot_url"]

@@ -36,7 +36,8 @@ from studio.robot_backend.motion import (
     rate_limited,
     rate_limited_series,
 )
-from studio.robot_backend.plan_follower import PLAN_START_TOLERANCE, PlanFollower, halted, plan_targets
+from studio.robot_backend.plan_follower import PLAN_START_TOLERANCE, PlanFollower, plan_targets
+from studio.robot_backend.sim_safety import SimFaults, SimSafety
 
 if TYPE_CHECKING:  # pragma: no cover
     from studio.core.execution import ExecutionPlan
@@ -55,7 +56,7 @@ def _ro(a: np.ndarray) -> np.ndarray:
     return a
 
 
-class SimulatedBaxter(RobotBackend):
+class SimulatedBaxter(SimFaults, RobotBackend):
     """Baxter's two arms and grippers, simulated at ``rate_hz`` with exact time stamps.
 
     Args:
@@ -99,8 +100,9 @@ class SimulatedBaxter(RobotBackend):
         self._hub = ListenerHub()
         self._plan: PlanFollower | None = None  # the plan being executed (under self._lock)
         self._exec = ExecutionProgress()  # the current or last execution's progress
-        self._halt_k: int | None = None  # samples from this index on are held (emergency stop)
-        self._estopped = False
+        self._halt_k: int | None = None  # samples from this index on are held (an emergency stop, …)
+        self._halt_cause = "ours"  # what holds them: see SimSafety.ended
+        self._safety = SimSafety()
         self._clock = BatchClock(self._advance_to, period=period, time_scale=time_scale, name="sim-baxter")
 
     # -- RobotBackend -------------------------------------------------------------------------------------
@@ -132,8 +134,7 @@ class SimulatedBaxter(RobotBackend):
         cols = slice(0, 7) if check_arm(arm) == "left" else slice(7, 14)
         qa = checked(f"{arm} arm joint angles", q, (7,))
         with self._lock:
-            if self._estopped:
-                log.info("emergency-stopped: joint command ignored")
+            if not self._obeys("joint"):
                 return
             a = self._arms
             a.qt[cols] = np.clip(qa, a.lower[cols], a.upper[cols])
@@ -143,8 +144,7 @@ class SimulatedBaxter(RobotBackend):
         i = 0 if check_arm(arm) == "left" else 1
         w = checked(f"{arm} gripper opening", [width], (1,))[0]
         with self._lock:
-            if self._estopped:
-                log.info("emergency-stopped: gripper command ignored")
+            if not self._obeys("gripper"):
                 return
             self._arms.gt[i] = min(max(w, 0.0), 100.0)
 
@@ -163,8 +163,10 @@ class SimulatedBaxter(RobotBackend):
         """Follow ``plan`` from the next sample on, within the velocity and acceleration limits; returns at once."""
         q_plan, g_plan = plan_targets(plan, self.rate_hz)
         with self._lock:
-            if self._estopped:
+            if self._safety.ours:
                 raise StudioError("The robot is emergency-stopped: release the emergency stop before running a skill.")
+            if not self._safety.moves:
+                raise StudioError(self._safety.health().message)
             if self._plan is not None:
                 raise StudioError("The robot is already running a skill: stop it first.")
             follower = PlanFollower(q_plan, g_plan, self.rate_hz, self._arms.k * self.dt)
@@ -177,46 +179,34 @@ class SimulatedBaxter(RobotBackend):
         with self._lock:
             a = self._arms
             if self._plan is None:
-                if not self._estopped:
+                if self._safety.moves:
                     a.hold()
                 return
             # time to stop: the current joint speeds at half the acceleration limits (0.05–2 s)
             self._plan.slow_down(float(np.clip(np.max(np.abs(a.v) / (0.5 * a.acceleration)), 0.05, 2.0)))
             self._exec = self._plan.progress
 
-    def emergency_stop(self) -> None:
-        """Hold the arms and grippers from the first sample after this call; ignore motion until cleared."""
-        with self._lock:
-            k = self._arms.k
-            due = math.floor(self._clock.now() * self.rate_hz + 1e-6) + 1 if self._clock.running else k
-            self._halt_k = max(k, due)
-            self._estopped = True
-            if self._halt_k <= k:  # nothing produced yet past the call: apply now
-                self._apply_halt()
-
     def clear_emergency_stop(self) -> None:
-        """Allow commands and plans again; the arms hold where they stopped."""
+        """Allow commands and plans again (the arms hold where they stopped); the robot is enabled again."""
         with self._lock:
             if self._halt_k is not None and self._halt_k > self._arms.k:
                 self._apply_halt()
-            self._estopped = False
+            self._safety.ours = False
             self._halt_k = None
+            self._safety.enable()
 
     def progress(self) -> ExecutionProgress:
         with self._lock:
             return self._exec
 
-    @property
-    def emergency_stopped(self) -> bool:
-        with self._lock:
-            return self._estopped
-
     def _apply_halt(self) -> None:
         """Freeze everything at the latest sample (caller holds the lock)."""
         self._arms.halt()
         if self._plan is not None or self._exec.active:
-            self._exec = halted(self._exec)
+            self._exec = self._safety.ended(self._exec, self._halt_cause)
         self._plan = None
+        if not self._safety.ours:  # the robot's own stop is over once it holds; the studio's lasts
+            self._halt_k = None
 
     # -- extras -------------------------------------------------------------------------------------------
     @property
@@ -283,7 +273,9 @@ class SimulatedBaxter(RobotBackend):
                 m = min(n, MAX_BATCH)
                 with self._lock:
                     batch = self._produce(m)
-                self._hub.deliver(batch)
+                    up = self._safety.link_up
+                if up:
+                    self._hub.deliver(batch)
                 n -= m
 
     def _produce(self, n: int) -> JointStateBatch:

@@ -16,7 +16,7 @@ from functools import lru_cache
 import numpy as np
 
 from studio.core.kinematics import Baxter
-from studio.core.types import Arm, Demo
+from studio.core.types import Arm, Demo, JointTrajectory
 
 
 def _min_jerk(u: np.ndarray) -> np.ndarray:
@@ -68,3 +68,43 @@ def joint_space_pick_place(
 def cartesian_pick_place(seed: int = 0) -> tuple[Demo, ...]:
     """The same demonstrations without their joint angles (Cartesian poses and gripper only)."""
     return tuple(Demo(d.t, d.position, d.orientation, d.gripper, name=d.name) for d in joint_space_pick_place(seed))
+
+
+def hard_cartesian_pick_place(seed: int, spread: float = 0.95) -> tuple[Demo, ...]:
+    """Cartesian-only pick-and-place through key postures over ``spread`` of each joint's range: the wrist
+    rolled, the elbow and shoulder near their limits (issue 19's hidden execution case)."""
+    js = joint_space_pick_place(seed, spread=spread)
+    return tuple(Demo(d.t, d.position, d.orientation, d.gripper, name=d.name) for d in js)
+
+
+def tracked_of_reachable(b: Baxter, tr: Demo, jt: JointTrajectory, probes: int = 12) -> tuple[float, float]:
+    """(tracked, reachable) skill samples: within 1 mm and 0.01 rad at their own skill time, and those some
+    posture reaches (multi-start IK on up to ``probes`` samples of each missed stretch, as a share of it)."""
+    from studio.core.ik_path import (
+        ACCEPT_ORIENTATION_RAD,
+        ACCEPT_POSITION_M,
+        _PathSolver,
+        pose_reachable,
+        rotation_angle,
+    )
+    from studio.core.kinematics import matrix_from_quat_wxyz
+
+    s = jt.skill_time if jt.skill_time is not None else jt.t
+    keep = np.concatenate([[True], np.diff(s) > 1e-12])  # one joint sample per skill time (not posture changes)
+    q = np.column_stack([np.interp(tr.t, s[keep], jt.q[keep, k]) for k in range(7)])
+    rot, pos = b.rotations_batch(jt.arm, q)
+    ok = (np.linalg.norm(pos - tr.position, axis=1) <= ACCEPT_POSITION_M) & (
+        rotation_angle(rot, matrix_from_quat_wxyz(tr.orientation)) <= ACCEPT_ORIENTATION_RAD
+    )
+    j = np.clip(np.searchsorted(s, tr.t), 0, len(s) - 1)
+    jm = np.clip(j - 1, 0, len(s) - 1)
+    near = np.minimum(np.abs(s[j] - tr.t), np.abs(s[jm] - tr.t))
+    ok &= near <= 1.5e-3  # a skill sample passed over during a posture change is not tracked
+    missed = np.flatnonzero(~ok)
+    reachable = float(ok.sum())
+    if missed.size:
+        S = _PathSolver(b, jt.arm, tr.t, tr.position, matrix_from_quat_wxyz(tr.orientation))
+        for run in np.split(missed, np.flatnonzero(np.diff(missed) > 1) + 1):
+            pick = run[np.linspace(0, len(run) - 1, min(probes, len(run))).astype(int)]
+            reachable += len(run) * float(np.mean([pose_reachable(S, int(i), seeds=30) for i in pick]))
+    return float(ok.sum()), reachable

@@ -131,8 +131,9 @@ def test_run_on_robot_follows_the_plan_and_does_the_task(browser, tmp_path) -> N
         expect(result).to_have_attribute("data-ok", "true", timeout=30_000)
         text = result.inner_text()
         m = re.search(
-            r"On the robot: the skill does the task\. The robot followed the plan within ([\d.]+) mm; the block ended "
-            r"([\d.]+ cm|less than 1 mm) from where you put it — the skill works\.",
+            r"On the robot: the skill does the task\. The robot followed the plan within ([\d.]+) mm at every moment "
+            r"and ended ([\d.]+) mm from its last pose; the block ended ([\d.]+ cm|less than 1 mm) from where you put "
+            r"it — the skill works\.",
             text,
         )
         assert m, text
@@ -209,7 +210,7 @@ def test_emergency_stop_mid_run_halts_the_robot(browser, tmp_path) -> None:
         views(app, page, out, "1-emergency-stopped")
         # Nothing moves it until released, in plain words.
         expect(page.get_by_role("button", name="Run on robot")).to_be_disabled()
-        expect(page.locator(".run-result").first).to_contain_text("Up to there (")
+        expect(page.locator(".run-result").first).to_contain_text("The skill did not work: the robot did")
         # The status and the release are on every step (here: Teach, where the robot is moved by hand).
         ui.tab(page, "Teach")
         expect(page.locator(".run-status")).to_contain_text("Emergency stop: the robot halted at")
@@ -219,6 +220,57 @@ def test_emergency_stop_mid_run_halts_the_robot(browser, tmp_path) -> None:
         expect(page.get_by_role("button", name="Emergency stop", exact=True)).to_be_visible()
         ui.tab(page, "Preview")
         expect(page.get_by_role("button", name="Run on robot")).to_be_enabled()
+    finally:
+        if page is not None:
+            page.close()
+        app.stop()
+
+
+def test_the_robots_own_estop_button_during_a_run(browser, tmp_path) -> None:
+    """The simulated Baxter's red button pressed during Run on robot (as a real one's can be): the run ends in
+    words — when, how much was done, never "the skill works" — the light turns red, nothing moves, and the robot
+    runs again only after its button is released and the teacher presses Enable robot."""
+    out = ARTIFACTS / "execution-robot-estop"
+    shutil.rmtree(out, ignore_errors=True)
+    out.mkdir(parents=True)
+    app = start(tmp_path)
+    page = None
+    try:
+        app.controller.training.train().result()
+        page = ui.open_studio(browser, app.url())
+        expect(page.locator('.robot-light[data-light="enabled"]')).to_contain_text("Robot connected and enabled")
+        ui.open_folder(page, "Simulated robot (try its faults)")
+        ui.tab(page, "Preview")
+        page.get_by_role("button", name="Run on robot").click()
+        page.wait_for_function(
+            "() => parseFloat(document.querySelector('.run-status').dataset.t) > 3.0", polling=100, timeout=30_000
+        )
+        page.get_by_role("button", name="Press the robot's e-stop button").click()
+        status_el = page.locator('.run-status[data-phase="failed"]')
+        expect(status_el).to_be_attached(timeout=10_000)
+        text = page.locator(".run-status").first.inner_text()
+        m = re.fullmatch(r"The robot's emergency stop was pressed at ([\d.]+) s; the skill was (\d+) % done\.", text)
+        assert m, text
+        assert 3.0 <= float(m.group(1)) and 5 < int(m.group(2)) < 60
+        light = page.locator(".robot-light").first
+        expect(light).to_have_attribute("data-light", "e-stopped")
+        expect(light).to_contain_text("emergency-stop button is pressed")
+        result = page.locator(".run-result").first
+        expect(result).to_contain_text(f"The skill did not work: the robot did {m.group(2)} % of the run")
+        assert "works" not in result.inner_text().replace("did not work", "")
+        q0 = app.controller.teaching.robot_q()
+        time.sleep(1.0)
+        assert np.array_equal(app.controller.teaching.robot_q(), q0)  # nothing moves after the robot's e-stop
+        expect(page.get_by_role("button", name="Run on robot")).to_be_disabled()
+        expect(page.locator(".run-reason")).to_contain_text("emergency-stop button is pressed")
+        page.locator(".run-status").first.scroll_into_view_if_needed()
+        views(app, page, out, "1-robot-estop", settle=0.3, order=("front",))
+        (out / "words.txt").write_text(f"{text}\n{light.inner_text()}\n{result.inner_text()}\n")
+        page.get_by_role("button", name="Release the robot's e-stop button").click()
+        page.get_by_role("button", name="Enable robot").click()
+        expect(light).to_have_attribute("data-light", "enabled")
+        expect(page.get_by_role("button", name="Run on robot")).to_be_enabled()
+        assert np.array_equal(app.controller.teaching.robot_q(), q0)  # enabled again, and it stayed still
     finally:
         if page is not None:
             page.close()
