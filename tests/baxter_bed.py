@@ -95,6 +95,8 @@ class BaxterBed:
         self.hand_speed = 0.5
         self.stamp_offset = 0.0
         self._stamp_once: float | None = None
+        #: how many arm and finger-only JointState messages reached a subscriber
+        self.sent = {"joints": 0, "fingers": 0}
         self.renamed: dict[str, str] = {}
         self.delay = 0.0
         self._refuse_until = 0.0
@@ -253,13 +255,17 @@ class BaxterBed:
             self._subs.pop(ws, None)
             self._out.pop(ws, None)
 
-    def _publish(self, topic: str, msg: dict[str, Any]) -> None:
+    def _publish(self, topic: str, msg: dict[str, Any]) -> int:
+        """Queue ``msg`` to every subscriber of ``topic``; returns how many."""
         if time.monotonic() < self._silent_until:
-            return
+            return 0
         text = json.dumps({"op": "publish", "topic": topic, "msg": msg})
+        n = 0
         for ws, subs in list(self._subs.items()):
             if topic in subs and ws in self._out:
                 self._out[ws].put_nowait(text)
+                n += 1
+        return n
 
     @staticmethod
     async def _writer(ws: Any, out: asyncio.Queue[str]) -> None:
@@ -359,7 +365,8 @@ class BaxterBed:
             "velocity": [0.0] * len(NAMES),
             "effort": [0.0] * len(NAMES),
         }
-        self._publish("/robot/joint_states", msg)
+        if self._publish("/robot/joint_states", msg):
+            self.sent["joints"] += 1
 
     def _send_fingers(self) -> None:
         for arm in ARMS:
@@ -374,7 +381,8 @@ class BaxterBed:
                 "velocity": [0.0, 0.0],
                 "effort": [0.0, 0.0],
             }
-            self._publish("/robot/joint_states", msg)
+            if self._publish("/robot/joint_states", msg):
+                self.sent["fingers"] += 1
 
     def _send_state(self) -> None:
         with self.lock:
