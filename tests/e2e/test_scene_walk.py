@@ -27,6 +27,7 @@ from studio.core.kinematics import Baxter
 from studio.core.rotations import quat_wxyz_from_matrix
 from studio.teacher import PICK_PLACE_A, PICK_PLACE_B, PICK_PLACE_YAW_A, PICK_PLACE_YAW_B
 from studio.world import simulate
+from tests.conftest import wait_for
 from tests.e2e import ui
 from tests.e2e.conftest import ARTIFACTS, free_port
 
@@ -241,16 +242,17 @@ def test_arrow_keys_on_a_slider_leave_the_camera_alone(browser, sessions) -> Non
         thumb.focus()
         for _ in range(5):
             page.keyboard.press("ArrowLeft")
-        time.sleep(1.5)
-        assert ui.number_value(page, "Left gripper width (%)") < before_value  # the slider moved
-        assert np.allclose(client.camera.position, before_cam, atol=1e-6)  # the camera did not
+        # the slider moved; the page sends a camera change in the frame it happens, so one more second of
+        # an unchanged camera after the slider has moved means the keys did not reach it
+        assert wait_for(lambda: ui.number_value(page, "Left gripper width (%)") < before_value)
+        assert not wait_for(lambda: not np.allclose(client.camera.position, before_cam, atol=1e-6), 1.0)
         # The same keys on the scene orbit the camera (so the check above can fail).
         page.mouse.click(200, 600)
         page.keyboard.down("ArrowLeft")
-        time.sleep(0.8)
-        page.keyboard.up("ArrowLeft")
-        time.sleep(1.0)
-        assert not np.allclose(client.camera.position, before_cam, atol=1e-3)
+        try:
+            assert wait_for(lambda: not np.allclose(client.camera.position, before_cam, atol=1e-3))
+        finally:
+            page.keyboard.up("ArrowLeft")
     finally:
         if page is not None:
             page.close()
