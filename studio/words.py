@@ -16,6 +16,7 @@ from studio.core.types import SkillRoute
 
 if TYPE_CHECKING:
     from studio.core.autotune import TuneResult
+    from studio.world.feedback import GraspNote
 
 #: How an audience says each :class:`Remedy` (a phrase that follows a dash, lower case, no full stop).
 Remedies = Mapping[Remedy, str]
@@ -175,21 +176,74 @@ def tune_summary(result: TuneResult) -> str:
             "Suggested: learned without each demonstration in turn, the skill misses it by "
             f"{length_words(a.distance)} on average."
         )
+    same = round(a.keypoints) == round(b.keypoints)
+    count = (
+        f"the same number of key-points per demonstration, {a.keypoints:.0f}"
+        if same
+        else f"{a.keypoints:.0f} key-points per demonstration instead of {b.keypoints:.0f}"
+    )
     return (
         f"Learned without each demonstration in turn, the skill misses it by {length_words(a.distance)} on "
-        f"average with the suggestion, {length_words(b.distance)} with the current thresholds "
-        f"({a.keypoints:.0f} key-points per demonstration instead of {b.keypoints:.0f})."
+        f"average with the suggestion, {length_words(b.distance)} with the current thresholds ({count})."
     )
 
 
+def count_words(n: int, thing: str, plural: str | None = None) -> str:
+    """ "1 demonstration", "3 demonstrations" (``plural``: when it is not ``thing`` + "s")."""
+    return f"{n} {thing if n == 1 else (plural or thing + 's')}"
+
+
+#: What each task set-up asks of the teacher, shown in the Teach step.
+TASKS: dict[str, str] = {
+    "stack-cup": "Take the cup I hand you (held up on the grey stand) and put it into the other cup.",
+    "pick-place": "Pick up the block and put it on the green pad.",
+    "empty table": "Show the robot a movement, or add objects and show it what to do with them.",
+}
+#: The task of a scene that is not one of the set-ups.
+OWN_TASK = "Show the robot what to do with the objects on the table."
+
+
+def task_words(preset: str | None) -> str:
+    """The task of the scene set-up ``preset`` in one sentence for the teacher."""
+    return TASKS.get(preset or "", OWN_TASK)
+
+
+def grasp_words(note: GraspNote) -> str:
+    """What closing the gripper just did: "Holding the cup." or "Missed the cup by 3 cm — move 1 cm closer."."""
+    if note.held is not None:
+        return f"Holding the {note.held}."
+    if note.near is None:
+        return "The gripper closed on nothing: there is no cup or block free to pick up."
+    by = length_words(note.distance)
+    if note.closer > 0.0:
+        fix = f"move {length_words(max(note.closer, 0.01))} closer"
+        if note.height:
+            fix += f" and {_height_fix(note.height)}"
+        return f"Missed the {note.near} by {by} — {fix}, open the gripper and close it again."
+    return f"Missed the {note.near}: the gripper is {_height_off(note.height)} — {_height_fix(note.height)}, then close it again."
+
+
+def _height_off(h: float) -> str:
+    return f"{length_words(h)} too {'high' if h > 0 else 'low'}"
+
+
+def _height_fix(h: float) -> str:
+    return f"{'lower' if h > 0 else 'raise'} it {length_words(max(abs(h), 0.01))}"
+
+
 __all__ = [
+    "OWN_TASK",
     "SHARED_REMEDIES",
+    "TASKS",
     "Remedies",
+    "count_words",
     "fit_note",
+    "grasp_words",
     "length_words",
     "route_label",
     "route_sides",
     "routes_words",
+    "task_words",
     "tune_summary",
     "verdict_lines",
 ]

@@ -166,6 +166,10 @@ class SceneActions:
         events = session.objects.events(session.demo_files[i]) if i < len(session.demo_files) else ()
         return next((e.poses for e in events if e.kind == "start"), None)
 
+    def last_grip(self) -> WorldEvent | None:
+        """The live world's latest grasp or miss (None before any since the objects were last put back)."""
+        return next((e for e in reversed(self.live.events) if e.kind in ("grasp", "miss")), None)
+
     # -- what the scene shows --------------------------------------------------------------------------
     def shown(self) -> tuple[tuple[int, ...], tuple[ObjectPose, ...]]:
         """(key, object poses) to draw now: the live world's, or the replay's or preview's at the moment shown.

@@ -79,6 +79,7 @@ class Teaching:
         self._unsubscribe: Callable[[], None] | None = None
         ctx.on_leave(self._check_leave)
         ctx.events.on(Topic.SESSION, self.forget_reach)
+        self._saving = False
         self._owner: object | None = None  # the browser tab that started the running take
         self._discard_asked: float | None = None
 
@@ -227,12 +228,22 @@ class Teaching:
     def recording(self) -> bool:
         return self._recorder is not None
 
+    @property
+    def saving(self) -> bool:
+        """A stopped take is being written into the session (between Stop and "Demonstration saved")."""
+        return self._saving
+
     def start_recording(self, by: object | None = None) -> None:
         """Start recording the taught arm(s); only one recording runs at a time (across all tabs). ``by``: the
         browser tab that started it (see :meth:`discard_recording`)."""
         with self.ctx.lock:
             if self._recorder is not None:
-                raise StudioError("A recording is already running (maybe in another tab). Stop it first.")
+                if by is not None and _tab_id(by) == self._owner:
+                    return  # a double click on Record: the take this tab started goes on
+                where = " in another browser tab" if by is not None else ""
+                raise StudioError(f"A recording is already running{where}. Stop it first.")
+            if self._saving:
+                raise StudioError("The last demonstration is still being saved: press Record again in a moment.")
             self.motion_guard("recording")
             self.display.show_live()
             session = self.ctx.session
@@ -257,6 +268,8 @@ class Teaching:
             if rec is None:
                 raise StudioError("Nothing is being recorded.")
             self._recorder = None
+            self._saving = True
+            self.ctx.emit(Topic.RECORDING)  # the views say "Saving…" at once
             try:
                 try:
                     recording = rec.stop()
@@ -277,6 +290,7 @@ class Teaching:
                     raise
                 rec.discard()
             finally:
+                self._saving = False
                 self.ctx.emit(Topic.RECORDING)
         for msg in rec.messages:
             self.ctx.notify("Recording", msg, kind="warning")

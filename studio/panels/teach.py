@@ -26,6 +26,7 @@ JOINT_WORDS = {
 #: Seconds after a user touches a slider or handle during which the robot's own motion does not move it.
 USER_HOLD_S = 0.8
 UNREACHABLE_COLOR = (230, 40, 40)
+SAVING = "Saving the demonstration…"
 
 GuiCallback = Callable[[viser.GuiEvent], None]
 
@@ -216,10 +217,12 @@ class TeachPanel:
 
     def _on_recording_state(self) -> None:
         rec = self.ctl.teaching.recording
-        self.record_btn.disabled = rec
+        self.record_btn.disabled = rec or self.ctl.teaching.saving
         self.stop_btn.disabled = not rec
         self.discard_btn.disabled = not rec
-        if not rec:
+        if self.ctl.teaching.saving:
+            self.rec_status.content = SAVING
+        elif not rec:
             self.rec_status.content = "Not recording."
 
     # -- periodic (pose pump thread) -------------------------------------------------------------------
