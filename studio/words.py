@@ -220,7 +220,8 @@ def grasp_words(note: GraspNote) -> str:
         if note.height:
             fix += f" and {_height_fix(note.height)}"
         return f"Missed the {note.near} by {by} — {fix}, open the gripper and close it again."
-    return f"Missed the {note.near}: the gripper is {_height_off(note.height)} — {_height_fix(note.height)}, then close it again."
+    off, fix = _height_off(note.height), _height_fix(note.height)
+    return f"Missed the {note.near}: the gripper is {off} — {fix}, then close it again."
 
 
 def _height_off(h: float) -> str:
@@ -229,6 +230,15 @@ def _height_off(h: float) -> str:
 
 def _height_fix(h: float) -> str:
     return f"{'lower' if h > 0 else 'raise'} it {length_words(max(abs(h), 0.01))}"
+
+
+def moved_words(name: str, distance: float) -> str:
+    """An object a fixed-places skill will not follow: "The bottom cup is 11 cm from where it stood when you
+    taught; your skill repeats the taught motion."."""
+    return (
+        f"The {name} is {length_words(distance)} from where it stood when you taught; your skill repeats the "
+        "taught motion, so it will not follow it. Put it back, or choose Places: Follow the objects and train again."
+    )
 
 
 __all__ = [
@@ -240,6 +250,7 @@ __all__ = [
     "fit_note",
     "grasp_words",
     "length_words",
+    "moved_words",
     "route_label",
     "route_sides",
     "routes_words",

@@ -11,6 +11,9 @@ import threading
 
 from studio.controller.context import Context
 from studio.core.types import Arm, Skill
+from studio.words import moved_words
+from studio.world.events import ObjectPose
+from studio.world.moved import moved_objects
 from studio.world.reach import one_place, outside, suggestion
 from studio.world.relative import objects_now
 
@@ -46,12 +49,27 @@ class PlacedSkills:
         return out
 
     def warnings(self) -> list[str]:
-        """Plain sentences, one per object that stands where no demonstration put it."""
+        """Plain sentences, one per object that stands where no demonstration put it (a skill that follows the
+        objects), or elsewhere than when the demonstrations started (a skill that repeats the taught motion)."""
         session = self.ctx.session
         out: list[str] = []
         for skill in session.skills.values():
             if skill.frames is not None:
                 out += [w for w in outside(skill.frames, session.objects.scene) if w not in out]
+        if any(s.frames is None for s in session.skills.values()):
+            out += [moved_words(n, d) for n, d in moved_objects(self._starts(), session.objects.scene)]
+        return out
+
+    def _starts(self) -> list[tuple[ObjectPose, ...]]:
+        """The objects at the start of each shown demonstration that recorded them."""
+        session = self.ctx.session
+        out = []
+        for rec, file in zip(session.recordings, session.demo_files, strict=False):
+            if rec.name in session.hidden_demos:
+                continue
+            start = next((e.poses for e in session.objects.events(file) if e.kind == "start"), None)
+            if start is not None:
+                out.append(start)
         return out
 
     def note(self) -> str:

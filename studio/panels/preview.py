@@ -18,6 +18,11 @@ CYAN = (0, 200, 230)
 IK_FAIL = (230, 30, 30)
 NOT_TRAINED = "Train first: the learned path appears here in cyan."
 SPEEDS = {"¼×": 0.25, "½×": 0.5, "1×": 1.0, "2×": 2.0, "4×": 4.0}
+STALE_RUN = "this run was before you changed the objects or the demonstrations; press Run on robot to try again."
+MISSES_NOW = (
+    "The preview shows the skill missing the task with the objects where they are now: the robot would do the "
+    "same. Train again, or put the objects back where you taught."
+)
 
 
 class PreviewPanel:
@@ -110,8 +115,12 @@ class PreviewPanel:
         if any(not f.ok for f in execution.feasibility().values()):  # its words are above, with the red path
             reason = "The robot does not run a skill it cannot follow: see what is red on the learned path."
         quiet = running or reason.startswith("The emergency stop")  # the run's status says so, on every step
+        disabled = bool(reason)
+        task = self.ctl.scene.task_result()
+        if not reason and task is not None and task.objects and not task.ok:
+            reason = MISSES_NOW  # a warning: the teacher may still run it
         with self.server.atomic():
-            self.run_btn.disabled = bool(reason)
+            self.run_btn.disabled = disabled
             self.run_reason.content = (
                 ""
                 if not reason or quiet
@@ -127,13 +136,17 @@ class PreviewPanel:
         color = "#15803d" if st.ok else ("#1d4ed8" if st.ok is None else "#b91c1c")
         head = {True: "On the robot: the skill does the task.", False: "On the robot:", None: "On the robot:"}[st.ok]
         body = st.result or "the robot is running the skill; the result follows when it ends."
+        if st.stale:  # of before the change: never a green "does the task" under what the preview says now
+            color, head = "#6b7280", "Out of date:"
+            body = f"{STALE_RUN} Then, on the robot: {body}"
         legend = (
             f'<div class="run-legend" style="color:#555;margin-top:2px">{_swatch(CYAN)} the plan (learned path) '
             f"{_swatch(EXECUTED_COLOR)} where the robot's gripper went {_swatch(APPROACH_COLOR)} the way to the "
             "skill's start</div>"
         )
         return (
-            f'<div class="run-result" data-ok="{str(st.ok).lower()}" data-phase="{st.phase}" style="font-size:0.9em;'
+            f'<div class="run-result" data-ok="{str(st.ok).lower()}" data-phase="{st.phase}" data-stale='
+            f'"{str(st.stale).lower()}" style="font-size:0.9em;'
             f'border-left:4px solid {color};padding:2px 8px;margin:4px 0"><b style="color:{color}">{head}</b> '
             f"{html.escape(body)}{legend}</div>"
         )
@@ -175,6 +188,7 @@ class PreviewPanel:
         with self.server.atomic():
             self.reach.content = self._reach_html()
             self.task.content = self._task_html()
+        self._on_run_state()
 
     def _reach_html(self) -> str:
         said, note = self.ctl.placed.warnings(), self.ctl.placed.note()
