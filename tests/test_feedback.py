@@ -14,9 +14,9 @@ from studio.controller import Controller, Topic
 from studio.robot_backend.simulated import SimulatedBaxter
 from studio.storage import SessionStore
 from studio.teacher import teach
+from studio.words import count_words, grasp_words, moved_words, task_words
 from studio.world import GRASP_XY_TOL, ObjectPose, Scene, WorldEvent, grasp_note, preset
 from studio.world.moved import moved_objects
-from studio.words import count_words, grasp_words, moved_words, task_words
 from tests.conftest import RecordingNotifier
 
 CUP = ObjectPose("cup", "cup", (0.07, 0.07, 0.095), (0.7, 0.1, -0.2), (1.0, 0.0, 0.0, 0.0))
