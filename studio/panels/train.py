@@ -43,6 +43,12 @@ class TrainPanel:
             icon=viser.Icon.BRAIN,
             hint="Learn the skill from the shown demonstrations with the current key-point settings.",
         )
+        self.pauses = gui.add_checkbox(
+            "Remove pauses",
+            initial_value=ctl.training.remove_pauses,
+            hint="Shorten every pause longer than a moment in your demonstrations before learning, so the robot does "
+            "not wait where you stopped to think. Press Train again after changing it.",
+        )
         self.progress = gui.add_progress_bar(0.0, animated=True, visible=False)
         self.status = gui.add_markdown(self._status_text())
         self.verdict = gui.add_html("")
@@ -80,6 +86,7 @@ class TrainPanel:
         self.mode.on_update(ctl.guarded("Could not change how the skill is made")(self._on_mode))
         self.frames.on_update(ctl.guarded("Could not change how the skill is made")(self._on_frames))
         self.way.on_update(ctl.guarded("Could not learn the other way")(self._on_way))
+        self.pauses.on_update(ctl.guarded("Could not change the pauses")(self._on_pauses))
         ctl.events.on(Topic.SKILL, self.refresh)
         ctl.events.on(Topic.SESSION, self.refresh)
         ctl.events.on(Topic.DEMOS, self.refresh)  # renamed / deleted / trimmed demos: labels, plots and status
@@ -104,6 +111,10 @@ class TrainPanel:
         self.ctl.training.train()  # the work thread learns; TRAINING and SKILL events redraw
         if self.ctl.view.step != Step.TRAIN:  # the scene shows the Train step (the learned path)
             self.ctl.view.set_step(Step.TRAIN)
+
+    def _on_pauses(self, event: viser.GuiEvent) -> None:
+        if event.client is not None:
+            self.ctl.training.set_remove_pauses(bool(self.pauses.value))
 
     def _on_mode(self, event: viser.GuiEvent) -> None:
         if event.client is None:
@@ -152,6 +163,7 @@ class TrainPanel:
             self.status.content = self._status_text()
             self.mode.value = MODE_WORDS[self.ctl.training.generalization]
             self.frames.value = FRAME_WORDS[self.ctl.training.frames]
+            self.pauses.value = self.ctl.training.remove_pauses
 
     def refresh(self) -> None:
         """Redraw the verdict and the results of the current skill(s)."""
