@@ -9,14 +9,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 from studio.core.quality import DemoFit, Disagreement, Finding, Issue, Level, Misfit, Remedy, Verdict
 from studio.core.types import SkillRoute
 
 if TYPE_CHECKING:
     from studio.core.autotune import TuneResult
-    from studio.world.feedback import GraspNote
 
 #: How an audience says each :class:`Remedy` (a phrase that follows a dash, lower case, no full stop).
 Remedies = Mapping[Remedy, str]
@@ -208,7 +207,22 @@ def task_words(preset: str | None) -> str:
     return TASKS.get(preset or "", OWN_TASK)
 
 
-def grasp_words(note: GraspNote) -> str:
+class GraspFacts(Protocol):
+    """What a gripper's close did (:class:`studio.world.feedback.GraspNote`)."""
+
+    @property
+    def held(self) -> str | None: ...
+    @property
+    def near(self) -> str | None: ...
+    @property
+    def distance(self) -> float: ...
+    @property
+    def closer(self) -> float: ...
+    @property
+    def height(self) -> float: ...
+
+
+def grasp_words(note: GraspFacts) -> str:
     """What closing the gripper just did: "Holding the cup." or "Missed the cup by 3 cm — move 1 cm closer."."""
     if note.held is not None:
         return f"Holding the {note.held}."

@@ -39,7 +39,8 @@ def test_removing_pauses_makes_a_shorter_skill_that_still_does_the_task(ctl: Con
     brisk = ctl.playback.preview_duration()
     assert brisk < taught * 0.9, (brisk, taught)  # the scripted teacher rests at each grasp and release
     result = ctl.scene.task_result()
-    assert result is not None and result.ok, result.text
+    assert result is not None
+    assert result.ok, result.text
 
 
 def test_the_skill_speed_retimes_preview_and_run_within_the_limits(ctl: Controller) -> None:
@@ -53,7 +54,8 @@ def test_the_skill_speed_retimes_preview_and_run_within_the_limits(ctl: Controll
     assert taught / 2 - 0.5 <= fast < taught * 0.8
     assert all(f.ok for f in ctl.execution.feasibility().values())
     result = ctl.scene.task_result()
-    assert result is not None and result.ok, result.text
+    assert result is not None
+    assert result.ok, result.text
     ctl.placed.set_speed(0.5)
     assert ctl.playback.preview_duration() == pytest.approx(2 * taught, rel=0.05)
     ctl.placed.set_speed(1.0)

@@ -106,10 +106,10 @@ def test_the_live_world_tells_the_latest_grasp(rig) -> None:
     sim.teleport(plan.q[0], plan.gripper[0])
     sim.step(20)
     sim.run_targets(plan.q, plan.gripper, batch=16)
-    ev = ctl.scene.last_grip()
-    assert ev is not None and ev.kind == "grasp"
-    note = grasp_note(ev)
-    assert note is not None and grasp_words(note) == f"Holding the {ev.object}."
+    grip = ctl.scene.last_grip()
+    assert grip is not None and grip[0].kind == "grasp"
+    ev, note = grip
+    assert grasp_words(note) == f"Holding the {ev.object}." and ctl.scene.last_grip()[0] is ev
 
 
 def test_stop_says_saving_until_the_take_is_kept(rig) -> None:

@@ -32,7 +32,7 @@ from studio.core.kinematics import Baxter
 from studio.robot_backend.base import RobotBackend
 from studio.storage import Session, SessionStore
 from studio.world import PRESETS as SCENE_PRESETS
-from studio.world import ObjectPose, Scene, TaskResult, WorldObject
+from studio.world import GraspNote, ObjectPose, Scene, TaskResult, WorldEvent, WorldObject
 
 log = logging.getLogger(__name__)
 P = ParamSpec("P")
@@ -180,6 +180,7 @@ __all__ = [
     "Display",
     "Events",
     "ExecutionActions",
+    "GraspNote",
     "KeypointItem",
     "KeypointTuning",
     "KeypointView",
@@ -209,5 +210,6 @@ __all__ = [
     "Training",
     "UsedDemo",
     "View",
+    "WorldEvent",
     "WorldObject",
 ]

@@ -1,4 +1,4 @@
-"""The pace of a skill: idle stretches of a demonstration compressed before learning (:func:`without_pauses`,
+"""The pace of a skill: idle stretches of a demonstration shortened before learning (:func:`without_pauses`,
 :func:`remove_pauses`), and a learned joint trajectory timed again at another speed within the robot's joint
 limits by the timing stage (:func:`at_speed`, :mod:`studio.core.timing`)."""
 
@@ -19,7 +19,7 @@ REST_TURN_RAD_S = 0.05
 REST_GRIPPER_PCT_S = 5.0
 #: Speeds are measured over this window (s), so that sensor noise does not count as motion.
 WINDOW_S = 0.2
-#: A rest longer than this (s) is compressed to this length: the robot still settles, but does not wait.
+#: A rest longer than this (s) is shortened to this length: the robot still settles, but does not wait.
 KEEP_S = 0.4
 #: Knots of the joint path per second of skill time handed to the timing stage by :func:`at_speed`.
 KNOTS_PER_S = 50.0

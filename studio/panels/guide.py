@@ -10,12 +10,12 @@ import zlib
 
 import viser
 
-from studio.controller import Controller, Layer, Topic
+from studio.controller import Controller, GraspNote, Layer, Topic, WorldEvent
 from studio.words import grasp_words, task_words
-from studio.world import TABLE_TOP_Z, WorldEvent, grasp_note
 
 STAND_COLOR = (120, 120, 120)
 STAND_RADIUS = 0.008
+FLOOR_Z = -0.93
 HELD_OUT_LABEL = "held out for the robot"
 
 
@@ -46,8 +46,7 @@ class GuidePanel:
         )
 
     @staticmethod
-    def _grasp_html(event: WorldEvent | None) -> str:
-        note = grasp_note(event) if event is not None else None
+    def _grasp_html(note: GraspNote | None) -> str:
         if note is None:
             return '<div class="grasp-feedback" data-held="" style="display:none"></div>'
         color = "#15803d" if note.held else "#b45309"
@@ -66,16 +65,15 @@ class GuidePanel:
 
     # -- periodic (pose pump) -----------------------------------------------------------------------------
     def tick(self, now: float) -> None:
-        ev = self.ctl.scene.last_grip()
+        grip = self.ctl.scene.last_grip()
+        ev, note = grip if grip is not None else (None, None)
         with self._lock:
             new = ev is not None and ev is not self._last
             self._last = ev
-        if new and ev is not None:
-            self.grasp.content = self._grasp_html(ev)
-            note = grasp_note(ev)
-            if note is not None and not self.ctl.execution.running:
-                kind = "success" if note.held else "warning"
-                self.ctl.notify("Gripper closed", grasp_words(note), kind=kind)
+        if new and note is not None:
+            self.grasp.content = self._grasp_html(note)
+            if not self.ctl.execution.running:
+                self.ctl.notify("Gripper closed", grasp_words(note), kind="success" if note.held else "warning")
         self._draw_stands()
 
     def _draw_stands(self) -> None:
@@ -86,7 +84,7 @@ class GuidePanel:
                 return
             self._drawn = key
             table = self.ctl.scene.scene.table
-            floor = table.top_z if table is not None else TABLE_TOP_Z
+            floor = table.top_z if table is not None else FLOOR_Z
             wanted = {p.name: p.position for p in poses if p.on == "hand" and p.position[2] > floor + 0.01}
             shown = self.ctl.view.shown(Layer.OBJECTS)
             with self.server.atomic():
