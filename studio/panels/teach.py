@@ -189,6 +189,7 @@ class TeachPanel:
     def _make_grip_button_cb(self, arm: Arm) -> GuiCallback:
         def cb(event: viser.GuiEvent) -> None:
             width = 100.0 if event.target.value == "Open" else 0.0
+            self._slider_touched = time.monotonic()
             self.ctl.teaching.set_gripper(arm, width)
             self.grip_width[arm].value = width
 
@@ -198,6 +199,7 @@ class TeachPanel:
         def cb(event: viser.GuiEvent) -> None:
             if event.client is None:
                 return
+            self._slider_touched = time.monotonic()
             self.ctl.teaching.set_gripper(arm, float(self.grip_width[arm].value))
 
         return self.ctl.guarded("Could not move the gripper")(cb)
@@ -238,6 +240,8 @@ class TeachPanel:
                 deg = np.round(np.degrees(q) * 2.0) / 2.0
                 for i, name in enumerate(ALL_ARM_JOINTS):
                     self.sliders[name].value = float(deg[i])
+                for arm, w in self.grip_width.items():  # the width the robot reports, as the readout says
+                    w.value = float(round(ctl.teaching.gripper_width(arm)))
         rec = ctl.teaching.recorder
         if rec is not None and now - self._last_timer > 0.25:
             self._last_timer = now
