@@ -141,3 +141,19 @@ def test_a_fixed_places_skill_names_the_object_that_moved(rig) -> None:
     assert all(s.frames is not None for s in ctl.session.skills.values())
     assert not any("repeats the taught motion" in w for w in ctl.placed.warnings())
     assert np.isfinite(bottom.position[0])
+
+
+def test_a_discarded_take_can_be_brought_back_with_its_objects(rig) -> None:
+    ctl, sim = rig
+    n = len(ctl.session.recordings)
+    plan = teach("stack-cup", 1)
+    sim.teleport(plan.q[0], plan.gripper[0])
+    sim.step(20)
+    ctl.teaching.start_recording()
+    sim.run_targets(plan.q, plan.gripper, batch=16)
+    assert ctl.teaching.discard_recording() is True
+    assert len(ctl.session.recordings) == n and ctl.undo.what.startswith('"demo')
+    ctl.undo.undo()
+    assert len(ctl.session.recordings) == n + 1
+    events = ctl.session.objects.events(ctl.session.demo_files[-1])
+    assert [e.kind for e in events if e.kind in ("grasp", "release")] == ["grasp", "release"]

@@ -27,6 +27,7 @@ from studio.controller.sessions import RECOVERED, SessionActions, open_or_create
 from studio.controller.suggest import Suggesting, SuggestState
 from studio.controller.teaching import Reach, Teaching
 from studio.controller.training import FRAME_WORDS, MODE_WORDS, SkillVerdict, Training, UsedDemo
+from studio.controller.undo import Undo
 from studio.controller.view import Layer, Step, View
 from studio.core.kinematics import Baxter
 from studio.robot_backend.base import RobotBackend
@@ -67,11 +68,18 @@ class Controller:
         # Each part gets the context and narrow callables or protocols for what it asks of the others (late
         # bound: a part is asked only once all exist); it subscribes to the events it follows itself.
         self.view = View(ctx.events)
-        self.demos = Demos(ctx)
+        self.undo = Undo(ctx)  # a discarded take or a deleted demonstration, for a while
+        self.demos = Demos(ctx, keep=self.undo.keep)
         self.placed = PlacedSkills(ctx)  # the skills where the objects are now: what preview and runs play
         self.playback = Player(ctx, guard=lambda: self.execution.check_not_running(), skills=self.placed.get)
         self.scene = SceneActions(ctx, backend, player=self.playback)
-        self.teaching = Teaching(ctx, backend, takes=self.scene, motion_guard=lambda d: self.execution.check_free(d))
+        self.teaching = Teaching(
+            ctx,
+            backend,
+            takes=self.scene,
+            motion_guard=lambda d: self.execution.check_free(d),
+            keep=lambda recording, events: self.undo.keep(recording, events),
+        )
         self.keypoints = KeypointTuning(ctx, self.demos)
         self.live = LivePaths(
             ctx,
@@ -208,6 +216,7 @@ __all__ = [
     "Teaching",
     "Topic",
     "Training",
+    "Undo",
     "UsedDemo",
     "View",
     "WorldEvent",

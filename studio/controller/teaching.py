@@ -57,6 +57,7 @@ class Teaching:
         takes: keeps each take's object events with its demonstration.
         motion_guard: refuses (raises, in plain words) moving by hand or recording ("before {doing}") during a
             run on the robot or an emergency stop.
+        keep: keeps a discarded take (and its object events) for Undo.
     """
 
     def __init__(
@@ -65,12 +66,15 @@ class Teaching:
         backend: RobotBackend,
         takes: Takes,
         motion_guard: Callable[[str], None] = lambda doing: None,
+        keep: Callable[[Recording, Sequence[WorldEvent]], None] = lambda recording, events: None,
     ) -> None:
         self.ctx = ctx
         self.backend = backend
         self.display = ctx.display
         self.takes = takes
         self.motion_guard = motion_guard
+        #: Keeps a discarded take for Undo.
+        self.keep = keep
         self.reach: dict[Arm, Reach] = {}
         self._targets: dict[Arm, np.ndarray] = {}
         self._ik_lock = {arm: threading.Lock() for arm in ARMS}
@@ -315,11 +319,29 @@ class Teaching:
                 )
                 return False
             rec, self._recorder = self._recorder, None
-            self.takes.cancel_take()
+            kept = self._stop_for_undo(rec) if rec is not None else None
         if rec is not None:
             rec.discard()
         self.ctx.emit(Topic.RECORDING)
+        if kept is not None:
+            self.keep(*kept)
+            self.ctx.notify(
+                "Recording thrown away",
+                f'"{kept[0].name}" was thrown away. Press Undo to keep it after all.',
+                kind="info",
+            )
         return rec is not None
+
+    def _stop_for_undo(self, rec: Recorder) -> tuple[Recording, Sequence[WorldEvent]] | None:
+        """Stop a take that is thrown away, keeping what it recorded for Undo (None when there is nothing)."""
+        try:
+            recording = rec.stop()
+        except Exception:
+            log.debug("a discarded take could not be read back", exc_info=True)
+            self.takes.cancel_take()
+            return None
+        events = self.takes.end_take(recording)
+        return (recording, events) if len(recording) >= 2 else None
 
     def save_running_recording(self) -> None:
         """Keep a take that is still running (when the studio stops); failures are logged."""

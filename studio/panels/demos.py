@@ -1,5 +1,5 @@
 """Demonstrations panel (in the Teach tab): the list of demos with their colours, their traces in the scene,
-and the edits (show/hide, rename, trim, delete with a second press)."""
+and the edits (show/hide, rename, trim, delete with Undo)."""
 
 from __future__ import annotations
 
@@ -167,4 +167,4 @@ class DemosPanel:
             t0, t1 = self.demo_trim.value
             demos.trim(i, float(t0), float(t1))
         elif action == "Delete":
-            demos.delete_confirmed(i)  # asks first: a second press deletes
+            demos.delete(i)  # at once; Undo (in Teach) brings it back for a while

@@ -1,6 +1,6 @@
 """Guide panel (Teach step): the task of the set-up in one sentence, what the gripper just did when it closed
-("Holding the cup" / "Missed the cup by 3 cm — move 1 cm closer"), and a stand drawn under every object the
-teacher holds out in the air."""
+("Holding the cup" / "Missed the cup by 3 cm — move 1 cm closer"), Undo for a take thrown away or a deleted
+demonstration, and a stand drawn under every object the teacher holds out in the air."""
 
 from __future__ import annotations
 
@@ -33,6 +33,17 @@ class GuidePanel:
         self._stands: dict[str, tuple[viser.SceneNodeHandle, viser.LabelHandle, tuple[float, float, float]]] = {}
         self.task = gui.add_html(self._task_html(), order=-0.5)
         self.grasp = gui.add_html(self._grasp_html(None), order=-0.4)
+        self.undo_text = gui.add_html("", order=-0.3, visible=False)
+        self.undo = gui.add_button(
+            "Undo",
+            icon=viser.Icon.ARROW_BACK_UP,
+            color="gray",
+            visible=False,
+            order=-0.2,
+            hint="Bring back the demonstration you just threw away or deleted.",
+        )
+        self.undo.on_click(ctl.guarded("Could not bring it back")(lambda _: ctl.undo.undo()))
+        ctl.events.on(Topic.UNDO, self._on_undo)
         for topic in (Topic.SCENE, Topic.SESSION):
             ctl.events.on(topic, self._on_scene)
         ctl.events.on(Topic.VIEW, self._apply_view)
@@ -56,6 +67,17 @@ class GuidePanel:
             f'<b style="color:{color}">{html.escape(grasp_words(note))}</b></div>'
         )
 
+    def _on_undo(self) -> None:
+        what = self.ctl.undo.what
+        with self.server.atomic():
+            self.undo_text.content = (
+                f'<div class="undo-note" style="font-size:0.85em;overflow-wrap:anywhere">Thrown away: '
+                f"{html.escape(what)}.</div>"
+                if what
+                else ""
+            )
+            self.undo_text.visible = self.undo.visible = bool(what)
+
     def _on_scene(self) -> None:
         with self._lock:
             self._last = None
@@ -75,6 +97,8 @@ class GuidePanel:
             if not self.ctl.execution.running:
                 self.ctl.notify("Gripper closed", grasp_words(note), kind="success" if note.held else "warning")
         self._draw_stands()
+        if self.undo.visible and not self.ctl.undo.what:  # kept long enough: Undo goes away
+            self._on_undo()
 
     def _draw_stands(self) -> None:
         """A grey stand from the table up to the bottom of each object held out in the air."""
