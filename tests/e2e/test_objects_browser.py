@@ -30,18 +30,8 @@ VIEWS = {
 
 
 def views(app: Studio, page: Page, out: Path, step: str) -> None:
-    client = next(iter(app.server.get_clients().values()))
-    for view, (pos, at) in VIEWS.items():
-        cam = client.camera
-        cam.up_direction = (0.0, 0.0, 1.0)
-        cam.position = pos
-        cam.look_at = at
-        deadline = time.monotonic() + 10
-        while time.monotonic() < deadline and not np.allclose(cam.position, pos, atol=1e-3):
-            time.sleep(0.1)
-        time.sleep(1.0)
-        ui.dismiss_notifications(page, only_webgl=False)
-        page.screenshot(path=str(out / f"{step}-{view}.png"))
+    """Screenshots of ``step`` from the front and from the top, once the drawing has come to rest."""
+    ui.views(app.server, page, out, step, VIEWS)
 
 
 def drag_handle(app: Studio, position: tuple[float, float, float], wxyz: tuple[float, float, float, float]) -> None:
