@@ -136,6 +136,11 @@ class GuidePanel:
                     )
                     self._stands[name] = (pole, label, (x, y, z))
 
+    def stands(self) -> list[tuple[float, float, float]]:
+        """Where the drawn stands hold an object up (the bottom centre of each object held out)."""
+        with self._lock:
+            return [at for _, _, at in self._stands.values()]
+
     def _apply_view(self) -> None:
         shown = self.ctl.view.shown(Layer.OBJECTS)
         with self._lock, self.server.atomic():

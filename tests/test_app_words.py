@@ -1,0 +1,116 @@
+"""The panels' honest words with a server: the task of the set-up, Undo after Discard, the last run marked out of
+date after a change, the Run on robot warning, the skill speed and Remove pauses controls, the session box
+that names the open session, an empty "New name" after New, "1 demonstration", and a restart that reopens the
+last session."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from studio.app import Studio, build_app
+from tests.conftest import RecordingNotifier, wait_for
+
+PORTS = iter(range(8342, 8370))
+
+
+@pytest.fixture
+def app(sessions: Path) -> Iterator[Studio]:
+    a = build_app(port=next(PORTS), session="stack-cup", sessions_dir=sessions)
+    a.controller.notifier = RecordingNotifier(then=a.notifier)
+    yield a
+    a.stop()
+
+
+def test_the_task_and_the_stand_under_the_cup_held_out(app: Studio) -> None:
+    guide = app.panels.guide
+    assert "Take the cup I hand you" in guide.task.content
+    ctl = app.controller
+    held = [p for p in ctl.scene.live.poses() if p.on == "hand"]
+    assert len(held) == 1
+    assert wait_for(lambda: len(guide.stands()) == 1)  # drawn at the pose pump
+    (stand,) = guide.stands()
+    assert stand == pytest.approx(held[0].position)
+    ctl.scene.use_preset("pick-place")
+    assert "block" in guide.task.content
+    assert wait_for(lambda: guide.stands() == [])
+
+
+def test_discard_then_undo(app: Studio) -> None:
+    ctl = app.controller
+    guide = app.panels.guide
+    assert not guide.undo.visible
+    n = len(ctl.session.recordings)
+    ctl.teaching.start_recording()
+    assert wait_for(lambda: ctl.teaching.recorder is not None and ctl.teaching.recorder.n_samples > 50)
+    ctl.teaching.discard_recording()
+    assert guide.undo.visible and "Thrown away" in guide.undo_text.content
+    ctl.undo.undo()
+    assert len(ctl.session.recordings) == n + 1 and not guide.undo.visible
+
+
+def test_the_last_run_goes_out_of_date_when_the_objects_move(app: Studio) -> None:
+    ctl = app.controller
+    ctl.training.set_frames("robot")
+    ctl.training.train().result()
+    ctl.placed.set_speed(3.0)  # the robot runs it in a third of the time
+    ctl.execution.run()
+    assert wait_for(lambda: not ctl.execution.running, timeout=240), ctl.execution.status
+    st = ctl.execution.status
+    assert st.phase == "done" and not st.stale
+    preview = app.panels.preview
+    assert 'data-stale="false"' in preview.run_result.content
+    bottom = ctl.scene.scene.object("bottom cup")
+    ctl.scene.move("bottom cup", (bottom.position[0] + 0.115, bottom.position[1], bottom.position[2]))
+    assert ctl.execution.status.stale
+    assert wait_for(lambda: 'data-stale="true"' in preview.run_result.content)
+    assert "Out of date:" in preview.run_result.content and "On the robot: the skill does" not in (
+        preview.run_result.content
+    )
+    # the preview misses now: Run on robot warns (and stays possible), the moved cup is named
+    result = ctl.scene.task_result()
+    assert result is not None and not result.ok
+    assert wait_for(lambda: "would do the same" in preview.run_reason.content)
+    assert not preview.run_btn.disabled
+    assert "The bottom cup is 12 cm from where it stood when you taught" in preview.reach.content
+
+
+def test_skill_speed_and_remove_pauses_controls(app: Studio) -> None:
+    ctl = app.controller
+    ctl.training.train().result()
+    preview, train = app.panels.preview, app.panels.train
+    taught = ctl.playback.preview_duration()
+    assert preview.skill_speed.value == "1× (as taught)" and not preview.skill_speed.disabled
+    ctl.placed.set_speed(2.0)
+    assert wait_for(lambda: preview.skill_speed.value == "2×")
+    m = re.search(r"Learned path \(([\d.]+) s\)", preview.info.content)
+    assert m and float(m.group(1)) < taught * 0.8
+    assert train.pauses.value is False
+    ctl.training.set_remove_pauses(True)
+    assert train.pauses.value is True
+
+
+def test_one_demonstration_is_said_in_the_singular(app: Studio) -> None:
+    ctl, panel = app.controller, app.panels.sessions
+    ctl.sessions.new("mine", scene="empty table")
+    assert panel.current.content.endswith("· 0 demonstrations")
+    ctl.teaching.start_recording()
+    assert wait_for(lambda: ctl.teaching.recorder is not None and ctl.teaching.recorder.n_samples > 50)
+    ctl.teaching.stop_recording()
+    assert wait_for(lambda: panel.current.content.endswith("· 1 demonstration"))
+
+
+def test_a_restart_reopens_the_last_session(sessions: Path) -> None:
+    a = build_app(port=next(PORTS), session="stack-cup", sessions_dir=sessions)
+    try:
+        a.controller.sessions.duplicate("mine")
+    finally:
+        a.stop()
+    b = build_app(port=next(PORTS), session=None, sessions_dir=sessions)
+    try:
+        assert b.controller.session.name == "mine"
+    finally:
+        b.stop()
