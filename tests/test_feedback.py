@@ -157,3 +157,16 @@ def test_a_discarded_take_can_be_brought_back_with_its_objects(rig) -> None:
     assert len(ctl.session.recordings) == n + 1
     events = ctl.session.objects.events(ctl.session.demo_files[-1])
     assert [e.kind for e in events if e.kind in ("grasp", "release")] == ["grasp", "release"]
+
+
+def test_suggest_names_a_threshold_of_the_teacher_it_replaced(rig) -> None:
+    ctl, _ = rig
+    ctl.keypoints.set_param("eps5", 0.5)  # travel distance far too long: hardly a key-point
+    ctl.suggest.workers = 1
+    ctl.suggest.start().result()
+    st = ctl.suggest.state
+    assert st.result is not None and st.result.changed, st.summary
+    assert st.replaced == ("eps5",) and st.can_undo
+    assert "instead of" in st.summary or "the same number of key-points" in st.summary
+    ctl.suggest.undo()
+    assert ctl.suggest.state.replaced == () and ctl.keypoints.params().eps5 == pytest.approx(0.5)
