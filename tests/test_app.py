@@ -484,7 +484,8 @@ def test_markers_go_with_their_live_path_and_never_wait_for_a_failed_one(
     assert view is not None
     version = view.version
     assert wait_for(lambda: ctl.live.paths["left"].version == version, 60)
-    assert page.wait_for(lambda _m: drawn() == [d.count for d in view.demos])  # the markers with their path
+    counts = [d.count for d in view.demos]
+    assert page.wait_for(lambda _m: drawn() == counts)  # the markers with their path
 
     def broken(*args: object, **kwargs: object) -> object:
         raise RuntimeError("no path today")
@@ -494,7 +495,8 @@ def test_markers_go_with_their_live_path_and_never_wait_for_a_failed_one(
     assert wait_for(lambda: ctl.live.paths == {})  # the failure was told; no path …
     view = ctl.keypoints.view
     assert view is not None  # … and the markers still came
-    assert page.wait_for(lambda _m: drawn() == [d.count for d in view.demos])
+    counts = [d.count for d in view.demos]
+    assert page.wait_for(lambda _m: drawn() == counts)
     # told right after the paths were emptied (the failure leaves the follower, then it is reported)
     assert wait_for(lambda: any(title == "Could not draw the learned path" for _, title, _ in notes(app)))
 
