@@ -10,7 +10,6 @@ from __future__ import annotations
 import re
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any, cast
 
 import numpy as np
 import pytest
@@ -383,11 +382,10 @@ def test_the_clusters_box_shows_the_k_in_use(app: Studio) -> None:
     assert f'data-k="{view.k["left"]}"' in kp.counts.content
 
 
-def test_sliders_show_real_units_and_whose_values_they_are(app: Studio) -> None:
+def test_sliders_show_real_units_and_whose_values_they_are(app: Studio, page: ViserClient) -> None:
     import math
 
     from studio.core.thresholds import auto_params
-    from studio.panels._sliders import SPECS
 
     kp, ctl = app.panels.keypoints, app.controller
     auto = auto_params([d for _, d in ctl.demos.for_arm("left")])
@@ -397,27 +395,18 @@ def test_sliders_show_real_units_and_whose_values_they_are(app: Studio) -> None:
     assert s12.value == pytest.approx(math.degrees(auto.eps12), abs=0.1)
     assert s5.label == "Travel distance, cm (ε5)" and s5.value == pytest.approx(100 * auto.eps5, abs=0.05)
     assert "follows your demonstrations" in kp.thresholds.whose.content and kp.thresholds.make_auto.disabled
-    cast(Any, s5).value = 4.5  # what the browser does when the teacher drags it
-    kp.thresholds._make_cb(SPECS["eps5"])(_Event())
-    assert ctl.keypoints.params().eps5 == pytest.approx(0.045) and s5.label == "Travel distance, cm (ε5) · yours"
+    page.set_value("Travel distance, cm (ε5)", 4.5)  # the teacher drags it
+    assert wait_for(lambda: s5.label == "Travel distance, cm (ε5) · yours")
+    assert ctl.keypoints.params().eps5 == pytest.approx(0.045)
     assert 'data-yours="1"' in kp.thresholds.whose.content and kp.thresholds.yours.value == s5.label.split(" ·")[0]
     ctl.keypoints.set_detail(-2.0)  # Detail moves the automatic ones, the teacher's stays
     assert kp.detail.value == -2.0 and s5.value == 4.5 and ctl.keypoints.params().eps7 > auto.eps7
-    kp.thresholds._on_make_auto(_Event())
-    assert ctl.keypoints.settings().is_auto("eps5") and s5.label == "Travel distance, cm (ε5)"
+    page.set_value("Make it automatic", True)
+    assert wait_for(lambda: ctl.keypoints.settings().is_auto("eps5") and s5.label == "Travel distance, cm (ε5)")
     assert s5.value == pytest.approx(100 * ctl.keypoints.params().eps5, abs=0.05)
 
 
-class _FakeEvent:
-    client = object()
-
-
-def _Event() -> Any:
-    """What a callback receives when a person (not the server) changed the control."""
-    return _FakeEvent()
-
-
-def test_train_panel_says_how_good_the_skill_is(app: Studio) -> None:
+def test_train_panel_says_how_good_the_skill_is(app: Studio, page: ViserClient) -> None:
     ctl, train = app.controller, app.panels.train
     ctl.training.train().result(timeout=120)
     assert wait_for(lambda: 'data-level="good"' in train.verdict.content, 120)
@@ -428,9 +417,8 @@ def test_train_panel_says_how_good_the_skill_is(app: Studio) -> None:
     assert 'data-mode="aligned-mean"' in train.summary.content and "Follow the demonstrations" in train.summary.content
     assert re.search(r"Zero-points [^:]*: (none|states? \d)", train.summary.content)
     assert "to state →" in train.heatmap.content and "time, s" in train.plots.content
-    cast(Any, train.mode).value = train.mode.options[1]  # the curious choose the paper's spline
-    train._on_mode(_Event())
-    assert ctl.training.generalization == "paper"
+    page.set_value("Path", train.mode.options[1])  # the curious choose the paper's spline
+    assert wait_for(lambda: ctl.training.generalization == "paper")
 
 
 def test_suggest_controls_show_progress_and_undo(app: Studio) -> None:
