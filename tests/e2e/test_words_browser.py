@@ -83,7 +83,9 @@ def test_words_for_a_newcomer(browser, tmp_path) -> None:
         ctl.scene.put_back()
         pos, wxyz = ctl.baxter.fk("left", ctl.teaching.arm_q("left"))
         ctl.teaching.move_gripper("left", np.asarray(pos) + np.array([0.0, 0.03, 0.0]), np.asarray(wxyz))
-        assert wait_for(lambda: np.linalg.norm(ctl.baxter.fk("left", ctl.teaching.arm_q("left"))[0] - pos) > 0.028)
+        assert wait_for(
+            lambda: bool(np.linalg.norm(ctl.baxter.fk("left", ctl.teaching.arm_q("left"))[0] - pos) > 0.028)
+        )
         ui.click_in_row(page, "Left gripper", "Close")
         expect(page.locator(".grasp-feedback")).to_contain_text(
             re.compile(r"Missed the cup by [23](\.\d)? cm — move 1 cm")
