@@ -155,6 +155,14 @@ def test_words_for_a_newcomer(browser, tmp_path) -> None:
         assert wait_for(lambda: ctl.session.name == "my cups")
         expect(ui.row(page, "New name").locator("input")).to_have_value("")
         expect(page.get_by_text("· 0 demonstrations")).to_be_visible()
+        expect(page.get_by_role("combobox", name="Open session")).to_have_value("my cups")
+        # a refused Open leaves the box on the session that is open, not the one chosen
+        ctl.teaching.start_recording()
+        ui.choose(page, "Open session", "stack-cup")
+        ui.click_in_row(page, "Session action", "Open")
+        expect(page.get_by_role("combobox", name="Open session")).to_have_value("my cups")
+        assert ctl.session.name == "my cups"
+        ctl.teaching.discard_recording()
         shot(page, out, "9-sessions")
     finally:
         if page is not None:
