@@ -25,6 +25,7 @@ from studio.panels._page import install as install_page
 from studio.panels.steps import HOME_CAMERA_FOV_DEG, HOME_CAMERA_LOOK_AT, HOME_CAMERA_POSITION
 from studio.robot_backend.base import RobotBackend
 from studio.storage import DEFAULT_ROOT, SessionStore
+from studio.storage.format import EXAMPLE_SESSIONS
 
 log = logging.getLogger(__name__)
 
@@ -189,7 +190,8 @@ class Studio:
 
             backend = SimulatedBaxter()
         self.notifier = BrowserNotifier()
-        store = SessionStore(Path(sessions_dir))
+        bundled = Path(sessions_dir).resolve() == DEFAULT_ROOT.resolve()  # the examples stay as they are there
+        store = SessionStore(Path(sessions_dir), examples=EXAMPLE_SESSIONS if bundled else ())
         self.controller = Controller(
             store=store,
             session=session or store.last_open() or DEFAULT_SESSION,  # no choice: the session open last time

@@ -114,3 +114,18 @@ def test_a_restart_reopens_the_last_session(sessions: Path) -> None:
         assert b.controller.session.name == "mine"
     finally:
         b.stop()
+
+
+def test_the_studio_opens_its_bundled_examples_read_only(sessions: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import studio.app
+
+    monkeypatch.setattr(studio.app, "DEFAULT_ROOT", sessions)  # this folder is the studio's own
+    a = build_app(port=next(PORTS), session="stack-cup", sessions_dir=sessions)
+    try:
+        assert a.controller.session.read_only
+        assert "an example, kept as it is" in a.panels.sessions.current.content
+        a.controller.sessions.duplicate("mine")
+        assert not a.controller.session.read_only
+        assert "kept as it is" not in a.panels.sessions.current.content
+    finally:
+        a.stop()

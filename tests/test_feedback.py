@@ -170,3 +170,43 @@ def test_suggest_names_a_threshold_of_the_teacher_it_replaced(rig) -> None:
     assert "instead of" in st.summary or "the same number of key-points" in st.summary
     ctl.suggest.undo()
     assert ctl.suggest.state.replaced == () and ctl.keypoints.params().eps5 == pytest.approx(0.5)
+
+
+def test_a_bundled_example_stays_as_it_is_and_a_named_copy_changes(sessions: Path) -> None:
+    from studio.storage import ReadOnly
+
+    manifest = (sessions / "stack-cup" / "session.json").read_bytes()
+    sim = SimulatedBaxter()
+    store = SessionStore(sessions, examples=("stack-cup",))
+    ctl = Controller(store=store, session="stack-cup", backend=sim, notifier=RecordingNotifier())
+    ctl.start()
+    sim.stop()
+    try:
+        assert ctl.session.read_only
+        with pytest.raises(ReadOnly, match="Duplicate"):
+            ctl.teaching.start_recording()
+        assert not ctl.teaching.recording
+        with pytest.raises(ReadOnly):
+            ctl.training.train()
+        bottom = ctl.scene.scene.object("bottom cup")
+        with pytest.raises(ReadOnly):
+            ctl.scene.move("bottom cup", (bottom.position[0] + 0.1, bottom.position[1], bottom.position[2]))
+        with pytest.raises(ReadOnly):
+            ctl.demos.delete(0)
+        with pytest.raises(ReadOnly):
+            ctl.sessions.save()
+        ctl.keypoints.set_param("eps5", 0.05)  # tried in memory; never written into the example
+        ctl.keypoints.persist(force=True)
+        ctl.sessions.duplicate("my stack-cup")  # the copy the teacher names is theirs to change
+        assert ctl.session.name == "my stack-cup" and not ctl.session.read_only
+        ctl.scene.move("bottom cup", (bottom.position[0] + 0.1, bottom.position[1], bottom.position[2]))
+        ctl.teaching.start_recording()
+        sim.step(100)
+        ctl.teaching.stop_recording()
+        assert len(ctl.session.recordings) == 4
+        ctl.sessions.open("stack-cup")
+        assert ctl.session.read_only and len(ctl.session.recordings) == 3
+    finally:
+        ctl.close()
+        ctl.shutdown()
+    assert (sessions / "stack-cup" / "session.json").read_bytes() == manifest

@@ -10,7 +10,7 @@ from pathlib import Path
 from studio.controller.context import Context
 from studio.controller.events import Topic
 from studio.core.errors import InvalidInput, SessionFormatError, StudioError
-from studio.storage import Session, SessionStore, check_session_name
+from studio.storage import ReadOnly, Session, SessionStore, check_session_name
 from studio.storage.format import what_went_wrong
 from studio.world import preset
 
@@ -111,6 +111,10 @@ class SessionActions:
 
     def save(self, *, quiet: bool = False) -> None:
         self.persist()
+        if self.ctx.session.read_only:  # an example is saved as it is already
+            if not quiet:
+                raise ReadOnly(self.ctx.session.name)
+            return
         self.ctx.store.save(self.ctx.session)
         if not quiet:
             self.ctx.notify("Saved", f'Session "{self.ctx.session.name}" is saved.', kind="success")
@@ -132,7 +136,8 @@ class SessionActions:
     def zip(self) -> tuple[str, bytes]:
         """(file name, bytes) of the open session as a zip archive, saved first."""
         self.persist()
-        self.ctx.store.save(self.ctx.session)
+        if not self.ctx.session.read_only:
+            self.ctx.store.save(self.ctx.session)
         return f"{self.ctx.session.name}.zip", self.ctx.store.export_zip(self.ctx.session.name)
 
     def import_zip(self, filename: str, data: bytes) -> str:

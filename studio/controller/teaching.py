@@ -20,7 +20,7 @@ from studio.core.kinematics import IkResult
 from studio.core.types import ARMS, Arm, Recording
 from studio.recorder import Recorder
 from studio.robot_backend.base import JointStateBatch, RobotBackend
-from studio.storage import Session
+from studio.storage import ReadOnly, Session
 from studio.world import WorldEvent
 
 log = logging.getLogger(__name__)
@@ -249,8 +249,10 @@ class Teaching:
             if self._saving:
                 raise StudioError("The last demonstration is still being saved: press Record again in a moment.")
             self.motion_guard("recording")
-            self.display.show_live()
             session = self.ctx.session
+            if session.read_only:  # refused before the take, never after it
+                raise ReadOnly(session.name)
+            self.display.show_live()
             rec = Recorder(self.backend, session.recording_dir, self.selected_arms, name=self._next_demo_name())
             rec.start()
             self._recorder, self._session = rec, session  # the take is saved where it was started

@@ -20,6 +20,7 @@ from studio.core.pace import remove_pauses, without_pauses
 from studio.core.quality import DemoFit, Verdict
 from studio.core.thresholds import ThresholdSettings
 from studio.core.types import FRAMES, Arm, Demo, Generalization, KeypointParams, Recording, Skill
+from studio.storage import ReadOnly
 from studio.world.relative import demo_objects, objects_now
 
 #: How each choice of frames is called in the Train panel.
@@ -161,6 +162,8 @@ class Training:
         with self.ctx.lock:
             if self.busy:
                 raise StudioError("Training is already running; wait for it to finish.")
+            if self.ctx.session.read_only:  # its skill could not be kept: say so before the work
+                raise ReadOnly(self.ctx.session.name)
             per_arm = {arm: self.demos.for_arm(arm) for arm in (self.ctx.arms if arms is None else arms)}
             brisk = self.remove_pauses
             for arm, demos in per_arm.items():

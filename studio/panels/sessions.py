@@ -88,7 +88,8 @@ class SessionsPanel:
 
     def _current_text(self) -> str:
         s = self.ctl.session
-        return f"Open session: **{s.name}** · {count_words(len(s.recordings), 'demonstration')}"
+        kept = " · an example, kept as it is (Duplicate it to change it)" if s.read_only else ""
+        return f"Open session: **{s.name}** · {count_words(len(s.recordings), 'demonstration')}{kept}"
 
     def refresh(self) -> None:
         names = self.ctl.sessions.names()

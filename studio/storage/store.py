@@ -58,8 +58,10 @@ class SessionSummary:
 class SessionStore:
     """All sessions under ``root`` (default: :data:`~studio.storage.format.DEFAULT_ROOT`)."""
 
-    def __init__(self, root: str | os.PathLike[str] | None = None) -> None:
+    def __init__(self, root: str | os.PathLike[str] | None = None, *, examples: Iterable[str] = ()) -> None:
         self.root = Path(root) if root is not None else DEFAULT_ROOT
+        #: Sessions opened read-only (:attr:`Session.read_only`): the bundled examples, kept as they are.
+        self.examples = frozenset(examples)
 
     def path_of(self, name: str) -> Path:
         return self.root / check_session_name(name)
@@ -162,6 +164,7 @@ class SessionStore:
             _, message = recover_recordings(path / RECORDING_DIR, add=s.add_recording)
             notes.insert(0, message)
         s.recovery_message = " ".join(n for n in notes if n)
+        s.read_only = name in self.examples
         return s
 
     def clean_temporary(self) -> list[str]:
