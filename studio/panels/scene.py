@@ -247,11 +247,12 @@ def name_key(o: WorldObject) -> tuple[object, ...]:
 
 
 def where_html(name: str, position: tuple[float, float, float]) -> str:
-    """The chosen object's place in centimetres, in the robot's room axes (x forward, y to its left, z up)."""
-    x, y, z = (100.0 * v for v in position)
+    """The chosen object's place as the gripper's is told (robot axes: x forward, y to its left, z up; metres)."""
+    x, y, z = position
     return (
-        f'<div class="object-where" data-name="{html.escape(name)}" style="font-size:0.85em;color:#333">'
-        f"{html.escape(name)}: x {x:.1f} cm (forward), y {y:.1f} cm (to the robot's left), z {z:.1f} cm (up)</div>"
+        f'<div class="object-where" data-name="{html.escape(name)}" style="font-size:0.85em;color:#333" '
+        'title="x: forward from the robot, y: to its left, z: up (metres), as the gripper\'s place above">'
+        f"The {html.escape(name)} stands at x {x:+.2f} · y {y:+.2f} · z {z:+.2f} m</div>"
     )
 
 

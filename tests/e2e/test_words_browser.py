@@ -118,8 +118,9 @@ def test_words_for_a_newcomer(browser, tmp_path) -> None:
 
         # the chosen object's place in centimetres
         ui.choose(page, "Object", "bottom cup")
-        expect(page.locator(".object-where")).to_contain_text("x ")
-        expect(page.locator(".object-where")).to_contain_text("cm (up)")
+        expect(page.locator(".object-where")).to_contain_text(
+            re.compile(r"The bottom cup stands at x [+-]\d\.\d\d · y ")
+        )
         shot(page, out, "5-object")
         assert fits(page) == []
 
