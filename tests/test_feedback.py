@@ -210,3 +210,15 @@ def test_a_bundled_example_stays_as_it_is_and_a_named_copy_changes(sessions: Pat
         ctl.close()
         ctl.shutdown()
     assert (sessions / "stack-cup" / "session.json").read_bytes() == manifest
+
+
+def test_a_preview_of_before_the_objects_moved_is_unloaded(rig) -> None:
+    from studio.controller import PREVIEW
+
+    ctl, _ = rig
+    ctl.training.train().result()
+    ctl.playback.play_preview()
+    assert ctl.playback.kind == PREVIEW
+    bottom = ctl.scene.scene.object("bottom cup")
+    ctl.scene.move("bottom cup", (bottom.position[0] + 0.05, bottom.position[1], bottom.position[2]))
+    assert ctl.playback.kind is None and ctl.display.is_live
