@@ -119,13 +119,9 @@ def _pieces(s: np.ndarray, q: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]
     out: list[tuple[np.ndarray, np.ndarray]] = []
     edges = np.flatnonzero(np.diff(np.concatenate([[0], moving.astype(np.int8), [0]])))
     for a, b in zip(edges[::2], edges[1::2], strict=True):
-        idx = np.arange(a, b + 1)  # samples a..b: s strictly increasing
-        ks, last = [int(idx[0])], float(s[idx[0]])
-        for i in idx[1:-1]:
-            if s[i] - last >= 1.0 / KNOTS_PER_S:
-                ks.append(int(i))
-                last = float(s[i])
-        ks.append(int(idx[-1]))
+        seg = s[a : b + 1]  # samples a..b: s strictly increasing
+        _, first = np.unique(np.floor((seg - seg[0]) * KNOTS_PER_S), return_index=True)
+        ks = np.union1d(first, [len(seg) - 1]) + a
         if len(ks) >= 2:
             out.append((s[ks], q[ks]))
     return out
