@@ -90,9 +90,11 @@ class GuidePanel:
         grip = self.ctl.scene.last_grip()
         ev, note = grip if grip is not None else (None, None)
         with self._lock:
-            new = ev is not None and ev is not self._last
+            new = ev is not self._last
             self._last = ev
-        if new and note is not None:
+        if new and note is None:  # the objects were put back (a new take, Put all back): nothing to tell
+            self.grasp.content = self._grasp_html(None)
+        elif new and note is not None:
             self.grasp.content = self._grasp_html(note)
             if not self.ctl.execution.running:
                 self.ctl.notify("Gripper closed", grasp_words(note), kind="success" if note.held else "warning")
