@@ -6,20 +6,31 @@ last session."""
 from __future__ import annotations
 
 import re
+import socket
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
 from studio.app import Studio, build_app
-from tests.conftest import RecordingNotifier, wait_for
+from tests.conftest import RecordingNotifier, free_port, wait_for
 
-PORTS = iter(range(8342, 8370))
+
+def port() -> int:
+    """A port of this file's range (8342-8369) nothing listens on now."""
+    for p in range(8342, 8370):
+        with socket.socket() as s:
+            try:
+                s.bind(("127.0.0.1", p))
+            except OSError:
+                continue
+            return p
+    return free_port()
 
 
 @pytest.fixture
 def app(sessions: Path) -> Iterator[Studio]:
-    a = build_app(port=next(PORTS), session="stack-cup", sessions_dir=sessions)
+    a = build_app(port=port(), session="stack-cup", sessions_dir=sessions)
     a.controller.notifier = RecordingNotifier(then=a.notifier)
     yield a
     a.stop()
@@ -104,12 +115,12 @@ def test_one_demonstration_is_said_in_the_singular(app: Studio) -> None:
 
 
 def test_a_restart_reopens_the_last_session(sessions: Path) -> None:
-    a = build_app(port=next(PORTS), session="stack-cup", sessions_dir=sessions)
+    a = build_app(port=port(), session="stack-cup", sessions_dir=sessions)
     try:
         a.controller.sessions.duplicate("mine")
     finally:
         a.stop()
-    b = build_app(port=next(PORTS), session=None, sessions_dir=sessions)
+    b = build_app(port=port(), session=None, sessions_dir=sessions)
     try:
         assert b.controller.session.name == "mine"
     finally:
@@ -120,7 +131,7 @@ def test_the_studio_opens_its_bundled_examples_read_only(sessions: Path, monkeyp
     import studio.app
 
     monkeypatch.setattr(studio.app, "DEFAULT_ROOT", sessions)  # this folder is the studio's own
-    a = build_app(port=next(PORTS), session="stack-cup", sessions_dir=sessions)
+    a = build_app(port=port(), session="stack-cup", sessions_dir=sessions)
     try:
         assert a.controller.session.read_only
         assert "an example, kept as it is" in a.panels.sessions.current.content

@@ -19,11 +19,11 @@ from studio.teacher import teach
 from tests.conftest import wait_for
 from tests.e2e import ui
 from tests.e2e.conftest import ARTIFACTS
+from tests.test_app_words import port
 
 pytestmark = pytest.mark.e2e
 
 ROOT = Path(__file__).resolve().parents[2]
-PORT = 8350
 #: Elements of the side panel wider than the panel (text running past its edge), as the page lays them out.
 OVERFLOW_JS = """() => {
   const panel = [...document.querySelectorAll('[data-dock-group]')].find(e => e.textContent.includes('Step'));
@@ -55,7 +55,7 @@ def test_words_for_a_newcomer(browser, tmp_path) -> None:
     sessions = tmp_path / "sessions"
     sessions.mkdir()
     shutil.copytree(ROOT / "sessions" / "stack-cup", sessions / "stack-cup")
-    app = build_app(port=PORT, session="stack-cup", sessions_dir=sessions)
+    app = build_app(port=port(), session="stack-cup", sessions_dir=sessions)
     ctl = app.controller
     page = None
     try:
