@@ -140,3 +140,16 @@ def test_the_studio_opens_its_bundled_examples_read_only(sessions: Path, monkeyp
         assert "kept as it is" not in a.panels.sessions.current.content
     finally:
         a.stop()
+
+
+def test_the_position_plot_legend_sits_above_the_curves() -> None:
+    import numpy as np
+
+    from studio.panels._charts import position_plot_svg
+
+    t = np.linspace(0.0, 2.0, 50)
+    pos = np.column_stack([t, np.full_like(t, 1.0), -t])  # a curve reaching the plot's top right corner
+    svg = position_plot_svg(t, pos, [10], title="demo 1 (left)", color=(0, 0, 200))
+    legend = re.search(r'<text class="legend" x="[\d.]+" y="([\d.]+)"', svg)
+    top = re.search(r'<rect x="[\d.]+" y="([\d.]+)"', svg)
+    assert legend and top and float(legend.group(1)) < float(top.group(1))  # on the title line, not in the plot
