@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 
 from studio.app import Studio, build_app
+from studio.controller import Topic
 from tests.conftest import RecordingNotifier, free_port, wait_for
 
 
@@ -153,3 +154,15 @@ def test_the_position_plot_legend_sits_above_the_curves() -> None:
     legend = re.search(r'<text class="legend" x="[\d.]+" y="([\d.]+)"', svg)
     top = re.search(r'<rect x="[\d.]+" y="([\d.]+)"', svg)
     assert legend and top and float(legend.group(1)) < float(top.group(1))  # on the title line, not in the plot
+
+
+def test_stop_says_saving_in_the_panel_until_the_take_is_kept(app: Studio) -> None:
+    ctl, teach = app.controller, app.panels.teach
+    said: list[str] = []
+    ctl.events.on(Topic.RECORDING, lambda: said.append(str(teach.rec_status.content)))
+    ctl.teaching.start_recording()
+    assert wait_for(lambda: ctl.teaching.recorder is not None and ctl.teaching.recorder.n_samples > 50)
+    assert wait_for(lambda: "● Recording" in str(teach.rec_status.content))
+    ctl.teaching.stop_recording()
+    assert said[-2:] == ["Saving the demonstration…", "Not recording."]
+    assert teach.record_btn.disabled is False
