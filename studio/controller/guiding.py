@@ -28,7 +28,7 @@ HELD_S = 0.35
 PRESSES_PER_DOUBLING = 6
 MAX_STEP_M = 0.04
 #: "Go above": the gripper point (or the bottom of what it carries) this far above the object's top, m.
-ABOVE_M = 0.05
+ABOVE_M = 0.03
 #: The room's axes by name: x away from the robot, y to its left, z up.
 AXES = {"x": 0, "y": 1, "z": 2}
 

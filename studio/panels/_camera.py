@@ -24,8 +24,8 @@ HOME_CAMERA_FOV_DEG = 55.0
 #: View name → (camera position, look-at point), m. Front: from the table's far side towards the robot; Top:
 #: from above, the robot at the top of the picture; Side: from the robot's left.
 VIEWS: dict[str, tuple[tuple[float, float, float], tuple[float, float, float]]] = {
-    "Front": ((2.75, 0.62, 0.3), (0.7, 0.62, 0.0)),
-    "Top": ((0.76, 0.62, 2.1), (0.75, 0.62, -0.07)),
+    "Front": ((2.5, 0.62, 0.6), (0.7, 0.62, -0.05)),
+    "Top": ((0.88, 0.62, 2.3), (0.75, 0.62, -0.07)),
     "Side": ((0.1, 2.7, 0.3), (0.1, 0.2, 0.0)),
 }
 #: The camera stays at least this high above the floor, m.

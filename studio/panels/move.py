@@ -1,5 +1,5 @@
 """Move panel (Teach step): move the gripper in the room's axes with keys or their buttons (a held key goes
-faster), type its position in centimetres, send it above the chosen object or back to the home posture.
+faster), type its position in centimetres, send it above an object or back to the home posture.
 Each key is shown on its button, and the keys in plain words above them."""
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ STEPS: tuple[tuple[str, tuple[tuple[str, str, tuple[str, int]], ...]], ...] = (
     ("Down / up (z)", (("Q down", "KeyQ", ("z", -1)), ("E up", "KeyE", ("z", 1)))),
 )
 CLOSE, OPEN, HOME = "C close", "O open", "H home pose"
+NO_OBJECTS = "(no objects)"
 KEYS = {code: text for _, row in STEPS for text, code, _ in row} | {"KeyC": CLOSE, "KeyO": OPEN, "KeyH": HOME}
 KEY_WORDS = (
     "**Keys** (click the 3D view first): **W** / **S** toward / away from the robot, **A** / **D** to its right / "
@@ -56,10 +57,10 @@ class MovePanel:
                 self.rows[label] = grp
             self.grip = gui.add_button_group("Gripper", options=(CLOSE, OPEN))
             self.home = gui.add_button(HOME, hint="Put the arm back in the posture it started in.")
-            self.above = gui.add_button(
-                _above_label(None),
-                disabled=True,
-                hint='Choose an object in "Objects on the table"; the gripper goes above it, pointing down.',
+            self.above = gui.add_button_group(
+                "Go above the",
+                options=self._object_names(),
+                hint="The gripper goes above that object, pointing down (what it carries stays clear of the object).",
             )
             self.boxes = {
                 axis: gui.add_number(
@@ -89,7 +90,10 @@ class MovePanel:
             box.on_update(guarded(self._make_box(axis)))
         for topic in (Topic.GUIDE, Topic.ARMS):
             ctl.events.on(topic, self._on_chosen)
+        for topic in (Topic.SCENE, Topic.SESSION):
+            ctl.events.on(topic, self._on_scene)
         self._on_chosen()
+        self._on_scene()
         self.sync(force=True)
         install_keys(server, KEYS)
 
@@ -110,8 +114,19 @@ class MovePanel:
 
         return cb
 
-    def _on_above(self, _: viser.GuiEvent) -> None:
-        self.ctl.guide.above()
+    def _on_above(self, event: viser.GuiEvent) -> None:
+        name = str(event.target.value)
+        if name in self.ctl.scene.scene.names():
+            self.ctl.guide.above(name)
+
+    def _object_names(self) -> tuple[str, ...]:
+        return tuple(self.ctl.scene.scene.names()) or (NO_OBJECTS,)
+
+    def _on_scene(self) -> None:
+        names = self._object_names()
+        if tuple(self.above.options) != names:
+            self.above.options = names
+        self.above.disabled = names == (NO_OBJECTS,)
 
     def _on_grip(self, event: viser.GuiEvent) -> None:
         arm = self.ctl.guide.key_arm
@@ -130,8 +145,6 @@ class MovePanel:
     def _on_chosen(self) -> None:
         guide = self.ctl.guide
         with self.server.atomic():
-            self.above.label = _above_label(guide.chosen)
-            self.above.disabled = guide.chosen is None
             self.key_arm.visible = len(self.ctl.teaching.selected_arms) > 1
             self.key_arm.value = f"{guide.key_arm} gripper"
             self.turn.value = guide.turning
@@ -160,7 +173,3 @@ class MovePanel:
         if now - self._last_sync > 0.25 and self.ctl.display.is_live:
             self._last_sync = now
             self.sync()
-
-
-def _above_label(name: str | None) -> str:
-    return f"Go above the {name}" if name else "Go above an object"
