@@ -23,7 +23,7 @@ from studio.world import ObjectPose
 #: One step of a key or an arrow button, m.
 STEP_M = 0.01
 #: Presses of the same key closer together than this (s) are a held key: the step grows.
-HELD_S = 0.35
+HELD_S = 0.2
 #: A held key's step doubles after this many presses, up to :data:`MAX_STEP_M`.
 PRESSES_PER_DOUBLING = 6
 MAX_STEP_M = 0.04

@@ -230,6 +230,9 @@ def put_into_the_bottom_cup(t: Teacher) -> None:
 
 
 def demonstrate(t: Teacher) -> None:
+    """One take from the home posture: H, Record, the cup into the bottom cup, Stop."""
+    t.key("KeyH")
+    t.settle()
     t.button("Record")
     ui.wait_text(t.page, "Recording")
     grasp_the_cup(t)
@@ -269,3 +272,53 @@ def out_of_reach_and_back(t: Teacher) -> dict[str, object]:
     seen["back gripper"] = t.gripper()
     seen["back shot"] = t.shot("handle back near the bottom cup")
     return seen
+
+
+def finish_excursion(t: Teacher) -> None:
+    """After the handle came back: above the bottom cup (a place the example reaches), open, home (H)."""
+    t.in_row("Go above the", "bottom cup")
+    t.settle()
+    ui.wait_status(t.page, "Math.abs(s.x - 0.78) < 0.01 && Math.abs(s.y - 0.14) < 0.01")
+    t.key("KeyO")
+    ui.wait_status(t.page, "s.open > 99")
+    t.key("KeyH")
+    t.settle()
+
+
+def teach_train_preview(t: Teacher) -> str:
+    """Three demonstrations, Train, Preview played to its end; returns the preview's task result in words."""
+    t.part("demonstrations")
+    t.in_row("View", "Reset")
+    for _ in range(3):
+        demonstrate(t)
+    expect(t.page.locator(".demo-row")).to_have_count(3)
+    t.shot("three demonstrations")
+    t.part("train and preview")
+    t.step("Train")
+    t.button("Train")
+    ui.wait_text(t.page, r"^Trained\.", timeout=180)
+    t.shot("trained")
+    t.step("Preview")
+    t.in_row("Playback", "Play")
+    ui.wait_text(t.page, "learned skill \\(preview\\), playing")
+    result = t.page.locator(".task-result").first
+    expect(result).to_contain_text(re.compile(r"ended"), timeout=120_000)
+    m = re.search(r"Learned path \(([\d.]+) s\)", t.page.get_by_text(re.compile(r"Learned path \(")).first.inner_text())
+    assert m is not None
+    length = float(m.group(1))
+    t.page.wait_for_function(
+        """(end) => {
+            const lab = [...document.querySelectorAll('label')].find(l => l.textContent.trim() === 'Time (s)');
+            const row = lab && lab.closest('.mantine-Flex-root');
+            const box = row && row.querySelector('input.mantine-NumberInput-input');
+            return box !== null && box !== undefined && parseFloat(box.value) >= end;
+        }""",
+        arg=length - 0.2,
+        polling=200,
+        timeout=120_000,
+    )
+    t.shot("preview: the skill works")
+    return result.inner_text()
+
+
+TEACHING_PARTS = ("new session", "demonstrations", "train and preview")

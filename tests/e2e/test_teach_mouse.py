@@ -15,10 +15,18 @@ from playwright.sync_api import Page, expect
 
 from studio.core.kinematics import Baxter
 from studio.panels.teach import joint_label
-from tests.conftest import wait_for
 from tests.e2e import ui
 from tests.e2e.conftest import Shots
-from tests.e2e.mouse_flow import Teacher, demonstrate, look, new_session, out_of_reach_and_back, out_of_reach_label
+from tests.e2e.mouse_flow import (
+    TEACHING_PARTS,
+    Teacher,
+    finish_excursion,
+    look,
+    new_session,
+    out_of_reach_and_back,
+    out_of_reach_label,
+    teach_train_preview,
+)
 
 pytestmark = pytest.mark.e2e
 
@@ -85,43 +93,19 @@ def test_teach_stack_cup_with_mouse_and_keys(browser, studio_factory, tmp_path: 
         lo, hi = limits[name]
         assert lo + 1.0 < deg < hi - 1.0 or (name == "left_e1" and deg < hi - 1.0), f"{name} at a limit: {deg}°"
     # The place the example reaches is reached: above the bottom cup, then open, then home (H).
-    t.in_row("Go above the", "bottom cup")
-    t.settle()
+    finish_excursion(t)
     expect(out_of_reach_label(page)).to_have_count(0)
-    ui.wait_status(page, "Math.abs(s.x - 0.78) < 0.01 && Math.abs(s.y - 0.14) < 0.01")
-    t.key("KeyO")
-    ui.wait_status(page, "s.open > 99")
-    t.key("KeyH")
-    t.settle()
     home = t.gripper()
     assert np.allclose(home, [0.59, 0.27, 0.11], atol=0.02), f"H did not bring the arm home: {home}"
     t.shot("home again")
 
-    # Three demonstrations with the mouse and the keys.
-    t.part("demonstrations")
-    t.in_row("View", "Reset")
-    for _ in range(3):
-        demonstrate(t)
-    expect(page.locator(".demo-row")).to_have_count(3)
-    t.shot("three demonstrations")
+    # Three demonstrations with the mouse and the keys, Train, Preview: the skill does the task.
+    words = teach_train_preview(t)
+    assert re.search(r"The cup ended .*the skill works", words), words
+    expect(page.locator('.task-result[data-ok="true"]')).to_be_visible()
+    expect(page.get_by_text(re.compile(r"The arm can follow all of it"))).to_be_visible()
 
-    t.part("train and preview")
-    t.step("Train")
-    t.button("Train")
-    ui.wait_text(page, r"^Trained\.", timeout=180)
-    t.shot("trained")
-    t.step("Preview")
-    t.in_row("Playback", "Play")
-    ui.wait_text(page, "learned skill \\(preview\\), playing")
-    result = page.locator('.task-result[data-ok="true"]')
-    expect(result).to_contain_text(re.compile(r"The cup ended .*the skill works"), timeout=120_000)
-    m = re.search(r"Learned path \(([\d.]+) s\)", page.get_by_text("Learned path").first.inner_text())
-    assert m is not None
-    length = float(m.group(1))
-    assert wait_for(lambda: ui.number_value(page, "Time (s)") >= length - 0.2, timeout=120), "the preview did not play"
-    t.shot("preview: the skill works")
-
-    teaching = sum(sum(t.parts[p].values()) for p in ("new session", "demonstrations", "train and preview"))
+    teaching = sum(sum(t.parts[p].values()) for p in TEACHING_PARTS)
     print(f"\nactions: {dict(t.counts)} total {t.total}; teaching (new session, 3 demos, train, preview) {teaching}")
     print("parts:", {k: dict(v) for k, v in t.parts.items()})
     print("screenshots:", shot_dir)
