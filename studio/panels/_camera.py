@@ -47,20 +47,28 @@ def keep_above_floor(server: viser.ViserServer) -> None:
 
     def watch(client: viser.ClientHandle) -> None:
         def lift(camera: viser.CameraHandle) -> None:
-            low = FLOOR_Z + CAMERA_ABOVE_FLOOR_M
-            p, at = np.array(camera.position), np.array(camera.look_at)
-            if p[2] >= low and at[2] >= FLOOR_Z:
+            up = lifted(camera.position, camera.look_at)
+            if up is None:
                 return
-            if at[2] < FLOOR_Z:
-                at[2] = FLOOR_Z
-            p[2] = max(p[2], low)
             try:
                 with client.atomic():
-                    camera.position = tuple(p)
-                    camera.look_at = tuple(at)
+                    camera.position = up[0]
+                    camera.look_at = up[1]
             except Exception:  # the tab closed meanwhile
                 log.debug("camera of a closed tab", exc_info=True)
 
         client.camera.on_update(lift)
 
     server.on_client_connect(watch)
+
+
+def lifted(
+    position: np.ndarray | tuple[float, float, float], look_at: np.ndarray | tuple[float, float, float]
+) -> tuple[tuple[float, float, float], tuple[float, float, float]] | None:
+    """The camera's position and look-at point raised above the floor, or None when both are above it already."""
+    p, at = np.array(position, dtype=float), np.array(look_at, dtype=float)
+    low = FLOOR_Z + CAMERA_ABOVE_FLOOR_M
+    if p[2] >= low and at[2] >= FLOOR_Z:
+        return None
+    p[2], at[2] = max(p[2], low), max(at[2], FLOOR_Z)
+    return (float(p[0]), float(p[1]), float(p[2])), (float(at[0]), float(at[1]), float(at[2]))

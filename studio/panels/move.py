@@ -126,7 +126,7 @@ class MovePanel:
         names = self._object_names()
         if tuple(self.above.options) != names:
             self.above.options = names
-        self.above.disabled = names == (NO_OBJECTS,)
+        self.above.visible = names != (NO_OBJECTS,)  # a button group cannot be disabled
 
     def _on_grip(self, event: viser.GuiEvent) -> None:
         arm = self.ctl.guide.key_arm
