@@ -1,4 +1,5 @@
-"""Teach panel: move the arm (gripper handle with IK, joint sliders, gripper buttons) and record demos."""
+"""Teach panel: move the arm (the gripper handle in the room's axes with IK, joint sliders, gripper buttons) and
+record demos."""
 
 from __future__ import annotations
 

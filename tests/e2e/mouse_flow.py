@@ -230,13 +230,13 @@ def put_into_the_bottom_cup(t: Teacher) -> None:
 
 
 def demonstrate(t: Teacher) -> None:
-    """One take from the home posture: H, Record, the cup into the bottom cup, Stop."""
-    t.key("KeyH")
-    t.settle()
+    """One take: Record, the cup into the bottom cup, back home (H), Stop (so the next take starts at home)."""
     t.button("Record")
     ui.wait_text(t.page, "Recording")
     grasp_the_cup(t)
     put_into_the_bottom_cup(t)
+    t.key("KeyH")
+    t.settle()
     t.button("Stop")
     ui.wait_text(t.page, "Not recording")
 
