@@ -24,9 +24,9 @@ CLOSE, OPEN, HOME = "C close", "O open", "H home pose"
 NO_OBJECTS = "(no objects)"
 KEYS = {code: text for _, row in STEPS for text, code, _ in row} | {"KeyC": CLOSE, "KeyO": OPEN, "KeyH": HOME}
 KEY_WORDS = (
-    "**Keys** (click the 3D view first): **W** / **S** toward / away from the robot, **A** / **D** to its right / "
-    "left, **Q** / **E** down / up, **C** close and **O** open the gripper, **H** home pose. Hold a key to go "
-    "faster."
+    "**Keys** (when you are not typing in a box): **W** / **S** toward / away from the robot, **A** / **D** to "
+    "its right / left, **Q** / **E** down / up, **C** close and **O** open the gripper, **H** home pose. Hold a "
+    "key to go faster."
 )
 #: Seconds after a teacher typed into a position box during which the robot's motion does not overwrite it.
 TYPED_HOLD_S = 2.0

@@ -186,7 +186,7 @@ class TeachPanel:
                     self.ctl.notify(
                         "Out of reach",
                         f"The {arm} arm cannot put its gripper where you left the handle; it stopped at the "
-                        "closest pose it can reach. Drag the handle closer to the robot.",
+                        "closest pose it can reach. Drag the handle closer to the robot, or press H for the home pose.",
                         kind="warning",
                         client=event.client,
                     )
