@@ -10,13 +10,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from studio.app import Studio, build_app
 from studio.controller import FLOOR_Z
+from studio.controller.guiding import STEP_M
 from studio.panels._camera import CAMERA_ABOVE_FLOOR_M, VIEWS, lifted, set_view
 from studio.panels.move import KEYS
 from studio.panels.steps import VIEW_BUTTONS
 from tests.conftest import RecordingNotifier, free_port, wait_for
+from tests.viser_client import ViserClient
 
 
 @pytest.fixture
@@ -84,3 +87,37 @@ def test_view_buttons_and_the_camera_above_the_floor() -> None:
     assert up is not None
     assert up[0] == pytest.approx((2.0, 0.0, FLOOR_Z + CAMERA_ABOVE_FLOOR_M)) and up[1][2] == pytest.approx(FLOOR_Z)
     assert np.isfinite(up[0]).all()
+
+
+@pytest.fixture
+def tab(app: Studio) -> Iterator[ViserClient]:
+    c = ViserClient(f"ws://127.0.0.1:{app.port}/?key={app.access.key}")
+    c.wait_gui("Gripper z (cm)")
+    yield c
+    c.close()
+
+
+def test_a_tab_moves_and_turns_the_gripper_with_the_handle_and_the_buttons(app: Studio, tab: ViserClient) -> None:
+    ctl = app.controller
+    g = ctl.guide
+    p0, w0 = g.pose("left")
+    # move mode: arrows in room axes; what the page sends as orientation does not turn the gripper
+    t = p0 + np.array([0.05, -0.03, 0.02])
+    target = (float(t[0]), float(t[1]), float(t[2]))
+    tab.drag("/teach/left_handle", target, wxyz=(0.9659, 0.0, 0.0, 0.2588))
+    assert wait_for(lambda: np.allclose(g.pose("left")[0], target, atol=2e-3))
+    assert np.allclose(np.abs(g.pose("left")[1] @ w0), 1.0, atol=1e-4)
+    # turn mode: the handle's turn from the room's axes turns the gripper about the room's z
+    ctl.guide.set_turning(True)
+    turn = Rotation.from_euler("z", 30, degrees=True)
+    x, y, z, w = (float(v) for v in turn.as_quat())
+    tab.drag("/teach/left_handle", target, wxyz=(w, x, y, z))
+    expected = turn * Rotation.from_quat(np.roll(w0, -1))
+    assert wait_for(lambda: (Rotation.from_quat(np.roll(g.pose("left")[1], -1)) * expected.inv()).magnitude() < 1e-2)
+    assert wait_for(lambda: tuple(app.panels.teach.handles["left"].wxyz) == (1.0, 0.0, 0.0, 0.0))
+    # the keypad's buttons (what the keys press): one step down, then open and home
+    z0 = float(g.pose("left")[0][2])
+    tab.set_value("Down / up (z)", "Q down")
+    assert wait_for(lambda: abs(float(g.pose("left")[0][2]) - (z0 - STEP_M)) < 2e-3)
+    tab.set_value("H home pose", True)
+    assert wait_for(lambda: np.allclose(ctl.teaching.target_q("left"), ctl.teaching.home_q("left")))
