@@ -56,6 +56,7 @@ class Guiding:
         self.hands = hands
         self.objects = objects
         self._lock = threading.Lock()
+        self._moving = threading.RLock()  # a step reads where the gripper is going, then moves it: one at a time
         self._asked: dict[Arm, tuple[np.ndarray, np.ndarray]] = {}  # arm: (orientation asked, joints it gave)
         self._held: tuple[Arm, int, int, float, int] | None = None  # arm, axis, sign, last press, presses
         self._chosen: str | None = None
@@ -126,9 +127,10 @@ class Guiding:
             raise InvalidInput(f'The axis must be "x", "y" or "z", not "{axis}".')
         if not math.isfinite(value_m):
             raise InvalidInput("Type a number of centimetres.")
-        p = self.pose(arm)[0]
-        p[AXES[axis]] = value_m
-        return self.move(arm, p)
+        with self._moving:
+            p = self.pose(arm)[0]
+            p[AXES[axis]] = value_m
+            return self.move(arm, p)
 
     def step(self, axis: str, sign: int, arm: Arm | None = None, *, now: float | None = None) -> IkResult:
         """One step of the gripper along a room axis (``sign`` +1 or -1); presses of the same key within
@@ -142,9 +144,10 @@ class Guiding:
             presses = h[4] + 1 if h is not None and h[:3] == (arm, AXES[axis], sign) and now - h[3] < HELD_S else 0
             self._held = (arm, AXES[axis], sign, now, presses)
         size = min(STEP_M * 2.0 ** (presses // PRESSES_PER_DOUBLING), MAX_STEP_M)
-        p = self.pose(arm)[0]
-        p[AXES[axis]] += sign * size
-        return self.move(arm, p)
+        with self._moving:
+            p = self.pose(arm)[0]
+            p[AXES[axis]] += sign * size
+            return self.move(arm, p)
 
     def above(self, name: str | None = None, arm: Arm | None = None) -> IkResult:
         """Send the gripper above an object (default: the chosen one), pointing down, its heading kept; what

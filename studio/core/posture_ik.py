@@ -58,11 +58,10 @@ class Reached:
 
 
 class _Solver:
-    """One arm's reduced model and limits, with a workspace for one solve at a time."""
+    """One arm's reduced model, limits and reach (shared; each solve brings its thread's pinocchio data)."""
 
     def __init__(self, baxter: Baxter, arm: Arm) -> None:
         self.model, self.fid = baxter._reduced[arm]
-        self.data = self.model.createData()
         lo = np.array(self.model.lowerPositionLimit, dtype=np.float64)
         hi = np.array(self.model.upperPositionLimit, dtype=np.float64)
         self.lo, self.hi = lo + LIMIT_MARGIN_RAD, hi - LIMIT_MARGIN_RAD
@@ -81,10 +80,10 @@ class _Solver:
         return np.minimum(lower, 1.0 - x)
 
     def solve(
-        self, p_t: np.ndarray, R_t: np.ndarray, q: np.ndarray, rest: np.ndarray, iterations: int
+        self, data: pin.Data, p_t: np.ndarray, R_t: np.ndarray, q: np.ndarray, rest: np.ndarray, iterations: int
     ) -> tuple[np.ndarray, float, float]:
         """Damped least squares from ``q`` with the null-space pull; returns the best joints and their errors."""
-        model, data, fid = self.model, self.data, self.fid
+        model, fid = self.model, self.fid
         lo, hi = self.lo, self.hi
         q = np.minimum(np.maximum(q, lo), hi)
         lam = 1e-4
@@ -217,7 +216,8 @@ def reach_pose(
     R_t = matrix_from_quat_wxyz(w / nrm)
     rest_q = np.clip(baxter.neutral(arm) if rest is None else np.asarray(rest, dtype=np.float64), S.lo, S.hi)
 
-    q0, pe0, oe0 = S.solve(p, R_t, seed, rest_q, iterations)
+    data = baxter._reduced_data(arm)  # this thread's own
+    q0, pe0, oe0 = S.solve(data, p, R_t, seed, rest_q, iterations)
     own = ("arm", q0, pe0, oe0)
     if _reached(pe0, oe0) and S.margins(q0).min() >= NEAR_LIMIT:
         return _result(own, 1)
@@ -234,7 +234,7 @@ def reach_pose(
     ]
     found = [own]
     for name, q_start in starts:
-        q, pe, oe = S.solve(p, R_t, q_start, rest_q, iterations)
+        q, pe, oe = S.solve(data, p, R_t, q_start, rest_q, iterations)
         found.append((name, q, pe, oe))
     return _result(_pick(S, seed, found), len(found))
 
