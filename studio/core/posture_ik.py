@@ -81,8 +81,9 @@ class _Solver:
 
     def solve(
         self, data: pin.Data, p_t: np.ndarray, R_t: np.ndarray, q: np.ndarray, rest: np.ndarray, iterations: int
-    ) -> tuple[np.ndarray, float, float]:
-        """Damped least squares from ``q`` with the null-space pull; returns the best joints and their errors."""
+    ) -> tuple[np.ndarray, float, float, int]:
+        """Damped least squares from ``q`` with the null-space pull; returns the best joints, their errors and the
+        iterations used."""
         model, fid = self.model, self.fid
         lo, hi = self.lo, self.hi
         q = np.minimum(np.maximum(q, lo), hi)
@@ -130,7 +131,7 @@ class _Solver:
             if big > MAX_STEP_RAD:
                 dq *= MAX_STEP_RAD / big
             q = np.minimum(np.maximum(q + dq, lo), hi)
-        return best_q, best_pe, best_oe
+        return best_q, best_pe, best_oe, it
 
 
 def _joint_origin(baxter: Baxter, arm: Arm, index: int) -> np.ndarray:
@@ -217,12 +218,12 @@ def reach_pose(
     rest_q = np.clip(baxter.neutral(arm) if rest is None else np.asarray(rest, dtype=np.float64), S.lo, S.hi)
 
     data = baxter._reduced_data(arm)  # this thread's own
-    q0, pe0, oe0 = S.solve(data, p, R_t, seed, rest_q, iterations)
+    q0, pe0, oe0, used = S.solve(data, p, R_t, seed, rest_q, iterations)
     own = ("arm", q0, pe0, oe0)
     if _reached(pe0, oe0) and S.margins(q0).min() >= NEAR_LIMIT:
-        return _result(own, 1)
+        return _result(own, 1, used)
     if float(np.linalg.norm(p - S.shoulder)) > S.reach_m:
-        return _result(own, 1)  # beyond the stretched arm: no start reaches it
+        return _result(own, 1, used)  # beyond the stretched arm: no start reaches it
     unwound = seed.copy()
     unwound[[0, 2, 4, 6]] = rest_q[[0, 2, 4, 6]]
     starts = [
@@ -234,9 +235,10 @@ def reach_pose(
     ]
     found = [own]
     for name, q_start in starts:
-        q, pe, oe = S.solve(data, p, R_t, q_start, rest_q, iterations)
+        q, pe, oe, n = S.solve(data, p, R_t, q_start, rest_q, iterations)
         found.append((name, q, pe, oe))
-    return _result(_pick(S, seed, found), len(found))
+        used += n
+    return _result(_pick(S, seed, found), len(found), used)
 
 
 def _pick(
@@ -257,13 +259,11 @@ def _pick(
     return best if best[2] + 0.1 * best[3] < own[2] + 0.1 * own[3] - 0.01 else own
 
 
-def _result(f: tuple[str, np.ndarray, float, float], tried: int) -> Reached:
+def _result(f: tuple[str, np.ndarray, float, float], tried: int, iterations: int) -> Reached:
     name, q, pe, oe = f
-    return Reached(
-        IkResult(q=readonly(q), converged=_reached(pe, oe), position_error=pe, orientation_error=oe, iterations=0),
-        name,
-        tried,
-    )
+    ok = _reached(pe, oe)
+    res = IkResult(q=readonly(q), converged=ok, position_error=pe, orientation_error=oe, iterations=iterations)
+    return Reached(res, name, tried)
 
 
 __all__ = ["LIMIT_MARGIN_RAD", "Reached", "reach_pose"]
