@@ -16,6 +16,7 @@ from studio.controller.context import Context, Kind, LogNotifier, Notifier
 from studio.controller.demos import PALETTE, Demos, DemoSummary
 from studio.controller.events import Events, Topic
 from studio.controller.execution import ExecutionActions
+from studio.controller.guiding import Guiding
 from studio.controller.learning import KeypointItem, KeypointTuning, KeypointView
 from studio.controller.livepath import LivePath, LivePaths
 from studio.controller.placed import PlacedSkills
@@ -32,8 +33,8 @@ from studio.controller.view import Layer, Step, View
 from studio.core.kinematics import Baxter
 from studio.robot_backend.base import RobotBackend
 from studio.storage import Session, SessionStore
+from studio.world import FLOOR_Z, GraspNote, ObjectPose, Scene, TaskResult, WorldEvent, WorldObject
 from studio.world import PRESETS as SCENE_PRESETS
-from studio.world import GraspNote, ObjectPose, Scene, TaskResult, WorldEvent, WorldObject
 
 log = logging.getLogger(__name__)
 P = ParamSpec("P")
@@ -44,7 +45,7 @@ class Controller:
     """The studio without its GUI: a thin composition of the parts, each an attribute a panel uses.
 
     Attributes:
-        teaching, demos, keypoints, live, suggest, training, playback, sessions, scene, execution, view: the
+        teaching, guide, demos, keypoints, live, suggest, training, playback, sessions, scene, execution, view: the
             parts (see the module docstring).
         display: the pose the scene draws; events: the topics to subscribe to; baxter: the kinematic model.
 
@@ -80,6 +81,7 @@ class Controller:
             motion_guard=lambda d: self.execution.check_free(d),
             keep=lambda recording, events: self.undo.keep(recording, events),
         )
+        self.guide = Guiding(ctx, self.teaching, objects=lambda: self.scene.live.poses())
         self.keypoints = KeypointTuning(ctx, self.demos)
         self.live = LivePaths(
             ctx,
@@ -174,6 +176,7 @@ class Controller:
 
 
 __all__ = [
+    "FLOOR_Z",
     "FRAME_WORDS",
     "MODE_WORDS",
     "PALETTE",
@@ -189,6 +192,7 @@ __all__ = [
     "Events",
     "ExecutionActions",
     "GraspNote",
+    "Guiding",
     "KeypointItem",
     "KeypointTuning",
     "KeypointView",

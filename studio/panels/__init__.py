@@ -17,6 +17,7 @@ from studio.controller import Controller, Step
 from studio.panels.demos import DemosPanel
 from studio.panels.guide import GuidePanel
 from studio.panels.keypoints import KeypointsPanel
+from studio.panels.move import MovePanel
 from studio.panels.preview import PreviewPanel
 from studio.panels.robot import RobotPanel
 from studio.panels.run import RunPanel
@@ -32,6 +33,7 @@ class Panels:
     robot: RobotPanel
     run: RunPanel
     teach: TeachPanel
+    move: MovePanel
     demos: DemosPanel
     keypoints: KeypointsPanel
     train: TrainPanel
@@ -48,6 +50,7 @@ class Panels:
         self.scene.tick(now)
         self.guide.tick(now)
         self.teach.tick(now)
+        self.move.tick(now)
         self.preview.tick(now)
         self.sessions.tick(now)
 
@@ -71,6 +74,7 @@ def build_panels(ctl: Controller, server: viser.ViserServer, urdf_path: Path) ->
     with sections[Step.TEACH]:
         guide = GuidePanel(ctl, server)  # the task and the grasp feedback, above the teaching controls
         teach = TeachPanel(ctl, server)
+        move = MovePanel(ctl, server)  # keys, position boxes, Go above, Home pose
         scene = ScenePanel(ctl, server)
         demos = DemosPanel(ctl, server)
     with sections[Step.KEYPOINTS]:
@@ -82,4 +86,4 @@ def build_panels(ctl: Controller, server: viser.ViserServer, urdf_path: Path) ->
     with sections[Step.SESSIONS]:
         sessions = SessionsPanel(ctl, server)
     steps = StepPanel(ctl, server, sections)
-    return Panels(robot, run, teach, demos, keypoints, train, preview, sessions, scene, steps, guide)
+    return Panels(robot, run, teach, move, demos, keypoints, train, preview, sessions, scene, steps, guide)
