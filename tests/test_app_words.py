@@ -38,30 +38,30 @@ def app(sessions: Path) -> Iterator[Studio]:
 
 
 def test_the_task_and_the_stand_under_the_cup_held_out(app: Studio) -> None:
-    guide = app.panels.guide
-    assert "Take the cup I hand you" in guide.task.content
+    panel = app.panels.task
+    assert "Take the cup I hand you" in panel.task.content
     ctl = app.controller
     held = [p for p in ctl.scene.live.poses() if p.on == "hand"]
     assert len(held) == 1
-    assert wait_for(lambda: len(guide.stands()) == 1)  # drawn at the pose pump
-    (stand,) = guide.stands()
+    assert wait_for(lambda: len(panel.stands()) == 1)  # drawn at the pose pump
+    (stand,) = panel.stands()
     assert stand == pytest.approx(held[0].position)
     ctl.scene.use_preset("pick-place")
-    assert "block" in guide.task.content
-    assert wait_for(lambda: guide.stands() == [])
+    assert "block" in panel.task.content
+    assert wait_for(lambda: panel.stands() == [])
 
 
 def test_discard_then_undo(app: Studio) -> None:
     ctl = app.controller
-    guide = app.panels.guide
-    assert not guide.undo.visible
+    panel = app.panels.task
+    assert not panel.undo.visible
     n = len(ctl.session.recordings)
     ctl.teaching.start_recording()
     assert wait_for(lambda: ctl.teaching.recorder is not None and ctl.teaching.recorder.n_samples > 50)
     ctl.teaching.discard_recording()
-    assert guide.undo.visible and "Thrown away" in guide.undo_text.content
+    assert panel.undo.visible and "Thrown away" in panel.undo_text.content
     ctl.undo.undo()
-    assert len(ctl.session.recordings) == n + 1 and not guide.undo.visible
+    assert len(ctl.session.recordings) == n + 1 and not panel.undo.visible
 
 
 def test_the_last_run_goes_out_of_date_when_the_objects_move(app: Studio) -> None:

@@ -15,7 +15,7 @@ import viser
 
 from studio.controller import Controller, Step
 from studio.panels.demos import DemosPanel
-from studio.panels.guide import GuidePanel
+from studio.panels.task import TaskPanel
 from studio.panels.keypoints import KeypointsPanel
 from studio.panels.move import MovePanel
 from studio.panels.preview import PreviewPanel
@@ -41,14 +41,14 @@ class Panels:
     sessions: SessionsPanel
     scene: ScenePanel
     steps: StepPanel
-    guide: GuidePanel
+    task: TaskPanel
 
     def tick(self, now: float) -> None:
         """Periodic refresh from the pose pump thread (timers, handles following the robot, playback)."""
         self.robot.tick(now)
         self.run.tick(now)
         self.scene.tick(now)
-        self.guide.tick(now)
+        self.task.tick(now)
         self.teach.tick(now)
         self.move.tick(now)
         self.preview.tick(now)
@@ -72,7 +72,7 @@ def build_panels(ctl: Controller, server: viser.ViserServer, urdf_path: Path) ->
     run = RunPanel(ctl, server)  # on every step: the robot's run, Stop and the Emergency stop
     sections = {step: gui.add_folder(None, order=10 + i, visible=step == ctl.view.step) for i, step in enumerate(Step)}
     with sections[Step.TEACH]:
-        guide = GuidePanel(ctl, server)  # the task and the grasp feedback, above the teaching controls
+        task = TaskPanel(ctl, server)  # the task and the grasp feedback, above the teaching controls
         teach = TeachPanel(ctl, server)
         move = MovePanel(ctl, server)  # keys, position boxes, Go above, Home pose
         scene = ScenePanel(ctl, server)
@@ -86,4 +86,4 @@ def build_panels(ctl: Controller, server: viser.ViserServer, urdf_path: Path) ->
     with sections[Step.SESSIONS]:
         sessions = SessionsPanel(ctl, server)
     steps = StepPanel(ctl, server, sections)
-    return Panels(robot, run, teach, move, demos, keypoints, train, preview, sessions, scene, steps, guide)
+    return Panels(robot, run, teach, move, demos, keypoints, train, preview, sessions, scene, steps, task)

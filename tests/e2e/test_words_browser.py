@@ -65,7 +65,7 @@ def test_words_for_a_newcomer(browser, tmp_path) -> None:
         expect(page.locator("[data-dock-header] button:has(.tabler-icon-adjustments)")).to_be_hidden()
         # the task of the set-up, and the stand that holds the handed-over cup up
         expect(page.locator(".task-description")).to_contain_text("Take the cup I hand you")
-        assert wait_for(lambda: len(app.panels.guide.stands()) == 1)  # drawn in the scene: see the screenshot
+        assert wait_for(lambda: len(app.panels.task.stands()) == 1)  # drawn in the scene: see the screenshot
         shot(page, out, "1-teach")
         assert fits(page) == []
 

@@ -1,4 +1,4 @@
-"""Guide panel (Teach step): the task of the set-up in one sentence, what the gripper just did when it closed
+"""Task panel (Teach step): the task of the set-up in one sentence, what the gripper just did when it closed
 ("Holding the cup" / "Missed the cup by 3 cm — move 1 cm closer"), Undo for a take thrown away or a deleted
 demonstration, and a stand drawn under every object the teacher holds out in the air."""
 
@@ -19,7 +19,7 @@ FLOOR_Z = -0.93
 HELD_OUT_LABEL = "held out for the robot"
 
 
-class GuidePanel:
+class TaskPanel:
     """The task, the grasp feedback and the stands under held-out objects (redrawn at the pose pump)."""
 
     def __init__(self, ctl: Controller, server: viser.ViserServer) -> None:
