@@ -15,7 +15,6 @@ import viser
 
 from studio.controller import Controller, Step
 from studio.panels.demos import DemosPanel
-from studio.panels.task import TaskPanel
 from studio.panels.keypoints import KeypointsPanel
 from studio.panels.move import MovePanel
 from studio.panels.preview import PreviewPanel
@@ -24,6 +23,7 @@ from studio.panels.run import RunPanel
 from studio.panels.scene import ScenePanel
 from studio.panels.sessions import SessionsPanel
 from studio.panels.steps import StepPanel
+from studio.panels.task import TaskPanel
 from studio.panels.teach import TeachPanel
 from studio.panels.train import TrainPanel
 
