@@ -249,12 +249,13 @@ def name_key(o: WorldObject) -> tuple[object, ...]:
 
 
 def where_html(name: str, position: tuple[float, float, float]) -> str:
-    """The chosen object's place as the gripper's is told (robot axes: x forward, y to its left, z up; metres)."""
-    x, y, z = position
+    """The chosen object's place as the gripper's position boxes take it (robot axes: x forward, y to its left,
+    z up; centimetres)."""
+    x, y, z = (100.0 * v for v in position)
     return (
         f'<div class="object-where" data-name="{html.escape(name)}" style="font-size:0.85em;color:#333" '
-        'title="x: forward from the robot, y: to its left, z: up (metres), as the gripper\'s place above">'
-        f"The {html.escape(name)} stands at x {x:+.2f} · y {y:+.2f} · z {z:+.2f} m</div>"
+        'title="x: forward from the robot, y: to its left, z: up, as in the gripper\'s position boxes">'
+        f"The {html.escape(name)} stands at x {x:.1f}, y {y:.1f}, z {z:.1f} cm.</div>"
     )
 
 

@@ -119,7 +119,7 @@ def test_words_for_a_newcomer(browser, tmp_path) -> None:
         # the chosen object's place in centimetres
         ui.choose(page, "Object", "bottom cup")
         expect(page.locator(".object-where")).to_contain_text(
-            re.compile(r"The bottom cup stands at x [+-]\d\.\d\d · y ")
+            re.compile(r"The bottom cup stands at x -?\d+\.\d, y -?\d+\.\d, z -?\d+\.\d cm\.")
         )
         shot(page, out, "5-object")
         assert fits(page) == []
