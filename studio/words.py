@@ -162,23 +162,42 @@ def fit_note(fit: DemoFit) -> str:
     return ""
 
 
+def _grasps(task: float) -> str:
+    """Where the skill grasps and releases, held out, in words ("" without gripper actions)."""
+    if task == 0.0 or math.isnan(task):
+        return ""
+    if math.isinf(task):
+        return " and does not grasp and release as you did"
+    return f" and grasps and releases {length_words(task)} from where you did"
+
+
 def tune_summary(result: TuneResult) -> str:
-    """Suggest's before and after figures in plain words."""
+    """Suggest's before and after figures in plain words (the path, and the grasps and releases when the
+    demonstrations have them)."""
     b, a = result.before, result.after
     if not result.changed:
         return (
             "Your thresholds are already good: learned without each demonstration in turn, the skill misses it by "
-            f"{length_words(b.distance)} on average, and no other thresholds did better."
+            f"{length_words(b.distance)} on average{_grasps(b.task)}, and no other thresholds did better without "
+            "doing worse elsewhere."
         )
     if not math.isfinite(b.distance):
         return (
             "Suggested: learned without each demonstration in turn, the skill misses it by "
-            f"{length_words(a.distance)} on average."
+            f"{length_words(a.distance)} on average{_grasps(a.task)}."
+        )
+    before = f"{length_words(b.distance)} with the current thresholds"
+    if a.task > 0.0 and math.isfinite(a.task) and math.isfinite(b.task):
+        return (
+            f"Learned without each demonstration in turn, the skill misses it by {length_words(a.distance)} on "
+            f"average with the suggestion, {before}; it grasps and releases {length_words(a.task)} from where you "
+            f"did, {length_words(b.task)} before ({a.keypoints:.0f} key-points per demonstration instead of "
+            f"{b.keypoints:.0f})."
         )
     return (
         f"Learned without each demonstration in turn, the skill misses it by {length_words(a.distance)} on "
-        f"average with the suggestion, {length_words(b.distance)} with the current thresholds "
-        f"({a.keypoints:.0f} key-points per demonstration instead of {b.keypoints:.0f})."
+        f"average with the suggestion, {before} ({a.keypoints:.0f} key-points per demonstration instead of "
+        f"{b.keypoints:.0f})."
     )
 
 

@@ -78,3 +78,21 @@ def test_the_core_names_no_control_of_the_studio() -> None:
         if re.search(r"press|Suggest|Detail", line)
     ]
     assert not found, "\n".join(found)
+
+
+def test_suggest_says_where_the_skill_grasps_when_the_demos_grasp():
+    from studio.core.autotune import Score, TuneResult
+    from studio.core.thresholds import ThresholdSettings
+    from studio.core.types import KeypointParams
+    from studio.words import tune_summary
+
+    def result(before: Score, after: Score, changed: bool) -> TuneResult:
+        return TuneResult(ThresholdSettings(), KeypointParams(), None, before, after, 5, 0.5, False, True, changed)
+
+    shapes = Score(0.7, 0.004, 20, 20, task=0.0)
+    assert "grasps" not in tune_summary(result(shapes, shapes, False))
+    task = Score(0.7, 0.004, 20, 20, task=0.0064)
+    kept = tune_summary(result(task, task, False))
+    assert kept.startswith("Your thresholds are already good") and "grasps and releases 6 mm from where you did" in kept
+    better = tune_summary(result(Score(1.0, 0.01, 12, 12, task=0.009), Score(0.8, 0.008, 20, 20, task=0.007), True))
+    assert "misses it by 8 mm" in better and "grasps and releases 7 mm from where you did, 9 mm before" in better
