@@ -143,7 +143,14 @@ def _state(token: str, demos: list[Demo], generalization: str) -> tuple:
         r = quality.spread(curves)[0]
         actions = [quality.demo_actions(d) for d in demos]
         st = _STATE[token] = (
-            demos, KeypointCache(), AlignmentCache(), curves, r, DemoStats.of(demos), generalization, actions
+            demos,
+            KeypointCache(),
+            AlignmentCache(),
+            curves,
+            r,
+            DemoStats.of(demos),
+            generalization,
+            actions,
         )
     return st
 
@@ -357,15 +364,13 @@ def _challenge(cands: list[Candidate], scores: list[Score], best_c: Candidate, b
     return best_c, best
 
 
-def _rounds(
-    search: _Search, before_c: Candidate, t0: float, budget_s: float
-) -> tuple[Candidate, Score, Score, bool]:
+def _rounds(search: _Search, before_c: Candidate, t0: float, budget_s: float) -> tuple[Candidate, Score, Score, bool]:
     """The search itself: (best candidate, its score, "before", every round done).
 
     Round 1: "before" and the coarse ``detail`` values (0 is the incumbent the others challenge); round 2:
     ±0.5 around the best; round 3: other k at the best. When every coarse value is near the best
-    (:meth:`Score.near`), the thresholds change nothing the teacher sees and the search ends there. A round starts only within the time
-    budget.
+    (:meth:`Score.near`), the thresholds change nothing the teacher sees and the search ends there. A round
+    starts only within the time budget.
     """
     nothing = Score(math.inf, math.inf, math.nan, math.nan, math.inf)
     before0 = search.first(before_c)

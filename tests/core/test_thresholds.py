@@ -173,8 +173,10 @@ def _held_out(ds, params, k, mode):
     ],
 )
 def test_suggest_never_makes_a_held_out_figure_worse(demos, mode, current):
-    ds = list(task_demos(demos)) if demos in ("stack-cup", "pick-place") else list(
-        shape_demos(ShapeSpec(demos, 0.15, 2.0), 3)
+    ds = (
+        list(task_demos(demos))
+        if demos in ("stack-cup", "pick-place")
+        else list(shape_demos(ShapeSpec(demos, 0.15, 2.0), 3))
     )
     settings = ThresholdSettings() if current is None else ThresholdSettings(current)
     r = autotune.suggest(ds, current=settings, generalization=mode, budget_s=math.inf)
