@@ -250,7 +250,11 @@ class Ref:
         set's spread and B1, so methods compare on one scale)."""
         curves = self.curves if among is None else [self.curves[i] for i in among]
         f = Q.fidelity(Q.arc_resample(pos), curves, r=self.r, b1_frechet=self.b1f)
-        ends = max(np.linalg.norm(pos[0] - self.start), np.linalg.norm(pos[-1] - self.end))
+        start, end = self.start, self.end
+        if among is not None:  # the ends of the demos it follows
+            start = np.mean([self.demos[i].position[0] for i in among], axis=0)
+            end = np.mean([self.demos[i].position[-1] for i in among], axis=0)
+        ends = max(np.linalg.norm(pos[0] - start), np.linalg.norm(pos[-1] - end))
         return {"G/R": f.g_over_r, "F/B1": f.f_over_b1, "ends": float(ends)}
 
     def held_out(self, fit: Callable[[list[Demo]], np.ndarray]) -> float:

@@ -206,6 +206,27 @@ def _mean_quat(qs: list[np.ndarray]) -> np.ndarray:
     return acc / np.linalg.norm(acc, axis=1, keepdims=True)
 
 
+def path_roles(roles: tuple[str, str]) -> tuple[str, str]:
+    """(the frame a segment from ``roles[0]`` to ``roles[1]`` is learned in, the other one): the end's, unless
+    the segment ends free (the robot's frame), then the start's."""
+    start_role, end_role = roles
+    path_role = end_role if end_role != ROBOT else start_role
+    return path_role, (start_role if path_role == end_role else end_role)
+
+
+def segment_frames(o: DemoObjects, k: int, roles: tuple[str, str]) -> tuple[np.ndarray, np.ndarray]:
+    """(the path's frame, the other frame) of segment ``k`` in one demonstration (a start frame as the objects
+    were at the border before it, an end frame as at the border after it)."""
+    path_role, other_role = path_roles(roles)
+    out = []
+    for role in (path_role, other_role):
+        f = np.zeros(4) if role == ROBOT else _frame(o, k if role == roles[1] else k - 1, role)
+        if f is None:
+            raise InvalidInput("An object the skill acts on is missing from a demonstration.")
+        out.append(f)
+    return out[0], out[1]
+
+
 def _learn_segment(
     k: int,
     demos: Sequence[Demo],
@@ -220,18 +241,10 @@ def _learn_segment(
     from studio.core.thresholds import auto_params
 
     start_role, end_role = roles
-    path_role = end_role if end_role != ROBOT else start_role
-    other_role = start_role if path_role == end_role else end_role
+    path_role, other_role = path_roles(roles)
     parts = []
     for d, o, c in zip(demos, objects, cuts, strict=True):
-        fp = _frame(o, k - 1, path_role) if path_role != ROBOT else np.zeros(4)
-        fo = _frame(o, k - 1, other_role) if other_role != ROBOT else np.zeros(4)
-        if path_role == end_role and path_role != ROBOT:
-            fp = _frame(o, k, path_role)
-        if other_role == end_role and other_role != ROBOT:
-            fo = _frame(o, k, other_role)
-        if fp is None or fo is None:
-            raise InvalidInput("An object the skill acts on is missing from a demonstration.")
+        fp, fo = segment_frames(o, k, roles)
         parts.append((_in_frame(d, c[k], c[k + 1], fp), _in_frame(d, c[k], c[k + 1], fo)))
     seg_demos = [p[0] for p in parts]
     try:
