@@ -28,10 +28,10 @@ from types import ModuleType
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_quality import ONE_THREAD, _load, _long_demos  # noqa: E402
+from bench_quality import ONE_THREAD, _load, _long_demos
 
-from studio.core import autotune  # noqa: E402
-from studio.core.types import Demo  # noqa: E402
+from studio.core import autotune
+from studio.core.types import Demo
 
 ROOT = Path(__file__).resolve().parents[1]
 
