@@ -97,6 +97,30 @@ def test_takes_in_different_places_teach_a_skill_that_follows_the_objects(rig) -
     for i, places in enumerate(spots):
         record(ctl, sim, "pick-place", i + 1, places)
     assert len(ctl.session.recordings) == 3
+    # The key-point view draws the takes as the skill learns them: each stretch relative to its object, with the
+    # objects where they are now (about the last take's places); the paper's fixed places draw them as recorded.
+    shown = ctl.demos.for_arm("left")
+
+    def view_in(framed: frozenset) -> bool:
+        v = ctl.keypoints.view
+        return v is not None and v.in_frames == framed and len(v.demos) == 3
+
+    def moved() -> list[float]:
+        view = ctl.keypoints.view
+        assert view is not None and "left" in view.centroids
+        return [
+            float(np.max(np.linalg.norm(it.points - d.position[view.indices["left"][n]], axis=1)))
+            for n, (it, (_, d)) in enumerate(zip(view.demos, shown, strict=True))
+        ]
+
+    assert wait_for(lambda: view_in(frozenset({"left"})))
+    far = moved()
+    assert far[2] < 0.01 and min(far[:2]) > 0.03, far
+    ctl.training.set_frames("robot")
+    assert wait_for(lambda: view_in(frozenset()))
+    assert max(moved()) == 0.0
+    ctl.training.set_frames("objects")
+    assert wait_for(lambda: view_in(frozenset({"left"})))
     train(ctl)
     skill = ctl.session.skills["left"]
     assert skill.frames is not None and not skill.frames.one_place()

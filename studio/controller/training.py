@@ -13,13 +13,14 @@ import numpy as np
 from studio.controller.context import Context
 from studio.controller.events import Topic
 from studio.controller.learning import ShownDemos
+from studio.controller.placed import demo_objects_of
 from studio.core.errors import NotEnoughData, StudioError
 from studio.core.frames import DemoObjects
 from studio.core.keypoints import KeypointCache
 from studio.core.quality import DemoFit, Verdict
 from studio.core.thresholds import ThresholdSettings
 from studio.core.types import FRAMES, Arm, Demo, Generalization, KeypointParams, Recording, Skill
-from studio.world.relative import demo_objects, objects_now
+from studio.world.relative import objects_now
 
 #: How each choice of frames is called in the Train panel.
 FRAME_WORDS = {
@@ -225,18 +226,7 @@ class Training:
 
     def _objects(self, arm: Arm, demos: list[tuple[int, Demo]]) -> list[DemoObjects] | str:
         """The objects and ``arm``'s contacts of each demonstration, or why the skill cannot follow them."""
-        from studio.core.segments import plan
-
-        session = self.ctx.session
-        out = []
-        for i, _ in demos:
-            events = session.objects.events(session.demo_files[i]) if i < len(session.demo_files) else ()
-            objs = demo_objects(events, arm)
-            if objs is None:
-                return "Some demonstrations were recorded without objects, so the skill follows fixed places."
-            out.append(objs)
-        _, why = plan(out)
-        return why or out
+        return demo_objects_of(self.ctx.session, arm, [i for i, _ in demos])
 
     def _finished(self) -> None:
         if self.busy:  # the job failed: done() never ran

@@ -10,19 +10,24 @@ import pytest
 
 from studio import teacher
 from studio.core import sampling
-from studio.core.frames import adapt
+from studio.core.frames import DemoObjects, adapt
 from studio.core.kinematics import Baxter
 from studio.core.pipeline import demo_from_recording
 from studio.core.quality.judgement import GOOD_G_OVER_R
 from studio.core.segment_view import demos_in_frames, segment_fits
 from studio.core.segments import learn_relative, place_skill
+from studio.core.types import Demo
 from studio.teacher import Place, Places
 from studio.world import preset, simulate
 from studio.world.relative import demo_objects, objects_now
 
 
 def _places(rng: np.random.Generator) -> Places:
-    return Places(*(Place(*rng.uniform(-0.1, 0.1, 2), rng.uniform(-0.4, 0.4)) for _ in range(2)))
+    def one() -> Place:
+        dx, dy = rng.uniform(-0.1, 0.1, 2)
+        return Place(float(dx), float(dy), float(rng.uniform(-0.4, 0.4)))
+
+    return Places(one(), one())
 
 
 @lru_cache(maxsize=4)
@@ -31,7 +36,8 @@ def taught(task: str) -> tuple:
     (places the arm cannot reach are drawn again)."""
     b = Baxter.load()
     rng = np.random.default_rng(3)
-    demos, objs = [], []
+    demos: list[Demo] = []
+    objs: list[DemoObjects | None] = []
     seed, pl = 0, Places(Place(0.0, 0.0, 0.0), Place(0.0, 0.0, 0.0))
     while len(demos) < 3:
         try:
@@ -107,6 +113,7 @@ def test_the_demonstrations_seen_in_the_frames_their_stretches_are_learned_in():
 def test_each_segment_fits_its_demonstrations_in_its_own_frame():
     demos, objs, b = taught("stack-cup")
     skill = learn_relative(list(demos), list(objs), baxter=b)
+    assert skill.frames is not None
     fits = segment_fits(skill.frames, list(demos), list(objs))
     assert [(f.start, f.end) for f in fits] == [("start", "grasp"), ("grasp", "release"), ("release", "end")]
     assert [f.role for f in fits] == ["object:cup", "object:bottom cup", "object:bottom cup"]
