@@ -12,10 +12,12 @@ from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
 from studio.core.quality import DemoFit, Disagreement, Finding, Issue, Level, Misfit, Remedy, Verdict
+from studio.core.quality.judgement import GOOD_G_OVER_R, POOR_G_OVER_R
 from studio.core.types import SkillRoute
 
 if TYPE_CHECKING:
     from studio.core.autotune import TuneResult
+    from studio.core.segment_view import SegmentFit
 
 #: How an audience says each :class:`Remedy` (a phrase that follows a dash, lower case, no full stop).
 Remedies = Mapping[Remedy, str]
@@ -162,6 +164,47 @@ def fit_note(fit: DemoFit) -> str:
     return ""
 
 
+def _frame_words(role: str) -> str:
+    """A segment's frame as a person says it: "the cup", "where the block stood", "the robot"."""
+    kind, _, name = role.partition(":")
+    if kind == "object":
+        return f"the {name}"
+    if kind == "start":
+        return f"where the {name} stood"
+    return "the robot"
+
+
+def _segment_name(fit: SegmentFit) -> str:
+    what = (fit.start, fit.end)
+    if what == ("start", "grasp"):
+        return f"Reaching for the {fit.object}"
+    if what == ("grasp", "release"):
+        return f"Carrying the {fit.object} to {_frame_words(fit.role)}"
+    if what == ("release", "grasp"):
+        return f"Going back to the {fit.object}"
+    if what == ("release", "end"):
+        return f"Moving away from the {fit.object}"
+    return f"From the {fit.start} to the {fit.end}"
+
+
+def segment_lines(fits: Sequence[SegmentFit]) -> tuple[str, ...]:
+    """One sentence per stretch of a skill that follows the objects: how closely it follows the demonstrations,
+    measured relative to the object it is learned with, and whether that is good, fair or poor."""
+    out = []
+    for f in fits:
+        if not math.isfinite(f.g_over_r) or f.g_over_r <= GOOD_G_OVER_R:
+            level = "good"
+        elif f.g_over_r <= POOR_G_OVER_R:
+            level = "fair: a few more demonstrations of this part would help"
+        else:
+            level = "poor: your demonstrations of this part differ a lot; show it again the same way"
+        out.append(
+            f"{_segment_name(f)} (relative to {_frame_words(f.role)}): within {length_words(f.distance)} of your "
+            f"demonstrations on average — {level}."
+        )
+    return tuple(out)
+
+
 def _grasps(task: float) -> str:
     """Where the skill grasps and releases, held out, in words ("" without gripper actions)."""
     if task == 0.0 or math.isnan(task):
@@ -209,6 +252,7 @@ __all__ = [
     "route_label",
     "route_sides",
     "routes_words",
+    "segment_lines",
     "tune_summary",
     "verdict_lines",
 ]

@@ -12,9 +12,12 @@ import numpy as np
 import pytest
 
 from studio.controller import Controller
+from studio.core.quality import Issue
+from studio.panels.train import REMEDIES
 from studio.robot_backend.simulated import SimulatedBaxter
 from studio.storage import SessionStore
 from studio.teacher import Place, Places, teach
+from studio.words import segment_lines, verdict_lines
 from studio.world import preset
 from tests.conftest import RecordingNotifier, wait_for
 
@@ -125,6 +128,21 @@ def test_takes_in_different_places_teach_a_skill_that_follows_the_objects(rig) -
     skill = ctl.session.skills["left"]
     assert skill.frames is not None and not skill.frames.one_place()
     assert [b.role for b in skill.frames.borders] == ["object:block", "object:pad", "object:block", "start:block"]
+    # The verdict: judged against the takes moved with their objects, and each stretch in its own frame.
+    assert wait_for(lambda: "left" in ctl.training.verdicts() and not ctl.training.judging)
+    judged = ctl.training.verdicts()["left"]
+    assert judged.verdict is not None, judged.message
+    said = verdict_lines(judged.verdict, REMEDIES)
+    assert judged.verdict.headline.issue is Issue.CLOSE, said  # measured in the robot's frame: far (decision 081)
+    lines = segment_lines(judged.segments)
+    assert [x.split(" (")[0] for x in lines] == [
+        "Reaching for the block",
+        "Carrying the block to the pad",
+        "Going back to the block",
+        "Carrying the block to where the block stood",
+        "Moving away from the block",
+    ]
+    assert lines[0].startswith("Reaching for the block (relative to the block): within ") and "— good." in lines[0]
     # Somewhere inside the places shown: no warning, and the preview does the task there.
     set_objects(ctl, "pick-place", Places(Place(-0.03, -0.06, 0.1), Place(0.05, -0.02, 0.0)))
     assert ctl.placed.warnings() == []

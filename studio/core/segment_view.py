@@ -14,19 +14,23 @@ import numpy as np
 
 from studio.core import quality
 from studio.core.errors import StudioError
-from studio.core.frames import ROBOT, DemoObjects, ObjectAt, ObjectFrames, frames_at, to_local, to_world, turn
+from studio.core.frames import ROBOT, DemoObjects, ObjectAt, ObjectFrames, frames_at, to_local, to_world
 from studio.core.rotations import make_sign_continuous
-from studio.core.segments import _in_frame, _split, path_roles, plan, segment_frames
+from studio.core.segments import _frame, _in_frame, _minjerk, _split, path_roles, plan, segment_frames
 from studio.core.types import Demo
 
 
 def demos_in_frames(
-    demos: Sequence[Demo], objects: Sequence[DemoObjects], now: Sequence[ObjectAt]
+    demos: Sequence[Demo],
+    objects: Sequence[DemoObjects],
+    now: Sequence[ObjectAt],
+    frames: ObjectFrames | None = None,
 ) -> list[Demo] | None:
-    """Each demonstration with every stretch between its grasps and releases moved from where its object stood
-    then to where the object is ``now`` (the frame the stretch is learned in). Same samples and times, so
-    key-point indices hold. None when the demonstrations share no grasps and releases (:func:`plan`) or an
-    object is missing."""
+    """Each demonstration moved the way the skill moves its path when the objects are ``now``: every stretch
+    between grasps and releases goes from its start's frame (where it begins) to its end's frame (where it
+    ends), blended as the learned segments of ``frames`` blend them (without ``frames``: a minimum-jerk blend).
+    Same samples and times, so key-point indices hold. None when the demonstrations share no grasps and
+    releases (:func:`plan`) or an object is missing."""
     borders, _ = plan(objects)
     if not borders or len(demos) != len(objects):
         return None
@@ -39,16 +43,46 @@ def demos_in_frames(
             pos = np.array(d.position, dtype=np.float64)
             ori = np.array(d.orientation, dtype=np.float64)
             for k in range(len(borders) + 1):
-                seg_roles = (roles[k], roles[k + 1])
-                fp, _ = segment_frames(o, k, seg_roles)
-                f_now = F[k] if path_roles(seg_roles)[0] == seg_roles[0] else F[k + 1]
                 sl = slice(cuts[k], cuts[k + 1] + 1)
-                pos[sl] = to_world(f_now, to_local(fp, d.position[sl]))
-                ori[sl] = turn(d.orientation[sl], float(f_now[3] - fp[3]))
+                t = np.asarray(d.t[sl]) - d.t[cuts[k]]
+                u = t / max(float(t[-1]), 1e-9)
+                w_end = _end_weight(u, k, roles, frames)[:, None]
+                f_start = np.zeros(4) if roles[k] == ROBOT else _frame(o, k - 1, roles[k])
+                f_end = np.zeros(4) if roles[k + 1] == ROBOT else _frame(o, k, roles[k + 1])
+                if f_start is None or f_end is None:
+                    return None
+                p = d.position[sl]
+                a = to_world(F[k], to_local(f_start, p))
+                b = to_world(F[k + 1], to_local(f_end, p))
+                pos[sl] = (1.0 - w_end) * a + w_end * b
+                yaw = (1.0 - w_end[:, 0]) * _wrap(F[k][3] - f_start[3]) + w_end[:, 0] * _wrap(F[k + 1][3] - f_end[3])
+                ori[sl] = _turn_each(d.orientation[sl], yaw)
             out.append(Demo(d.t, pos, make_sign_continuous(ori), d.gripper, q=d.q, name=d.name))
     except StudioError:
         return None
     return out
+
+
+def _end_weight(u: np.ndarray, k: int, roles: Sequence[str], frames: ObjectFrames | None) -> np.ndarray:
+    """How much the end's frame decides at each normalised instant ``u`` of stretch ``k``."""
+    if roles[k] == roles[k + 1]:
+        return np.ones_like(u)
+    if frames is not None and k < len(frames.segments):
+        seg = frames.segments[k]
+        w_path = np.interp(u * seg.duration, seg.t, seg.weight)
+        return w_path if path_roles((roles[k], roles[k + 1]))[0] == roles[k + 1] else 1.0 - w_path
+    return np.asarray(_minjerk(u), dtype=np.float64)
+
+
+def _wrap(a: float) -> float:
+    return float(np.angle(np.exp(1j * a)))
+
+
+def _turn_each(q: np.ndarray, yaw: np.ndarray) -> np.ndarray:
+    """Quaternions (N, 4) each turned by its own ``yaw`` about the vertical."""
+    c, s = np.cos(yaw / 2.0), np.sin(yaw / 2.0)
+    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    return np.stack([c * w - s * z, c * x - s * y, c * y + s * x, c * z + s * w], axis=-1)
 
 
 @dataclass(frozen=True)
