@@ -51,6 +51,20 @@ def wait_for(pred: Callable[[], bool], timeout: float = 30.0) -> bool:
     return bool(pred())
 
 
+def quiet_for(count: Callable[[], object], seconds: float, timeout: float = 30.0) -> bool:
+    """Poll until ``count()`` has stayed the same for ``seconds`` (True), or ``timeout`` passed (False)."""
+    deadline = time.monotonic() + timeout
+    last, since = count(), time.monotonic()
+    while time.monotonic() < deadline:
+        time.sleep(0.05)
+        now = count()
+        if now != last:
+            last, since = now, time.monotonic()
+        elif time.monotonic() - since >= seconds:
+            return True
+    return False
+
+
 class RecordingNotifier:
     """A notifier that keeps every notification as (kind, title, body), then passes it on (if given one)."""
 
