@@ -83,6 +83,12 @@ class Score:
         task = self.task < other.task * (1.0 - margin) and other.task - self.task > TASK_FLOOR_M
         return path or task
 
+    def same(self, other: Score) -> bool:
+        """The very same figures (the same path and grasps)."""
+        return math.isclose(self.g_over_r, other.g_over_r, rel_tol=1e-9) and (
+            self.task == other.task or math.isclose(self.task, other.task, rel_tol=1e-9)
+        )
+
     def near(self, other: Score) -> bool:
         """Both figures within :data:`MARGIN` of ``other``'s (the task also within :data:`TASK_FLOOR_M`): the
         thresholds changed nothing the teacher would see."""
@@ -109,7 +115,7 @@ class TuneResult:
         complete: every planned candidate was scored (False when cancelled or out of time).
         changed: the suggestion differs from the current thresholds (False: they are already good — nothing
             did better by :data:`MARGIN` than the defaults, or by :data:`OWN_MARGIN` than the teacher's own
-            values, without a held-out figure worse).
+            values (automatic ones with the very same figures replace those), without a held-out figure worse).
     """
 
     settings: ThresholdSettings
@@ -439,8 +445,9 @@ def suggest(
     evaluated = search.evaluated
     defaults = n_clusters is None and (current is None or current == ThresholdSettings())
     # never a held-out figure worse; the defaults stay unless one is better by MARGIN, the teacher's own values
-    # unless one is better by OWN_MARGIN
-    better = best.no_worse(before) and best.gains(before, MARGIN if defaults else OWN_MARGIN)
+    # unless one is better by OWN_MARGIN or automatic thresholds give the very same figures (they follow the demos)
+    gains = best.gains(before, MARGIN) if defaults else best.gains(before, OWN_MARGIN) or best.same(before)
+    better = best.no_worse(before) and gains
     keep = math.isfinite(before.g_over_r) and not better
     if search.cancelled or keep:  # keep what the teacher has
         settings = current if isinstance(current, ThresholdSettings) else ThresholdSettings()

@@ -210,3 +210,11 @@ def test_suggest_ends_early_when_the_thresholds_change_nothing_the_teacher_sees(
     # "before" is the default thresholds, scored once; every coarse Detail near it: no refining, no other k
     assert r.complete and not r.changed and r.evaluated == len(autotune.COARSE_DETAIL)
     assert seen[-1] == (1.0, "Done")
+
+
+def test_my_own_values_give_way_to_automatic_ones_that_do_exactly_as_well():
+    ds = list(task_demos("stack-cup"))
+    mine = ThresholdSettings().set("eps5", 0.30)  # far too long: a few key-points, the same learned path
+    r = autotune.suggest(ds, current=mine, budget_s=math.inf)
+    assert r.changed and r.settings.teacher == {} and r.after.same(r.before)
+    assert "misses it by" in tune_summary(r)
