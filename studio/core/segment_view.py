@@ -16,7 +16,7 @@ from studio.core import quality
 from studio.core.errors import StudioError
 from studio.core.frames import ROBOT, DemoObjects, ObjectAt, ObjectFrames, frames_at, to_local, to_world
 from studio.core.rotations import make_sign_continuous
-from studio.core.segments import _frame, _in_frame, _minjerk, _split, path_roles, plan, segment_frames
+from studio.core.segments import contact_cuts, frame_at_contact, in_frame, minjerk, path_roles, plan, segment_frames
 from studio.core.types import Demo
 
 
@@ -39,7 +39,7 @@ def demos_in_frames(
         F = frames_at(borders, now)
         out = []
         for d, o in zip(demos, objects, strict=True):
-            cuts = _split(d, o)
+            cuts = contact_cuts(d, o)
             pos = np.array(d.position, dtype=np.float64)
             ori = np.array(d.orientation, dtype=np.float64)
             for k in range(len(borders) + 1):
@@ -47,8 +47,8 @@ def demos_in_frames(
                 t = np.asarray(d.t[sl]) - d.t[cuts[k]]
                 u = t / max(float(t[-1]), 1e-9)
                 w_end = _end_weight(u, k, roles, frames)[:, None]
-                f_start = np.zeros(4) if roles[k] == ROBOT else _frame(o, k - 1, roles[k])
-                f_end = np.zeros(4) if roles[k + 1] == ROBOT else _frame(o, k, roles[k + 1])
+                f_start = np.zeros(4) if roles[k] == ROBOT else frame_at_contact(o, k - 1, roles[k])
+                f_end = np.zeros(4) if roles[k + 1] == ROBOT else frame_at_contact(o, k, roles[k + 1])
                 if f_start is None or f_end is None:
                     return None
                 p = d.position[sl]
@@ -71,7 +71,7 @@ def _end_weight(u: np.ndarray, k: int, roles: Sequence[str], frames: ObjectFrame
         seg = frames.segments[k]
         w_path = np.interp(u * seg.duration, seg.t, seg.weight)
         return w_path if path_roles((roles[k], roles[k + 1]))[0] == roles[k + 1] else 1.0 - w_path
-    return np.asarray(_minjerk(u), dtype=np.float64)
+    return np.asarray(minjerk(u), dtype=np.float64)
 
 
 def _wrap(a: float) -> float:
@@ -114,12 +114,12 @@ def segment_fits(frames: ObjectFrames, demos: Sequence[Demo], objects: Sequence[
     roles = [ROBOT, *(b.role for b in frames.borders), ROBOT]
     kinds = ["start", *(b.kind for b in frames.borders), "end"]
     try:
-        cuts = [_split(d, o) for d, o in zip(demos, objects, strict=True)]
+        cuts = [contact_cuts(d, o) for d, o in zip(demos, objects, strict=True)]
         out = []
         for k, seg in enumerate(frames.segments):
             seg_roles = (roles[k], roles[k + 1])
             parts = [
-                _in_frame(d, c[k], c[k + 1], segment_frames(o, k, seg_roles)[0])
+                in_frame(d, c[k], c[k + 1], segment_frames(o, k, seg_roles)[0])
                 for d, o, c in zip(demos, objects, cuts, strict=True)
             ]
             curves = [quality.curve(p) for p in parts]
