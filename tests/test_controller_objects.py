@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from studio.controller import Controller
+from studio.controller import Controller, Step
 from studio.core.quality import Issue
 from studio.panels.train import REMEDIES
 from studio.robot_backend.simulated import SimulatedBaxter
@@ -116,12 +116,27 @@ def test_takes_in_different_places_teach_a_skill_that_follows_the_objects(rig) -
             for n, (it, (_, d)) in enumerate(zip(view.demos, shown, strict=True))
         ]
 
+    def live_to_block() -> float:
+        """How close the live dashed path comes to the block where it stands now (x, y), once it follows the
+        current view."""
+
+        def current() -> bool:
+            v, p = ctl.keypoints.view, ctl.live.paths.get("left")
+            return v is not None and p is not None and p.version == v.version
+
+        assert wait_for(current, 60)
+        block = np.asarray(ctl.scene.scene.object("block").position[:2])
+        return float(np.min(np.linalg.norm(ctl.live.paths["left"].position[:, :2] - block, axis=1)))
+
+    ctl.view.set_step(Step.KEYPOINTS)
     assert wait_for(lambda: view_in(frozenset({"left"})))
     far = moved()
     assert far[2] < 0.01 and min(far[:2]) > 0.03, far
+    near = live_to_block()  # the live path is learned from the takes as drawn: it reaches the block
     ctl.training.set_frames("robot")
     assert wait_for(lambda: view_in(frozenset()))
     assert max(moved()) == 0.0
+    assert near < 0.01 and live_to_block() > 2 * near + 0.01, (near, live_to_block())
     ctl.training.set_frames("objects")
     assert wait_for(lambda: view_in(frozenset({"left"})))
     train(ctl)
