@@ -26,8 +26,9 @@ import numpy as np
 
 from studio import teacher
 from studio.core import sampling
+from studio.core.errors import IkFailed
 from studio.core.execution import joint_trajectory
-from studio.core.frames import frame_of, to_local, to_world, turn
+from studio.core.frames import ROBOT, frame_of, to_local, to_world, turn
 from studio.core.kinematics import Baxter
 from studio.core.pipeline import demo_from_recording, learn_skill
 from studio.core.rotations import make_sign_continuous
@@ -73,9 +74,9 @@ FLOOR_M2 = 0.01**2
 
 class FramesCombined:
     """A task-parameterised baseline without segments (the frames combined as TP-GMM/TP-ProMP do, on the
-    time-normalised mean): each whole demonstration in the frame of every object the skill uses (where it stood
-    at the start), the mean and spread per frame at each instant; reproduced as the product of the frames'
-    isotropic Gaussians with the objects where they are now."""
+    time-normalised mean): each whole demonstration in the robot's frame and in the frame of every object the
+    skill uses (where it stood at the start), the mean and spread per frame at each instant; reproduced as the
+    product of the frames' isotropic Gaussians with the objects where they are now."""
 
     def __init__(self, demos: list, objs: list, names: list[str]) -> None:
         self.names = names
@@ -90,7 +91,7 @@ class FramesCombined:
             q = np.column_stack([np.interp(grid, u, d.orientation[:, c]) for c in range(4)])
             grips.append(np.interp(grid, u, np.asarray(d.gripper, dtype=np.float64)))
             for j, n in enumerate(names):
-                f = frame_of(o.start_pose(n))
+                f = np.zeros(4) if n == ROBOT else frame_of(o.start_pose(n))
                 locs[j].append(to_local(f, pos))
                 quats[j].append(turn(q, -f[3]))
         self.mean = [np.mean(x, axis=0) for x in locs]
@@ -107,7 +108,7 @@ class FramesCombined:
         at = {o.name: o for o in now}
         world, ori, w = [], [], []
         for j, n in enumerate(self.names):
-            f = frame_of(at[n])
+            f = np.zeros(4) if n == ROBOT else frame_of(at[n])
             world.append(to_world(f, self.mean[j]))
             ori.append(turn(self.quat[j], f[3]))
             w.append(1.0 / self.var[j])
@@ -120,7 +121,8 @@ class FramesCombined:
 
 
 def _object_names(skill) -> list[str]:
-    names: list[str] = []
+    """The robot's frame (where the arm starts and ends) and every object the skill's frames name."""
+    names: list[str] = [ROBOT]
     for b in skill.frames.borders:
         for n in (b.object, b.role.partition(":")[2]):
             if n and n not in names:
@@ -134,7 +136,10 @@ def _combined_skill(ab, rel, tp: FramesCombined, scene, b: Baxter, q_seed: np.nd
     import dataclasses
 
     traj = tp.path(objects_now(scene))
-    jt = joint_trajectory(traj, "left", q_seed, b)
+    try:
+        jt = joint_trajectory(traj, "left", q_seed, b)
+    except IkFailed:  # its start out of reach: played from nowhere, it does nothing
+        return None
     return dataclasses.replace(ab, trajectory=traj, joint_trajectory=jt, frames=rel.frames)
 
 
@@ -166,6 +171,8 @@ def judge(task: str, skill, goal, pl: Places, b: Baxter, relative: bool, build=N
     sk = place_skill(skill, objects_now(scene), baxter=b) if relative else skill
     if build is not None:  # a baseline made for this scene
         sk = skill = build(scene)
+        if sk is None:
+            return {"err": math.inf, "ik": 0.0, "border": 0.0, "step": 0.0, "warned": warned}
     jt = sk.joint_trajectory
     t = np.linspace(0.0, sampling.duration({"left": sk}), max(2, int(sampling.duration({"left": sk}) * 100)))
     q, g = sampling.sample_joints({"left": sk}, t, np.zeros(14), np.array([100.0, 100.0]))
