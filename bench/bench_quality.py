@@ -372,8 +372,12 @@ def _suggest(demos: list[Demo], ref: Ref, held: bool) -> dict[str, Any]:
     sk2 = learn_skill(demos, tr.params, n_clusters=tr.n_clusters)
     out: dict[str, Any] = ref.score(np.asarray(sk2.trajectory.position))
     out.update(changed=tr.changed, seconds=secs, before=tr.before.g_over_r, after=tr.after.g_over_r)
+    # held out as the default's figure is: the thresholds resolved on the demos each fold learns from (the same
+    # as the default's when Suggest kept them)
     out["held"] = (
-        ref.held_out(lambda dd: np.asarray(learn_path(dd, tr.params, n_clusters=tr.n_clusters).position))
+        ref.held_out(
+            lambda dd: np.asarray(learn_path(dd, tr.settings.resolve(dd), n_clusters=tr.n_clusters).position)
+        )
         if held
         else math.nan
     )
