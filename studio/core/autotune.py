@@ -309,14 +309,14 @@ class _Search:
             if k not in self.memo and k not in todo:
                 todo[k] = c
         self.done += len(cands) - len(todo)
-        scores = self._score(list(todo.values()), msg)
+        scores = self._score_all(list(todo.values()), msg)
         if scores is None:
             return None
         self.memo.update(zip(todo, scores, strict=True))
         self.evaluated += len(scores)
         return [self.memo[k] for k in keys]
 
-    def _score(self, cands: list[Candidate], msg: str) -> list[Score] | None:
+    def _score_all(self, cands: list[Candidate], msg: str) -> list[Score] | None:
         """Score candidates (one per task of the executor); None if cancelled."""
         if self.executor is None:
             out = []
