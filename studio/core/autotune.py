@@ -186,7 +186,7 @@ def _score(c: Candidate, st: tuple, folds: Sequence[int]) -> Score:
         try:
             tr = learn_path(train, params, n_clusters=k, generalization=generalization, cache=kc, align_cache=ac)
         except StudioError:
-            return Score(math.inf, math.inf, float(np.mean([len(x) for x in kps_all])), float(k))
+            return Score(math.inf, math.inf, float(np.mean([len(x) for x in kps_all])), float(k), math.inf)
         msd.append(quality.ndtw(quality.curve(tr, 300), curves[i]))
         task.append(quality.task_error(tr, actions[i]) ** 2)
         ks.append(k)
