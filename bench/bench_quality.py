@@ -372,11 +372,13 @@ def _suggest(demos: list[Demo], ref: Ref, held: bool) -> dict[str, Any]:
     sk2 = learn_skill(demos, tr.params, n_clusters=tr.n_clusters)
     out: dict[str, Any] = ref.score(np.asarray(sk2.trajectory.position))
     out.update(changed=tr.changed, seconds=secs, before=tr.before.g_over_r, after=tr.after.g_over_r)
-    # held out as the default's figure is: the thresholds resolved on the demos each fold learns from (the same
-    # as the default's when Suggest kept them)
+    # held out as the default's figure is (studio_path): the thresholds resolved on the demos each fold learns
+    # from, the same rate (the very same figure when Suggest kept the thresholds)
     out["held"] = (
         ref.held_out(
-            lambda dd: np.asarray(learn_path(dd, tr.settings.resolve(dd), n_clusters=tr.n_clusters).position)
+            lambda dd: np.asarray(
+                learn_path(dd, tr.settings.resolve(dd), n_clusters=tr.n_clusters, rate_hz=200.0).position
+            )
         )
         if held
         else math.nan
