@@ -229,6 +229,12 @@ def tune_summary(result: TuneResult) -> str:
             "Suggested: learned without each demonstration in turn, the skill misses it by "
             f"{length_words(a.distance)} on average{_grasps(a.task)}."
         )
+    if a.same(b):
+        return (
+            "Automatic thresholds, which follow your demonstrations, do exactly as well as yours: learned without "
+            f"each demonstration in turn, the skill misses it by {length_words(a.distance)} on average"
+            f"{_grasps(a.task)} either way."
+        )
     before = f"{length_words(b.distance)} with the current thresholds"
     if a.task > 0.0 and math.isfinite(a.task) and math.isfinite(b.task):
         return (
