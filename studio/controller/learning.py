@@ -89,7 +89,7 @@ class KeypointTuning:
         self._settings: ThresholdSettings = ctx.session.thresholds
         self._k: int | None = ctx.session.n_clusters
         self._stats: dict[str, tuple[tuple[Demo, ...], DemoStats]] = {}
-        self._framed: dict[Arm, tuple[tuple, list[Demo] | None]] = {}  # the demos in frames, per demos and scene
+        self._framed: dict[Arm, tuple[object, object, tuple, list[Demo] | None]] = {}  # per session, scene, demos
         self._dirty = False
         self._changed = 0.0
         self._version = 0
@@ -276,13 +276,13 @@ class KeypointTuning:
         if session.frames != "objects":
             return None
         scene = session.objects.scene
-        key = (session, scene, tuple((i, id(d), len(d)) for i, d in demos))
+        sig = tuple((i, id(d), len(d)) for i, d in demos)
         hit = self._framed.get(arm)
-        if hit is not None and hit[0] == key:
-            return hit[1]
+        if hit is not None and hit[0] is session and hit[1] is scene and hit[2] == sig:  # same objects, not equal
+            return hit[3]
         objs = demo_objects_of(session, arm, [i for i, _ in demos])
         moved = None if isinstance(objs, str) else demos_in_frames([d for _, d in demos], objs, objects_now(scene))
-        self._framed[arm] = (key, moved)
+        self._framed[arm] = (session, scene, sig, moved)
         return moved
 
     def _on_frames(self) -> None:
