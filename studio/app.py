@@ -31,6 +31,8 @@ log = logging.getLogger(__name__)
 ROOT = Path(__file__).resolve().parent.parent
 LIGHT_URDF = ROOT / "urdf" / "baxter_light.urdf"
 DEFAULT_SESSION = "stack-cup"
+#: Seconds within which a stopped studio (SIGTERM, Ctrl+C) has ended, whatever is still running.
+STOP_S = 4.0
 #: Initial view for every tab (and "Reset view"): in front of Baxter, to its right, framing the robot and table.
 CAMERA_POSITION = HOME_CAMERA_POSITION
 CAMERA_LOOK_AT = HOME_CAMERA_LOOK_AT
@@ -226,6 +228,8 @@ class Studio:
         if self._stopped:
             return
         self._stopped = True
+        if self.access.presses is not None:
+            self.access.presses.close()  # presses still waiting are dropped: the studio is stopping
         self.controller.close()
         self._pump.stop()
         try:
@@ -308,16 +312,39 @@ def serve(
         if title == "The session could not be opened":
             print(f"studio: {body}", file=sys.stderr, flush=True)
     stop = threading.Event()
+    stopped = threading.Event()
+
+    def on_term(*_: object) -> None:
+        stop.set()
+        end_after(STOP_S, stopped)
+
     if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, lambda *_: stop.set())
+        signal.signal(signal.SIGTERM, on_term)
     print(f"Teaching Studio is running: open {app.url()} in your browser (Ctrl+C stops it).", flush=True)
     try:
-        while not stop.wait(1.0):
+        while not stop.wait(0.5):
             pass
     except KeyboardInterrupt:
-        pass
+        end_after(STOP_S, stopped)
     finally:
         app.stop()
+        stopped.set()
+
+
+def end_after(seconds: float, stopped: threading.Event) -> None:
+    """End the process ``seconds`` from now if it is still running then (a callback or thread that does not
+    finish must not keep a stopping studio alive; its saves are atomic). Exit status 0 when ``stopped`` (the
+    studio kept everything before), 1 otherwise."""
+    import os
+
+    def watch() -> None:
+        time.sleep(seconds)
+        done = stopped.is_set()
+        log.warning("the studio did not end within %.0f s of being stopped; ending it now", seconds)
+        logging.shutdown()
+        os._exit(0 if done else 1)
+
+    threading.Thread(target=watch, name="studio-stop-watch", daemon=True).start()
 
 
 __all__ = [
@@ -326,6 +353,7 @@ __all__ = [
     "Studio",
     "build_app",
     "configure_scene",
+    "end_after",
     "exposure_warning",
     "robot_backend",
     "robot_urdf_path",
