@@ -12,7 +12,7 @@ from studio.controller.context import Context
 from studio.controller.events import Topic
 from studio.core.errors import StudioError
 from studio.core.types import Arm, Demo, Recording
-from studio.storage.format import WORK_SAMPLES
+from studio.storage.format import WORK_SAMPLES, check_demo_name
 
 #: Demo colours (RGB), distinct on the light background, never red (red marks the cluster centroids) and never
 #: cyan (the learned path).
@@ -59,7 +59,8 @@ class Demos:
         self.ctx = ctx
         self._cache: dict[tuple[int, str], tuple[Recording, Demo, int]] = {}
         self._told_stride = 1
-        self._delete_pending: tuple[str, float] | None = None  # (demo name, time of the first Delete press)
+        #: per browser tab (its id, None for the studio itself): (demo name, time of its first Delete press)
+        self._delete_pending: dict[object, tuple[str, float]] = {}
         ctx.events.on(Topic.DEMOS, self._prune)
         ctx.events.on(Topic.SESSION, self.clear)
 
@@ -165,6 +166,7 @@ class Demos:
         name = name.strip()
         if not name:
             raise StudioError("Give the demonstration a name (it cannot be empty).")
+        name = check_demo_name(name)  # length and visible characters, before the name is shown anywhere
         names = self.names()
         if name in names and names[i] != name:
             raise StudioError(f'There is already a demonstration called "{name}"; choose another name.')
@@ -193,23 +195,31 @@ class Demos:
             self.ctx.session.delete_demo(i)
         self.changed()
 
-    def delete_confirmed(self, i: int, *, now: float | None = None) -> bool:
+    def delete_confirmed(self, i: int, *, by: object | None = None, now: float | None = None) -> bool:
         """The Delete button: the first press asks, a second press on the same demo within
-        :attr:`DELETE_CONFIRM_S` deletes it for good. Returns True when the demo was deleted."""
+        :attr:`DELETE_CONFIRM_S` from the same browser tab (``by``, the GUI event's client) deletes it for good.
+        Returns True when the demo was deleted."""
         now = time.monotonic() if now is None else now
-        name = self.names()[i]
-        pending = self._delete_pending
-        if pending is not None and pending[0] == name and now - pending[1] <= self.DELETE_CONFIRM_S:
-            self._delete_pending = None
-            self.delete(i)
+        tab = getattr(by, "client_id", by)
+        with self.ctx.lock:
+            name = self.names()[i]
+            pending = self._delete_pending.get(tab)
+            confirmed = pending is not None and pending[0] == name and now - pending[1] <= self.DELETE_CONFIRM_S
+            if confirmed:
+                self._delete_pending = {t: p for t, p in self._delete_pending.items() if p[0] != name}
+                self.ctx.session.delete_demo(i)  # under the lock: another tab's press cannot shift the rows between
+            else:
+                self._delete_pending[tab] = (name, now)
+        if confirmed:
+            self.changed()
             self.ctx.notify("Demonstration deleted", f'"{name}" was deleted.', kind="success")
             return True
-        self._delete_pending = (name, now)
         self.ctx.notify(
             "Delete for good?",
             f'Press Delete again within {self.DELETE_CONFIRM_S:.0f} seconds to delete "{name}" from disk. '
             'To keep it but leave it out of learning, untick "Show in the scene" instead.',
             kind="warning",
+            client=by,
         )
         return False
 
@@ -224,5 +234,5 @@ class Demos:
     def clear(self) -> None:
         """Forget everything cached (another session was opened)."""
         self._cache = {}
-        self._delete_pending = None
+        self._delete_pending = {}
         self._told_stride = 1

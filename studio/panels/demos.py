@@ -167,4 +167,4 @@ class DemosPanel:
             t0, t1 = self.demo_trim.value
             demos.trim(i, float(t0), float(t1))
         elif action == "Delete":
-            demos.delete_confirmed(i)  # asks first: a second press deletes
+            demos.delete_confirmed(i, by=event.client)  # asks first: a second press of the same tab deletes
