@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from studio.core.errors import StudioError
-from studio.security.values import refusal
+from studio.security.values import refusal, value_refusal
 
 if TYPE_CHECKING:
     import viser
@@ -36,11 +36,14 @@ TOO_FAST = (
 
 @dataclass
 class _Job:
-    key: tuple[int, int]
+    key: tuple[int, int, Any]
     fn: Callable[..., Any]
     args: tuple[Any, ...]
     kwargs: dict[str, Any]
     future: Future[Any]
+    #: the control (viser's handle) and the value its tab sent (the newest, when presses joined)
+    target: Any = None
+    value: Any = None
 
 
 @dataclass
@@ -52,7 +55,7 @@ class _Tab:
     told: float = -1e9
     running: bool = False
     waiting: deque[_Job] = field(default_factory=deque)
-    keys: set[tuple[int, int]] = field(default_factory=set)
+    keys: dict[tuple[int, int, Any], _Job] = field(default_factory=dict)
     #: buttons whose (coroutine) callback is being awaited
     pressing: set[str] = field(default_factory=set)
     gone: bool = False
@@ -175,15 +178,25 @@ class Presses:
         if not isinstance(client_id, int):  # not a tab's event: as viser would
             return self._pool.submit(fn, *args, **kwargs)
         future: Future[Any] = Future()
-        key = (id(getattr(event, "target", None)), id(fn))
+        target = getattr(event, "target", None)
+        impl = getattr(target, "_impl", None)
+        # The value this tab sent (viser stored it just now, on its event loop). A button group's options are
+        # different presses; any other control's newer value replaces the one still waiting.
+        value = getattr(impl, "value", None)
+        button = bool(getattr(impl, "is_button", False))
+        key = (id(target), id(fn), value if button and isinstance(value, str) else None)
         with self._lock:
             tab = self._tabs.setdefault(client_id, _Tab())
-            if self._closed or key in tab.keys or len(tab.waiting) >= MAX_WAITING:
+            waiting = tab.keys.get(key)
+            if waiting is not None:
+                waiting.value = value
+            if self._closed or waiting is not None or len(tab.waiting) >= MAX_WAITING:
                 self.counts.joined += 1
                 future.set_result(None)
                 return future
-            tab.keys.add(key)
-            tab.waiting.append(_Job(key, fn, args, kwargs, future))
+            job = _Job(key, fn, args, kwargs, future, target if impl is not None else None, value)
+            tab.keys[key] = job
+            tab.waiting.append(job)
             start = not tab.running
             tab.running = True
         if start:
@@ -206,12 +219,28 @@ class Presses:
                             del self._tabs[client_id]
                     return
                 job = tab.waiting.popleft()
-                tab.keys.discard(job.key)
+                tab.keys.pop(job.key, None)
+            if not self._as_sent(job):
+                job.future.set_result(None)
+                continue
             self.counts.ran += 1
             try:
                 job.future.set_result(job.fn(*job.args, **job.kwargs))
             except BaseException as exc:  # viser prints it (print_threadpool_errors), as before
                 job.future.set_exception(exc)
+
+    def _as_sent(self, job: _Job) -> bool:
+        """Give the control back the value its tab sent before its callback reads it: the studio may have
+        redrawn the control since (another tab's action), and the callback acts on what this tab asked for.
+        False when that value no longer fits the control (its options changed meanwhile)."""
+        impl = getattr(job.target, "_impl", None)
+        if impl is None or getattr(impl, "value", None) == job.value:
+            return True
+        if value_refusal(job.target, job.value) is not None:
+            self._log("stale", "ignored a value that no longer fits its control")
+            return False
+        impl.value = job.value
+        return True
 
     def close(self) -> None:
         """Stop: waiting callbacks are dropped and no new one is taken (the studio is stopping)."""

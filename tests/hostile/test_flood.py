@@ -86,9 +86,7 @@ def test_a_flood_of_presses_from_one_tab_leaves_other_tabs_and_the_emergency_sto
         other.close()
 
 
-def test_values_no_control_can_hold_are_ignored_with_a_log_line(
-    app: Studio, caplog: pytest.LogCaptureFixture
-) -> None:
+def test_values_no_control_can_hold_are_ignored_with_a_log_line(app: Studio, caplog: pytest.LogCaptureFixture) -> None:
     """Today: a dropdown value outside its options or a string sent to a slider showed "Something unexpected
     went wrong (KeyError…)"; a property other than the value changed the control itself."""
     panels = app.panels
@@ -122,7 +120,7 @@ def test_values_no_control_can_hold_are_ignored_with_a_log_line(
         assert (panels.demos.demo_pick.value, panels.demos.demo_trim.value) == before[:2]
         assert list(panels.demos.demo_pick.options) == names
         assert app.controller.demos.names() == names
-        assert '"Demo": str \'no such demo\' is not one of its options' in caplog.text
+        assert "\"Demo\": str 'no such demo' is not one of its options" in caplog.text
         assert "is not 2 numbers" in caplog.text and "a text of 3,000,000 characters" in caplog.text
         assert "x" * 100 not in caplog.text  # never echoed whole
         assert not unexpected(c), unexpected(c)
