@@ -236,6 +236,7 @@ class Studio:
             self.panels.close()
         except Exception:
             log.exception("closing panels")
+        self.controller.events.clear()  # a job still running must not draw into a stopped server
         self.controller.shutdown()
         self.server.stop()
 

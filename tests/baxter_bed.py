@@ -83,8 +83,7 @@ class BaxterBed:
         self.enabled, self.stopped, self.error = bool(enabled), False, False
         self.estop_button, self.estop_source = ESTOP_BUTTON_UNPRESSED, ESTOP_SOURCE_NONE
         self.grippers = {
-            a: Gripper(gripper_type, GRIPPER_IDS[a], gripper_calibrated, position=100.0, target=100.0)
-            for a in ARMS
+            a: Gripper(gripper_type, GRIPPER_IDS[a], gripper_calibrated, position=100.0, target=100.0) for a in ARMS
         }
         self.calibrate_s = calibrate_s
         self.lock = threading.Lock()

@@ -51,6 +51,20 @@ def wait_for(pred: Callable[[], bool], timeout: float = 30.0) -> bool:
     return bool(pred())
 
 
+def quiet_for(count: Callable[[], object], seconds: float, timeout: float = 30.0) -> bool:
+    """Poll until ``count()`` has stayed the same for ``seconds`` (True), or ``timeout`` passed (False)."""
+    deadline = time.monotonic() + timeout
+    last, since = count(), time.monotonic()
+    while time.monotonic() < deadline:
+        time.sleep(0.05)
+        now = count()
+        if now != last:
+            last, since = now, time.monotonic()
+        elif time.monotonic() - since >= seconds:
+            return True
+    return False
+
+
 class RecordingNotifier:
     """A notifier that keeps every notification as (kind, title, body), then passes it on (if given one)."""
 
@@ -89,12 +103,18 @@ def browser() -> Iterator[Browser]:
         b.close()
 
 
+#: The browser test files of the first of two groups (the rest form the second), balanced on their durations.
+BROWSER_GROUP_A = {"test_scene_walk.py", "test_execution_browser.py", "test_routes_browser.py", "test_quality_browser.py"}
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """With ``-n 2 --dist loadgroup`` (scripts/run-tests.sh): the browser tests run one after another on one
-    worker (one Chromium at a time, as on a person's machine) while the other worker runs the rest."""
+    """With ``-n 2 --dist loadgroup`` (scripts/run-tests.sh): the browser tests form two groups, each run one
+    test after another on one worker (one Chromium per worker), and the other tests fill in around them."""
     for item in items:
-        if "tests/e2e/" in item.nodeid.replace("\\", "/") or item.nodeid.startswith("e2e/"):
-            item.add_marker(pytest.mark.xdist_group("browser"))
+        nodeid = item.nodeid.replace("\\", "/")
+        if "tests/e2e/" in nodeid or nodeid.startswith("e2e/"):
+            name = nodeid.split("::")[0].rsplit("/", 1)[-1]
+            item.add_marker(pytest.mark.xdist_group("browser-a" if name in BROWSER_GROUP_A else "browser-b"))
 
 
 class Collector:

@@ -10,7 +10,6 @@ from __future__ import annotations
 import re
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any, cast
 
 import numpy as np
 import pytest
@@ -24,6 +23,7 @@ from studio.recorder import Recorder
 from studio.robot_backend.simulated import SimulatedBaxter
 from studio.storage import RECORDING_DIR, SessionStore
 from tests.conftest import ROOT, RecordingNotifier, free_port, wait_for
+from tests.viser_client import ViserClient
 
 
 @pytest.fixture
@@ -32,6 +32,20 @@ def app(sessions: Path) -> Iterator[Studio]:
     a.controller.notifier = RecordingNotifier(then=a.notifier)
     yield a
     a.stop()
+
+
+@pytest.fixture
+def page(app: Studio) -> Iterator[ViserClient]:
+    """A tab of the studio (viser's websocket protocol, no browser): the scene as the page receives it."""
+    c = ViserClient(f"ws://127.0.0.1:{app.port}/?key={app.access.key}")
+    assert c.wait_for(lambda _m: c.layer("/keypoints/left") and c.layer("/demos"), 30)
+    yield c
+    c.close()
+
+
+def points(node: dict) -> np.ndarray:
+    """A drawn point cloud's or line segments' points as the page received them, one row per point."""
+    return np.asarray(node["props"]["points"], dtype=float).reshape(-1, 3)
 
 
 def notes(app: Studio) -> list[tuple[str, str, str]]:
@@ -78,29 +92,37 @@ def test_unreachable_handle_is_marked_and_told(app: Studio) -> None:
     assert wait_for(lambda: "cannot reach" not in robot.status.content)
 
 
-def test_demo_edits_redraw_the_traces(app: Studio) -> None:
+def test_demo_edits_redraw_the_traces(app: Studio, page: ViserClient) -> None:
     demos = app.controller.demos
     demos.set_visible(0, False)
-    assert len(app.panels.demos._traces) == 2 and "hidden" in app.panels.demos.demo_list.content
+    assert page.wait_for(lambda _m: sum(page.layer("/demos").values()) == 2)
+    assert "hidden" in app.panels.demos.demo_list.content
     demos.set_visible(0, True)
+    assert page.wait_for(lambda _m: sum(page.layer("/demos").values()) == 3)
     demos.delete(0)
-    assert len(app.panels.demos._traces) == 2
+    assert page.wait_for(lambda _m: len(page.layer("/demos")) == 2)
 
 
-def test_keypoints_are_drawn(app: Studio) -> None:
+def test_keypoints_are_drawn(app: Studio, page: ViserClient) -> None:
     kp = app.controller.keypoints
     kp.set_param("eps5", 0.03)
     v1 = kp.compute()
     app.panels.keypoints.draw(v1)
-    assert len(app.panels.keypoints._kp_nodes) == 3
-    panel = app.panels.keypoints
-    assert not any(lab.visible for lab in panel._labels)  # Teach shows no cluster centres
+    counts = [d.count for d in v1.demos]
+
+    def drawn_counts() -> list[int]:
+        return [len(points(page.scene()[f"/keypoints/left/demo{i}"])) for i in range(3)]
+
+    assert page.wait_for(lambda _m: drawn_counts() == counts)
+    assert not any(page.layer("/keypoints/labels").values())  # Teach shows no cluster centres
     app.controller.view.set_step("Key-points")
-    shown = [np.asarray(lab.position) for lab in panel._labels if lab.visible]
+    assert page.wait_for(lambda _m: any(page.layer("/keypoints/labels").values()))
+    labels = page.scene()
+    shown = [np.asarray(labels[n]["position"]) for n, on in page.layer("/keypoints/labels").items() if on]
     assert 0 < len(shown) <= min(v1.k["left"], MAX_LABELS)  # numbers that would pile up are left out
     gaps = [np.linalg.norm(a - b) for i, a in enumerate(shown) for b in shown[i + 1 :]]
-    assert min(gaps, default=1.0) >= LABEL_GAP - 1e-9
-    assert all(n.visible for n in panel._kp_nodes.values())
+    assert min(gaps, default=1.0) >= LABEL_GAP - 1e-3  # (positions travel as float32)
+    assert all(on for n, on in page.layer("/keypoints/left").items() if "/demo" in n)
     assert 'data-count="' in app.panels.keypoints.counts.content
 
 
@@ -360,11 +382,10 @@ def test_the_clusters_box_shows_the_k_in_use(app: Studio) -> None:
     assert f'data-k="{view.k["left"]}"' in kp.counts.content
 
 
-def test_sliders_show_real_units_and_whose_values_they_are(app: Studio) -> None:
+def test_sliders_show_real_units_and_whose_values_they_are(app: Studio, page: ViserClient) -> None:
     import math
 
     from studio.core.thresholds import auto_params
-    from studio.panels._sliders import SPECS
 
     kp, ctl = app.panels.keypoints, app.controller
     auto = auto_params([d for _, d in ctl.demos.for_arm("left")])
@@ -374,27 +395,18 @@ def test_sliders_show_real_units_and_whose_values_they_are(app: Studio) -> None:
     assert s12.value == pytest.approx(math.degrees(auto.eps12), abs=0.1)
     assert s5.label == "Travel distance, cm (ε5)" and s5.value == pytest.approx(100 * auto.eps5, abs=0.05)
     assert "follows your demonstrations" in kp.thresholds.whose.content and kp.thresholds.make_auto.disabled
-    cast(Any, s5).value = 4.5  # what the browser does when the teacher drags it
-    kp.thresholds._make_cb(SPECS["eps5"])(_Event())
-    assert ctl.keypoints.params().eps5 == pytest.approx(0.045) and s5.label == "Travel distance, cm (ε5) · yours"
+    page.set_value("Travel distance, cm (ε5)", 4.5)  # the teacher drags it
+    assert wait_for(lambda: s5.label == "Travel distance, cm (ε5) · yours")
+    assert ctl.keypoints.params().eps5 == pytest.approx(0.045)
     assert 'data-yours="1"' in kp.thresholds.whose.content and kp.thresholds.yours.value == s5.label.split(" ·")[0]
     ctl.keypoints.set_detail(-2.0)  # Detail moves the automatic ones, the teacher's stays
     assert kp.detail.value == -2.0 and s5.value == 4.5 and ctl.keypoints.params().eps7 > auto.eps7
-    kp.thresholds._on_make_auto(_Event())
-    assert ctl.keypoints.settings().is_auto("eps5") and s5.label == "Travel distance, cm (ε5)"
+    page.set_value("Make it automatic", True)
+    assert wait_for(lambda: ctl.keypoints.settings().is_auto("eps5") and s5.label == "Travel distance, cm (ε5)")
     assert s5.value == pytest.approx(100 * ctl.keypoints.params().eps5, abs=0.05)
 
 
-class _FakeEvent:
-    client = object()
-
-
-def _Event() -> Any:
-    """What a callback receives when a person (not the server) changed the control."""
-    return _FakeEvent()
-
-
-def test_train_panel_says_how_good_the_skill_is(app: Studio) -> None:
+def test_train_panel_says_how_good_the_skill_is(app: Studio, page: ViserClient) -> None:
     ctl, train = app.controller, app.panels.train
     ctl.training.train().result(timeout=120)
     assert wait_for(lambda: 'data-level="good"' in train.verdict.content, 120)
@@ -405,9 +417,8 @@ def test_train_panel_says_how_good_the_skill_is(app: Studio) -> None:
     assert 'data-mode="aligned-mean"' in train.summary.content and "Follow the demonstrations" in train.summary.content
     assert re.search(r"Zero-points [^:]*: (none|states? \d)", train.summary.content)
     assert "to state →" in train.heatmap.content and "time, s" in train.plots.content
-    cast(Any, train.mode).value = train.mode.options[1]  # the curious choose the paper's spline
-    train._on_mode(_Event())
-    assert ctl.training.generalization == "paper"
+    page.set_value("Path", train.mode.options[1])  # the curious choose the paper's spline
+    assert wait_for(lambda: ctl.training.generalization == "paper")
 
 
 def test_suggest_controls_show_progress_and_undo(app: Studio) -> None:
@@ -424,42 +435,45 @@ def test_suggest_controls_show_progress_and_undo(app: Studio) -> None:
     assert not sc.undo.visible and "Undone" in sc.text.content
 
 
-def test_live_path_is_drawn_dashed_with_the_key_points_layer(app: Studio) -> None:
+def test_live_path_is_drawn_dashed_with_the_key_points_layer(app: Studio, page: ViserClient) -> None:
     from studio.controller import Layer
 
     ctl, kp = app.controller, app.panels.keypoints
+    live = "/keypoints/left/live-path"
     ctl.view.set_step(Step.KEYPOINTS)
-    assert wait_for(lambda: "/keypoints/left/live-path" in kp._live_nodes, 60)
-    node = kp._live_nodes["/keypoints/left/live-path"]
-    assert node.points.shape == (60, 2, 3) and node.visible
+    assert page.wait_for(lambda _m: page.layer("/keypoints/left").get(live), 60)
+    assert points(page.scene()[live]).shape == (120, 3)  # 60 dashes, two ends each
     assert "The learned path would stay within" in kp.live_text.content
-    ctl.view.set_shown(Layer.KEYPOINTS, False)
-    assert not node.visible and not any(n.visible for n in kp._kp_nodes.values())
+    ctl.view.set_shown(Layer.KEYPOINTS, False)  # the key-points and the live path (the centres stay)
+    assert page.wait_for(
+        lambda _m: not any(on for n, on in page.layer("/keypoints/left").items() if not n.endswith("/centroids"))
+    )
     ctl.view.set_shown(Layer.CENTROIDS, False)
-    assert not any(lab.visible for lab in kp._labels)
+    assert page.wait_for(lambda _m: not any(page.layer("/keypoints/labels").values()))
     ctl.view.set_step(Step.TRAIN)
-    assert not node.visible
+    assert page.wait_for(lambda _m: not page.layer("/keypoints/left").get(live))
 
 
 def test_markers_go_with_their_live_path_and_never_wait_for_a_failed_one(
-    app: Studio, monkeypatch: pytest.MonkeyPatch
+    app: Studio, page: ViserClient, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     import studio.core.pipeline as pipeline
 
-    ctl, kp = app.controller, app.panels.keypoints
+    ctl = app.controller
     ctl.view.set_step(Step.KEYPOINTS)
     assert wait_for(lambda: "left" in ctl.live.paths, 60)
     ctl.keypoints.set_param("eps5", 0.02)  # many more key-points
 
     def drawn() -> list[int]:
-        return [len(n.points) for n in kp._kp_nodes.values()]
+        return [len(points(page.scene()[f"/keypoints/left/demo{i}"])) for i in range(3)]
 
     assert wait_for(lambda: ctl.keypoints.view is not None and ctl.keypoints.view.params["left"].eps5 == 0.02)
     view = ctl.keypoints.view
     assert view is not None
     version = view.version
     assert wait_for(lambda: ctl.live.paths["left"].version == version, 60)
-    assert drawn() == [d.count for d in view.demos]  # one scene update: the markers with their path
+    counts = [d.count for d in view.demos]
+    assert page.wait_for(lambda _m: drawn() == counts)  # the markers with their path
 
     def broken(*args: object, **kwargs: object) -> object:
         raise RuntimeError("no path today")
@@ -468,7 +482,9 @@ def test_markers_go_with_their_live_path_and_never_wait_for_a_failed_one(
     ctl.keypoints.set_param("eps5", 0.2)
     assert wait_for(lambda: ctl.live.paths == {})  # the failure was told; no path …
     view = ctl.keypoints.view
-    assert view is not None and drawn() == [d.count for d in view.demos]  # … and the markers still came
+    assert view is not None  # … and the markers still came
+    counts = [d.count for d in view.demos]
+    assert page.wait_for(lambda _m: drawn() == counts)
     # told right after the paths were emptied (the failure leaves the follower, then it is reported)
     assert wait_for(lambda: any(title == "Could not draw the learned path" for _, title, _ in notes(app)))
 

@@ -8,7 +8,6 @@ import dataclasses
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
@@ -31,15 +30,30 @@ def app(sessions: Path) -> Iterator[Studio]:
     a.stop()
 
 
-def nodes(app: Studio) -> dict[str, Any]:
-    return dict(app.server.scene._handle_from_node_name)
+@pytest.fixture
+def page(app: Studio) -> Iterator[ViserClient]:
+    """A tab of the studio (viser's websocket protocol, no browser): the scene as the page receives it."""
+    c = ViserClient(f"ws://127.0.0.1:{app.port}/?key={app.access.key}")
+    assert c.wait_for(lambda _m: c.layer("/demos"), 30)
+    yield c
+    c.close()
 
 
-def test_a_skill_the_arm_cannot_follow_is_drawn_red_and_not_run(app: Studio) -> None:
+def drawn(page: ViserClient, name: str) -> tuple[np.ndarray, tuple[int, ...], bool] | None:
+    """A line node as the page has it: (points, first colour, drawn), None when the page has no such node."""
+    node = page.scene().get(name)
+    if node is None:
+        return None
+    pts = np.asarray(node["props"]["points"], dtype=np.float64).reshape(-1, 3)
+    color = tuple(int(c) for c in np.asarray(node["props"]["colors"]).reshape(-1, 3)[0])
+    return pts, color, name in page.shown(name)
+
+
+def test_a_skill_the_arm_cannot_follow_is_drawn_red_and_not_run(app: Studio, page: ViserClient) -> None:
     ctl, preview = app.controller, app.panels.preview
     assert not preview.run_btn.disabled and preview.run_reason.content == ""
     assert "The arm can follow all of it." in preview.info.content
-    assert "/preview/left/unreachable" not in nodes(app)
+    assert drawn(page, "/preview/left/unreachable") is None
     skill = ctl.session.skills["left"]
     tr = skill.trajectory
     bump = np.exp(-(((tr.t - tr.t[0]) - 6.0) ** 2) / (2 * 0.4**2))  # 6 s in, the path goes 60 cm out
@@ -51,18 +65,20 @@ def test_a_skill_the_arm_cannot_follow_is_drawn_red_and_not_run(app: Studio) -> 
     assert "In red: The left gripper cannot reach" in preview.info.content
     assert preview.run_btn.disabled
     assert "does not run a skill it cannot follow" in preview.run_reason.content
-    red = nodes(app)["/preview/left/unreachable"]
-    pts = np.asarray(red.points, dtype=np.float64).reshape(-1, 3)
-    assert tuple(np.asarray(red.colors).reshape(-1, 3)[0]) == (230, 30, 30)
+    assert page.wait_for(lambda _m: drawn(page, "/preview/left/unreachable"))
+    pts, color, _ = drawn(page, "/preview/left/unreachable") or (np.zeros((0, 3)), (), False)
+    assert color == (230, 30, 30)
     # drawn where the path goes out of reach: every red point is a point of that stretch of the learned path
     span = ctl.execution.unreachable_paths()["left"][0]
     assert np.min(np.linalg.norm(pts[:, None, :] - span[None, :, :], axis=2), axis=1).max() < 1e-6
     assert pts[:, 0].max() > tr.position[:, 0].max() + 0.3
+    ctl.view.set_shown(Layer.LEARNED_PATH, True)
+    assert page.wait_for(lambda _m: (drawn(page, "/preview/left/unreachable") or (0, 0, False))[2])
     ctl.view.set_shown(Layer.LEARNED_PATH, False)  # it goes with the learned path
-    assert not red.visible
+    assert page.wait_for(lambda _m: not (drawn(page, "/preview/left/unreachable") or (0, 0, True))[2])
 
 
-def test_the_run_is_shown_while_it_runs_and_after(app: Studio) -> None:
+def test_the_run_is_shown_while_it_runs_and_after(app: Studio, page: ViserClient) -> None:
     ctl, run_panel, preview = app.controller, app.panels.run, app.panels.preview
     ctl.view.set_step(Step.PREVIEW)
     assert 'data-phase="idle"' in run_panel.status.content and not run_panel.stop_btn.visible
@@ -70,7 +86,7 @@ def test_the_run_is_shown_while_it_runs_and_after(app: Studio) -> None:
     ctl.execution.run()
     assert 'data-phase="running"' in run_panel.status.content
     assert run_panel.stop_btn.visible and preview.run_btn.disabled and preview.time.disabled
-    assert wait_for(lambda: len(app.panels.run._nodes) > 0)  # the executed path grows meanwhile
+    assert page.wait_for(lambda _m: drawn(page, "/run/left/executed"), 60)  # the executed path grows meanwhile
     assert wait_for(lambda: 'data-phase="done"' in run_panel.status.content, timeout=60)  # every tab is told
     assert wait_for(lambda: 'data-ok="true"' in preview.run_result.content)
     assert not run_panel.stop_btn.visible
@@ -80,21 +96,28 @@ def test_the_run_is_shown_while_it_runs_and_after(app: Studio) -> None:
     # The executed path, drawn in its colour, lies on the plan (what was computed is what is drawn).
     plan = ctl.execution.plan
     assert plan is not None
-    drawn = nodes(app)["/run/left/executed"]
-    assert tuple(np.asarray(drawn.colors).reshape(-1, 3)[0]) == EXECUTED_COLOR
-    pts = np.asarray(drawn.points, dtype=np.float64).reshape(-1, 3)
     planned = ctl.baxter.fk_batch("left", plan.q[::5, :7])[0]
+
+    def executed() -> tuple[np.ndarray, tuple[int, ...], bool]:
+        got = drawn(page, "/run/left/executed")
+        assert got is not None
+        return got
+
+    # the whole run has reached the page once the drawing ends where the plan ends
+    assert page.wait_for(lambda _m: np.linalg.norm(executed()[0][-1] - planned[-1]) < 3e-3)
+    pts, color, shown = executed()
+    assert color == EXECUTED_COLOR and shown
     assert len(pts) > 500
     assert np.min(np.linalg.norm(pts[::5, None, :] - planned[None, :, :], axis=2), axis=1).max() < 3e-3
     # The "Robot's run" layer hides and shows it.
     ctl.view.set_shown(Layer.EXECUTION, False)
-    assert not drawn.visible
+    assert page.wait_for(lambda _m: not executed()[2])
     ctl.view.set_step(Step.TEACH)
     ctl.view.set_step(Step.PREVIEW)
-    assert drawn.visible
+    assert page.wait_for(lambda _m: executed()[2])
     # A new skill: the last run was of the old one, so its drawing and words go.
     ctl.training.train().result()
-    assert wait_for(lambda: "/run/left/executed" not in nodes(app))
+    assert page.wait_for(lambda _m: drawn(page, "/run/left/executed") is None)
     assert 'data-phase="idle"' in run_panel.status.content and preview.run_result.content == ""
 
 

@@ -17,6 +17,7 @@ from studio.controller.teaching import DISCARD_CONFIRM_S, REACH_HOLD_S
 from studio.core.rotations import matrix_from_quat_wxyz
 from studio.panels.steps import HOME_CAMERA_LOOK_AT, HOME_CAMERA_POSITION
 from tests.conftest import ROOT, RecordingNotifier, free_port, wait_for
+from tests.viser_client import ViserClient
 
 
 @pytest.fixture
@@ -28,71 +29,113 @@ def app(sessions: Path) -> Iterator[Studio]:
     a.stop()
 
 
+@pytest.fixture
+def page(app: Studio) -> Iterator[ViserClient]:
+    """A tab of the studio (viser's websocket protocol, no browser): the scene as the page receives it."""
+    c = ViserClient(f"ws://127.0.0.1:{app.port}/?key={app.access.key}")
+    assert c.wait_for(lambda _m: "/table/top" in c.scene() and c.scene().keys() >= {"/demos", "/objects"}, 30)
+    yield c
+    c.close()
+
+
+def all_drawn(page: ViserClient, prefix: str) -> bool:
+    got = page.layer(prefix)
+    return bool(got) and all(got.values())
+
+
+def none_drawn(page: ViserClient, prefix: str) -> bool:
+    return not any(page.layer(prefix).values())
+
+
+def objects(page: ViserClient) -> dict[str, dict]:
+    """The objects the page draws, by their names in the world (node "/objects/<name>-<tag>")."""
+    return {
+        n.split("/")[2].rsplit("-", 1)[0]: v
+        for n, v in page.scene().items()
+        if n.count("/") == 2 and n.startswith("/objects/")
+    }
+
+
 def notes(app: Studio) -> list[tuple[str, str, str]]:
     notifier = app.controller.notifier
     assert isinstance(notifier, RecordingNotifier)
     return notifier.notes
 
 
-def test_the_step_shows_its_section_and_its_layers(app: Studio) -> None:
+def test_the_step_shows_its_section_and_its_layers(app: Studio, page: ViserClient) -> None:
     panels, view = app.panels, app.controller.view
     sections = panels.steps.sections
     assert [s for s, f in sections.items() if f.visible] == [Step.TEACH]
     assert 'data-step="Teach"' in panels.steps.title.content
-    assert all(n.visible for n in panels.demos._traces.values()) and panels.demos._traces
-    assert all(n.visible for n in panels.demos._marks.values()) and panels.demos._marks
-    assert all(n.visible for n in panels.scene._nodes.values()) and len(panels.scene._nodes) == 2
-    assert not any(n.visible for n in panels.keypoints._kp_nodes.values())
+    assert all_drawn(page, "/demos") and all_drawn(page, "/demo_grips")
+    assert all_drawn(page, "/objects") and len(page.layer("/objects")) == 2
+    assert none_drawn(page, "/keypoints/left")
     view.set_step(Step.KEYPOINTS)
     assert [s for s, f in sections.items() if f.visible] == [Step.KEYPOINTS]
-    assert wait_for(lambda: any(n.visible for n in panels.keypoints._kp_nodes.values()))
+    assert page.wait_for(lambda _m: any(page.layer("/keypoints/left").values()))
     assert not panels.teach.handles["left"].visible  # the gripper handle is a Teach thing
     view.set_step(Step.TRAIN)
-    assert not any(n.visible for n in panels.demos._traces.values())
-    assert not any(n.visible for n in panels.keypoints._kp_nodes.values())
+    assert page.wait_for(lambda _m: none_drawn(page, "/demos") and none_drawn(page, "/keypoints/left"))
     # A "Show" toggle brings a layer back until the next step change.
     view.set_shown(Layer.DEMOS, True)
-    assert all(n.visible for n in panels.demos._traces.values())
+    assert page.wait_for(lambda _m: all_drawn(page, "/demos"))
     assert panels.steps.toggles[Layer.DEMOS].value is True
     view.set_shown(Layer.OBJECTS, False)
-    assert not any(n.visible for n in panels.scene._nodes.values())
+    assert page.wait_for(lambda _m: none_drawn(page, "/objects"))
     view.set_step(Step.TEACH)
-    assert all(n.visible for n in panels.scene._nodes.values()) and panels.teach.handles["left"].visible
+    assert page.wait_for(lambda _m: all_drawn(page, "/objects")) and panels.teach.handles["left"].visible
 
 
-def test_objects_are_drawn_where_the_world_has_them(app: Studio) -> None:
+def drawn_where_the_world_has_them(app: Studio, page: ViserClient) -> bool:
+    drawn = objects(page)
+    poses = {p.name: p for p in app.controller.scene.live.poses()}
+    return sorted(drawn) == sorted(poses) and all(
+        drawn[n]["position"] is not None
+        and np.allclose(drawn[n]["position"], p.position)
+        and np.allclose(drawn[n]["wxyz"] or (1.0, 0.0, 0.0, 0.0), p.wxyz)
+        for n, p in poses.items()
+    )
+
+
+def test_objects_are_drawn_where_the_world_has_them(app: Studio, page: ViserClient) -> None:
     ctl, panel = app.controller, app.panels.scene
-    assert sorted(panel._nodes) == ["block", "pad"]
-    for p in ctl.scene.live.poses():
-        node = panel._nodes[p.name]
-        assert np.allclose(node.position, p.position) and np.allclose(node.wxyz, p.wxyz)
+    assert sorted(objects(page)) == ["block", "pad"]
+    assert page.wait_for(lambda _m: drawn_where_the_world_has_them(app, page))
     table = ctl.scene.scene.table
-    assert table is not None and len(panel._table) == 5  # top and four legs
-    top = panel._table[0]
-    assert top.position[2] + 0.5 * 0.03 == pytest.approx(table.top_z)
+    assert table is not None and sorted(page.layer("/table")) == [
+        "/table/leg0",
+        "/table/leg1",
+        "/table/leg2",
+        "/table/leg3",
+        "/table/top",
+    ]
+    top = page.scene()["/table/top"]
+    assert top["position"][2] + 0.5 * top["props"]["dimensions"][2] == pytest.approx(table.top_z)
     # Added, moved and removed objects follow at the next pump tick.
     name = ctl.scene.add("cup")
-    assert name in panel._nodes
+    assert page.wait_for(lambda _m: name in objects(page))
     ctl.scene.move(name, (0.62, -0.3, 0.1), yaw=0.4)
     panel.tick(0.0)
-    node = panel._nodes[name]
-    assert np.allclose(node.position, (0.62, -0.3, -0.07))
-    R = matrix_from_quat_wxyz(np.asarray(node.wxyz))
+    assert page.wait_for(lambda _m: np.allclose(objects(page)[name]["position"] or (0, 0, 0), (0.62, -0.3, -0.07)))
+    R = matrix_from_quat_wxyz(np.asarray(objects(page)[name]["wxyz"]))
     assert np.arctan2(R[1, 0], R[0, 0]) == pytest.approx(0.4)
     assert list(panel.pick.options) == ["(none)", "pad", "block", name]
     ctl.scene.remove(name)
-    assert name not in panel._nodes and list(panel.pick.options) == ["(none)", "pad", "block"]
+    assert page.wait_for(lambda _m: name not in objects(page))
+    assert list(panel.pick.options) == ["(none)", "pad", "block"]
 
 
-def test_replaying_a_demo_moves_the_drawn_block(app: Studio) -> None:
-    ctl, panel = app.controller, app.panels.scene
+def test_replaying_a_demo_moves_the_drawn_block(app: Studio, page: ViserClient) -> None:
+    ctl = app.controller
     rec = ctl.session.recordings[0]
     events = ctl.session.objects.events(ctl.session.demo_files[0])
     release = next(e for e in events if e.kind == "release")
     landed = release.pose("block")
     assert landed is not None and landed.on == "pad"
     ctl.playback.seek(REPLAY, release.t + 0.5, rec, lambda: rec)
-    assert wait_for(lambda: np.allclose(panel._nodes["block"].position, landed.position, atol=1e-6))
+    assert page.wait_for(
+        lambda _m: (p := objects(page)["block"]["position"]) is not None and np.allclose(p, landed.position, atol=1e-6)
+    )
 
 
 def test_task_result_in_the_preview_panel(app: Studio) -> None:
@@ -204,26 +247,23 @@ def test_reset_view_puts_the_camera_back(app: Studio) -> None:
     assert cam.up_direction == (0.0, 0.0, 1.0)  # type: ignore[attr-defined]
 
 
-def test_an_object_is_moved_with_its_handle(app: Studio) -> None:
-    from types import SimpleNamespace
-
-    ctl, panel = app.controller, app.panels.scene
-    assert not panel.handle.visible  # no object chosen: no handle
-    panel.pick.value = "block"  # type: ignore[misc]
-    panel._on_pick(None)  # type: ignore[arg-type]
+def test_an_object_is_moved_with_its_handle(app: Studio, page: ViserClient) -> None:
+    ctl = app.controller
+    handle = lambda: page.scene()["/objects_handle"]  # noqa: E731
+    assert not handle()["visible"]  # no object chosen: no handle
+    page.set_value("Object", "block")
     block = ctl.scene.scene.object("block")
-    assert panel.handle.visible
-    assert np.allclose(panel.handle.position, np.add(block.position, (0, 0, block.size[2])))
+    top = np.add(block.position, (0, 0, block.size[2]))
+    assert page.wait_for(lambda _m: handle()["visible"] and np.allclose(handle()["position"] or (0, 0, 0), top))
     # Dragged: the object follows the handle; let go: it settles on what is below and is saved.
-    panel.handle.position = (0.6, -0.25, 0.2)
-    panel._on_handle(SimpleNamespace(phase="update", client=None))
-    assert np.allclose(panel._nodes["block"].position, (0.6, -0.25, 0.15))
-    panel._on_handle(SimpleNamespace(phase="end", client=None))
-    moved = ctl.scene.scene.object("block")
-    assert moved.position == pytest.approx((0.6, -0.25, -0.07))
-    assert np.allclose(panel.handle.position, (0.6, -0.25, -0.02))  # back on the settled block's top
+    page.drag("/objects_handle", (0.6, -0.25, 0.2), end=False)
+    assert page.wait_for(lambda _m: np.allclose(objects(page)["block"]["position"], (0.6, -0.25, 0.15)))
+    page.drag("/objects_handle", (0.6, -0.25, 0.2))
+    assert wait_for(lambda: ctl.scene.scene.object("block").position == pytest.approx((0.6, -0.25, -0.07)))
+    # back on the settled block's top
+    assert page.wait_for(lambda _m: np.allclose(handle()["position"], (0.6, -0.25, -0.02)))
     ctl.view.set_step(Step.PREVIEW)
-    assert not panel.handle.visible  # a Teach thing
+    assert page.wait_for(lambda _m: not handle()["visible"])  # a Teach thing
 
 
 @pytest.mark.parametrize(

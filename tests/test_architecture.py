@@ -10,6 +10,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.sources import tree as parsed
+
 STUDIO = Path(__file__).resolve().parent.parent / "studio"
 #: Each layer may import only the layers listed (and itself); see ARCHITECTURE.md.
 ALLOWED = {
@@ -58,7 +60,7 @@ MODULES = {_module_name(p): p for p in sorted(STUDIO.rglob("*.py"))}
 def _imports(path: Path) -> set[str]:
     """Every studio module ``path`` imports, anywhere in the file (functions and TYPE_CHECKING blocks too)."""
     out: set[str] = set()
-    for node in ast.walk(ast.parse(path.read_text())):
+    for node in ast.walk(parsed(path)):
         names: list[str] = []
         if isinstance(node, ast.Import):
             names = [a.name for a in node.names]
@@ -112,7 +114,7 @@ def test_layers_import_only_downwards() -> None:
 def test_core_and_controller_know_nothing_of_viser() -> None:
     for name, path in MODULES.items():
         if _layer(name) in ("core", "controller", "storage", "recorder", "robot_backend"):
-            tree = ast.parse(path.read_text())
+            tree = parsed(path)
             mods = [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
             mods += [n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)]
             assert not [m for m in mods if m.split(".")[0] == "viser"], f"{name} imports viser"
@@ -125,7 +127,7 @@ def test_panels_never_touch_each_other_or_private_state() -> None:
         # studio/panels/_*.py are shared helpers (charts, slider tables, page behaviour), not panels
         others = {n for n in GRAPH[name] if n.startswith("studio.panels.") and not n.split(".")[-1].startswith("_")}
         assert not others, f"{name} imports another panel: {others}"
-        for node in ast.walk(ast.parse(path.read_text())):
+        for node in ast.walk(parsed(path)):
             if isinstance(node, ast.Attribute):
                 chain = ast.unparse(node)
                 assert ".panels" not in chain, f"{name}: {chain} reaches into another panel"
@@ -136,7 +138,7 @@ def test_panels_never_touch_each_other_or_private_state() -> None:
 
 def _controller_parts() -> set[str]:
     """The classes ``Controller.__init__`` builds its parts from (``self.x = Part(...)``)."""
-    tree = ast.parse(MODULES["studio.controller"].read_text())
+    tree = parsed(MODULES["studio.controller"])
     init = next(
         n
         for c in tree.body
@@ -162,7 +164,7 @@ def test_controller_parts_never_take_each_other() -> None:
     for name, path in MODULES.items():
         if _layer(name) != "controller":
             continue
-        for cls in ast.walk(ast.parse(path.read_text())):
+        for cls in ast.walk(parsed(path)):
             if not (isinstance(cls, ast.ClassDef) and cls.name in parts):
                 continue
             for fn in cls.body:
@@ -180,7 +182,7 @@ def test_modules_and_classes_stay_under_the_ceiling() -> None:
         src = path.read_text()
         if _layer(name) != "core" and len(src.splitlines()) > MAX_MODULE_LINES:
             big.append(f"{name}: {len(src.splitlines())} lines")
-        for node in ast.walk(ast.parse(src)):
+        for node in ast.walk(parsed(path)):
             if isinstance(node, ast.ClassDef) and node.end_lineno is not None:
                 n = node.end_lineno - node.lineno + 1
                 if n > MAX_CLASS_LINES:

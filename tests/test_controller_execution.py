@@ -13,7 +13,6 @@ import dataclasses
 import re
 import shutil
 import tempfile
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -207,11 +206,11 @@ def test_emergency_stop_halts_within_one_control_cycle_and_refuses_motion_until_
         sim.subscribe(stream)
         ctl.execution.run()
         assert wait_for(lambda: ctl.execution.status.t > 2.0, timeout=20)
-        t_call = sim._clock.now()
+        t_call = sim.now()
         ctl.execution.emergency_stop()
         assert ctl.execution.status.estop
         assert wait_for(lambda: not ctl.execution.running)
-        time.sleep(0.3)
+        assert wait_for(lambda: sim.sim_time > t_call + 0.3)
         t, q, _ = stream.arrays()
         moving = np.flatnonzero(np.abs(np.diff(q, axis=0)).max(axis=1) > 0)
         assert moving.size and t[moving[0]] < t_call  # it was moving when the button was pressed
@@ -346,7 +345,7 @@ def test_a_run_pressed_while_an_arm_moved_by_hand_still_moves_starts_from_rest_t
         ctl.teaching.command_arm("left", q + 0.5)
         assert sim.state().moving  # on its way (≈ 0.4 s to get there)
         ctl.execution.run()  # the arm holds where it is, at rest, and the plan approaches the skill from there
-        time.sleep(1.5)
+        assert wait_for(lambda: ctl.execution.status.t > 1.5, timeout=30)
         ctl.execution.stop()
         assert wait_for(lambda: not ctl.execution.running)
         report = ctl.execution.report

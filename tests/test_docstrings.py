@@ -9,6 +9,8 @@ import re
 import tokenize
 from pathlib import Path
 
+from tests.sources import tree as parsed
+
 STUDIO = Path(__file__).resolve().parent.parent / "studio"
 DECISIONS = Path(__file__).resolve().parent.parent / "docs" / "decisions"
 #: "A docstring says what a thing does in a few lines": the longest module docstring allowed, in characters.
@@ -39,7 +41,7 @@ def _texts(path: Path) -> list[tuple[int, str]]:
         for tok in tokenize.generate_tokens(io.StringIO(src).readline)
         if tok.type == tokenize.COMMENT
     ]
-    for node in ast.walk(ast.parse(src)):
+    for node in ast.walk(parsed(path)):
         if isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef | ast.AsyncFunctionDef):
             doc = ast.get_docstring(node, clean=False)
             if doc and node.body:
@@ -50,7 +52,7 @@ def _texts(path: Path) -> list[tuple[int, str]]:
 def test_module_docstrings_say_what_in_a_few_lines() -> None:
     long = []
     for path in _modules():
-        doc = ast.get_docstring(ast.parse(path.read_text()), clean=False) or ""
+        doc = ast.get_docstring(parsed(path), clean=False) or ""
         if len(doc) > MAX_MODULE_DOCSTRING:
             long.append(f"{path.relative_to(STUDIO.parent)}: {len(doc)} characters")
     assert not long, "module docstrings over 600 characters (reasons go to docs/decisions/):\n" + "\n".join(long)

@@ -4,7 +4,6 @@ demonstration and compared with the plan."""
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +18,7 @@ from studio.core.types import Recording
 from studio.recorder import Recorder
 from studio.robot_backend.replay import ReplayBackend
 from studio.robot_backend.simulated import SimulatedBaxter
-from tests.conftest import Collector
+from tests.conftest import Collector, wait_for
 from tests.core.teacher_demos import demos
 
 
@@ -147,10 +146,10 @@ def test_emergency_stop_halts_within_one_control_cycle_in_real_time(skill) -> No
     sim.start()
     try:
         sim.execute(plan)
-        time.sleep(0.6)  # moving by now (the approach)
-        t_call = sim._clock.now()
+        assert wait_for(lambda: sim.sim_time > 0.6)  # moving by now (the approach)
+        t_call = sim.now()
         sim.emergency_stop()
-        time.sleep(0.2)
+        assert wait_for(lambda: sim.sim_time > t_call + 0.2)
     finally:
         sim.stop()
     t, q, _ = col.arrays()

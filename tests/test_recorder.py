@@ -22,6 +22,7 @@ from studio.recorder import Recorder, pending_recordings, read_recording_file, r
 from studio.robot_backend.base import JointStateBatch, RobotBackend, RobotState
 from studio.robot_backend.simulated import SimulatedBaxter
 from studio.storage import SessionStore
+from tests.conftest import wait_for
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -84,7 +85,7 @@ def test_flushes_to_disk_while_recording(tmp_path: Path) -> None:
     rec.start()
     sim.start()
     try:
-        time.sleep(1.6)
+        assert wait_for(lambda: sim.sim_time >= 1.6)
         now = sim.sim_time
         # Read the file as a crash would leave it, without asking the recorder to flush.
         on_disk = read_recording_file(rec.path)  # type: ignore[arg-type]

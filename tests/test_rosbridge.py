@@ -20,7 +20,7 @@ from studio.core.types import ARM_JOINTS, Arm
 from studio.robot_backend.base import JointStateBatch
 from studio.robot_backend.rosbridge import RosbridgeBaxter, parse_robot_url
 from tests.baxter_bed import BaxterBed
-from tests.conftest import wait_for
+from tests.conftest import quiet_for, wait_for
 from tests.core.teacher_demos import demos
 
 EXPECTED_TYPES = {
@@ -108,7 +108,7 @@ def test_joint_states_arrive_while_a_command_holds_the_robot(bridge: BaxterBed, 
 def test_joint_commands_are_position_mode_by_name_at_100_hz(bridge: BaxterBed, robot: RosbridgeBaxter) -> None:
     target = robot.state().q[:7] + 0.05
     robot.command_joints("left", target)
-    time.sleep(0.6)
+    assert wait_for(lambda: len(bridge.by_op("publish", "/robot/limb/left/joint_command")) >= 40)
     cmds = bridge.by_op("publish", "/robot/limb/left/joint_command")
     assert cmds, "no joint command"
     for _, o in cmds:
@@ -121,10 +121,7 @@ def test_joint_commands_are_position_mode_by_name_at_100_hz(bridge: BaxterBed, r
     assert 50 < rate < 130, rate
     assert wait_for(lambda: np.allclose(robot.state().q[:7], target))
     # after the hold time the arm is no longer commanded (it can be guided by hand again)
-    time.sleep(1.3)
-    n = len(bridge.by_op("publish", "/robot/limb/left/joint_command"))
-    time.sleep(0.3)
-    assert len(bridge.by_op("publish", "/robot/limb/left/joint_command")) == n
+    assert quiet_for(lambda: len(bridge.by_op("publish", "/robot/limb/left/joint_command")), 0.3, timeout=5)
     assert not bridge.by_op("publish", "/robot/limb/right/joint_command")
 
 
@@ -186,7 +183,7 @@ def test_emergency_stop_holds_at_once_and_refuses_motion(
     st = robot.state()
     plan = plan_execution({"left": sk.joint_trajectory}, st.q, st.gripper, rate_hz=100.0)
     robot.execute(plan)
-    time.sleep(1.0)
+    assert wait_for(lambda: robot.progress().t > 1.0)
     held = robot.state().q[:7].copy()
     n_before = len(bridge.by_op("publish", LEFT_CMD))
     caller, sent = threading.get_ident(), {}
@@ -229,7 +226,7 @@ def test_controlled_stop_slows_to_rest(bridge: BaxterBed, robot: RosbridgeBaxter
     st = robot.state()
     plan = plan_execution({"left": sk.joint_trajectory}, st.q, st.gripper, rate_hz=100.0)
     robot.execute(plan)
-    time.sleep(1.5)
+    assert wait_for(lambda: robot.progress().t > 1.5)
     robot.stop_motion()
     assert robot.progress().state == "stopping"
     assert wait_for(lambda: robot.progress().state == "stopped")

@@ -61,7 +61,7 @@ def test_real_time_run_is_exact_and_batched() -> None:
     sim.subscribe(col)
     t0 = time.perf_counter()
     sim.start()
-    time.sleep(0.5)
+    _wait(lambda: sim.sim_time >= 0.5)
     sim.stop()
     wall = time.perf_counter() - t0
     t, _, _ = col.arrays()

@@ -14,16 +14,36 @@ from collections.abc import Callable
 from typing import Any
 
 import msgspec
+import numpy as np
 import viser
 import zstandard
 from websockets.sync.client import ClientConnection, connect
 
 
 def decode_frame(frame: bytes) -> list[dict[str, Any]]:
+    """The messages of one frame; numpy arrays (sent as raw buffers after the msgpack) as flat numpy arrays."""
     n_inner = int.from_bytes(frame[0:8], "little")
     n_comp = int.from_bytes(frame[8:16], "little")
-    inner = zstandard.ZstdDecompressor().decompress(frame[16 : 16 + n_comp], max_output_size=n_inner)
-    return list(msgspec.msgpack.decode(inner).get("messages", ()))
+    inner = msgspec.msgpack.decode(
+        zstandard.ZstdDecompressor().decompress(frame[16 : 16 + n_comp], max_output_size=n_inner)
+    )
+    buffers: list[bytes] = []
+    offset = 16 + n_comp
+    for n in inner.get("binaryBufferLengths", ()):
+        offset += (8 - offset % 8) % 8
+        buffers.append(frame[offset : offset + n])
+        offset += n
+
+    def fill(v: Any) -> Any:
+        if isinstance(v, dict):
+            if "__binary_index" in v:
+                return np.frombuffer(buffers[v["__binary_index"]], dtype=v["dtype"])
+            return {k: fill(x) for k, x in v.items()}
+        if isinstance(v, list):
+            return [fill(x) for x in v]
+        return v
+
+    return [fill(m) for m in inner.get("messages", ())]
 
 
 class ViserClient:
@@ -114,6 +134,56 @@ class ViserClient:
         """Change an input or press a button (buttons: value True; button groups: the option)."""
         uuid = self.wait_gui(label)["uuid"]
         self.send({"type": "GuiUpdateMessage", "uuid": uuid, "updates": {"value": value}})
+
+    def scene(self) -> dict[str, dict[str, Any]]:
+        """The scene as this page has it: node name → {"type", "props", "visible", "position", "wxyz"}."""
+        nodes: dict[str, dict[str, Any]] = {}
+        for m in self.snapshot():
+            t, name = m["type"], m.get("name")
+            if name is None or t.startswith("Gui"):
+                continue
+            if isinstance(m.get("props"), dict) and t.endswith("Message") and "virtual" in m:
+                nodes[name] = {"type": t, "props": dict(m["props"]), "visible": True, "position": None, "wxyz": None}
+            elif name not in nodes:
+                continue
+            elif t == "RemoveSceneNodeMessage":
+                del nodes[name]
+            elif t == "SetSceneNodeVisibilityMessage":
+                nodes[name]["visible"] = bool(m["visible"])
+            elif t == "SetPositionMessage":
+                nodes[name]["position"] = tuple(m["position"])
+            elif t == "SetOrientationMessage":
+                nodes[name]["wxyz"] = tuple(m["wxyz"])
+            elif t == "SceneNodeUpdateMessage":
+                nodes[name]["props"].update(m["updates"])
+        return nodes
+
+    def shown(self, prefix: str) -> dict[str, dict[str, Any]]:
+        """The nodes under ``prefix`` the page draws (a node is drawn when it and every parent are visible)."""
+        nodes = self.scene()
+
+        def drawn(name: str) -> bool:
+            parts = name.split("/")
+            return all(nodes.get("/".join(parts[:i]), {"visible": True})["visible"] for i in range(2, len(parts) + 1))
+
+        return {n: v for n, v in nodes.items() if n.startswith(prefix) and drawn(n)}
+
+    def layer(self, prefix: str) -> dict[str, bool]:
+        """The nodes right under ``prefix`` (e.g. "/demos"), each with whether the page draws it."""
+        nodes, shown = self.scene(), self.shown(prefix + "/")
+        depth = prefix.count("/") + 1
+        return {n: n in shown for n in nodes if n.startswith(prefix + "/") and n.count("/") == depth}
+
+    def drag(
+        self, name: str, position: tuple[float, float, float], wxyz=(1.0, 0.0, 0.0, 0.0), end: bool = True
+    ) -> None:
+        """What a page sends when the transform handle ``name`` is dragged to ``position`` (and let go)."""
+        self.send({"type": "TransformControlsDragStartMessage", "name": name, "owner": ""})
+        self.send(
+            {"type": "TransformControlsUpdateMessage", "name": name, "wxyz": wxyz, "position": position, "owner": ""}
+        )
+        if end:
+            self.send({"type": "TransformControlsDragEndMessage", "name": name, "owner": ""})
 
     def notifications(self) -> list[dict[str, Any]]:
         return [m for m in self.snapshot() if m["type"] in ("NotificationShowMessage", "NotificationUpdateMessage")]

@@ -78,6 +78,11 @@ class Events:
 
         return off
 
+    def clear(self) -> None:
+        """Drop every subscription (the views are gone: a job still running tells no one)."""
+        with self._lock:
+            self._subs.clear()
+
     def emit(self, topic: Topic) -> None:
         with self._lock:
             subs = list(self._subs.get(Topic(topic), ()))

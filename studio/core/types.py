@@ -568,8 +568,7 @@ def _routes_from_arrays(d: dict[str, np.ndarray]) -> dict:
         raise InvalidInput("The saved skill's routes are damaged.")
     off = np.concatenate([[0], np.cumsum(sizes)])
     routes = tuple(
-        SkillRoute(tuple(names[off[i] : off[i + 1]]), (float(a[0]), float(a[1]), float(a[2])))
-        for i, a in enumerate(at)
+        SkillRoute(tuple(names[off[i] : off[i + 1]]), (float(a[0]), float(a[1]), float(a[2]))) for i, a in enumerate(at)
     )
     route = int(d["route"])
     if routes and not 0 <= route < len(routes):

@@ -116,6 +116,7 @@ class TrainPanel:
             return
         frames = next((f for f, words in FRAME_WORDS.items() if words == self.frames.value), DEFAULT_FRAMES)
         self.ctl.training.set_frames(frames)
+
     def _on_way(self, event: viser.GuiEvent) -> None:
         choice = self._ways.get(self.way.value)
         if event.client is None or choice is None or self.ctl.training.busy:

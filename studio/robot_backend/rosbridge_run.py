@@ -107,9 +107,7 @@ def why_ended(health: RobotHealth, robot: AssemblyState | None, p: ExecutionProg
     return ""
 
 
-def tick_forever(
-    period: float, tick: Callable[[], None], stop: threading.Event, ping: Callable[[float], None]
-) -> None:
+def tick_forever(period: float, tick: Callable[[], None], stop: threading.Event, ping: Callable[[float], None]) -> None:
     """Call ``tick`` every ``period`` seconds of wall time until ``stop`` (a late tick is not caught up), and
     ``ping`` a callback to the event loop that reads the robot (see :meth:`RobotWatch.ping`)."""
     next_t = time.monotonic()

@@ -214,6 +214,10 @@ class SimulatedBaxter(SimFaults, RobotBackend):
         """Time stamp (s) of the next sample to be produced."""
         return self._arms.k * self.dt
 
+    def now(self) -> float:
+        """Simulated time (s) that corresponds to the wall clock now (between two batches' stamps)."""
+        return self._clock.now()
+
     @property
     def samples_produced(self) -> int:
         return self._arms.k

@@ -255,7 +255,7 @@ def _object_result(run: WorldRun, g: ObjectGoal) -> ObjectResult:
         return ObjectResult(name, False, "moved", f"The {name} ended {off}{again}.", d)
     on = g.relative_to[-1] if g.relative_to else None
     if on:
-        text = f"The {name} ended on the {on}, {format_distance(d)} off where you put it — the skill works."
+        text = f"The {name} ended on the {on}, {format_distance(d)} from where you put it — the skill works."
     else:
         text = f"The {name} ended {format_distance(d)} from {g.where()} — the skill works."
     return ObjectResult(name, True, "works", text, d)

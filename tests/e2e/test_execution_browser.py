@@ -34,27 +34,14 @@ VIEWS = {
 }
 
 
-def views(
-    app: Studio, page: Page, out: Path, step: str, settle: float = 1.0, order: tuple[str, ...] = ("front", "top")
-) -> None:
-    """Screenshots of ``step`` from the front and from the top (the camera set through the page's client)."""
-    for view in order:
-        camera(app, view)
-        time.sleep(settle)
-        ui.dismiss_notifications(page, only_webgl=False)
-        page.screenshot(path=str(out / f"{step}-{view}.png"))
+def views(app: Studio, page: Page, out: Path, step: str, order: tuple[str, ...] = ("front", "top")) -> None:
+    """Screenshots of ``step`` from the front and from the top, once the drawing has come to rest."""
+    ui.views(app.server, page, out, step, {v: VIEWS[v] for v in order})
 
 
 def camera(app: Studio, view: str) -> None:
     """Point the page's camera from ``view`` ("front" or "top") and wait until the page has it."""
-    pos, at = VIEWS[view]
-    cam = next(iter(app.server.get_clients().values())).camera
-    cam.up_direction = (0.0, 0.0, 1.0)
-    cam.position = pos
-    cam.look_at = at
-    deadline = time.monotonic() + 10
-    while time.monotonic() < deadline and not np.allclose(cam.position, pos, atol=1e-3):
-        time.sleep(0.1)
+    ui.look(next(iter(app.server.get_clients().values())), *VIEWS[view])
 
 
 def node(app: Studio, name: str):
@@ -123,7 +110,8 @@ def test_run_on_robot_follows_the_plan_and_does_the_task(browser, tmp_path) -> N
         assert world.on == "pad", world
         assert np.hypot(*(drawn_block(app)[:2] - np.array(PICK_PLACE_B[:2]))) < 0.03
         page.screenshot(path=str(out / "1-block-on-the-pad-front.png"))
-        views(app, page, out, "2-mid-run", settle=0.3, order=("top",))  # (the block is carried back by then)
+        # (the block is carried back by then)
+        ui.views(app.server, page, out, "2-mid-run", {"top": VIEWS["top"]}, rest=False)
         # The end: the status on every step, the judgement in Preview.
         expect(page.locator('.run-status[data-phase="done"]')).to_be_attached(timeout=60_000)
         expect(page.locator(".run-status")).to_have_text(re.compile(r"The robot finished the skill \([\d.]+ s\)\."))
@@ -264,7 +252,7 @@ def test_the_robots_own_estop_button_during_a_run(browser, tmp_path) -> None:
         expect(page.get_by_role("button", name="Run on robot")).to_be_disabled()
         expect(page.locator(".run-reason")).to_contain_text("emergency-stop button is pressed")
         page.locator(".run-status").first.scroll_into_view_if_needed()
-        views(app, page, out, "1-robot-estop", settle=0.3, order=("front",))
+        views(app, page, out, "1-robot-estop", order=("front",))
         (out / "words.txt").write_text(f"{text}\n{light.inner_text()}\n{result.inner_text()}\n")
         page.get_by_role("button", name="Release the robot's e-stop button").click()
         page.get_by_role("button", name="Enable robot").click()

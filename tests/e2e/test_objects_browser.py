@@ -1,11 +1,10 @@
 """In real Chromium, a skill that follows the objects: open the stack-cup example, train, choose the bottom cup and
-move it with its handle (the handle's update and drag-end messages, as the page sends them when dragged), read in
+move it with its handle (the drag messages a page sends, from a second tab), read in
 Preview that the cup now stands where no demonstration put it and the adapted task result ("ended on the bottom
 cup"), preview it; screenshots from the front and the top before and after the move."""
 
 from __future__ import annotations
 
-import asyncio
 import shutil
 import time
 from pathlib import Path
@@ -13,12 +12,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 from playwright.sync_api import Page, expect
-from viser import _messages
-from viser.infra import ClientId
 
 from studio.app import Studio, build_app
 from tests.e2e import ui
 from tests.e2e.conftest import ARTIFACTS, free_port
+from tests.viser_client import ViserClient
 
 pytestmark = pytest.mark.e2e
 
@@ -30,37 +28,14 @@ VIEWS = {
 
 
 def views(app: Studio, page: Page, out: Path, step: str) -> None:
-    client = next(iter(app.server.get_clients().values()))
-    for view, (pos, at) in VIEWS.items():
-        cam = client.camera
-        cam.up_direction = (0.0, 0.0, 1.0)
-        cam.position = pos
-        cam.look_at = at
-        deadline = time.monotonic() + 10
-        while time.monotonic() < deadline and not np.allclose(cam.position, pos, atol=1e-3):
-            time.sleep(0.1)
-        time.sleep(1.0)
-        ui.dismiss_notifications(page, only_webgl=False)
-        page.screenshot(path=str(out / f"{step}-{view}.png"))
+    """Screenshots of ``step`` from the front and from the top, once the drawing has come to rest."""
+    ui.views(app.server, page, out, step, VIEWS)
 
 
-def drag_handle(app: Studio, position: tuple[float, float, float], wxyz: tuple[float, float, float, float]) -> None:
-    """What the page sends when the object's handle is dragged to ``position`` and let go."""
-    scene = app.server.scene
-    client_id = ClientId(next(iter(app.server.get_clients())))
-    loop = app.server._event_loop
-    update = _messages.TransformControlsUpdateMessage("/objects_handle", wxyz, position)
-    end = _messages.TransformControlsDragEndMessage("/objects_handle")
-    for coro in (
-        scene._handle_transform_controls_updates(client_id, update),
-        scene._handle_transform_controls_drag_end(client_id, end),
-    ):
-        asyncio.run_coroutine_threadsafe(coro, loop).result(timeout=10)
-
-
-def drawn(app: Studio, prefix: str) -> np.ndarray:
-    handles = app.server.scene._handle_from_node_name
-    return np.array(next(h for n, h in handles.items() if n.startswith(prefix)).position, dtype=float)
+def drawn(tab: ViserClient, prefix: str) -> np.ndarray:
+    """Where the tab draws the first node whose name starts with ``prefix``."""
+    node = next(v for n, v in tab.scene().items() if n.startswith(prefix))
+    return np.array(node["position"], dtype=float)
 
 
 def test_move_the_cup_and_the_skill_follows_it(browser, tmp_path) -> None:
@@ -71,7 +46,7 @@ def test_move_the_cup_and_the_skill_follows_it(browser, tmp_path) -> None:
     sessions.mkdir()
     shutil.copytree(ROOT / "sessions" / "stack-cup", sessions / "stack-cup")
     app = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
-    page = None
+    page, tab = None, None
     try:
         page = ui.open_studio(browser, app.url())
         ui.tab(page, "Train")
@@ -86,16 +61,16 @@ def test_move_the_cup_and_the_skill_follows_it(browser, tmp_path) -> None:
         # Choose the bottom cup and drag its handle 6 cm to the robot's right.
         ui.tab(page, "Teach")
         ui.choose(page, "Object", "bottom cup")
-        handle = app.server.scene._handle_from_transform_controls_name["/objects_handle"]
-        assert wait(lambda: handle.visible)
-        before = np.array(handle.position, dtype=float)
+        tab = ViserClient(f"ws://127.0.0.1:{app.port}/?key={app.access.key}")  # a second tab drags the handle
+        handle = lambda: tab.scene().get("/objects_handle", {})  # noqa: E731
+        assert tab.wait_for(lambda _m: handle().get("visible") and handle().get("position") is not None, 30)
+        before = np.array(handle()["position"], dtype=float)
         target = (float(before[0]), float(before[1] - 0.06), float(before[2]))
-        w = [float(v) for v in handle.wxyz]
-        drag_handle(app, target, (w[0], w[1], w[2], w[3]))
+        tab.drag("/objects_handle", target, tuple(float(v) for v in handle()["wxyz"] or (1.0, 0.0, 0.0, 0.0)))
         moved = lambda: app.controller.scene.scene.object("bottom cup")  # noqa: E731
         assert wait(lambda: abs(moved().position[1] - (before[1] - 0.06)) < 1e-6)
         bottom = moved()
-        assert wait(lambda: abs(drawn(app, "/objects/bottom_cup")[1] - bottom.position[1]) < 1e-6)
+        assert wait(lambda: abs(drawn(tab, "/objects/bottom_cup")[1] - bottom.position[1]) < 1e-6)
         # Preview: said before the run, and the adapted task result.
         ui.tab(page, "Preview")
         warn = page.locator('.reach-warning[data-outside="true"]').first
@@ -112,12 +87,14 @@ def test_move_the_cup_and_the_skill_follows_it(browser, tmp_path) -> None:
         app.controller.playback.seek_preview(end)
 
         def on_bottom() -> bool:
-            cup = drawn(app, "/objects/cup")
+            cup = drawn(tab, "/objects/cup")
             return bool(np.hypot(cup[0] - bottom.position[0], cup[1] - bottom.position[1]) < 0.01)
 
-        assert wait(on_bottom), (drawn(app, "/objects/cup"), bottom.position)
+        assert wait(on_bottom), (drawn(tab, "/objects/cup"), bottom.position)
         views(app, page, out, "2-cup-moved")
     finally:
+        if tab is not None:
+            tab.close()
         if page is not None:
             page.close()
         app.stop()

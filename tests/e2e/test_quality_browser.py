@@ -60,7 +60,6 @@ def test_live_path_suggest_and_verdict(browser, studio_factory, shots, sessions)
     )
     expect(page.locator(".live-path").first).to_contain_text(re.compile(r"within \d"))
     shots(page, "eps5 three more steps: the live path redrawn")
-    mine = ui.threshold_value(page, EPS5)
 
     # Moving an orientation slider far down the panel, the key-point counts stay in sight above it.
     ui.open_folder(page, "Orientation (ε8–ε14)")
@@ -77,6 +76,14 @@ def test_live_path_suggest_and_verdict(browser, studio_factory, shots, sessions)
     assert before != {} and counts != {}
 
     # Suggest: progress while it searches, applied as one change, before/after figures, Undo puts mine back.
+    # My travel distance is made far too long first (a few key-points only), so that Suggest has something
+    # clearly better to offer on any machine: its first round alone beats it.
+    counts_line = page.locator(".kp-line").first
+    old_counts = counts_line.inner_text()
+    ui.set_threshold(page, EPS5, 30)
+    expect(counts_line).not_to_have_text(old_counts)  # the studio has my new value: fewer key-points
+    mine = ui.threshold_value(page, EPS5)
+    assert mine == pytest.approx(30)
     page.get_by_role("button", name="Suggest thresholds").scroll_into_view_if_needed()
     page.get_by_role("button", name="Suggest thresholds").click()
     expect(page.locator('.suggest-state[data-running="1"]')).to_have_count(1, timeout=30_000)

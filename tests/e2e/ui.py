@@ -184,3 +184,65 @@ def wait_keypoint_counts_change(page: Page, before: dict[str, int], timeout: flo
     """Wait until the key-point counts shown differ from ``before``; returns the new counts."""
     page.wait_for_function(_COUNTS_JS, arg=before, polling=100, timeout=timeout * 1000)
     return keypoint_counts(page)
+
+
+def _screenshot_array(page: Page):
+    import io
+
+    import numpy as np
+    from PIL import Image
+
+    return np.asarray(Image.open(io.BytesIO(page.screenshot())).convert("RGB")).astype(int)
+
+
+def settle(page: Page, timeout: float = 30.0):
+    """Screenshots until three in a row agree (camera and drawing have come to rest); returns the last."""
+    import time
+
+    import numpy as np
+
+    shots = [_screenshot_array(page)]
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        page.wait_for_timeout(200)
+        shots.append(_screenshot_array(page))
+        if len(shots) >= 3 and all(np.abs(a - shots[-1]).max() <= 8 for a in shots[-3:-1]):
+            return shots[-1]
+    raise AssertionError("the page never came to rest")
+
+
+def look(client, pos, at, up=(0.0, 0.0, 1.0), timeout: float = 30.0) -> None:
+    """Point a page's camera (``client`` = its viser ClientHandle) and wait until the page reports it back."""
+    import threading
+
+    import numpy as np
+
+    seen = threading.Event()
+    cam = client.camera
+
+    def on_update(c) -> None:
+        if np.allclose(c.position, pos, atol=1e-3) and np.allclose(c.look_at, at, atol=1e-3):
+            seen.set()
+
+    cam.on_update(on_update)
+    cam.up_direction = up
+    cam.position = pos
+    cam.look_at = at
+    if not seen.wait(timeout):
+        raise AssertionError(f"the page did not take the camera pose {pos} → {at}")
+
+
+def views(server, page: Page, out, step: str, poses: dict, rest: bool = True) -> None:
+    """Screenshots of ``step`` from each named camera pose ((position, look-at) pairs).
+
+    ``rest``: once the drawing has come to rest; False (something is moving): once the page drew a frame.
+    """
+    client = next(iter(server.get_clients().values()))
+    for view, (pos, at) in poses.items():
+        look(client, pos, at)
+        dismiss_notifications(page, only_webgl=False)
+        if rest:
+            settle(page)
+        else:
+            page.evaluate("() => new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
+        page.screenshot(path=str(out / f"{step}-{view}.png"))
