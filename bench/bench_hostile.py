@@ -22,6 +22,9 @@ Parts (``--part NAME`` runs one):
   studio's own plain-words errors.
 * ``memory``    peak memory of importing a 10 M-row CSV and of key-points and training with a noisy 3 M-sample
   demonstration, each in a fresh process (issue 21 §5); baselines: a 100,000-row CSV, the example session.
+* ``issue21``   issue 21's attacks §1–§4 and §7 against a running studio (links with encoded parameters, the
+  key's cookie, an older ``session.json`` put back, upload parts sent again or out of range, Share, a dropdown
+  value outside its options): what the attacker got.
 * ``flood``     another tab's checkbox and the Emergency stop, time until acted on, ``--runs`` times each while
   one tab sends 10,000 Rename presses (issue 21 §6); baseline: the same without the flood.
 
@@ -49,7 +52,19 @@ from typing import Any
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 MiB = 1024 * 1024
-PARTS = ("archives", "websocket", "skill", "kill-save", "kill-record", "race", "disk-full", "fuzz", "memory", "flood")
+PARTS = (
+    "archives",
+    "websocket",
+    "skill",
+    "kill-save",
+    "kill-record",
+    "race",
+    "disk-full",
+    "fuzz",
+    "memory",
+    "flood",
+    "issue21",
+)
 
 
 # -- measuring -----------------------------------------------------------------------------------------------
@@ -611,6 +626,103 @@ def part_flood(args: argparse.Namespace) -> list[dict[str, Any]]:
     finally:
         flood.close()
         other.close()
+        app.stop()
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def part_issue21(args: argparse.Namespace) -> list[dict[str, Any]]:
+    """Issue 21's attacks §1-§4 and §7 against a running studio, one row each: what the attacker got."""
+    import http.client
+
+    import studio.security.uploads as uploads
+    from studio.app import build_app
+    from studio.storage import SessionStore
+    from tests.conftest import free_port
+    from tests.hostile.builders import make_rec
+    from tests.viser_client import ViserClient
+
+    uploads.MAX_UPLOAD_BYTES = 8 * MiB
+    tmp = Path(tempfile.mkdtemp(prefix="bench-hostile-21-"))
+    shutil.copytree(ROOT / "sessions" / "stack-cup", tmp / "stack-cup")
+    app = build_app(port=free_port(), session="stack-cup", sessions_dir=tmp)
+    ac = app.access
+    rows: list[dict[str, Any]] = []
+
+    def get(path: str) -> tuple[int, str]:
+        conn = http.client.HTTPConnection("127.0.0.1", app.port, timeout=20)
+        try:
+            cookie = f"{ac.cookie_name}={ac.key}"
+            conn.request("GET", path, headers={"Host": f"127.0.0.1:{app.port}", "Cookie": cookie})
+            r = conn.getresponse()
+            r.read()
+            return r.status, r.getheader("Set-Cookie") or ""
+        finally:
+            conn.close()
+
+    try:
+        links = ("/ (the page itself: the baseline)", "/?%77ebsocket=ws://127.0.0.1:1", "/?playback%50ath=/x")
+        for link in (*links, "/?websocket=ws://evil", "/?x=1"):
+            status, _ = get(ac.prefix + link.split(" ")[0])
+            rows.append({"case": f"§1 link {link} (with the cookie)", "got": f"HTTP {status}"})
+        status, cookie = get(f"/?key={ac.key}")
+        path = cookie.split("Path=")[1].split(";")[0] if "Path=" in cookie else "(none)"
+        rows.append({"case": "§2 the key's cookie", "got": f"HTTP {status}, valid only under {path[:4]}… (per launch)"})
+
+        store = SessionStore(tmp / "restore")
+        s = store.create("three")
+        for i in range(3):
+            s.add_recording(make_rec(seed=i, name=f"demo {i + 1}"))
+        backup = (s.path / "session.json").read_bytes()
+        s.add_recording(make_rec(seed=9, name="newest"))
+        (s.path / "session.json").write_bytes(backup)
+        before = len(list(s.path.rglob("d*.npz")))
+        store.open("three")
+        after = len(list(s.path.rglob("d*.npz")))
+        recovered = len(list((s.path / "recovered").glob("d*.npz")))
+        rows.append({"case": "§3 an older session.json put back, then opened",
+                     "got": f"{before - after} demo files deleted, {recovered} moved to recovered/"})  # fmt: skip
+
+        c = ViserClient(f"ws://127.0.0.1:{app.port}/?key={ac.key}")
+        try:
+            up = c.wait_gui("Upload session (.zip)")["uuid"]
+            part = b"\0" * (512 * 1024)
+
+            def start(tid: str) -> None:
+                c.send({"type": "FileTransferStartUpload", "source_component_uuid": up, "transfer_uuid": tid,
+                        "filename": "big.zip", "mime_type": "application/zip", "part_count": 12,
+                        "size_bytes": 6 * MiB})  # fmt: skip
+
+            def send_part(i: int) -> None:
+                c.send({"type": "FileTransferPart", "source_component_uuid": up, "transfer_uuid": "a",
+                        "part_index": i, "content": part})  # fmt: skip
+
+            start("a")
+            for i in [*range(11), 0, 10**6, -1]:
+                send_part(i)
+            start("b")
+            refused = c.wait_for(lambda _m: [m for m in c.notifications() if "still running" in str(m)], 20)
+            rows.append({"case": "§4 parts sent again or out of range, then a second upload over the limit",
+                         "got": "second upload refused" if refused else "second upload NOT refused"})  # fmt: skip
+            send_part(11)
+
+            def asked() -> None:
+                raise RuntimeError("the share relay was asked")
+
+            app.server.request_share_url = asked  # type: ignore[method-assign]
+            c.send({"type": "ShareUrlRequest"})
+            demo = [
+                m["uuid"] for m in c.snapshot() if m["type"] == "GuiDropdownMessage" and m["props"]["label"] == "Demo"
+            ]
+            c.send({"type": "GuiUpdateMessage", "uuid": demo[-1], "updates": {"value": "no such demo"}})
+            time.sleep(1.0)
+            counts = ac.presses.counts if ac.presses is not None else None
+            unexpected = [m for m in c.notifications() if "unexpected" in str(m)]
+            rows.append({"case": "§7 a Share request and a dropdown value outside its options",
+                         "got": f"{counts}, 'unexpected' notices: {len(unexpected)}"})  # fmt: skip
+        finally:
+            c.close()
+        return rows
+    finally:
         app.stop()
         shutil.rmtree(tmp, ignore_errors=True)
 
