@@ -495,6 +495,13 @@ def test_the_guard_sits_where_viser_serves(app: Studio) -> None:
     assert "self._handle_incoming_message(client_id, message)" in src
     assert app.access.hooked == "WebsockServer._background_worker.<locals>.viser_http_server"
     assert hasattr(app.server.gui, "_current_file_upload_states")
+    # The press gate (docs/decisions/052): viser's GUI and scene submit callbacks to the pool the gate stands in for.
+    import viser._gui_api as gui_api
+
+    src = inspect.getsource(gui_api.GuiApi._handle_gui_updates)
+    assert "self._thread_executor.submit(" in src and "GuiEvent(client, client_id, handle)" in src
+    assert app.server.gui._thread_executor is app.access.presses
+    assert app.server.scene._thread_executor is app.access.presses
 
 
 def test_the_studio_refuses_to_start_unprotected(sessions: Path, monkeypatch: pytest.MonkeyPatch) -> None:
