@@ -182,3 +182,31 @@ def test_sigterm_ends_the_studio_within_5_s_during_a_flood(sessions: Path) -> No
             proc.wait()
         if proc.stdout is not None:
             proc.stdout.close()
+
+
+def test_a_tabs_callback_acts_on_the_value_that_tab_sent(app: Studio, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Found by the flood bench: a redraw caused by another tab's action set the checkbox back before this tab's
+    callback read it, and the tab's press was lost."""
+    import threading
+
+    ctl = app.controller
+    gate, started = threading.Event(), threading.Event()
+
+    def slow_rename(i: int, name: str) -> None:  # this tab's earlier action, still running
+        started.set()
+        gate.wait(30)
+
+    monkeypatch.setattr(ctl.demos, "rename", slow_rename)
+    c = tab(app)
+    try:
+        shown = ctl.demos.names()[-1]
+        send(c, uuid_of(c, "Demo action", "GuiButtonGroupMessage"), "Rename")
+        assert started.wait(30)
+        send(c, uuid_of(c, "Show in the scene", "GuiCheckboxMessage"), False)  # waits behind the rename
+        assert wait_for(lambda: app.panels.demos.demo_show.value is False)  # viser stored it
+        app.panels.demos.demo_show.value = True  # a redraw from another tab's action, before the callback ran
+        gate.set()
+        assert wait_for(lambda: shown in ctl.demos.hidden), "the tab's press was lost"
+    finally:
+        gate.set()
+        c.close()
