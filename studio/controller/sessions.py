@@ -133,9 +133,10 @@ class SessionActions:
         )
 
     def zip(self) -> tuple[str, bytes]:
-        """(file name, bytes) of the open session as a zip archive. Every edit is on disk already; threshold
-        settings not yet written are written first when the disk allows it (on a read-only disk the download
-        holds them as last saved, and the teacher is told)."""
+        """(file name, bytes) of the open session as a zip archive, as the studio holds it (a damaged demonstration
+        it skipped is left out). Every edit is on disk already; threshold settings not yet written are written
+        first when the disk allows it (on a read-only disk the download holds them as last saved, and the
+        teacher is told)."""
         try:
             self.persist()
         except (StudioError, OSError) as exc:
@@ -146,7 +147,8 @@ class SessionActions:
                 "download holds the session as it was last saved.",
                 kind="warning",
             )
-        return f"{self.ctx.session.name}.zip", self.ctx.store.export_zip(self.ctx.session.name)
+        session = self.ctx.session
+        return f"{session.name}.zip", self.ctx.store.export_zip(session.name, opened=session)
 
     def import_zip(self, filename: str, data: bytes) -> str:
         """Add an uploaded session archive (validated first: a bad file changes nothing) and open it."""
