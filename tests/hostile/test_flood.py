@@ -204,7 +204,8 @@ def test_a_tabs_callback_acts_on_the_value_that_tab_sent(app: Studio, monkeypatc
         assert started.wait(30)
         send(c, uuid_of(c, "Show in the scene", "GuiCheckboxMessage"), False)  # waits behind the rename
         assert wait_for(lambda: app.panels.demos.demo_show.value is False)  # viser stored it
-        app.panels.demos.demo_show.value = True  # a redraw from another tab's action, before the callback ran
+        app.panels.demos.refresh_demos()  # a redraw from another tab's action, before the callback ran
+        assert app.panels.demos.demo_show.value is True
         gate.set()
         assert wait_for(lambda: shown in ctl.demos.hidden), "the tab's press was lost"
     finally:

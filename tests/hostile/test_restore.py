@@ -191,8 +191,8 @@ def test_leftover_upload_folders_are_removed_when_the_studio_starts(
 def test_a_session_with_a_damaged_demonstration_can_be_downloaded(
     store: SessionStore, three: Session, ctl_factory
 ) -> None:
-    """Opened with a damaged demonstration skipped, the session downloads as the studio holds it (it failed:
-    the download read the folder again, damaged file included); the archive uploads as a session."""
+    """Opened with a damaged demonstration skipped, the session downloads as the studio holds it (without
+    reading its folder again); the archive uploads as a session."""
     damaged = three.path / "demos" / "d0002.npz"
     damaged.write_bytes(damaged.read_bytes()[:200])
     ctl = ctl_factory("three")
