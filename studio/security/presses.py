@@ -171,8 +171,8 @@ class Presses:
 
     # -- callbacks: viser submits them here (it takes this for its thread pool) ----------------------------
     def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Future[Any]:
-        """Run ``fn(*args)`` for the tab of the event in ``args[0]``: after that tab's earlier callbacks; not at
-        all when the same control's callback already waits (it reads the control's newest value when it runs)."""
+        """Run ``fn(*args)`` for the tab of the event in ``args[0]``, after that tab's earlier callbacks; not again
+        when the same control's callback already waits for that tab (that one runs with this newest value)."""
         event = args[0] if args else None
         client_id = getattr(event, "client_id", None)
         if not isinstance(client_id, int):  # not a tab's event: as viser would
