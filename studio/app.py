@@ -32,7 +32,7 @@ ROOT = Path(__file__).resolve().parent.parent
 LIGHT_URDF = ROOT / "urdf" / "baxter_light.urdf"
 DEFAULT_SESSION = "stack-cup"
 #: Seconds within which a stopped studio (SIGTERM, Ctrl+C) has ended, whatever is still running.
-STOP_S = 4.0
+STOP_S = 3.5
 #: Initial view for every tab (and "Reset view"): in front of Baxter, to its right, framing the robot and table.
 CAMERA_POSITION = HOME_CAMERA_POSITION
 CAMERA_LOOK_AT = HOME_CAMERA_LOOK_AT
