@@ -173,7 +173,8 @@ def test_sigterm_ends_the_studio_within_5_s_during_a_flood(sessions: Path) -> No
             t0 = time.monotonic()
             proc.send_signal(signal.SIGTERM)
             proc.wait(timeout=60)
-            assert time.monotonic() - t0 < 5.0
+            took = time.monotonic() - t0
+            assert took < 5.0, (took, proc.returncode, proc.stdout.read()[-2000:])
         finally:
             c.close()
     finally:
