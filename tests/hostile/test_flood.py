@@ -79,7 +79,7 @@ def test_a_flood_of_presses_from_one_tab_leaves_other_tabs_and_the_emergency_sto
         assert wait_for(lambda: ctl.execution.status.estop), "the Emergency stop was not acted on"
         assert renames[0] < 200, renames  # 10,000 before: each press rewrote the session
         told = flood.wait_for(lambda _m: [n for n in flood.notifications() if "Too many presses" in str(n)])
-        assert told and len(told) == 1, flood.notifications()
+        assert told and len(told) < 10, flood.notifications()  # told, once per 10 s: not once a press
         assert not unexpected(flood) and not unexpected(other)
     finally:
         flood.close()
