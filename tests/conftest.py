@@ -104,7 +104,12 @@ def browser() -> Iterator[Browser]:
 
 
 #: The browser test files of the first of two groups (the rest form the second), balanced on their durations.
-BROWSER_GROUP_A = {"test_scene_walk.py", "test_execution_browser.py", "test_routes_browser.py", "test_quality_browser.py"}
+BROWSER_GROUP_A = {
+    "test_scene_walk.py",
+    "test_teach_mouse.py",
+    "test_routes_browser.py",
+    "test_quality_browser.py",
+}
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:

@@ -16,6 +16,7 @@ from studio.controller.context import Context, Kind, LogNotifier, Notifier
 from studio.controller.demos import PALETTE, Demos, DemoSummary
 from studio.controller.events import Events, Topic
 from studio.controller.execution import ExecutionActions
+from studio.controller.guiding import Guiding
 from studio.controller.learning import KeypointItem, KeypointTuning, KeypointView
 from studio.controller.livepath import LivePath, LivePaths
 from studio.controller.placed import PlacedSkills
@@ -31,8 +32,8 @@ from studio.controller.view import Layer, Step, View
 from studio.core.kinematics import Baxter
 from studio.robot_backend.base import RobotBackend
 from studio.storage import Session, SessionStore
+from studio.world import FLOOR_Z, ObjectPose, Scene, TaskResult, WorldObject
 from studio.world import PRESETS as SCENE_PRESETS
-from studio.world import ObjectPose, Scene, TaskResult, WorldObject
 
 log = logging.getLogger(__name__)
 P = ParamSpec("P")
@@ -43,7 +44,7 @@ class Controller:
     """The studio without its GUI: a thin composition of the parts, each an attribute a panel uses.
 
     Attributes:
-        teaching, demos, keypoints, live, suggest, training, playback, sessions, scene, execution, view: the
+        teaching, guide, demos, keypoints, live, suggest, training, playback, sessions, scene, execution, view: the
             parts (see the module docstring).
         display: the pose the scene draws; events: the topics to subscribe to; baxter: the kinematic model.
 
@@ -72,6 +73,7 @@ class Controller:
         self.playback = Player(ctx, guard=lambda: self.execution.check_not_running(), skills=self.placed.get)
         self.scene = SceneActions(ctx, backend, player=self.playback)
         self.teaching = Teaching(ctx, backend, takes=self.scene, motion_guard=lambda d: self.execution.check_free(d))
+        self.guide = Guiding(ctx, self.teaching, objects=lambda: self.scene.live.poses())
         self.keypoints = KeypointTuning(ctx, self.demos)
         self.live = LivePaths(
             ctx,
@@ -166,6 +168,7 @@ class Controller:
 
 
 __all__ = [
+    "FLOOR_Z",
     "FRAME_WORDS",
     "MODE_WORDS",
     "PALETTE",
@@ -180,6 +183,7 @@ __all__ = [
     "Display",
     "Events",
     "ExecutionActions",
+    "Guiding",
     "KeypointItem",
     "KeypointTuning",
     "KeypointView",

@@ -50,6 +50,9 @@ class Topic(StrEnum):
     VIEW = "view"
     #: The objects on the table were set up differently, or put back (``scene.scene``).
     SCENE = "scene"
+    #: The object chosen to move or to go above, the gripper the keys move, or whether the gripper's handle
+    #: turns it changed (``guide.chosen``, ``guide.key_arm``, ``guide.turning``).
+    GUIDE = "guide"
     #: The task result of the learned skill changed (``scene.task_result()``).
     TASK = "task"
     #: The robot's run started, changed phase (stopping, done, stopped, emergency-stopped), was judged, or the

@@ -17,6 +17,7 @@ from studio.controller.events import Topic
 from studio.core.arms import arm_columns, arm_of_joint, gripper_column, normalize_arms
 from studio.core.errors import InvalidInput, StorageError, StudioError
 from studio.core.kinematics import IkResult
+from studio.core.posture_ik import reach_pose
 from studio.core.types import ARMS, Arm, Recording
 from studio.recorder import Recorder
 from studio.robot_backend.base import JointStateBatch, RobotBackend
@@ -144,13 +145,16 @@ class Teaching:
     def move_gripper(self, arm: Arm, position: np.ndarray, wxyz: np.ndarray) -> IkResult:
         """IK to the handle's pose from the arm's current joints, then command the robot.
 
-        An unreachable target still moves the arm to the closest pose found; :attr:`reach` says so
-        (:attr:`Topic.REACH`). Returns the IK result.
+        The IK keeps the arm off its joint limits and near its home posture, and tries other starts when the
+        arm's own is not enough (:func:`studio.core.posture_ik.reach_pose`), so whether a pose is within reach
+        does not depend on where the arm was. An unreachable target still moves the arm to the closest pose
+        found; :attr:`reach` says so (:attr:`Topic.REACH`). Returns the IK result.
         """
         self.motion_guard("moving the robot by hand")
         self.display.show_live()
         with self._ik_lock[arm]:  # one solve per arm at a time (a drag sends many updates)
-            res = self.ctx.baxter.ik(arm, position, wxyz, self._target_arm(arm), max_iterations=60)
+            found = reach_pose(self.ctx.baxter, arm, position, wxyz, self._target_arm(arm), rest=self.home_q(arm))
+            res = found.result
             self.command_arm(arm, np.asarray(res.q))
         p = np.asarray(position, dtype=float)
         self._set_reach(arm, Reach(bool(res.converged), (float(p[0]), float(p[1]), float(p[2])), time.monotonic()))
@@ -182,6 +186,23 @@ class Teaching:
             if arm in self.selected_arms and self.unreachable(arm):
                 return f"The {arm} gripper cannot reach the handle's position: the arm stops at the closest pose."
         return ""
+
+    def home_q(self, arm: Arm) -> np.ndarray:
+        """(7,) the arm's home posture: the one the studio starts in (the Baxter SDK's untuck pose), radians."""
+        return self.ctx.baxter.neutral(arm)
+
+    def home(self, arms: Sequence[Arm] | None = None) -> None:
+        """Send the taught arms (or ``arms``) back to their home posture."""
+        self.motion_guard("moving the robot by hand")
+        self.display.show_live()
+        arms = tuple(self.selected_arms if arms is None else arms)
+        self.forget_reach(arms)
+        for arm in arms:
+            self.command_arm(arm, self.home_q(arm))
+
+    def target_q(self, arm: Arm) -> np.ndarray:
+        """(7,) the joints the arm was last sent to (where it is going), or where it is; radians."""
+        return self._target_arm(arm)
 
     def _target_arm(self, arm: Arm) -> np.ndarray:
         with self.ctx.lock:

@@ -253,6 +253,8 @@ def cluster(
         )
     Xs = X / scale.divisors
     n_distinct = np.unique(np.round(Xs, 9), axis=0).shape[0]
+    if k > n_distinct >= 2 and n_clusters is None:
+        k = n_distinct  # the demonstrations repeat the same key-points (taught by keys or "Go above"): one each
     if k > n_distinct and n_clusters is None:
         raise NotEnoughData(
             f"The demonstrations have only {n_distinct} different key-point(s): the arm barely moved. Record "

@@ -220,7 +220,8 @@ def _fit(
             f"Choose at most {total} clusters or lower the key-point thresholds."
         )
     # 2. codebook
-    cl = cluster(demos, kps, k, seed=seed, scale=scale)
+    cl = cluster(demos, kps, n_clusters, seed=seed, scale=scale)  # automatic k: at most the distinct key-points
+    k = cl.n_clusters
     # 3. HMM
     model = hmm.train(cl.labels, k, seed=seed)
     ref = model.reference

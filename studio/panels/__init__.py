@@ -16,6 +16,7 @@ import viser
 from studio.controller import Controller, Step
 from studio.panels.demos import DemosPanel
 from studio.panels.keypoints import KeypointsPanel
+from studio.panels.move import MovePanel
 from studio.panels.preview import PreviewPanel
 from studio.panels.robot import RobotPanel
 from studio.panels.run import RunPanel
@@ -31,6 +32,7 @@ class Panels:
     robot: RobotPanel
     run: RunPanel
     teach: TeachPanel
+    move: MovePanel
     demos: DemosPanel
     keypoints: KeypointsPanel
     train: TrainPanel
@@ -45,6 +47,7 @@ class Panels:
         self.run.tick(now)
         self.scene.tick(now)
         self.teach.tick(now)
+        self.move.tick(now)
         self.preview.tick(now)
         self.sessions.tick(now)
 
@@ -67,6 +70,7 @@ def build_panels(ctl: Controller, server: viser.ViserServer, urdf_path: Path) ->
     sections = {step: gui.add_folder(None, order=10 + i, visible=step == ctl.view.step) for i, step in enumerate(Step)}
     with sections[Step.TEACH]:
         teach = TeachPanel(ctl, server)
+        move = MovePanel(ctl, server)  # keys, position boxes, Go above, Home pose
         scene = ScenePanel(ctl, server)
         demos = DemosPanel(ctl, server)
     with sections[Step.KEYPOINTS]:
@@ -78,4 +82,4 @@ def build_panels(ctl: Controller, server: viser.ViserServer, urdf_path: Path) ->
     with sections[Step.SESSIONS]:
         sessions = SessionsPanel(ctl, server)
     steps = StepPanel(ctl, server, sections)
-    return Panels(robot, run, teach, demos, keypoints, train, preview, sessions, scene, steps)
+    return Panels(robot, run, teach, move, demos, keypoints, train, preview, sessions, scene, steps)

@@ -60,7 +60,7 @@ class ScenePanel:
                 "Use this set-up", hint="Replace the objects on the table by the chosen task's objects."
             )
         self.handle = self.scene.add_transform_controls(
-            "/objects_handle", scale=0.16, line_width=2.0, depth_test=False, visible=False
+            "/objects_handle", scale=0.16, line_width=2.0, depth_test=False, disable_sliders=True, visible=False
         )
         self.add.on_click(ctl.guarded("Could not add the object")(self._on_add))
         self.pick.on_update(ctl.guarded()(self._on_pick))
@@ -79,6 +79,7 @@ class ScenePanel:
         self.pick.value = name
 
     def _on_pick(self, event: viser.GuiEvent) -> None:
+        self.ctl.guide.choose(None if self.pick.value == NONE else str(self.pick.value))  # one handle at a time
         self._place_handle()
         self._apply_view()
 
@@ -139,6 +140,7 @@ class ScenePanel:
             self.pick.options = [NONE, *names]
             if current not in names:
                 self.pick.value = NONE
+                self.ctl.guide.choose(None)
             self.preset.value = scene.preset if scene.preset in self.preset.options else self.preset.options[0]
         self._place_handle()
         self._apply_view()

@@ -1,5 +1,5 @@
 """Step panel: which step the teacher is at (Teach, Key-points, Train, Preview, Sessions), the "Show" toggles of
-the scene's layers, and "Reset view".
+the scene's layers, and the View buttons (Front, Top, Side, Reset).
 
 The step is a dropdown the server hears (docs/decisions/019): choosing one sets the controller's step
 (:meth:`studio.controller.View.set_step`), every tab shows that step's section, and each panel draws the layers
@@ -13,14 +13,16 @@ from collections.abc import Callable, Mapping
 import viser
 
 from studio.controller import Controller, Layer, Step, Topic
+from studio.panels._camera import (
+    HOME_CAMERA_FOV_DEG,
+    HOME_CAMERA_LOOK_AT,
+    HOME_CAMERA_POSITION,
+    keep_above_floor,
+    set_view,
+)
 
-#: The camera every tab starts with and "Reset view" returns to: in front of Baxter and to its right, above
-#: the table, framing the robot and the task area (metres, robot base frame; z up).
-#: The look-at point is to the right of the task area, so that the task area is in the middle of what the side
-#: panel (the right third of a 1280-pixel-wide window) leaves visible.
-HOME_CAMERA_POSITION = (2.65, -0.63, 1.2)
-HOME_CAMERA_LOOK_AT = (0.74, 0.71, 0.05)
-HOME_CAMERA_FOV_DEG = 55.0
+#: The views the "View" buttons choose (:mod:`studio.panels._camera`); "Reset" is the home view.
+VIEW_BUTTONS = ("Front", "Top", "Side", "Reset")
 
 HINTS = {
     Step.TEACH: "Guide the gripper with its handle, put the objects where you want them, record three demonstrations.",
@@ -32,7 +34,7 @@ HINTS = {
 
 
 class StepPanel:
-    """The step chooser above one section per step, the "Show" toggles and "Reset view"."""
+    """The step chooser above one section per step, the "Show" toggles and the View buttons."""
 
     def __init__(self, ctl: Controller, server: viser.ViserServer, sections: Mapping[Step, viser.GuiFolderHandle]):
         self.ctl = ctl
@@ -47,19 +49,19 @@ class StepPanel:
             hint="What you are doing now: each step shows its own controls and what the scene draws for it.",
         )
         self.title = gui.add_html(self._title_html(), order=1.1)
-        self.reset_view = gui.add_button(
-            "Reset view",
-            icon=viser.Icon.FOCUS_CENTERED,
-            color="gray",
+        self.views = gui.add_button_group(
+            "View",
+            options=VIEW_BUTTONS,
             order=1.2,
-            hint="Look at the robot and the table again.",
+            hint="Look from the front, from above or from the robot's left; Reset: the robot and the table again.",
         )
         with gui.add_folder("Show in the scene", order=1.3, expand_by_default=False):
             self.toggles = {
                 layer: gui.add_checkbox(layer.value, initial_value=ctl.view.shown(layer)) for layer in Layer
             }
         self.steps.on_update(ctl.guarded("Could not change the step")(self._on_step))
-        self.reset_view.on_click(ctl.guarded("Could not reset the view")(self._on_reset_view))
+        self.views.on_click(ctl.guarded("Could not change the view")(self._on_view))
+        keep_above_floor(server)
         for layer, box in self.toggles.items():
             box.on_update(ctl.guarded("Could not change what is shown")(self._make_toggle(layer)))
         ctl.events.on(Topic.VIEW, self.refresh)
@@ -78,10 +80,10 @@ class StepPanel:
 
         return cb
 
-    def _on_reset_view(self, event: viser.GuiEvent) -> None:
+    def _on_view(self, event: viser.GuiEvent) -> None:
         if event.client is None:
             return
-        reset_camera(event.client)
+        set_view(event.client, str(event.target.value))
 
     def _title_html(self) -> str:
         step = self.ctl.view.step
@@ -105,10 +107,7 @@ class StepPanel:
 
 def reset_camera(client: viser.ClientHandle) -> None:
     """Put one tab's camera back to the home view (robot and table)."""
-    import math
+    set_view(client, "Reset")
 
-    with client.atomic():
-        client.camera.up_direction = (0.0, 0.0, 1.0)
-        client.camera.position = HOME_CAMERA_POSITION
-        client.camera.look_at = HOME_CAMERA_LOOK_AT
-        client.camera.fov = math.radians(HOME_CAMERA_FOV_DEG)
+
+__all__ = ["HOME_CAMERA_FOV_DEG", "HOME_CAMERA_LOOK_AT", "HOME_CAMERA_POSITION", "StepPanel", "reset_camera"]

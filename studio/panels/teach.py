@@ -1,10 +1,12 @@
-"""Teach panel: move the arm (gripper handle with IK, joint sliders, gripper buttons) and record demos."""
+"""Teach panel: move the arm (the gripper handle in the room's axes with IK, joint sliders, gripper buttons) and
+record demos."""
 
 from __future__ import annotations
 
 import math
 import time
 from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 import viser
@@ -12,6 +14,7 @@ import viser
 from studio.controller import Controller, Step, Topic
 from studio.controller.teaching import REACH_HOLD_S
 from studio.core.arms import arm_columns
+from studio.core.rotations import matrix_from_quat_wxyz, quat_wxyz_from_matrix
 from studio.core.types import ALL_ARM_JOINTS, ARMS, Arm
 
 JOINT_WORDS = {
@@ -28,6 +31,21 @@ USER_HOLD_S = 0.8
 UNREACHABLE_COLOR = (230, 40, 40)
 
 GuiCallback = Callable[[viser.GuiEvent], None]
+#: The gripper handle's orientation: the room's axes (x away from the robot, y to its left, z up).
+ROOM_AXES = (1.0, 0.0, 0.0, 0.0)
+
+
+class HandleMode(NamedTuple):
+    """The gripper handle's look: arrows in the room's axes to move the gripper, or smaller rings to turn it."""
+
+    disable_axes: bool
+    disable_rotations: bool
+    scale: float
+    line_width: float
+
+
+def handle_mode(turning: bool) -> HandleMode:
+    return HandleMode(True, False, 0.15, 2.0) if turning else HandleMode(False, True, 0.22, 2.5)
 
 
 def joint_label(name: str) -> str:
@@ -56,24 +74,27 @@ class TeachPanel:
         ctl.events.on(Topic.REACH, self._on_reach)
         ctl.events.on(Topic.RECORDING, self._on_recording_state)
         ctl.events.on(Topic.VIEW, self._on_arms)
+        ctl.events.on(Topic.GUIDE, self._on_arms)
 
     def _build_handles(self) -> None:
-        """A transform gizmo on each gripper, and a red marker where a handle is out of reach."""
+        """A handle on each gripper (arrows along the room's axes, or rings to turn it), and a red marker where a
+        handle is out of reach."""
         ctl = self.ctl
         self.handles: dict[str, viser.TransformControlsHandle] = {}
         self.miss_markers: dict[str, viser.IcosphereHandle] = {}
         self.miss_labels: dict[str, viser.LabelHandle] = {}
+        self._turn_from: dict[Arm, np.ndarray] = {}
         for arm in ARMS:
-            pos, wxyz = ctl.baxter.fk(arm, ctl.teaching.arm_q(arm))
+            pos, _ = ctl.baxter.fk(arm, ctl.teaching.arm_q(arm))
             h = self.scene.add_transform_controls(
                 f"/teach/{arm}_handle",
-                scale=0.22,
-                line_width=2.5,
                 position=tuple(pos),
-                wxyz=tuple(wxyz),
+                wxyz=ROOM_AXES,
                 depth_test=False,
-                visible=arm in ctl.teaching.selected_arms and ctl.view.step == Step.TEACH,
+                disable_sliders=True,  # a plane square jumps in depth under a perspective view
+                visible=self._handle_shown(arm),
             )
+            self._apply_mode(h, handle_mode(ctl.guide.turning))
             self.handles[arm] = h
             self.miss_markers[arm] = self.scene.add_icosphere(
                 f"/teach/{arm}_unreachable", radius=0.03, color=UNREACHABLE_COLOR, opacity=0.6, visible=False
@@ -142,21 +163,30 @@ class TeachPanel:
     def _make_gizmo_cb(self, arm: Arm) -> Callable[[viser.TransformControlsEvent], None]:
         def cb(event: viser.TransformControlsEvent) -> None:
             phase = getattr(event, "phase", "update")  # viser versions before 1.0 send no phase
-            if phase == "start":
-                self._dragging[arm] = True
+            guide = self.ctl.guide
             h = self.handles[arm]
+            if phase == "start" or arm not in self._turn_from:
+                self._dragging[arm] = True
+                # the handle starts in room axes: its turn from there is the gripper's turn
+                self._turn_from[arm] = matrix_from_quat_wxyz(guide.pose(arm)[1])
             try:
-                self.ctl.teaching.move_gripper(arm, np.asarray(h.position), np.asarray(h.wxyz))
+                if guide.turning:
+                    R = matrix_from_quat_wxyz(np.asarray(h.wxyz)) @ self._turn_from[arm]
+                    guide.move(arm, np.asarray(h.position), quat_wxyz_from_matrix(R))
+                else:
+                    guide.move(arm, np.asarray(h.position))
             except Exception as exc:
                 self.ctl.report(exc, title="Could not move the arm", client=event.client)
             if phase == "end":
+                self._turn_from.pop(arm, None)
+                h.wxyz = ROOM_AXES
                 self._dragging[arm] = False
                 self._drag_end[arm] = self._drag_end_any = time.monotonic()
                 if self.ctl.teaching.unreachable(arm):
                     self.ctl.notify(
                         "Out of reach",
                         f"The {arm} arm cannot put its gripper where you left the handle; it stopped at the "
-                        "closest pose it can reach. Drag the handle closer to the robot.",
+                        "closest pose it can reach. Drag the handle closer to the robot, or press H for the home pose.",
                         kind="warning",
                         client=event.client,
                     )
@@ -201,13 +231,27 @@ class TeachPanel:
 
         return self.ctl.guarded("Could not move the gripper")(cb)
 
+    def _handle_shown(self, arm: Arm) -> bool:
+        """A taught gripper's handle shows in the Teach step while no object is chosen (one handle at a time)."""
+        ctl = self.ctl
+        return ctl.view.step == Step.TEACH and arm in ctl.teaching.selected_arms and ctl.guide.chosen is None
+
+    @staticmethod
+    def _apply_mode(h: viser.TransformControlsHandle, mode: HandleMode) -> None:
+        for key, value in mode._asdict().items():
+            if getattr(h, key) != value:
+                setattr(h, key, value)
+
     def _on_arms(self) -> None:
-        """The taught arms or the step changed: a handle on each taught gripper, in the Teach step only."""
+        """The taught arms, the step, the chosen object or the handle's mode changed: a handle on each taught
+        gripper, in the Teach step only, with arrows or rings."""
         self._last_q = None  # snap the newly shown handles to the grippers
-        teach = self.ctl.view.step == Step.TEACH
+        mode = handle_mode(self.ctl.guide.turning)
         with self.server.atomic():
             for arm in ARMS:
-                self.handles[arm].visible = teach and arm in self.ctl.teaching.selected_arms
+                h = self.handles[arm]
+                h.visible = self._handle_shown(arm)
+                self._apply_mode(h, mode)
         self._on_reach()
 
     # -- recording -------------------------------------------------------------------------------------
@@ -251,7 +295,5 @@ class TeachPanel:
             for arm in self.ctl.teaching.selected_arms:
                 if self._dragging[arm] or mono - self._drag_end[arm] < USER_HOLD_S:
                     continue
-                pos, wxyz = self.ctl.baxter.fk(arm, q[arm_columns(arm)])
-                h = self.handles[arm]
-                h.position = tuple(pos)
-                h.wxyz = tuple(wxyz)
+                pos, _ = self.ctl.baxter.fk(arm, q[arm_columns(arm)])
+                self.handles[arm].position = tuple(pos)

@@ -116,3 +116,17 @@ def test_the_feature_scale_follows_the_demos_size_computed_once_per_demo() -> No
     assert FeatureScale.for_demos([big]).position == 0.05
     empty = Demo(np.zeros(0), np.zeros((0, 3)), np.zeros((0, 4)), np.zeros(0))
     assert empty.extent == 0.0 and FeatureScale.for_demos([empty]).position == 0.05
+
+
+def test_identical_demonstrations_make_one_cluster_per_key_point():
+    """Taught by keys and "Go above", three takes repeat the same poses and come back to where they started: k
+    falls to the distinct key-points (issue 18) instead of refusing; an asked-for k above them is still refused."""
+    n = 300
+    s = np.linspace(0.0, 1.0, n)
+    out = np.minimum(s, 1.0 - s)[:, None] * np.array([0.4, 0.2, 0.0])  # out and back to the start
+    d = Demo(s * 3.0, np.array([0.6, 0.2, 0.1]) + out, np.tile([0, 0, 1.0, 0], (n, 1)), np.full(n, 100.0))
+    kp = np.array([0, n // 4, n // 2, 3 * n // 4, n - 1])  # the first and last are the same pose
+    cl = cluster([d, d, d], [kp] * 3)
+    assert cl.n_clusters == 4
+    with pytest.raises(NotEnoughData, match="Choose at most 4"):
+        cluster([d, d, d], [kp] * 3, n_clusters=5)

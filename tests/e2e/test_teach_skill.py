@@ -73,12 +73,10 @@ def find_arrow(page: Page, center: tuple[float, float], tip: tuple[float, float]
 
 
 def drag_gizmo(page: Page, q_left: np.ndarray, axis: int = 2, pixels: float = -70.0) -> None:
-    """Drag the left gripper handle's arrow along one of its axes with the mouse."""
-    from studio.core.kinematics import matrix_from_quat_wxyz
-
+    """Drag the left gripper handle's arrow along one of its axes (the room's) with the mouse."""
     b = Baxter.load()
-    pos, wxyz = b.fk("left", q_left)
-    R = matrix_from_quat_wxyz(wxyz)
+    pos, _ = b.fk("left", q_left)
+    R = np.eye(3)  # the handle's arrows are the room's axes
     center = project(pos)
     x1, y1 = find_arrow(page, center, project(pos + R[:, axis] * 0.22 * 0.9), axis)
     direction = np.array([x1 - center[0], y1 - center[1]])
