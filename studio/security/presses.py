@@ -181,10 +181,12 @@ class Presses:
         target = getattr(event, "target", None)
         impl = getattr(target, "_impl", None)
         # The value this tab sent (viser stored it just now, on its event loop). A button group's options are
-        # different presses; any other control's newer value replaces the one still waiting.
+        # different presses, and a handle's drag start, moves and end different steps; any other control's newer
+        # value replaces the one still waiting.
         value = getattr(impl, "value", None)
         button = bool(getattr(impl, "is_button", False))
-        key = (id(target), id(fn), value if button and isinstance(value, str) else None)
+        kind = value if button and isinstance(value, str) else getattr(event, "phase", None)
+        key = (id(target), id(fn), kind)
         with self._lock:
             tab = self._tabs.setdefault(client_id, _Tab())
             waiting = tab.keys.get(key)

@@ -212,3 +212,47 @@ def test_a_tabs_callback_acts_on_the_value_that_tab_sent(app: Studio, monkeypatc
     finally:
         gate.set()
         c.close()
+
+
+def test_a_dragged_handle_keeps_its_start_moves_and_end_and_ends_where_it_was_let_go(
+    app: Studio, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A handle's drag fires one callback with three steps (start, moves, end); the object moves at the end. The
+    gate joins moves only: with the whole drag waiting behind the tab's earlier action, 1,000 moves leave the
+    object where the last one put it (joining the end into a waiting move lost the drag)."""
+    import threading
+
+    import numpy as np
+
+    ctl = app.controller
+    gate, started = threading.Event(), threading.Event()
+
+    def slow_rename(i: int, name: str) -> None:  # this tab's earlier action, still running
+        started.set()
+        gate.wait(30)
+
+    monkeypatch.setattr(ctl.demos, "rename", slow_rename)
+    c = tab(app)
+    try:
+        send(c, uuid_of(c, "Object", "GuiDropdownMessage"), "bottom cup")
+        handle = lambda: c.scene().get("/objects_handle", {})  # noqa: E731
+        assert c.wait_for(lambda _m: handle().get("visible") and handle().get("position") is not None, 30)
+        before = np.array(handle()["position"], dtype=float)
+        send(c, uuid_of(c, "Demo action", "GuiButtonGroupMessage"), "Rename")
+        assert started.wait(30)
+        c.send({"type": "TransformControlsDragStartMessage", "name": "/objects_handle", "owner": ""})
+        for i in range(1, 1001):
+            pos = (float(before[0]), float(before[1] - 0.06 * i / 1000), float(before[2]))
+            c.send({"type": "TransformControlsUpdateMessage", "name": "/objects_handle", "wxyz": (1.0, 0.0, 0.0, 0.0),
+                    "position": pos, "owner": ""})  # fmt: skip
+        c.send({"type": "TransformControlsDragEndMessage", "name": "/objects_handle", "owner": ""})
+        send(c, uuid_of(c, "Object", "GuiDropdownMessage"), "no such object")  # refused: a marker after the end
+        presses = app.access.presses
+        assert presses is not None
+        assert wait_for(lambda: presses.counts.refused >= 1)  # the gate has seen the whole drag (messages in order)
+        gate.set()
+        moved = lambda: ctl.scene.scene.object("bottom cup")  # noqa: E731
+        assert wait_for(lambda: abs(moved().position[1] - (before[1] - 0.06)) < 1e-6), moved().position
+    finally:
+        gate.set()
+        c.close()
