@@ -17,7 +17,7 @@ from typing import Any, Literal, Protocol, runtime_checkable
 
 import viser
 
-from studio.controller import Controller, Kind, LogNotifier
+from studio.controller import Controller, Kind, LogNotifier, Topic
 from studio.core.errors import StudioError
 from studio.core.kinematics import baxter_urdf_path
 from studio.panels import Panels, build_panels
@@ -25,6 +25,7 @@ from studio.panels._page import install as install_page
 from studio.panels.steps import HOME_CAMERA_FOV_DEG, HOME_CAMERA_LOOK_AT, HOME_CAMERA_POSITION
 from studio.robot_backend.base import RobotBackend
 from studio.storage import DEFAULT_ROOT, SessionStore
+from studio.storage.format import EXAMPLE_SESSIONS
 
 log = logging.getLogger(__name__)
 
@@ -191,12 +192,17 @@ class Studio:
 
             backend = SimulatedBaxter()
         self.notifier = BrowserNotifier()
+        bundled = Path(sessions_dir).resolve() == DEFAULT_ROOT.resolve()  # the examples stay as they are there
+        store = SessionStore(Path(sessions_dir), examples=EXAMPLE_SESSIONS if bundled else ())
         self.controller = Controller(
-            store=SessionStore(Path(sessions_dir)),
-            session=session or DEFAULT_SESSION,
+            store=store,
+            session=session or store.last_open() or DEFAULT_SESSION,  # no choice: the session open last time
             backend=backend,
             notifier=self.notifier,
         )
+        remember = lambda: store.remember_open(self.controller.session.name)  # noqa: E731
+        remember()
+        self.controller.events.on(Topic.SESSION, remember)
         self.urdf_path = robot_urdf_path(meshes)
         self.server = self.access.start_viser(host=host, port=port, label="Teaching Studio", verbose=verbose)
         self.notifier.server = self.server

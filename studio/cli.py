@@ -47,7 +47,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="no key in the address (this computer only: refused with a --host other than 127.0.0.1)",
     )
     s.add_argument("--port", type=_port, default=8080, help="port to listen on, 1-65535 (default 8080)")
-    s.add_argument("--session", default="stack-cup", help='session to open (default "stack-cup")')
+    s.add_argument(
+        "--session",
+        default=None,
+        help='session to open (default: the one open when the studio last stopped, else "stack-cup")',
+    )
     s.add_argument(
         "--robot",
         metavar="ws://HOST:9090",

@@ -23,7 +23,7 @@ from studio.core.errors import InvalidInput, NotEnoughData, StudioError
 from studio.core.quality import Remedy
 from studio.core.types import Arm, Recording, Skill
 from studio.storage import DEFAULT_ROOT, Session, SessionStore, check_demo_name
-from studio.words import SHARED_REMEDIES, Remedies, tune_summary
+from studio.words import SHARED_REMEDIES, Remedies, count_words, tune_summary
 from studio.words import verdict_lines as verdict_words
 
 if TYPE_CHECKING:
@@ -167,7 +167,10 @@ def _fmt(x: float, spec: str = ".3g") -> str:
 
 def report(session: Session, skills: Mapping[Arm, Skill], elapsed: float | None = None) -> str:
     """The plain-text learning report: per demo samples and key-points, k, log-likelihood, reference, quality."""
-    lines = [f'Session "{session.name}": {len(session.recordings)} demonstrations, learned ' + ", ".join(skills)]
+    lines = [
+        f'Session "{session.name}": {count_words(len(session.recordings), "demonstration")}, learned '
+        + ", ".join(skills)
+    ]
     if elapsed is not None:
         lines[0] += f" in {elapsed:.1f} s"
     for arm, sk in skills.items():

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 from studio.core.quality import DemoFit, Disagreement, Finding, Issue, Level, Misfit, Remedy, Verdict
 from studio.core.types import SkillRoute
@@ -175,21 +175,100 @@ def tune_summary(result: TuneResult) -> str:
             "Suggested: learned without each demonstration in turn, the skill misses it by "
             f"{length_words(a.distance)} on average."
         )
+    same = round(a.keypoints) == round(b.keypoints)
+    count = (
+        f"the same number of key-points per demonstration, {a.keypoints:.0f}"
+        if same
+        else f"{a.keypoints:.0f} key-points per demonstration instead of {b.keypoints:.0f}"
+    )
     return (
         f"Learned without each demonstration in turn, the skill misses it by {length_words(a.distance)} on "
-        f"average with the suggestion, {length_words(b.distance)} with the current thresholds "
-        f"({a.keypoints:.0f} key-points per demonstration instead of {b.keypoints:.0f})."
+        f"average with the suggestion, {length_words(b.distance)} with the current thresholds ({count})."
+    )
+
+
+def count_words(n: int, thing: str, plural: str | None = None) -> str:
+    """ "1 demonstration", "3 demonstrations" (``plural``: when it is not ``thing`` + "s")."""
+    return f"{n} {thing if n == 1 else (plural or thing + 's')}"
+
+
+#: What each task set-up asks of the teacher, shown in the Teach step.
+TASKS: dict[str, str] = {
+    "stack-cup": "Take the cup I hand you (held up on the grey stand) and put it into the other cup.",
+    "pick-place": "Pick up the block and put it on the green pad.",
+    "empty table": "Show the robot a movement, or add objects and show it what to do with them.",
+}
+#: The task of a scene that is not one of the set-ups.
+OWN_TASK = "Show the robot what to do with the objects on the table."
+
+
+def task_words(preset: str | None) -> str:
+    """The task of the scene set-up ``preset`` in one sentence for the teacher."""
+    return TASKS.get(preset or "", OWN_TASK)
+
+
+class GraspFacts(Protocol):
+    """What a gripper's close did (:class:`studio.world.feedback.GraspNote`)."""
+
+    @property
+    def held(self) -> str | None: ...
+    @property
+    def near(self) -> str | None: ...
+    @property
+    def distance(self) -> float: ...
+    @property
+    def closer(self) -> float: ...
+    @property
+    def height(self) -> float: ...
+
+
+def grasp_words(note: GraspFacts) -> str:
+    """What closing the gripper just did: "Holding the cup." or "Missed the cup by 3 cm — move 1 cm closer."."""
+    if note.held is not None:
+        return f"Holding the {note.held}."
+    if note.near is None:
+        return "The gripper closed on nothing: there is no cup or block free to pick up."
+    by = length_words(note.distance)
+    if note.closer > 0.0:
+        fix = f"move {length_words(max(note.closer, 0.01))} closer"
+        if note.height:
+            fix += f" and {_height_fix(note.height)}"
+        return f"Missed the {note.near} by {by} — {fix}, open the gripper and close it again."
+    off, fix = _height_off(note.height), _height_fix(note.height)
+    return f"Missed the {note.near}: the gripper is {off} — {fix}, then close it again."
+
+
+def _height_off(h: float) -> str:
+    return f"{length_words(h)} too {'high' if h > 0 else 'low'}"
+
+
+def _height_fix(h: float) -> str:
+    return f"{'lower' if h > 0 else 'raise'} it {length_words(max(abs(h), 0.01))}"
+
+
+def moved_words(name: str, distance: float) -> str:
+    """An object a fixed-places skill will not follow: "The bottom cup is 11 cm from where it stood when you
+    taught; your skill repeats the taught motion."."""
+    return (
+        f"The {name} is {length_words(distance)} from where it stood when you taught; your skill repeats the "
+        "taught motion, so it will not follow it. Put it back, or choose Places: Follow the objects and train again."
     )
 
 
 __all__ = [
+    "OWN_TASK",
     "SHARED_REMEDIES",
+    "TASKS",
     "Remedies",
+    "count_words",
     "fit_note",
+    "grasp_words",
     "length_words",
+    "moved_words",
     "route_label",
     "route_sides",
     "routes_words",
+    "task_words",
     "tune_summary",
     "verdict_lines",
 ]

@@ -28,7 +28,7 @@ def test_default_command_is_serve(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(cli, "_dispatch", fake_dispatch)
     assert cli.main(["--port", "9123"]) == 0
     assert seen["command"] == "serve" and seen["port"] == 9123 and seen["host"] == "127.0.0.1"
-    assert seen["session"] == "stack-cup"
+    assert seen["session"] is None  # the session open last time (else stack-cup): decided by the studio
     seen.clear()
     assert cli.main([]) == 0
     assert seen["command"] == "serve" and seen["port"] == 8080

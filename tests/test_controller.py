@@ -257,17 +257,19 @@ def test_demos_are_read_from_one_list(ctl: Controller, monkeypatch: pytest.Monke
     assert [d.name for _, d in ctl.demos.for_arm("left")] == [r.name for r in recs]
 
 
-def test_delete_asks_for_a_second_press(ctl: Controller) -> None:
+def test_delete_at_once_with_undo(ctl: Controller) -> None:
     demos = ctl.demos
     names = demos.names()
-    assert demos.delete_confirmed(0, now=100.0) is False  # first press only asks
-    assert demos.names() == names
-    assert any(kind == "warning" and "Press Delete again" in body for kind, _, body in notes(ctl))
-    assert demos.delete_confirmed(0, now=100.0 + demos.DELETE_CONFIRM_S + 1) is False  # too late: asks again
-    assert demos.names() == names
-    assert demos.delete_confirmed(1, now=107.0) is False  # another demo: asks for that one
-    assert demos.delete_confirmed(1, now=108.0) is True
+    ctl.demos.set_visible(1, False)
+    demos.delete(1)  # at once: no second press
     assert demos.names() == [names[0], names[2]]
+    assert any("Press Undo" in body for _, _, body in notes(ctl))
+    assert names[1] in ctl.undo.what
+    ctl.undo.undo()  # back, as the last demonstration, still hidden
+    assert demos.names() == [names[0], names[2], names[1]] and not demos.visible(2)
+    assert ctl.undo.what == ""
+    with pytest.raises(StudioError, match="nothing to bring back"):
+        ctl.undo.undo()
 
 
 def test_events_reach_every_view_even_after_a_broken_one(ctl: Controller) -> None:

@@ -610,3 +610,15 @@ def test_a_change_that_would_make_the_manifest_unopenable_is_refused_and_nothing
     assert (s.path / "session.json").stat().st_size <= 2500
     again = store.open("big")  # opens with every demonstration saved before the refusal
     assert [r.name for r in again.recordings] == [f"d{i}" for i in range(kept)]
+
+
+def test_the_store_remembers_the_session_open_last(tmp_path) -> None:
+    store = SessionStore(tmp_path)
+    assert store.last_open() is None
+    store.create("first")
+    store.remember_open("first")
+    assert store.last_open() == "first" and SessionStore(tmp_path).last_open() == "first"
+    store.delete("first")
+    assert store.last_open() is None  # gone since: the studio opens its default
+    (tmp_path / ".last-session").write_bytes(b"\xff\xfe")
+    assert store.last_open() is None

@@ -28,11 +28,12 @@ from studio.controller.sessions import RECOVERED, SessionActions, open_or_create
 from studio.controller.suggest import Suggesting, SuggestState
 from studio.controller.teaching import Reach, Teaching
 from studio.controller.training import FRAME_WORDS, MODE_WORDS, SkillVerdict, Training, UsedDemo
+from studio.controller.undo import Undo
 from studio.controller.view import Layer, Step, View
 from studio.core.kinematics import Baxter
 from studio.robot_backend.base import RobotBackend
 from studio.storage import Session, SessionStore
-from studio.world import FLOOR_Z, ObjectPose, Scene, TaskResult, WorldObject
+from studio.world import FLOOR_Z, GraspNote, ObjectPose, Scene, TaskResult, WorldEvent, WorldObject
 from studio.world import PRESETS as SCENE_PRESETS
 
 log = logging.getLogger(__name__)
@@ -68,11 +69,18 @@ class Controller:
         # Each part gets the context and narrow callables or protocols for what it asks of the others (late
         # bound: a part is asked only once all exist); it subscribes to the events it follows itself.
         self.view = View(ctx.events)
-        self.demos = Demos(ctx)
+        self.undo = Undo(ctx)  # a discarded take or a deleted demonstration, for a while
+        self.demos = Demos(ctx, keep=self.undo.keep)
         self.placed = PlacedSkills(ctx)  # the skills where the objects are now: what preview and runs play
         self.playback = Player(ctx, guard=lambda: self.execution.check_not_running(), skills=self.placed.get)
         self.scene = SceneActions(ctx, backend, player=self.playback)
-        self.teaching = Teaching(ctx, backend, takes=self.scene, motion_guard=lambda d: self.execution.check_free(d))
+        self.teaching = Teaching(
+            ctx,
+            backend,
+            takes=self.scene,
+            motion_guard=lambda d: self.execution.check_free(d),
+            keep=lambda recording, events: self.undo.keep(recording, events),
+        )
         self.guide = Guiding(ctx, self.teaching, objects=lambda: self.scene.live.poses())
         self.keypoints = KeypointTuning(ctx, self.demos)
         self.live = LivePaths(
@@ -183,6 +191,7 @@ __all__ = [
     "Display",
     "Events",
     "ExecutionActions",
+    "GraspNote",
     "Guiding",
     "KeypointItem",
     "KeypointTuning",
@@ -211,7 +220,9 @@ __all__ = [
     "Teaching",
     "Topic",
     "Training",
+    "Undo",
     "UsedDemo",
     "View",
+    "WorldEvent",
     "WorldObject",
 ]

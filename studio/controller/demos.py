@@ -3,8 +3,9 @@ cached), and the edits (hide, rename, trim, delete with a second press to confir
 
 from __future__ import annotations
 
-import time
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -12,7 +13,8 @@ from studio.controller.context import Context
 from studio.controller.events import Topic
 from studio.core.errors import StudioError
 from studio.core.types import Arm, Demo, Recording
-from studio.storage.format import WORK_SAMPLES, check_demo_name
+from studio.storage.format import WORK_SAMPLES, check_demo_name, shown
+from studio.world import WorldEvent
 
 #: Demo colours (RGB), distinct on the light background, never red (red marks the cluster centroids) and never
 #: cyan (the learned path).
@@ -48,19 +50,28 @@ class DemoSummary:
     visible: bool
 
 
+class Keep(Protocol):
+    """Keeps a demonstration just thrown away, for Undo (:meth:`studio.controller.undo.Undo.keep`)."""
+
+    def __call__(
+        self, recording: Recording, events: Sequence[WorldEvent] = (), *, hidden: bool = False, what: str = ""
+    ) -> None: ...
+
+
+def _forget(recording: Recording, events: Sequence[WorldEvent] = (), *, hidden: bool = False, what: str = "") -> None:
+    """No Undo: what is thrown away is gone."""
+
+
 class Demos:
     """The open session's demonstrations; every edit is saved at once and announced as :attr:`Topic.DEMOS`
     (a new take too: :class:`~studio.controller.teaching.Teaching` emits it). Another session clears the cache."""
 
-    #: Seconds within which a second Delete press confirms the first.
-    DELETE_CONFIRM_S = 5.0
-
-    def __init__(self, ctx: Context) -> None:
+    def __init__(self, ctx: Context, keep: Keep | None = None) -> None:
         self.ctx = ctx
+        #: Keeps a deleted demonstration for Undo.
+        self.keep: Keep = keep or _forget
         self._cache: dict[tuple[int, str], tuple[Recording, Demo, int]] = {}
         self._told_stride = 1
-        #: per browser tab (its id, None for the studio itself): (demo name, time of its first Delete press)
-        self._delete_pending: dict[object, tuple[str, float]] = {}
         ctx.events.on(Topic.DEMOS, self._prune)
         ctx.events.on(Topic.SESSION, self.clear)
 
@@ -190,38 +201,26 @@ class Demos:
             session.trim_demo(i, t0, t1, events=events)
         self.changed()
 
-    def delete(self, i: int) -> None:
+    def delete(self, i: int, *, name: str | None = None) -> None:
+        """Delete demonstration ``i``; it is kept in memory a while for Undo (:mod:`studio.controller.undo`).
+        ``name``: the one the teacher chose; when ``i`` is another by now (another tab deleted one first), nothing
+        is deleted and the teacher is told."""
         with self.ctx.lock:
-            self.ctx.session.delete_demo(i)
+            session = self.ctx.session
+            rec = session.recordings[i] if 0 <= i < len(session.recordings) else None
+            if name is not None and (rec is None or rec.name != name):
+                raise StudioError(f"{shown(name)} was deleted already (in another tab?); nothing else was deleted.")
+            events = session.objects.events(session.demo_files[i]) if rec is not None else ()
+            hidden = rec is not None and rec.name in session.hidden_demos
+            session.delete_demo(i)
         self.changed()
-
-    def delete_confirmed(self, i: int, *, by: object | None = None, now: float | None = None) -> bool:
-        """The Delete button: the first press asks, a second press on the same demo within
-        :attr:`DELETE_CONFIRM_S` from the same browser tab (``by``, the GUI event's client) deletes it for good.
-        Returns True when the demo was deleted."""
-        now = time.monotonic() if now is None else now
-        tab = getattr(by, "client_id", by)
-        with self.ctx.lock:
-            name = self.names()[i]
-            pending = self._delete_pending.get(tab)
-            confirmed = pending is not None and pending[0] == name and now - pending[1] <= self.DELETE_CONFIRM_S
-            if confirmed:
-                self._delete_pending = {t: p for t, p in self._delete_pending.items() if p[0] != name}
-                self.ctx.session.delete_demo(i)  # under the lock: another tab's press cannot shift the rows between
-            else:
-                self._delete_pending[tab] = (name, now)
-        if confirmed:
-            self.changed()
-            self.ctx.notify("Demonstration deleted", f'"{name}" was deleted.', kind="success")
-            return True
-        self.ctx.notify(
-            "Delete for good?",
-            f'Press Delete again within {self.DELETE_CONFIRM_S:.0f} seconds to delete "{name}" from disk. '
-            'To keep it but leave it out of learning, untick "Show in the scene" instead.',
-            kind="warning",
-            client=by,
-        )
-        return False
+        if rec is not None:
+            self.keep(rec, events, hidden=hidden)
+            self.ctx.notify(
+                "Demonstration deleted",
+                f'"{rec.name}" was deleted. Press Undo (in Teach) to bring it back.',
+                kind="success",
+            )
 
     def changed(self) -> None:
         """The set of demonstrations changed: tell the views (stale cache entries are dropped then)."""
@@ -234,5 +233,4 @@ class Demos:
     def clear(self) -> None:
         """Forget everything cached (another session was opened)."""
         self._cache = {}
-        self._delete_pending = {}
         self._told_stride = 1

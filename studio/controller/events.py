@@ -55,6 +55,8 @@ class Topic(StrEnum):
     GUIDE = "guide"
     #: The task result of the learned skill changed (``scene.task_result()``).
     TASK = "task"
+    #: A thrown-away take or a deleted demonstration can be brought back, or no longer (``undo.what``).
+    UNDO = "undo"
     #: The robot's run started, changed phase (stopping, done, stopped, emergency-stopped), was judged, or the
     #: emergency stop was engaged or released (``execution.status``; the progress within a phase is polled).
     EXECUTION = "execution"

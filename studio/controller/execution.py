@@ -114,6 +114,8 @@ class ExecutionActions:
         ctx.on_leave(self._check_leave)
         ctx.events.on(Topic.SKILL, self._forget_last_run)
         ctx.events.on(Topic.SESSION, self._forget_last_run)
+        for topic in (Topic.TASK, Topic.DEMOS):  # the objects or the demonstrations changed
+            ctx.events.on(topic, self._last_run_out_of_date)
 
     # -- state -------------------------------------------------------------------------------------------
     @property
@@ -331,6 +333,15 @@ class ExecutionActions:
             self.plan = self.recording = self.report = self.task = self.verdict = None
             self._last, self._paths = None, RunPaths()
             self._status = RunStatus(estop=self._status.estop, message=IDLE)
+        self.ctx.emit(Topic.EXECUTION)
+
+    def _last_run_out_of_date(self) -> None:
+        """The set-up or the demonstrations changed: the last run's result is kept, marked as of before."""
+        with self._lock:
+            st = self._status
+            if self._run is not None or st.phase == "idle" or st.stale:
+                return
+            self._status = dataclasses.replace(st, stale=True)
         self.ctx.emit(Topic.EXECUTION)
 
     def close(self) -> None:

@@ -203,6 +203,8 @@ class KeypointTuning:
                 return
             self._dirty = False
             settings, k, session = self._settings, self._k, self._session
+        if session.read_only:  # an example keeps its own settings; these stay in memory while it is open
+            return
         params = self.params(settings=settings)
         if settings != session.thresholds or params != session.params:
             session.set_params(params, settings)

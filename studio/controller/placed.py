@@ -8,9 +8,15 @@ says, before a run, which objects stand where no demonstration put them.
 from __future__ import annotations
 
 import threading
+from dataclasses import replace
 
 from studio.controller.context import Context
+from studio.controller.events import Topic
+from studio.core.errors import StudioError
 from studio.core.types import Arm, Skill
+from studio.words import moved_words
+from studio.world.events import ObjectPose
+from studio.world.moved import moved_objects
 from studio.world.reach import one_place, outside, suggestion
 from studio.world.relative import objects_now
 
@@ -22,36 +28,80 @@ class PlacedSkills:
         self.ctx = ctx
         self._lock = threading.Lock()
         self._cache: dict[str, tuple[Skill, object, Skill]] = {}
+        #: × the taught pace the skills play at (:meth:`set_speed`).
+        self.speed = 1.0
 
     def get(self) -> dict[Arm, Skill]:
-        """arm -> the skill to play with the objects where they are now."""
+        """arm -> the skill to play with the objects where they are now, at the chosen :attr:`speed`."""
         from studio.core.segments import place_skill
 
         session = self.ctx.session
         scene = session.objects.scene
+        speed = self.speed
         out: dict[Arm, Skill] = {}
         for arm, skill in dict(session.skills).items():
-            if skill.frames is None:
+            if skill.frames is None and speed == 1.0:
                 out[arm] = skill
                 continue
             with self._lock:
                 hit = self._cache.get(arm)
-            if hit is not None and hit[0] is skill and hit[1] == scene:
+            if hit is not None and hit[0] is skill and hit[1] == (scene, speed):
                 out[arm] = hit[2]
                 continue
-            placed = place_skill(skill, objects_now(scene), arm=arm, baxter=self.ctx.baxter)
+            placed = skill
+            if skill.frames is not None:
+                placed = place_skill(skill, objects_now(scene), arm=arm, baxter=self.ctx.baxter)
+            placed = self._at_speed(placed, arm, speed)
             with self._lock:
-                self._cache[arm] = (skill, scene, placed)
+                self._cache[arm] = (skill, (scene, speed), placed)
             out[arm] = placed
         return out
 
+    def _at_speed(self, skill: Skill, arm: Arm, speed: float) -> Skill:
+        from studio.core.pace import at_speed
+
+        jt = skill.joint_trajectory
+        if speed == 1.0 or jt is None:
+            return skill
+        b = self.ctx.baxter
+        return replace(skill, joint_trajectory=at_speed(jt, speed, b.velocity_limits(arm), b.acceleration_limits(arm)))
+
+    def set_speed(self, speed: float) -> None:
+        """Play the skills at ``speed`` × the taught pace (as fast as the robot's joint limits allow), in the
+        preview, the task result and on the robot."""
+        from studio.core.pace import MAX_SPEED, MIN_SPEED
+
+        speed = float(speed)
+        if not MIN_SPEED <= speed <= MAX_SPEED:
+            raise StudioError(f"Choose a speed between {MIN_SPEED:g}× and {MAX_SPEED:g}×.")
+        with self._lock:
+            if speed == self.speed:
+                return
+            self.speed = speed
+        self.ctx.emit(Topic.SKILL)  # what Preview, the task result and Run on robot play changed
+
     def warnings(self) -> list[str]:
-        """Plain sentences, one per object that stands where no demonstration put it."""
+        """Plain sentences, one per object that stands where no demonstration put it (a skill that follows the
+        objects), or elsewhere than when the demonstrations started (a skill that repeats the taught motion)."""
         session = self.ctx.session
         out: list[str] = []
         for skill in session.skills.values():
             if skill.frames is not None:
                 out += [w for w in outside(skill.frames, session.objects.scene) if w not in out]
+        if any(s.frames is None for s in session.skills.values()):
+            out += [moved_words(n, d) for n, d in moved_objects(self._starts(), session.objects.scene)]
+        return out
+
+    def _starts(self) -> list[tuple[ObjectPose, ...]]:
+        """The objects at the start of each shown demonstration that recorded them."""
+        session = self.ctx.session
+        out = []
+        for rec, file in zip(session.recordings, session.demo_files, strict=False):
+            if rec.name in session.hidden_demos:
+                continue
+            start = next((e.poses for e in session.objects.events(file) if e.kind == "start"), None)
+            if start is not None:
+                out.append(start)
         return out
 
     def note(self) -> str:

@@ -107,7 +107,9 @@ class Player:
         self._loaded: Playback | None = None
         #: The skills the preview plays (the controller's: placed where the objects are now).
         self.skills: Callable[[], Mapping[Arm, Skill]] = skills or (lambda: ctx.session.skills)
-        ctx.events.on(Topic.SKILL, self.unload_preview)
+        # a new skill, or the objects set up elsewhere: a preview loaded before shows what is no longer so
+        for topic in (Topic.SKILL, Topic.SCENE):
+            ctx.events.on(topic, self.unload_preview)
         ctx.events.on(Topic.SESSION, self._on_session)
 
     # -- state -----------------------------------------------------------------------------------------------
@@ -185,7 +187,8 @@ class Player:
         self.display.show_live()
 
     def unload_preview(self) -> None:
-        """A new skill was learned: unload the preview of the old one (the scene goes live if it showed it)."""
+        """A new skill was learned or the objects moved: unload the preview of before (the scene goes live if it
+        showed it)."""
         if self._get(PREVIEW) is not None:
             self.unload()
             self.display.show_live()

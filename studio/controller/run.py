@@ -75,6 +75,7 @@ class RunStatus:
         result: after the run, how closely it followed the plan and what happened to the objects ("" before).
         ok: the run ended and did the task (None until judged).
         estop: the emergency stop is engaged.
+        stale: the objects' set-up or the demonstrations changed since this run: its result is of before.
     """
 
     phase: str = "idle"
@@ -84,6 +85,7 @@ class RunStatus:
     result: str = ""
     ok: bool | None = None
     estop: bool = False
+    stale: bool = False
 
     @property
     def active(self) -> bool:

@@ -25,6 +25,7 @@ from studio.robot_backend.base import RobotBackend
 from studio.world import (
     KINDS,
     PRESETS,
+    GraspNote,
     ObjectPose,
     Scene,
     TaskGoal,
@@ -33,6 +34,7 @@ from studio.world import (
     WorldEvent,
     WorldRun,
     bounded,
+    grasp_note,
     on_clock,
     preset,
     simulate,
@@ -165,6 +167,13 @@ class SceneActions:
         session = self.ctx.session
         events = session.objects.events(session.demo_files[i]) if i < len(session.demo_files) else ()
         return next((e.poses for e in events if e.kind == "start"), None)
+
+    def last_grip(self) -> tuple[WorldEvent, GraspNote] | None:
+        """The live world's latest grasp or miss and what it did (None before any since the objects were last
+        put back); the same event object until the next one."""
+        ev = next((e for e in reversed(self.live.events) if e.kind in ("grasp", "miss")), None)
+        note = grasp_note(ev) if ev is not None else None
+        return None if ev is None or note is None else (ev, note)
 
     # -- what the scene shows --------------------------------------------------------------------------
     def shown(self) -> tuple[tuple[int, ...], tuple[ObjectPose, ...]]:

@@ -11,7 +11,7 @@ from pathlib import Path
 from studio.controller.context import Context
 from studio.controller.events import Topic
 from studio.core.errors import InvalidInput, SessionFormatError, StudioError
-from studio.storage import Session, SessionStore, check_session_name
+from studio.storage import ReadOnly, Session, SessionStore, check_session_name
 from studio.storage.format import what_went_wrong
 from studio.world import preset
 
@@ -114,6 +114,10 @@ class SessionActions:
 
     def save(self, *, quiet: bool = False) -> None:
         self.persist()
+        if self.ctx.session.read_only:  # an example is saved as it is already
+            if not quiet:
+                raise ReadOnly(self.ctx.session.name)
+            return
         self.ctx.store.save(self.ctx.session)
         if not quiet:
             self.ctx.notify("Saved", f'Session "{self.ctx.session.name}" is saved.', kind="success")

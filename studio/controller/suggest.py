@@ -34,6 +34,7 @@ class SuggestState:
         can_undo: Undo would put back the settings from before the last applied suggestion.
         seconds: how long the last search took.
         result: the last finished search's outcome (settings, k, figures; ``changed`` says if it was applied).
+        replaced: the thresholds the teacher had set that the applied suggestion made automatic again (names).
     """
 
     running: bool = False
@@ -43,6 +44,7 @@ class SuggestState:
     can_undo: bool = False
     seconds: float = 0.0
     result: TuneResult | None = None
+    replaced: tuple[str, ...] = ()
 
 
 class Thresholds(Protocol):
@@ -94,7 +96,7 @@ class Suggesting:
             settings, k, session = self.tuning.settings(), self.tuning.k, self.ctx.session
             mode = session.generalization
             self._cancel.clear()
-        self._set(running=True, fraction=0.0, step="Starting", summary="", result=None)
+        self._set(running=True, fraction=0.0, step="Starting", summary="", result=None, replaced=())
 
         def progress(fraction: float, step: str) -> None:
             now = time.monotonic()
@@ -136,6 +138,7 @@ class Suggesting:
                 can_undo=True,
                 seconds=res.seconds,
                 result=res,
+                replaced=tuple(n for n in settings.teacher if res.settings.teacher.get(n) != settings.teacher[n]),
             )
 
         def failed(f: Future[None]) -> None:
@@ -157,7 +160,7 @@ class Suggesting:
         if undo is None:
             raise StudioError("There is no suggestion to undo.")
         self.tuning.restore(*undo)
-        self._set(can_undo=False, summary="Undone: your thresholds are back as they were before Suggest.")
+        self._set(can_undo=False, replaced=(), summary="Undone: your thresholds are back as they were before Suggest.")
 
     def _forget(self) -> None:
         self._cancel.set()

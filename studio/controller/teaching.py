@@ -21,7 +21,7 @@ from studio.core.posture_ik import reach_pose
 from studio.core.types import ARMS, Arm, Recording
 from studio.recorder import Recorder
 from studio.robot_backend.base import JointStateBatch, RobotBackend
-from studio.storage import Session
+from studio.storage import ReadOnly, Session
 from studio.world import WorldEvent
 
 log = logging.getLogger(__name__)
@@ -58,6 +58,7 @@ class Teaching:
         takes: keeps each take's object events with its demonstration.
         motion_guard: refuses (raises, in plain words) moving by hand or recording ("before {doing}") during a
             run on the robot or an emergency stop.
+        keep: keeps a discarded take (and its object events) for Undo.
     """
 
     def __init__(
@@ -66,12 +67,15 @@ class Teaching:
         backend: RobotBackend,
         takes: Takes,
         motion_guard: Callable[[str], None] = lambda doing: None,
+        keep: Callable[[Recording, Sequence[WorldEvent]], None] = lambda recording, events: None,
     ) -> None:
         self.ctx = ctx
         self.backend = backend
         self.display = ctx.display
         self.takes = takes
         self.motion_guard = motion_guard
+        #: Keeps a discarded take for Undo.
+        self.keep = keep
         self.reach: dict[Arm, Reach] = {}
         self._targets: dict[Arm, np.ndarray] = {}
         self._ik_lock = {arm: threading.Lock() for arm in ARMS}
@@ -80,6 +84,7 @@ class Teaching:
         self._unsubscribe: Callable[[], None] | None = None
         ctx.on_leave(self._check_leave)
         ctx.events.on(Topic.SESSION, self.forget_reach)
+        self._saving = False
         self._owner: object | None = None  # the browser tab that started the running take
         self._discard_asked: float | None = None
 
@@ -248,15 +253,27 @@ class Teaching:
     def recording(self) -> bool:
         return self._recorder is not None
 
+    @property
+    def saving(self) -> bool:
+        """A stopped take is being written into the session (between Stop and "Demonstration saved")."""
+        return self._saving
+
     def start_recording(self, by: object | None = None) -> None:
         """Start recording the taught arm(s); only one recording runs at a time (across all tabs). ``by``: the
         browser tab that started it (see :meth:`discard_recording`)."""
         with self.ctx.lock:
             if self._recorder is not None:
-                raise StudioError("A recording is already running (maybe in another tab). Stop it first.")
+                if by is not None and _tab_id(by) == self._owner:
+                    return  # a double click on Record: the take this tab started goes on
+                where = " in another browser tab" if by is not None else ""
+                raise StudioError(f"A recording is already running{where}. Stop it first.")
+            if self._saving:
+                raise StudioError("The last demonstration is still being saved: press Record again in a moment.")
             self.motion_guard("recording")
-            self.display.show_live()
             session = self.ctx.session
+            if session.read_only:  # refused before the take, never after it
+                raise ReadOnly(session.name)
+            self.display.show_live()
             rec = Recorder(self.backend, session.recording_dir, self.selected_arms, name=self._next_demo_name())
             rec.start()
             self._recorder, self._session = rec, session  # the take is saved where it was started
@@ -278,6 +295,8 @@ class Teaching:
             if rec is None:
                 raise StudioError("Nothing is being recorded.")
             self._recorder = None
+            self._saving = True
+            self.ctx.emit(Topic.RECORDING)  # the views say "Saving…" at once
             try:
                 try:
                     recording = rec.stop()
@@ -298,6 +317,7 @@ class Teaching:
                     raise
                 rec.discard()
             finally:
+                self._saving = False
                 self.ctx.emit(Topic.RECORDING)
         for msg in rec.messages:
             self.ctx.notify("Recording", msg, kind="warning")
@@ -322,11 +342,29 @@ class Teaching:
                 )
                 return False
             rec, self._recorder = self._recorder, None
-            self.takes.cancel_take()
+            kept = self._stop_for_undo(rec) if rec is not None else None
         if rec is not None:
             rec.discard()
         self.ctx.emit(Topic.RECORDING)
+        if kept is not None:
+            self.keep(*kept)
+            self.ctx.notify(
+                "Recording thrown away",
+                f'"{kept[0].name}" was thrown away. Press Undo to keep it after all.',
+                kind="info",
+            )
         return rec is not None
+
+    def _stop_for_undo(self, rec: Recorder) -> tuple[Recording, Sequence[WorldEvent]] | None:
+        """Stop a take that is thrown away, keeping what it recorded for Undo (None when there is nothing)."""
+        try:
+            recording = rec.stop()
+        except Exception:
+            log.debug("a discarded take could not be read back", exc_info=True)
+            self.takes.cancel_take()
+            return None
+        events = self.takes.end_take(recording)
+        return (recording, events) if len(recording) >= 2 else None
 
     def save_running_recording(self) -> None:
         """Keep a take that is still running (when the studio stops); failures are logged."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from concurrent.futures import Future
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Protocol
 
 import numpy as np
@@ -16,9 +16,11 @@ from studio.controller.learning import ShownDemos
 from studio.core.errors import NotEnoughData, StudioError
 from studio.core.frames import DemoObjects
 from studio.core.keypoints import KeypointCache
+from studio.core.pace import remove_pauses, without_pauses
 from studio.core.quality import DemoFit, Verdict
 from studio.core.thresholds import ThresholdSettings
 from studio.core.types import FRAMES, Arm, Demo, Generalization, KeypointParams, Recording, Skill
+from studio.storage import ReadOnly
 from studio.world.relative import demo_objects, objects_now
 
 #: How each choice of frames is called in the Train panel.
@@ -88,6 +90,8 @@ class Training:
         self.judgement: Future[None] | None = None
         self._verdicts: dict[Arm, SkillVerdict] = {}
         self._routes: dict[Arm, int] = {}
+        #: Learn from the demonstrations with their long rests shortened (:func:`studio.core.pace.remove_pauses`).
+        self.remove_pauses = False
         ctx.on_leave(self._check_leave)
         ctx.events.on(Topic.SESSION, self._on_session)
 
@@ -122,6 +126,14 @@ class Training:
             self.ctx.session.set_params(mode=frames)
         self.ctx.emit(Topic.TRAINING)
 
+    def set_remove_pauses(self, on: bool) -> None:
+        """Shorten the long rests of each demonstration before learning (the next training on)."""
+        with self.ctx.lock:
+            if bool(on) == self.remove_pauses:
+                return
+            self.remove_pauses = bool(on)
+        self.ctx.emit(Topic.TRAINING)
+
     def _check_leave(self, doing: str) -> None:
         if self.busy:
             raise StudioError(f"Wait for the training to finish before {doing}.")
@@ -150,7 +162,10 @@ class Training:
         with self.ctx.lock:
             if self.busy:
                 raise StudioError("Training is already running; wait for it to finish.")
+            if self.ctx.session.read_only:  # its skill could not be kept: say so before the work
+                raise ReadOnly(self.ctx.session.name)
             per_arm = {arm: self.demos.for_arm(arm) for arm in (self.ctx.arms if arms is None else arms)}
+            brisk = self.remove_pauses
             for arm, demos in per_arm.items():
                 if len(demos) < 2:
                     raise NotEnoughData(
@@ -168,6 +183,9 @@ class Training:
         baxter, cache = self.ctx.baxter, self.tuning.cache
 
         relative = {arm: self._objects(arm, demos) for arm, demos in per_arm.items()} if frames == "objects" else {}
+        if brisk:  # long rests shortened before learning; the grasps and releases keep their moments
+            relative = {a: o if isinstance(o, str) else _brisk_objects(per_arm[a], o) for a, o in relative.items()}
+            per_arm = {arm: [(i, remove_pauses(d)) for i, d in demos] for arm, demos in per_arm.items()}
         now = objects_now(session.objects.scene)
 
         def way(arm: Arm, demos: list[Demo]) -> int | None:
@@ -332,7 +350,8 @@ class Training:
         for nm in self.skill_demo_names(arm):
             hit = by_name.get(nm)
             if hit is not None and arm in hit[1].arms:
-                out.append(UsedDemo(nm, hit[0], self.demos.demo_of(hit[1], arm)))
+                demo = self.demos.demo_of(hit[1], arm)
+                out.append(UsedDemo(nm, hit[0], remove_pauses(demo) if self.remove_pauses else demo))
             else:
                 out.append(UsedDemo(nm, None, None))
         return out
@@ -349,3 +368,14 @@ class Training:
         tr = sk.trajectory
         pos = np.column_stack([np.interp(jt.t, tr.t, tr.position[:, c]) for c in range(3)])
         return pos[bad]
+
+
+def _brisk_objects(demos: list[tuple[int, Demo]], objects: list[DemoObjects]) -> list[DemoObjects]:
+    """Each demonstration's contacts at their moments once its long rests are shortened."""
+    out = []
+    for (_, d), objs in zip(demos, objects, strict=True):
+        t = np.asarray(d.t, dtype=np.float64)
+        new = without_pauses(d)
+        contacts = tuple(replace(c, t=float(np.interp(c.t + t[0], t, new) - new[0])) for c in objs.contacts)
+        out.append(replace(objs, contacts=contacts))
+    return out

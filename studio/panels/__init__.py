@@ -23,6 +23,7 @@ from studio.panels.run import RunPanel
 from studio.panels.scene import ScenePanel
 from studio.panels.sessions import SessionsPanel
 from studio.panels.steps import StepPanel
+from studio.panels.task import TaskPanel
 from studio.panels.teach import TeachPanel
 from studio.panels.train import TrainPanel
 
@@ -40,12 +41,14 @@ class Panels:
     sessions: SessionsPanel
     scene: ScenePanel
     steps: StepPanel
+    task: TaskPanel
 
     def tick(self, now: float) -> None:
         """Periodic refresh from the pose pump thread (timers, handles following the robot, playback)."""
         self.robot.tick(now)
         self.run.tick(now)
         self.scene.tick(now)
+        self.task.tick(now)
         self.teach.tick(now)
         self.move.tick(now)
         self.preview.tick(now)
@@ -69,6 +72,7 @@ def build_panels(ctl: Controller, server: viser.ViserServer, urdf_path: Path) ->
     run = RunPanel(ctl, server)  # on every step: the robot's run, Stop and the Emergency stop
     sections = {step: gui.add_folder(None, order=10 + i, visible=step == ctl.view.step) for i, step in enumerate(Step)}
     with sections[Step.TEACH]:
+        task = TaskPanel(ctl, server)  # the task and the grasp feedback, above the teaching controls
         teach = TeachPanel(ctl, server)
         move = MovePanel(ctl, server)  # keys, position boxes, Go above, Home pose
         scene = ScenePanel(ctl, server)
@@ -82,4 +86,4 @@ def build_panels(ctl: Controller, server: viser.ViserServer, urdf_path: Path) ->
     with sections[Step.SESSIONS]:
         sessions = SessionsPanel(ctl, server)
     steps = StepPanel(ctl, server, sections)
-    return Panels(robot, run, teach, move, demos, keypoints, train, preview, sessions, scene, steps)
+    return Panels(robot, run, teach, move, demos, keypoints, train, preview, sessions, scene, steps, task)

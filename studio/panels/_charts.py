@@ -99,8 +99,8 @@ def position_plot_svg(
                     f'<path d="M{x:.1f},{y - 3.2:.1f} L{x + 3:.1f},{y + 2:.1f} L{x - 3:.1f},{y + 2:.1f} Z" '
                     f'fill="rgb{color}" stroke="#222" stroke-width="0.4"/>'
                 )
-    parts.append(
-        f'<text x="{left + w - 2}" y="{top + 9}" font-size="8" text-anchor="end">'
+    parts.append(  # on the title line, above the plot: never over a curve
+        f'<text class="legend" x="{left + w}" y="11" font-size="8" text-anchor="end">'
         f'<tspan fill="{AXIS_COLORS[0]}">x</tspan> <tspan fill="{AXIS_COLORS[1]}">y</tspan> '
         f'<tspan fill="{AXIS_COLORS[2]}">z</tspan> ▲ key-point</text>'
     )

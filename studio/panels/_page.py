@@ -1,7 +1,8 @@
 """Page behaviour the GUI library does not offer, installed once per server as a small script every tab runs.
 
 Arrow keys stay in the control that has the focus (viser's camera would also orbit on them; why:
-docs/decisions/018), and every control's hint is also the ``title`` of its label. The script is sent as
+docs/decisions/018), every control's hint is also the ``title`` of its label, the tab is called "Teaching
+Studio" and viser's developer settings button is hidden. The script is sent as
 viser's ``RunJavascriptMessage``, which viser replays to every tab that connects later."""
 
 from __future__ import annotations
@@ -17,10 +18,18 @@ _GUARD_JS = """
 (() => {
   if (window.__studioPage) return;
   window.__studioPage = {hints: {}};
+  const TITLE = "Teaching Studio";
   const inControl = (t) => t && t.closest &&
     t.closest('[role=slider], input, textarea, select, button, [role=button], [role=option]');
   const stop = (e) => { if (e.key && e.key.startsWith('Arrow') && inControl(e.target)) e.stopPropagation(); };
   const attach = () => {
+    // The tab is the studio's, not the GUI library's; its developer settings are not for the teacher.
+    const title = () => { if (document.title !== TITLE) document.title = TITLE; };
+    title();
+    new MutationObserver(title).observe(document.head, {subtree: true, childList: true, characterData: true});
+    const css = document.createElement('style');
+    css.textContent = '[data-dock-header] button:has(.tabler-icon-adjustments) { display: none !important; }';
+    document.head.appendChild(css);
     document.body.addEventListener('keydown', stop);
     document.body.addEventListener('keyup', stop);
     const label = () => {

@@ -15,6 +15,11 @@ from studio.controller import Controller
 from studio.core.types import KeypointParams
 
 DEG = 180.0 / math.pi
+#: What the folder holds, in one sentence (the paper's names are in each slider's hint).
+ABOUT = (
+    '<div class="thresholds-about" style="font-size:0.85em;color:#555">Advanced: the fourteen thresholds of the '
+    "paper (ε1–ε14). Detail and Suggest set them for you; move one only to try it.</div>"
+)
 
 
 @dataclass(frozen=True)
@@ -39,14 +44,15 @@ class SliderSpec:
         return f"ε{self.name[3:]}"
 
     def label(self, yours: bool = False) -> str:
-        """ "Travel distance, cm (ε5)", with "· yours" when the teacher set it."""
-        return f"{self.words}, {self.unit} ({self.symbol}){' · yours' if yours else ''}"
+        """ "Travel distance, cm", with "· yours" when the teacher set it (the paper's ε is in the hint)."""
+        return f"{self.words}, {self.unit}{' · yours' if yours else ''}"
 
 
 POSITION: tuple[SliderSpec, ...] = (
     SliderSpec(
         "eps1", "Corner sharpness", "°", DEG, 180.0, 360.0, 1.0,
-        "Higher keeps only sharp corners of the hand's path as key-points (180°: every bend counts).",
+        "How sharp a corner of the hand's path must be to become a key-point, as the angle between the way in and "
+        "the way out: 180° is a straight line (every bend counts), towards 360° only sharp turns and reversals.",
     ),
     SliderSpec(
         "eps2", "Pause speed", "cm/s", 100.0, 0.0, 10.0, 0.1,
@@ -127,7 +133,8 @@ class ThresholdSliders:
         params = ctl.keypoints.params()
         with gui.add_folder("All thresholds", expand_by_default=False):
             self.whose = gui.add_html("")
-            for title, group in (("Position (ε1–ε7)", POSITION), ("Orientation (ε8–ε14)", ORIENTATION)):
+            self.about = gui.add_html(ABOUT)
+            for title, group in (("Position", POSITION), ("Orientation", ORIENTATION)):
                 with gui.add_folder(title, expand_by_default=title.startswith("Position")):
                     self.lines.append(gui.add_html(""))  # the counts, right above the sliders being moved
                     for spec in group:

@@ -8,6 +8,7 @@ import html
 import viser
 
 from studio.controller import Controller, Step, Topic
+from studio.panels._sliders import SPECS
 
 
 class SuggestControls:
@@ -53,7 +54,13 @@ class SuggestControls:
             body = f"{html.escape(st.step)}… ({100 * st.fraction:.0f} %)"
         else:
             body = html.escape(st.summary)
+            if st.replaced and st.can_undo:
+                names = " and ".join(SPECS[n].words for n in st.replaced if n in SPECS)
+                body += (
+                    f'<div class="suggest-replaced" style="color:#92400e">Your own value for {html.escape(names)} '
+                    "was replaced by an automatic one: press Undo suggestion to have it back.</div>"
+                )
         return (
             f'<div class="suggest-state" data-running="{int(st.running)}" data-undo="{int(st.can_undo)}" '
-            f'style="font-size:0.85em">{body}</div>'
+            f'style="font-size:0.85em;overflow-wrap:anywhere">{body}</div>'
         )

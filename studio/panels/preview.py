@@ -18,6 +18,12 @@ CYAN = (0, 200, 230)
 IK_FAIL = (230, 30, 30)
 NOT_TRAINED = "Train first: the learned path appears here in cyan."
 SPEEDS = {"¼×": 0.25, "½×": 0.5, "1×": 1.0, "2×": 2.0, "4×": 4.0}
+SKILL_SPEEDS = {"½× (slower)": 0.5, "1× (as taught)": 1.0, "1½×": 1.5, "2×": 2.0, "3×": 3.0}
+STALE_RUN = "this run was before you changed the objects or the demonstrations; press Run on robot to try again."
+MISSES_NOW = (
+    "The preview shows the skill missing the task with the objects where they are now: the robot would do the "
+    "same. Train again, or put the objects back where you taught."
+)
 
 
 class PreviewPanel:
@@ -30,7 +36,19 @@ class PreviewPanel:
         gui = server.gui
         self.info = gui.add_markdown(NOT_TRAINED)
         self.controls = gui.add_button_group("Playback", options=("Play", "Pause", "Stop"))
-        self.speed = gui.add_dropdown("Speed", options=list(SPEEDS), initial_value="1×")
+        self.speed = gui.add_dropdown(
+            "Watch at",
+            options=list(SPEEDS),
+            initial_value="1×",
+            hint="How fast the preview plays on the screen (the robot's own speed is Skill speed).",
+        )
+        self.skill_speed = gui.add_dropdown(
+            "Skill speed",
+            options=list(SKILL_SPEEDS),
+            initial_value=_speed_label(ctl.placed.speed),
+            hint="How fast the robot does the skill, in the preview and on the robot: faster than you taught only "
+            "where its joints allow.",
+        )
         self.time = gui.add_slider("Time (s)", min=0.0, max=1.0, step=0.01, initial_value=0.0)
         self.show_path = gui.add_checkbox("Show the learned path", initial_value=ctl.view.shown(Layer.LEARNED_PATH))
         self.reach = gui.add_html(self._reach_html())  # objects where no demonstration put them
@@ -49,6 +67,7 @@ class PreviewPanel:
         self.controls.on_click(ctl.guarded("Could not play the preview")(self._on_controls))
         self.speed.on_update(ctl.guarded("Could not change the speed")(self._on_speed))
         self.time.on_update(ctl.guarded("Could not move to that time")(self._on_time))
+        self.skill_speed.on_update(ctl.guarded("Could not change the skill's speed")(self._on_skill_speed))
         self.show_path.on_update(ctl.guarded()(self._on_show))
         self.run_btn.on_click(ctl.guarded("Could not run the skill on the robot")(self._on_run))
         ctl.events.on(Topic.SKILL, self.refresh)
@@ -93,8 +112,9 @@ class PreviewPanel:
             duration = self.ctl.playback.preview_duration()
             self.time.max = round(max(duration, 0.01), 2)
             self.time.value = 0.0
-            for h in (self.speed, self.time):
+            for h in (self.speed, self.time, self.skill_speed):
                 h.disabled = not skills
+            self.skill_speed.value = _speed_label(self.ctl.placed.speed)
             self.info.content = _info(duration, feasibility) if skills else NOT_TRAINED
         self._on_run_state()
 
@@ -110,8 +130,12 @@ class PreviewPanel:
         if any(not f.ok for f in execution.feasibility().values()):  # its words are above, with the red path
             reason = "The robot does not run a skill it cannot follow: see what is red on the learned path."
         quiet = running or reason.startswith("The emergency stop")  # the run's status says so, on every step
+        disabled = bool(reason)
+        task = self.ctl.scene.task_result()
+        if not reason and task is not None and task.objects and not task.ok:
+            reason = MISSES_NOW  # a warning: the teacher may still run it
         with self.server.atomic():
-            self.run_btn.disabled = bool(reason)
+            self.run_btn.disabled = disabled
             self.run_reason.content = (
                 ""
                 if not reason or quiet
@@ -127,13 +151,17 @@ class PreviewPanel:
         color = "#15803d" if st.ok else ("#1d4ed8" if st.ok is None else "#b91c1c")
         head = {True: "On the robot: the skill does the task.", False: "On the robot:", None: "On the robot:"}[st.ok]
         body = st.result or "the robot is running the skill; the result follows when it ends."
+        if st.stale:  # of before the change: never a green "does the task" under what the preview says now
+            color, head = "#6b7280", "Out of date:"
+            body = f"{STALE_RUN} Then, on the robot: {body}"
         legend = (
             f'<div class="run-legend" style="color:#555;margin-top:2px">{_swatch(CYAN)} the plan (learned path) '
             f"{_swatch(EXECUTED_COLOR)} where the robot's gripper went {_swatch(APPROACH_COLOR)} the way to the "
             "skill's start</div>"
         )
         return (
-            f'<div class="run-result" data-ok="{str(st.ok).lower()}" data-phase="{st.phase}" style="font-size:0.9em;'
+            f'<div class="run-result" data-ok="{str(st.ok).lower()}" data-phase="{st.phase}" data-stale='
+            f'"{str(st.stale).lower()}" style="font-size:0.9em;'
             f'border-left:4px solid {color};padding:2px 8px;margin:4px 0"><b style="color:{color}">{head}</b> '
             f"{html.escape(body)}{legend}</div>"
         )
@@ -152,6 +180,11 @@ class PreviewPanel:
         if event.client is None:
             return
         self.ctl.playback.set_speed(PREVIEW, SPEEDS[self.speed.value])
+
+    def _on_skill_speed(self, event: viser.GuiEvent) -> None:
+        if event.client is None:
+            return
+        self.ctl.placed.set_speed(SKILL_SPEEDS[self.skill_speed.value])
 
     def _on_time(self, event: viser.GuiEvent) -> None:
         if event.client is None:
@@ -175,6 +208,7 @@ class PreviewPanel:
         with self.server.atomic():
             self.reach.content = self._reach_html()
             self.task.content = self._task_html()
+        self._on_run_state()
 
     def _reach_html(self) -> str:
         said, note = self.ctl.placed.warnings(), self.ctl.placed.note()
@@ -216,6 +250,10 @@ def _info(duration: float, feasibility: dict[Arm, Feasibility]) -> str:
         f"Learned path ({duration:.1f} s) in cyan. The arm can follow all of it. "
         "Press **Play** to watch it, or **Run on robot**."
     )
+
+
+def _speed_label(speed: float) -> str:
+    return next((k for k, v in SKILL_SPEEDS.items() if v == speed), "1× (as taught)")
 
 
 def _swatch(rgb: tuple[int, int, int]) -> str:

@@ -3,6 +3,7 @@ the controls to set them up (add a cup, a block or a pad; move one with a handle
 
 from __future__ import annotations
 
+import html
 import math
 import threading
 import time
@@ -50,6 +51,7 @@ class ScenePanel:
             self.pick = gui.add_dropdown(
                 "Object", options=[NONE], initial_value=NONE, hint="Choose an object to move it with its handle."
             )
+            self.where = gui.add_html("")  # where the chosen object is, x/y/z (see where_html)
             self.actions = gui.add_button_group("Object action", options=("Remove", "Put all back"))
             self.preset = gui.add_dropdown(
                 "Task set-up",
@@ -214,13 +216,17 @@ class ScenePanel:
                         continue
                     node.position = p.position
                     node.wxyz = p.wxyz
+                    if p.name == self.pick.value:
+                        self.where.content = where_html(p.name, p.position)
 
     def _place_handle(self) -> None:
         name = self.pick.value
         scene = self.ctl.scene.scene
         if name == NONE or name not in scene.names():
+            self.where.content = ""
             return
         o = scene.object(name)
+        self.where.content = where_html(name, o.position)
         c, s = math.cos(o.yaw / 2), math.sin(o.yaw / 2)
         self.handle.position = (o.position[0], o.position[1], o.position[2] + o.size[2])
         self.handle.wxyz = (c, 0.0, 0.0, s)
@@ -240,6 +246,17 @@ class ScenePanel:
 def name_key(o: WorldObject) -> tuple[object, ...]:
     """What the drawn shape depends on (a node is made again when it changes)."""
     return (o.name, o.kind, tuple(o.size))
+
+
+def where_html(name: str, position: tuple[float, float, float]) -> str:
+    """The chosen object's place as the gripper's position boxes take it (robot axes: x forward, y to its left,
+    z up; centimetres)."""
+    x, y, z = (100.0 * v for v in position)
+    return (
+        f'<div class="object-where" data-name="{html.escape(name)}" style="font-size:0.85em;color:#333" '
+        'title="x: forward from the robot, y: to its left, z: up, as in the gripper\'s position boxes">'
+        f"The {html.escape(name)} stands at x {x:.1f}, y {y:.1f}, z {z:.1f} cm.</div>"
+    )
 
 
 def _safe(name: str) -> str:

@@ -6,6 +6,7 @@ import viser
 
 from studio.controller import REPLAY, SCENE_PRESETS, Controller, Topic
 from studio.core.errors import InvalidInput
+from studio.words import count_words
 
 EXPORT_WHY = "*Train first: the export is the learned skill.*"
 
@@ -19,7 +20,10 @@ class SessionsPanel:
         with gui.add_folder("Session"):
             names = ctl.sessions.names()
             self.pick = gui.add_dropdown(
-                "Open session", options=names or [ctl.session.name], initial_value=ctl.session.name
+                "Open session",
+                options=names or [ctl.session.name],
+                initial_value=ctl.session.name,
+                hint="Choose a session, then press Open. The session that is open is named above.",
             )
             self.name = gui.add_text(
                 "New name", initial_value="", hint="Name for a new session or for a copy of this one."
@@ -84,7 +88,8 @@ class SessionsPanel:
 
     def _current_text(self) -> str:
         s = self.ctl.session
-        return f"Open session: **{s.name}** · {len(s.recordings)} demonstrations"
+        kept = " · an example, kept as it is (Duplicate it to change it)" if s.read_only else ""
+        return f"Open session: **{s.name}** · {count_words(len(s.recordings), 'demonstration')}{kept}"
 
     def refresh(self) -> None:
         names = self.ctl.sessions.names()
@@ -108,16 +113,23 @@ class SessionsPanel:
             self.replay_time.value = 0.0
 
     def _on_action(self, event: viser.GuiEvent) -> None:
-        action = event.target.value
+        try:
+            self._do(event.target.value)
+        finally:  # refused or done: the box names the session that is open
+            self.pick.value = self.ctl.session.name
+
+    def _do(self, action: str) -> None:
         sessions = self.ctl.sessions
         if action == "Open":
             sessions.open(self.pick.value)
         elif action == "New":
             sessions.new(self.name.value, scene=self.new_scene.value)
+            self.name.value = ""  # the next new name starts empty, never the last one
         elif action == "Save":
             sessions.save()
         elif action == "Duplicate":
             sessions.duplicate(self.name.value)
+            self.name.value = ""
 
     def _on_replay(self, event: viser.GuiEvent) -> None:
         action = event.target.value

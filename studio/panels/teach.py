@@ -29,6 +29,7 @@ JOINT_WORDS = {
 #: Seconds after a user touches a slider or handle during which the robot's own motion does not move it.
 USER_HOLD_S = 0.8
 UNREACHABLE_COLOR = (230, 40, 40)
+SAVING = "Saving the demonstration…"
 
 GuiCallback = Callable[[viser.GuiEvent], None]
 #: The gripper handle's orientation: the room's axes (x away from the robot, y to its left, z up).
@@ -218,6 +219,7 @@ class TeachPanel:
     def _make_grip_button_cb(self, arm: Arm) -> GuiCallback:
         def cb(event: viser.GuiEvent) -> None:
             width = 100.0 if event.target.value == "Open" else 0.0
+            self._slider_touched = time.monotonic()
             self.ctl.teaching.set_gripper(arm, width)
             self.grip_width[arm].value = width
 
@@ -227,6 +229,7 @@ class TeachPanel:
         def cb(event: viser.GuiEvent) -> None:
             if event.client is None:
                 return
+            self._slider_touched = time.monotonic()
             self.ctl.teaching.set_gripper(arm, float(self.grip_width[arm].value))
 
         return self.ctl.guarded("Could not move the gripper")(cb)
@@ -260,10 +263,12 @@ class TeachPanel:
 
     def _on_recording_state(self) -> None:
         rec = self.ctl.teaching.recording
-        self.record_btn.disabled = rec
+        self.record_btn.disabled = rec or self.ctl.teaching.saving
         self.stop_btn.disabled = not rec
         self.discard_btn.disabled = not rec
-        if not rec:
+        if self.ctl.teaching.saving:
+            self.rec_status.content = SAVING
+        elif not rec:
             self.rec_status.content = "Not recording."
 
     # -- periodic (pose pump thread) -------------------------------------------------------------------
@@ -279,6 +284,8 @@ class TeachPanel:
                 deg = np.round(np.degrees(q) * 2.0) / 2.0
                 for i, name in enumerate(ALL_ARM_JOINTS):
                     self.sliders[name].value = float(deg[i])
+                for arm, w in self.grip_width.items():  # the width the robot reports, as the readout says
+                    w.value = float(round(ctl.teaching.gripper_width(arm)))
         rec = ctl.teaching.recorder
         if rec is not None and now - self._last_timer > 0.25:
             self._last_timer = now

@@ -23,6 +23,14 @@ REMEDIES: Remedies = {
     Remedy.REDO_DEMO: "re-record or hide it",
     Remedy.CHOOSE_ROUTE: "choose another way under Way",
 }
+#: The fold with the model's own terms, each with a plain sentence.
+ADVANCED = "Advanced: how the model sees it"
+STATES_WORDS = "the key-points of all demonstrations, grouped into places the hand passes (large red markers)."
+REFERENCE_WORDS = "The model explains it best; the others are lined up in time with it before they are averaged."
+TRANSITIONS_WORDS = (
+    "How likely the hand goes from each state (row) to the next (column): the model's transition matrix. A "
+    "dark diagonal band means the demonstrations agree on the order of the places."
+)
 #: The one line that explains the per-demo list.
 FIT_EXPLANATION = (
     "How closely the learned path follows each demonstration. One that fits poorly pulls the skill away from "
@@ -42,6 +50,12 @@ class TrainPanel:
             "Train",
             icon=viser.Icon.BRAIN,
             hint="Learn the skill from the shown demonstrations with the current key-point settings.",
+        )
+        self.pauses = gui.add_checkbox(
+            "Remove pauses",
+            initial_value=ctl.training.remove_pauses,
+            hint="Shorten every pause longer than a moment in your demonstrations before learning, so the robot does "
+            "not wait where you stopped to think. Press Train again after changing it.",
         )
         self.progress = gui.add_progress_bar(0.0, animated=True, visible=False)
         self.status = gui.add_markdown(self._status_text())
@@ -80,6 +94,7 @@ class TrainPanel:
         self.mode.on_update(ctl.guarded("Could not change how the skill is made")(self._on_mode))
         self.frames.on_update(ctl.guarded("Could not change how the skill is made")(self._on_frames))
         self.way.on_update(ctl.guarded("Could not learn the other way")(self._on_way))
+        self.pauses.on_update(ctl.guarded("Could not change the pauses")(self._on_pauses))
         ctl.events.on(Topic.SKILL, self.refresh)
         ctl.events.on(Topic.SESSION, self.refresh)
         ctl.events.on(Topic.DEMOS, self.refresh)  # renamed / deleted / trimmed demos: labels, plots and status
@@ -104,6 +119,10 @@ class TrainPanel:
         self.ctl.training.train()  # the work thread learns; TRAINING and SKILL events redraw
         if self.ctl.view.step != Step.TRAIN:  # the scene shows the Train step (the learned path)
             self.ctl.view.set_step(Step.TRAIN)
+
+    def _on_pauses(self, event: viser.GuiEvent) -> None:
+        if event.client is not None:
+            self.ctl.training.set_remove_pauses(bool(self.pauses.value))
 
     def _on_mode(self, event: viser.GuiEvent) -> None:
         if event.client is None:
@@ -152,6 +171,7 @@ class TrainPanel:
             self.status.content = self._status_text()
             self.mode.value = MODE_WORDS[self.ctl.training.generalization]
             self.frames.value = FRAME_WORDS[self.ctl.training.frames]
+            self.pauses.value = self.ctl.training.remove_pauses
 
     def refresh(self) -> None:
         """Redraw the verdict and the results of the current skill(s)."""
@@ -160,7 +180,13 @@ class TrainPanel:
         for arm, skill in self.ctl.training.skills().items():
             used = self.ctl.training.skill_demos(arm)  # row j: the j-th demo the skill learned from
             summary.append(self._summary_html(arm, skill, used, verdicts.get(arm)))
-            heat.append(heatmap_svg(np.asarray(skill.transmat), title=f"{arm.capitalize()} arm: state transitions"))
+            heat.append(
+                f'<details class="advanced"><summary style="cursor:pointer;color:#555;font-size:0.85em">{ADVANCED}: '
+                f'{arm} arm\'s state transitions</summary><div style="font-size:0.85em;color:#555">'
+                f"{TRANSITIONS_WORDS}</div>"
+                + heatmap_svg(np.asarray(skill.transmat), title=f"{arm.capitalize()} arm: state transitions")
+                + "</details>"
+            )
             plots += self._plots(arm, skill, used)
         with self.server.atomic():
             self.verdict.content = self._verdict_html(verdicts)
@@ -224,8 +250,7 @@ class TrainPanel:
                 fit = f'<span style="color:#b91c1c" title="{html.escape(fit_note(f))}">poorly</span>'
             well = "" if f is None else ("1" if f.well else "0")
             rows.append(
-                f'<tr class="fit-row" data-well="{well}"><td>{html.escape(name)}</td><td>{fit}</td>'
-                f'<td style="color:#555">{"reference" if i == ref else ""}</td></tr>'
+                f'<tr class="fit-row" data-well="{well}"><td>{html.escape(name)}</td><td>{fit}</td><td></td></tr>'
             )
             if f is not None and not f.well:
                 note = html.escape(fit_note(f))
@@ -241,20 +266,22 @@ class TrainPanel:
                 "learned path exactly (marked red in Preview).</div>"
             )
         mode = MODE_WORDS.get(skill.generalization, skill.generalization)
+        ref_name = html.escape(names[ref] if ref < len(names) else str(ref))
         return (
             f'<div class="skill-summary" data-arm="{arm}" data-states="{len(skill.centroids)}" '
             f'data-reference="{ref}" data-mode="{html.escape(skill.generalization)}" '
-            'style="font-size:0.85em;margin-bottom:8px">'
-            f"<b>{arm.capitalize()} arm</b>: {len(skill.centroids)} states (clusters); "
-            f"reference demonstration: <b>{html.escape(names[ref] if ref < len(names) else str(ref))}</b> "
-            "(the one the model explains best).<br>"
+            'style="font-size:0.85em;margin-bottom:8px;overflow-wrap:anywhere">'
+            f"<b>{arm.capitalize()} arm</b><br>"
             f'<span class="skill-mode">Path made by: <b>{html.escape(mode)}</b></span><br>'
-            f'<span class="zero-points">Zero-points (states no demonstration passes through, left out of the path): '
-            f"{zero_words}</span><br>"
             f'<div style="color:#555;margin-top:4px">{html.escape(FIT_EXPLANATION)}</div>'
             '<table class="fits" style="width:100%;font-size:0.95em"><tr><th style="text-align:left">'
             'Demonstration</th><th style="text-align:left">fits the skill</th><th></th></tr>'
-            f"{''.join(rows)}</table>{ik_note}</div>"
+            f"{''.join(rows)}</table>{ik_note}"
+            f'<details class="advanced"><summary style="cursor:pointer;color:#555">{ADVANCED}</summary>'
+            f"<div>{len(skill.centroids)} states (clusters): {STATES_WORDS}</div>"
+            f"<div>Reference demonstration: <b>{ref_name}</b>. {REFERENCE_WORDS}</div>"
+            f'<div class="zero-points">Zero-points (states no demonstration passes through, left out of the path): '
+            f"{zero_words}.</div></details></div>"
         )
 
     def _plots(self, arm: Arm, skill: Skill, used: list[UsedDemo]) -> list[str]:

@@ -18,7 +18,7 @@ from studio.storage.format import (
 from studio.storage.idle import idle_bounds
 from studio.storage.loading import load_session
 from studio.storage.manifest import DemoEntry, Manifest, SkillEntry
-from studio.storage.session import Session
+from studio.storage.session import ReadOnly, Session
 from studio.storage.store import SessionStore, SessionSummary
 
 __all__ = [
@@ -28,6 +28,7 @@ __all__ = [
     "RECORDING_DIR",
     "DemoEntry",
     "Manifest",
+    "ReadOnly",
     "Session",
     "SessionStore",
     "SessionSummary",

@@ -32,6 +32,8 @@ RECORDING_DIR = ".recording"
 RECOVERED_DIR = "recovered"
 #: The one place that knows where sessions live by default: the repository's ``sessions/`` folder.
 DEFAULT_ROOT = Path(__file__).resolve().parent.parent.parent / "sessions"
+#: The examples bundled in :data:`DEFAULT_ROOT` (``studio make-examples``): the studio opens them read-only there.
+EXAMPLE_SESSIONS: tuple[str, ...] = ("stack-cup", "pick-place")
 
 # -- limits: bytes, counted from what a file declares, checked before anything is read or unpacked ------------
 #: Longest demonstration accepted: 1 hour at 1 kHz (the recorder stops by itself at 1 hour). The limits below

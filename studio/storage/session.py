@@ -19,7 +19,7 @@ from typing import Concatenate, ParamSpec, TypeVar
 import numpy as np
 
 from studio.core.arms import normalize_arms
-from studio.core.errors import InvalidInput, StorageError
+from studio.core.errors import InvalidInput, StorageError, StudioError
 from studio.core.thresholds import ThresholdSettings
 from studio.core.types import (
     ARMS,
@@ -77,6 +77,16 @@ _STATE = (
 )
 
 
+class ReadOnly(StudioError):
+    """A change of a bundled example, refused in words that say how to change a copy instead."""
+
+    def __init__(self, name: str) -> None:
+        super().__init__(
+            f'"{name}" is an example and stays as it is, so that it can always be opened again. To change it, type '
+            "a name under Sessions → New name and press Duplicate: the copy is yours to change."
+        )
+
+
 @dataclass
 class Session:
     """An open session. Attributes are for reading; change them through the methods.
@@ -91,6 +101,7 @@ class Session:
         problems, recovery_message: plain-words notes from loading (skipped damaged files, crash recovery).
         opened_instead: why this session was opened in place of the one asked for ("" normally).
         objects: the task scene and each demonstration's object events (:class:`SessionObjects`).
+        read_only: a bundled example the studio keeps as it is: every change is refused (:class:`ReadOnly`).
     """
 
     name: str
@@ -113,6 +124,7 @@ class Session:
     recovery_message: str = ""
     opened_instead: str = ""
     objects: SessionObjects = field(default_factory=SessionObjects)
+    read_only: bool = field(default=False, compare=False)
     _files: list[str] = field(default_factory=list, repr=False)
     _next_id: int = field(default=1, repr=False)
     _lock: threading.RLock = field(default_factory=threading.RLock, repr=False, compare=False)
@@ -385,6 +397,8 @@ def _change(s: Session) -> Iterator[None]:
         if s._changing:
             yield
             return
+        if s.read_only:
+            raise ReadOnly(s.name)
         error = check_changeable(s.path, s.name)
         if error is not None:
             raise error

@@ -7,6 +7,7 @@ import each other. Zip export and import are in :mod:`studio.storage.archive`.
 
 from __future__ import annotations
 
+import logging
 import os
 import shutil
 from collections.abc import Iterable
@@ -14,12 +15,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from studio.core.arms import normalize_arms
-from studio.core.errors import InvalidInput, SessionFormatError, StorageError
+from studio.core.errors import InvalidInput, SessionFormatError, StorageError, StudioError
 from studio.core.thresholds import ThresholdSettings
 from studio.core.types import Arm, KeypointParams
 from studio.recorder import pending_recordings, recover_recordings
 from studio.storage import archive as _archive
-from studio.storage.atomic import atomic_write_npz
+from studio.storage.atomic import atomic_write_bytes, atomic_write_npz
 from studio.storage.format import (
     DEFAULT_ROOT,
     MANIFEST,
@@ -37,6 +38,10 @@ from studio.storage.loading import load_session
 from studio.storage.manifest import Manifest
 from studio.storage.session import Session, new_demo_file
 
+log = logging.getLogger(__name__)
+#: The file in the sessions folder that names the session open last (the studio reopens it).
+LAST_OPEN = ".last-session"
+
 
 @dataclass(frozen=True)
 class SessionSummary:
@@ -53,8 +58,10 @@ class SessionSummary:
 class SessionStore:
     """All sessions under ``root`` (default: :data:`~studio.storage.format.DEFAULT_ROOT`)."""
 
-    def __init__(self, root: str | os.PathLike[str] | None = None) -> None:
+    def __init__(self, root: str | os.PathLike[str] | None = None, *, examples: Iterable[str] = ()) -> None:
         self.root = Path(root) if root is not None else DEFAULT_ROOT
+        #: Sessions opened read-only (:attr:`Session.read_only`): the bundled examples, kept as they are.
+        self.examples = frozenset(examples)
 
     def path_of(self, name: str) -> Path:
         return self.root / check_session_name(name)
@@ -71,6 +78,21 @@ class SessionStore:
             for p in sorted(self.root.iterdir())
             if p.is_dir() and not p.is_symlink() and NAME_RE.fullmatch(p.name) and (p / MANIFEST).is_file()
         ]
+
+    def remember_open(self, name: str) -> None:
+        """Note ``name`` as the session open last (:meth:`last_open`); a failed write is only logged."""
+        try:
+            atomic_write_bytes(self.root / LAST_OPEN, (check_session_name(name) + "\n").encode())
+        except (OSError, StudioError):
+            log.warning("could not note the open session in %s", self.root, exc_info=True)
+
+    def last_open(self) -> str | None:
+        """The session open when the studio last ran here, if it still exists (None otherwise)."""
+        try:
+            name = (self.root / LAST_OPEN).read_text(encoding="utf-8")[:200].strip()
+            return name if self.exists(name) else None
+        except (OSError, UnicodeDecodeError, StudioError):
+            return None
 
     def summaries(self) -> list[SessionSummary]:
         """One summary per session whose manifest is valid (damaged ones are left out)."""
@@ -142,6 +164,7 @@ class SessionStore:
             _, message = recover_recordings(path / RECORDING_DIR, add=s.add_recording)
             notes.insert(0, message)
         s.recovery_message = " ".join(n for n in notes if n)
+        s.read_only = name in self.examples
         return s
 
     def clean_temporary(self) -> list[str]:

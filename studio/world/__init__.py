@@ -15,6 +15,7 @@ from studio.world.events import (
     on_clock,
     retime,
 )
+from studio.world.feedback import GraspNote, grasp_note
 from studio.world.geometry import (
     CUP_GRASP_HEIGHT,
     DEFAULT_SIZE,
@@ -76,6 +77,7 @@ __all__ = [
     "TABLE_CENTER",
     "TABLE_SIZE",
     "TABLE_TOP_Z",
+    "GraspNote",
     "Grip",
     "ObjectGoal",
     "ObjectPose",
@@ -93,6 +95,7 @@ __all__ = [
     "events_from_dict",
     "events_to_dict",
     "format_distance",
+    "grasp_note",
     "gripper_actions",
     "on_clock",
     "preset",

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from studio.core.types import Arm
-from studio.world.events import WorldEvent
+from studio.world.events import ObjectPose, WorldEvent
 from studio.world.geometry import GRASP_XY_TOL, SUCCESS_TOL
 from studio.world.simulation import WorldRun
 
@@ -254,11 +254,30 @@ def _object_result(run: WorldRun, g: ObjectGoal) -> ObjectResult:
         again = ": it was picked up again afterwards" if len(grasps) > n else ""
         return ObjectResult(name, False, "moved", f"The {name} ended {off}{again}.", d)
     on = g.relative_to[-1] if g.relative_to else None
+    if not on:  # what it stands on says that it was moved there (never "where you put it" alone)
+        on = fp.on if fp.on not in (None, "table", "floor", "hand") else _pad_under(fp, end)
+    back = _back_words(g, end) if math.dist(fp.position, g.start) <= SUCCESS_TOL else ""
     if on:
         text = f"The {name} ended on the {on}, {format_distance(d)} from where you put it — the skill works."
+    elif back:  # it came back to where it started: say where it went, or it reads as if nothing happened
+        text = (
+            f"The {name} ended back where it started, {back}: {format_distance(d)} from {g.where()} — the skill works."
+        )
     else:
         text = f"The {name} ended {format_distance(d)} from {g.where()} — the skill works."
     return ObjectResult(name, True, "works", text, d)
+
+
+def _back_words(g: ObjectGoal, poses: Sequence[ObjectPose]) -> str:
+    """Where an object that came back went on the way: "after its stop on the pad" ("" without a stop)."""
+    stops = g.releases[:-1]
+    if not stops:
+        return ""
+    probe = [ObjectPose(g.name, g.kind, (0.0, 0.0, 0.0), p, (1.0, 0.0, 0.0, 0.0)) for p in stops]
+    pads = [n for n in (_pad_under(p, poses) for p in probe) if n is not None]
+    if pads:
+        return f"after its stop on the {pads[0]}"
+    return "after its stop on the way" if len(stops) == 1 else f"after {len(stops)} stops on the way"
 
 
 def _not_picked(run: WorldRun, g: ObjectGoal, k: int, t_prev: float, label: str) -> str:
@@ -291,3 +310,16 @@ def _not_picked(run: WorldRun, g: ObjectGoal, k: int, t_prev: float, label: str)
     v = offset(best)
     where = describe_offset(v, "it") if np.linalg.norm(v) >= 0.001 else "right next to it"
     return f"{head}: the gripper closed {where}."
+
+
+def _pad_under(p: ObjectPose, poses: Sequence[ObjectPose]) -> str | None:
+    """The name of a pad whose footprint holds ``p``'s bottom centre (None when there is none)."""
+    for o in poses:
+        if o.kind != "pad" or o.name == p.name:
+            continue
+        c, s_ = math.cos(o.yaw), math.sin(o.yaw)
+        dx, dy = p.position[0] - o.position[0], p.position[1] - o.position[1]
+        u, v = c * dx + s_ * dy, -s_ * dx + c * dy
+        if abs(u) <= o.size[0] / 2 and abs(v) <= o.size[1] / 2:
+            return o.name
+    return None

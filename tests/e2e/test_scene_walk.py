@@ -175,7 +175,8 @@ def test_teach_with_objects_to_the_task_result(browser, tmp_path) -> None:
         expect(result).to_be_visible(timeout=30_000)
         text = result.inner_text()
         words = (
-            r"The block ended (on the \w+, )?([\d.]+ cm|less than 1 mm) from where you put it — the skill works\.",
+            r"The block ended (on the \w+, |back where it started, after .+: )?([\d.]+ cm|less than 1 mm) from where "
+            r"you put it — the skill works\.",
             r"The block was never picked up: the gripper (closed .+|never closed)\.",
             r"The block was released in the wrong place: .+\.",
             r"The block was dropped early: .+\.",

@@ -51,9 +51,9 @@ def row(page: Page, label: str) -> Locator:
 
 
 def threshold(page: Page, label: str) -> Locator:
-    """The row of a threshold slider by its automatic label (e.g. "Travel distance, cm (ε5)"), also once the
+    """The row of a threshold slider by its automatic label (e.g. "Travel distance, cm"), also once the
     teacher set it (then the label ends in "· yours")."""
-    pattern = re.compile(r"^\s*" + re.escape(label) + r"( · yours)?\s*$")
+    pattern = re.compile(r"^\s*" + re.escape(plain(label)) + r"( · yours)?\s*$")
     lab = page.locator("label").filter(has_text=pattern).first
     return lab.locator("xpath=ancestor::div[contains(@class,'mantine-Flex-root')][1]")
 
@@ -98,9 +98,15 @@ def current_step(page: Page) -> str:
     return str(page.locator(".step-title").first.get_attribute("data-step"))
 
 
+def plain(label: str) -> str:
+    """A threshold's label or folder title as the page shows it: the paper's ε names are only in the hints
+    ("Travel distance, cm (ε5)" is shown as "Travel distance, cm")."""
+    return re.sub(r"\s*\(ε[\d–-]+(ε\d+)?\)", "", label)
+
+
 def open_folder(page: Page, title: str) -> None:
     """Expand a collapsed folder by its title (the controls inside are then found by auto-waiting locators)."""
-    head = page.get_by_text(title, exact=True).first
+    head = page.get_by_text(plain(title), exact=True).first
     head.scroll_into_view_if_needed()
     head.click()
 

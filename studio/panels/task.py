@@ -1,0 +1,151 @@
+"""Task panel (Teach step): the task of the set-up in one sentence, what the gripper just did when it closed
+("Holding the cup" / "Missed the cup by 3 cm — move 1 cm closer"), Undo for a take thrown away or a deleted
+demonstration, and a stand drawn under every object the teacher holds out in the air."""
+
+from __future__ import annotations
+
+import html
+import threading
+import zlib
+
+import viser
+
+from studio.controller import Controller, GraspNote, Layer, Topic, WorldEvent
+from studio.words import grasp_words, task_words
+
+STAND_COLOR = (120, 120, 120)
+STAND_RADIUS = 0.008
+FLOOR_Z = -0.93
+HELD_OUT_LABEL = "held out for the robot"
+
+
+class TaskPanel:
+    """The task, the grasp feedback and the stands under held-out objects (redrawn at the pose pump)."""
+
+    def __init__(self, ctl: Controller, server: viser.ViserServer) -> None:
+        self.ctl = ctl
+        self.server = server
+        self.scene = server.scene
+        gui = server.gui
+        self._lock = threading.Lock()
+        self._last: WorldEvent | None = None
+        self._drawn: object = None
+        self._stands: dict[str, tuple[viser.SceneNodeHandle, viser.LabelHandle, tuple[float, float, float]]] = {}
+        self.task = gui.add_html(self._task_html(), order=-0.5)
+        self.grasp = gui.add_html(self._grasp_html(None), order=-0.4)
+        self.undo_text = gui.add_html("", order=-0.3, visible=False)
+        self.undo = gui.add_button(
+            "Undo",
+            icon=viser.Icon.ARROW_BACK_UP,
+            color="gray",
+            visible=False,
+            order=-0.2,
+            hint="Bring back the demonstration you just threw away or deleted.",
+        )
+        self.undo.on_click(ctl.guarded("Could not bring it back")(lambda _: ctl.undo.undo()))
+        ctl.events.on(Topic.UNDO, self._on_undo)
+        for topic in (Topic.SCENE, Topic.SESSION):
+            ctl.events.on(topic, self._on_scene)
+        ctl.events.on(Topic.VIEW, self._apply_view)
+
+    # -- words --------------------------------------------------------------------------------------------
+    def _task_html(self) -> str:
+        words = task_words(self.ctl.scene.scene.preset)
+        return (
+            f'<div class="task-description" style="font-size:0.9em;border-left:4px solid #1d4ed8;padding:2px 8px;'
+            f'margin:2px 0;overflow-wrap:anywhere"><b>Your task:</b> {html.escape(words)}</div>'
+        )
+
+    @staticmethod
+    def _grasp_html(note: GraspNote | None) -> str:
+        if note is None:
+            return '<div class="grasp-feedback" data-held="" style="display:none"></div>'
+        color = "#15803d" if note.held else "#b45309"
+        return (
+            f'<div class="grasp-feedback" data-held="{html.escape(note.held or "")}" style="font-size:0.9em;'
+            f'border-left:4px solid {color};padding:2px 8px;margin:2px 0;overflow-wrap:anywhere">'
+            f'<b style="color:{color}">{html.escape(grasp_words(note))}</b></div>'
+        )
+
+    def _on_undo(self) -> None:
+        what = self.ctl.undo.what
+        with self.server.atomic():
+            self.undo_text.content = (
+                f'<div class="undo-note" style="font-size:0.85em;overflow-wrap:anywhere">Thrown away: '
+                f"{html.escape(what)}.</div>"
+                if what
+                else ""
+            )
+            self.undo_text.visible = self.undo.visible = bool(what)
+
+    def _on_scene(self) -> None:
+        with self._lock:
+            self._last = None
+            self._drawn = None
+        self.task.content = self._task_html()
+        self.grasp.content = self._grasp_html(None)
+
+    # -- periodic (pose pump) -----------------------------------------------------------------------------
+    def tick(self, now: float) -> None:
+        grip = self.ctl.scene.last_grip()
+        ev, note = grip if grip is not None else (None, None)
+        with self._lock:
+            new = ev is not self._last
+            self._last = ev
+        if new and note is None:  # the objects were put back (a new take, Put all back): nothing to tell
+            self.grasp.content = self._grasp_html(None)
+        elif new and note is not None:
+            self.grasp.content = self._grasp_html(note)
+            if not self.ctl.execution.running:
+                self.ctl.notify("Gripper closed", grasp_words(note), kind="success" if note.held else "warning")
+        self._draw_stands()
+        if self.undo.visible and not self.ctl.undo.what:  # kept long enough: Undo goes away
+            self._on_undo()
+
+    def _draw_stands(self) -> None:
+        """A grey stand from the table up to the bottom of each object held out in the air."""
+        key, poses = self.ctl.scene.shown()
+        with self._lock:
+            if key == self._drawn:
+                return
+            self._drawn = key
+            table = self.ctl.scene.scene.table
+            floor = table.top_z if table is not None else FLOOR_Z
+            wanted = {p.name: p.position for p in poses if p.on == "hand" and p.position[2] > floor + 0.01}
+            shown = self.ctl.view.shown(Layer.OBJECTS)
+            with self.server.atomic():
+                for name in list(self._stands):
+                    if name not in wanted or self._stands[name][2] != wanted[name]:
+                        pole, label, _ = self._stands.pop(name)
+                        pole.remove()
+                        label.remove()
+                for name, (x, y, z) in wanted.items():
+                    if name in self._stands:
+                        continue
+                    i = f"{zlib.crc32(name.encode()):08x}"
+                    h = z - floor
+                    pole = self.scene.add_cylinder(
+                        f"/stands/{i}",
+                        radius=STAND_RADIUS,
+                        height=h,
+                        color=STAND_COLOR,
+                        position=(x, y, floor + h / 2),
+                        cast_shadow=False,
+                        visible=shown,
+                    )
+                    label = self.scene.add_label(
+                        f"/stands/{i}_label", HELD_OUT_LABEL, position=(x, y, floor + h * 0.4), visible=shown
+                    )
+                    self._stands[name] = (pole, label, (x, y, z))
+
+    def stands(self) -> list[tuple[float, float, float]]:
+        """Where the drawn stands hold an object up (the bottom centre of each object held out)."""
+        with self._lock:
+            return [at for _, _, at in self._stands.values()]
+
+    def _apply_view(self) -> None:
+        shown = self.ctl.view.shown(Layer.OBJECTS)
+        with self._lock, self.server.atomic():
+            for pole, label, _ in self._stands.values():
+                pole.visible = shown
+                label.visible = shown
