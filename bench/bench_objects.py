@@ -5,7 +5,9 @@ For stack-cup and pick-place the scripted teacher demonstrates with the objects 
 placed (``place_skill``: segments in the current object frames, whole-path IK) with the objects at new random
 places inside the demonstrated region and outside it, previewed (joint trajectory played through the world)
 and judged: success = every object ends within 1 cm of its goal relative to the object it was put on (or the
-spot it came from). The same placements are previewed with the paper's absolute path as the baseline.
+spot it came from). The same placements are previewed with the paper's absolute path and with a
+frames-combined baseline (each whole demonstration in every object's frame, combined as TP-GMM does:
+:class:`FramesCombined`).
 
     .venv/bin/python bench/bench_objects.py [--inside 50] [--outside 20] [--seed 1] [--tasks stack-cup pick-place]
 
@@ -24,9 +26,14 @@ import numpy as np
 
 from studio import teacher
 from studio.core import sampling
+from studio.core.errors import IkFailed
+from studio.core.execution import joint_trajectory
+from studio.core.frames import ROBOT, frame_of, to_local, to_world, turn
 from studio.core.kinematics import Baxter
 from studio.core.pipeline import demo_from_recording, learn_skill
+from studio.core.rotations import make_sign_continuous
 from studio.core.segments import learn_relative, place_skill
+from studio.core.types import Demo
 from studio.teacher import Place, Places
 from studio.world import preset, simulate, task_goal
 from studio.world.reach import outside
@@ -59,6 +66,83 @@ def demonstrate(task: str, n: int, rng: np.random.Generator, b: Baxter) -> tuple
     return demos, objs, events, used
 
 
+#: Samples over the normalised time of a demonstration (the frames-combined baseline).
+N_TP = 600
+#: The demonstrations' spread below this (m²) is noise (as the segments' weights).
+FLOOR_M2 = 0.01**2
+
+
+class FramesCombined:
+    """A task-parameterised baseline without segments (the frames combined as TP-GMM/TP-ProMP do, on the
+    time-normalised mean): each whole demonstration in the robot's frame and in the frame of every object the
+    skill uses (where it stood at the start), the mean and spread per frame at each instant; reproduced as the
+    product of the frames' isotropic Gaussians with the objects where they are now."""
+
+    def __init__(self, demos: list, objs: list, names: list[str]) -> None:
+        self.names = names
+        grid = np.linspace(0.0, 1.0, N_TP)
+        self.duration = float(np.mean([d.duration for d in demos]))
+        locs: list[list[np.ndarray]] = [[] for _ in names]
+        quats: list[list[np.ndarray]] = [[] for _ in names]
+        grips = []
+        for d, o in zip(demos, objs, strict=True):
+            u = (np.asarray(d.t) - d.t[0]) / d.duration
+            pos = np.column_stack([np.interp(grid, u, d.position[:, c]) for c in range(3)])
+            q = np.column_stack([np.interp(grid, u, d.orientation[:, c]) for c in range(4)])
+            grips.append(np.interp(grid, u, np.asarray(d.gripper, dtype=np.float64)))
+            for j, n in enumerate(names):
+                f = np.zeros(4) if n == ROBOT else frame_of(o.start_pose(n))
+                locs[j].append(to_local(f, pos))
+                quats[j].append(turn(q, -f[3]))
+        self.mean = [np.mean(x, axis=0) for x in locs]
+        self.var = [
+            np.mean([np.sum((x - m) ** 2, axis=1) for x in xs], axis=0) + FLOOR_M2
+            for xs, m in zip(locs, self.mean, strict=True)
+        ]
+        self.quat = [np.mean(x, axis=0) for x in quats]
+        g = np.mean(grips, axis=0)
+        closed = float(np.median([np.min(x) for x in grips]))
+        self.gripper = np.where(g < 50.0, closed, 100.0)
+
+    def path(self, now: list) -> Demo:
+        at = {o.name: o for o in now}
+        world, ori, w = [], [], []
+        for j, n in enumerate(self.names):
+            f = np.zeros(4) if n == ROBOT else frame_of(at[n])
+            world.append(to_world(f, self.mean[j]))
+            ori.append(turn(self.quat[j], f[3]))
+            w.append(1.0 / self.var[j])
+        W = np.array(w)
+        pos = np.einsum("jt,jtc->tc", W, np.array(world)) / W.sum(axis=0)[:, None]
+        q = np.array(ori)[np.argmax(W, axis=0), np.arange(N_TP)]
+        q = make_sign_continuous(q / np.linalg.norm(q, axis=1, keepdims=True))
+        t = np.linspace(0.0, self.duration, N_TP)
+        return Demo(t, pos, q, self.gripper, name="frames combined")
+
+
+def _object_names(skill) -> list[str]:
+    """The robot's frame (where the arm starts and ends) and every object the skill's frames name."""
+    names: list[str] = [ROBOT]
+    for b in skill.frames.borders:
+        for n in (b.object, b.role.partition(":")[2]):
+            if n and n not in names:
+                names.append(n)
+    return names
+
+
+def _combined_skill(ab, rel, tp: FramesCombined, scene, b: Baxter, q_seed: np.ndarray):
+    """The frames-combined path where the objects are in ``scene``, with its joint trajectory (judged like the
+    paper's skill: as played, with the relative skill's regions and goal frames)."""
+    import dataclasses
+
+    traj = tp.path(objects_now(scene))
+    try:
+        jt = joint_trajectory(traj, "left", q_seed, b)
+    except IkFailed:  # its start out of reach: played from nowhere, it does nothing
+        return None
+    return dataclasses.replace(ab, trajectory=traj, joint_trajectory=jt, frames=rel.frames)
+
+
 def _inside(used: list[Places], rng: np.random.Generator) -> Places:
     """A placement inside the demonstrated places: each object at a random convex mix of where it stood."""
     out = []
@@ -81,10 +165,14 @@ def _outside(task: str, skill, rng: np.random.Generator) -> Places:
             return pl
 
 
-def judge(task: str, skill, goal, pl: Places, b: Baxter, relative: bool) -> dict:
+def judge(task: str, skill, goal, pl: Places, b: Baxter, relative: bool, build=None) -> dict:
     scene = preset(task, ("left",), pl)
     warned = bool(outside(skill.frames, scene)) if skill.frames is not None else False
     sk = place_skill(skill, objects_now(scene), baxter=b) if relative else skill
+    if build is not None:  # a baseline made for this scene
+        sk = skill = build(scene)
+        if sk is None:
+            return {"err": math.inf, "ik": 0.0, "border": 0.0, "step": 0.0, "warned": warned}
     jt = sk.joint_trajectory
     t = np.linspace(0.0, sampling.duration({"left": sk}), max(2, int(sampling.duration({"left": sk}) * 100)))
     q, g = sampling.sample_joints({"left": sk}, t, np.zeros(14), np.array([100.0, 100.0]))
@@ -137,10 +225,17 @@ def run_task(task: str, args: argparse.Namespace, b: Baxter) -> None:
     print("   frames:", ", ".join(f"{x.kind} {x.object} in {x.role}" for x in rel.frames.borders))
     inside = [_inside(used, rng) for _ in range(args.inside)]
     out = [_outside(task, rel, rng) for _ in range(args.outside)]
+    tp = FramesCombined(demos, objs, _object_names(rel))
+    q_seed = demos[0].q[0] if demos[0].q is not None else b.neutral("left")
+
+    def combined(scene):
+        return _combined_skill(ab, rel, tp, scene, b, q_seed)
+
     for label, pls in (("inside", inside), ("outside", out)):
-        for mode, sk, relative in (("objects", rel, True), ("paper", ab, False)):
+        for mode, sk, relative in (("objects", rel, True), ("paper", ab, False), ("frames", ab, False)):
             t0 = time.perf_counter()
-            rows = [judge(task, sk if relative else _with_frames(ab, rel), goal, pl, b, relative) for pl in pls]
+            build = combined if mode == "frames" else None
+            rows = [judge(task, sk if relative else _with_frames(ab, rel), goal, pl, b, relative, build) for pl in pls]
             dt = (time.perf_counter() - t0) / max(len(pls), 1)
             err = np.array([r["err"] for r in rows])
             ok = err <= SUCCESS_M

@@ -250,7 +250,11 @@ class Ref:
         set's spread and B1, so methods compare on one scale)."""
         curves = self.curves if among is None else [self.curves[i] for i in among]
         f = Q.fidelity(Q.arc_resample(pos), curves, r=self.r, b1_frechet=self.b1f)
-        ends = max(np.linalg.norm(pos[0] - self.start), np.linalg.norm(pos[-1] - self.end))
+        start, end = self.start, self.end
+        if among is not None:  # the ends of the demos it follows
+            start = np.mean([self.demos[i].position[0] for i in among], axis=0)
+            end = np.mean([self.demos[i].position[-1] for i in among], axis=0)
+        ends = max(np.linalg.norm(pos[0] - start), np.linalg.norm(pos[-1] - end))
         return {"G/R": f.g_over_r, "F/B1": f.f_over_b1, "ends": float(ends)}
 
     def held_out(self, fit: Callable[[list[Demo]], np.ndarray]) -> float:
@@ -368,8 +372,14 @@ def _suggest(demos: list[Demo], ref: Ref, held: bool) -> dict[str, Any]:
     sk2 = learn_skill(demos, tr.params, n_clusters=tr.n_clusters)
     out: dict[str, Any] = ref.score(np.asarray(sk2.trajectory.position))
     out.update(changed=tr.changed, seconds=secs, before=tr.before.g_over_r, after=tr.after.g_over_r)
+    # held out as the default's figure is (studio_path): the thresholds resolved on the demos each fold learns
+    # from, the same rate (the very same figure when Suggest kept the thresholds)
     out["held"] = (
-        ref.held_out(lambda dd: np.asarray(learn_path(dd, tr.params, n_clusters=tr.n_clusters).position))
+        ref.held_out(
+            lambda dd: np.asarray(
+                learn_path(dd, tr.settings.resolve(dd), n_clusters=tr.n_clusters, rate_hz=200.0).position
+            )
+        )
         if held
         else math.nan
     )

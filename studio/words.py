@@ -12,10 +12,12 @@ from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Protocol
 
 from studio.core.quality import DemoFit, Disagreement, Finding, Issue, Level, Misfit, Remedy, Verdict
+from studio.core.quality.judgement import GOOD_G_OVER_R, POOR_G_OVER_R
 from studio.core.types import SkillRoute
 
 if TYPE_CHECKING:
     from studio.core.autotune import TuneResult
+    from studio.core.segment_view import SegmentFit
 
 #: How an audience says each :class:`Remedy` (a phrase that follows a dash, lower case, no full stop).
 Remedies = Mapping[Remedy, str]
@@ -162,28 +164,93 @@ def fit_note(fit: DemoFit) -> str:
     return ""
 
 
+def _frame_words(role: str) -> str:
+    """A segment's frame as a person says it: "the cup", "where the block stood", "the robot"."""
+    kind, _, name = role.partition(":")
+    if kind == "object":
+        return f"the {name}"
+    if kind == "start":
+        return f"where the {name} stood"
+    return "the robot"
+
+
+def _segment_name(fit: SegmentFit) -> str:
+    what = (fit.start, fit.end)
+    if what == ("start", "grasp"):
+        return f"Reaching for the {fit.object}"
+    if what == ("grasp", "release"):
+        return f"Carrying the {fit.object} to {_frame_words(fit.role)}"
+    if what == ("release", "grasp"):
+        return f"Going back to the {fit.object}"
+    if what == ("release", "end"):
+        return f"Moving away from the {fit.object}"
+    return f"From the {fit.start} to the {fit.end}"
+
+
+def segment_lines(fits: Sequence[SegmentFit]) -> tuple[str, ...]:
+    """One sentence per stretch of a skill that follows the objects: how closely it follows the demonstrations,
+    measured relative to the object it is learned with, and whether that is good, fair or poor."""
+    out = []
+    for f in fits:
+        if not math.isfinite(f.g_over_r) or f.g_over_r <= GOOD_G_OVER_R:
+            level = "good"
+        elif f.g_over_r <= POOR_G_OVER_R:
+            level = "fair: a few more demonstrations of this part would help"
+        else:
+            level = "poor: your demonstrations of this part differ a lot; show it again the same way"
+        out.append(
+            f"{_segment_name(f)} (relative to {_frame_words(f.role)}): within {length_words(f.distance)} of your "
+            f"demonstrations on average — {level}."
+        )
+    return tuple(out)
+
+
+def _grasps(task: float) -> str:
+    """Where the skill grasps and releases, held out, in words ("" without gripper actions)."""
+    if task == 0.0 or math.isnan(task):
+        return ""
+    if math.isinf(task):
+        return " and does not grasp and release as you did"
+    return f" and grasps and releases {length_words(task)} from where you did"
+
+
 def tune_summary(result: TuneResult) -> str:
-    """Suggest's before and after figures in plain words."""
+    """Suggest's before and after figures in plain words (the path, and the grasps and releases when the
+    demonstrations have them)."""
     b, a = result.before, result.after
     if not result.changed:
         return (
             "Your thresholds are already good: learned without each demonstration in turn, the skill misses it by "
-            f"{length_words(b.distance)} on average, and no other thresholds did better."
+            f"{length_words(b.distance)} on average{_grasps(b.task)}, and no other thresholds did better without "
+            "doing worse elsewhere."
         )
     if not math.isfinite(b.distance):
         return (
             "Suggested: learned without each demonstration in turn, the skill misses it by "
-            f"{length_words(a.distance)} on average."
+            f"{length_words(a.distance)} on average{_grasps(a.task)}."
         )
+    if a.same(b):
+        return (
+            "Automatic thresholds, which follow your demonstrations, do exactly as well as yours: learned without "
+            f"each demonstration in turn, the skill misses it by {length_words(a.distance)} on average"
+            f"{_grasps(a.task)} either way."
+        )
+    before = f"{length_words(b.distance)} with the current thresholds"
     same = round(a.keypoints) == round(b.keypoints)
     count = (
         f"the same number of key-points per demonstration, {a.keypoints:.0f}"
         if same
         else f"{a.keypoints:.0f} key-points per demonstration instead of {b.keypoints:.0f}"
     )
+    if a.task > 0.0 and math.isfinite(a.task) and math.isfinite(b.task):
+        return (
+            f"Learned without each demonstration in turn, the skill misses it by {length_words(a.distance)} on "
+            f"average with the suggestion, {before}; it grasps and releases {length_words(a.task)} from where you "
+            f"did, {length_words(b.task)} before ({count})."
+        )
     return (
         f"Learned without each demonstration in turn, the skill misses it by {length_words(a.distance)} on "
-        f"average with the suggestion, {length_words(b.distance)} with the current thresholds ({count})."
+        f"average with the suggestion, {before} ({count})."
     )
 
 
@@ -268,6 +335,7 @@ __all__ = [
     "route_label",
     "route_sides",
     "routes_words",
+    "segment_lines",
     "task_words",
     "tune_summary",
     "verdict_lines",

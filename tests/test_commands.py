@@ -153,6 +153,7 @@ def test_learn_uses_the_sessions_k_and_remembers_each_arms_demos(
             self.params = KeypointParams()
             self.trajectory = Demo(np.arange(2.0), np.zeros((2, 3)), np.tile([1.0, 0, 0, 0], (2, 1)), np.full(2, 100.0))
             self.joint_trajectory = None
+            self.frames = None
 
         def to_arrays(self) -> dict[str, np.ndarray]:
             return {"x": np.zeros(1)}

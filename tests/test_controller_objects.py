@@ -11,10 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from studio.controller import Controller
+from studio.controller import Controller, Step
+from studio.core.quality import Issue
+from studio.panels.train import REMEDIES
 from studio.robot_backend.simulated import SimulatedBaxter
 from studio.storage import SessionStore
 from studio.teacher import Place, Places, teach
+from studio.words import segment_lines, verdict_lines
 from studio.world import preset
 from tests.conftest import RecordingNotifier, wait_for
 
@@ -99,10 +102,64 @@ def test_takes_in_different_places_teach_a_skill_that_follows_the_objects(rig) -
     for i, places in enumerate(spots):
         record(ctl, sim, "pick-place", i + 1, places)
     assert len(ctl.session.recordings) == 3
+    # The key-point view draws the takes as the skill learns them: each stretch relative to its object, with the
+    # objects where they are now (about the last take's places); the paper's fixed places draw them as recorded.
+    shown = ctl.demos.for_arm("left")
+
+    def view_in(framed: frozenset) -> bool:
+        v = ctl.keypoints.view
+        return v is not None and v.in_frames == framed and len(v.demos) == 3
+
+    def moved() -> list[float]:
+        view = ctl.keypoints.view
+        assert view is not None and "left" in view.centroids
+        return [
+            float(np.max(np.linalg.norm(it.points - d.position[view.indices["left"][n]], axis=1)))
+            for n, (it, (_, d)) in enumerate(zip(view.demos, shown, strict=True))
+        ]
+
+    def live_to_block() -> float:
+        """How close the live dashed path comes to the block where it stands now (x, y), once it follows the
+        current view."""
+
+        def current() -> bool:
+            v, p = ctl.keypoints.view, ctl.live.paths.get("left")
+            return v is not None and p is not None and p.version == v.version
+
+        assert wait_for(current, 60)
+        block = np.asarray(ctl.scene.scene.object("block").position[:2])
+        return float(np.min(np.linalg.norm(ctl.live.paths["left"].position[:, :2] - block, axis=1)))
+
+    ctl.view.set_step(Step.KEYPOINTS)
+    assert wait_for(lambda: view_in(frozenset({"left"})))
+    far = moved()
+    assert far[2] < 0.01 and min(far[:2]) > 0.03, far
+    near = live_to_block()  # the live path is learned from the takes as drawn: it reaches the block
+    ctl.training.set_frames("robot")
+    assert wait_for(lambda: view_in(frozenset()))
+    assert max(moved()) == 0.0
+    assert near < 0.01 and live_to_block() > 2 * near + 0.01, (near, live_to_block())
+    ctl.training.set_frames("objects")
+    assert wait_for(lambda: view_in(frozenset({"left"})))
     train(ctl)
     skill = ctl.session.skills["left"]
     assert skill.frames is not None and not skill.frames.one_place()
     assert [b.role for b in skill.frames.borders] == ["object:block", "object:pad", "object:block", "start:block"]
+    # The verdict: judged against the takes moved with their objects, and each stretch in its own frame.
+    assert wait_for(lambda: "left" in ctl.training.verdicts() and not ctl.training.judging)
+    judged = ctl.training.verdicts()["left"]
+    assert judged.verdict is not None, judged.message
+    said = verdict_lines(judged.verdict, REMEDIES)
+    assert judged.verdict.headline.issue is Issue.CLOSE, said  # measured in the robot's frame: far (decision 081)
+    lines = segment_lines(judged.segments)
+    assert [x.split(" (")[0] for x in lines] == [
+        "Reaching for the block",
+        "Carrying the block to the pad",
+        "Going back to the block",
+        "Carrying the block to where the block stood",
+        "Moving away from the block",
+    ]
+    assert lines[0].startswith("Reaching for the block (relative to the block): within ") and "— good." in lines[0]
     # Somewhere inside the places shown: no warning, and the preview does the task there.
     set_objects(ctl, "pick-place", Places(Place(-0.03, -0.06, 0.1), Place(0.05, -0.02, 0.0)))
     assert ctl.placed.warnings() == []

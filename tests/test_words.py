@@ -78,3 +78,37 @@ def test_the_core_names_no_control_of_the_studio() -> None:
         if re.search(r"press|Suggest|Detail", line)
     ]
     assert not found, "\n".join(found)
+
+
+def test_suggest_says_where_the_skill_grasps_when_the_demos_grasp():
+    from studio.core.autotune import Score, TuneResult
+    from studio.core.thresholds import ThresholdSettings
+    from studio.core.types import KeypointParams
+    from studio.words import tune_summary
+
+    def result(before: Score, after: Score, changed: bool) -> TuneResult:
+        return TuneResult(ThresholdSettings(), KeypointParams(), None, before, after, 5, 0.5, False, True, changed)
+
+    shapes = Score(0.7, 0.004, 20, 20, task=0.0)
+    assert "grasps" not in tune_summary(result(shapes, shapes, False))
+    task = Score(0.7, 0.004, 20, 20, task=0.0064)
+    kept = tune_summary(result(task, task, False))
+    assert kept.startswith("Your thresholds are already good") and "grasps and releases 6 mm from where you did" in kept
+    better = tune_summary(result(Score(1.0, 0.01, 12, 12, task=0.009), Score(0.8, 0.008, 20, 20, task=0.007), True))
+    assert "misses it by 8 mm" in better and "grasps and releases 7 mm from where you did, 9 mm before" in better
+
+
+def test_each_stretch_of_a_skill_that_follows_the_objects_in_words():
+    from studio.core.segment_view import SegmentFit
+
+    fits = (
+        SegmentFit("start", "grasp", "cup", "object:cup", 0.004, 0.3),
+        SegmentFit("grasp", "release", "cup", "object:bottom cup", 0.03, 0.8),
+        SegmentFit("release", "end", "cup", "robot", 0.08, 1.5),
+    )
+    lines = W.segment_lines(fits)
+    assert (
+        lines[0] == "Reaching for the cup (relative to the cup): within 4 mm of your demonstrations on average — good."
+    )
+    assert lines[1].startswith("Carrying the cup to the bottom cup (relative to the bottom cup): within 3 cm")
+    assert "fair" in lines[1] and "poor" in lines[2] and "relative to the robot" in lines[2]

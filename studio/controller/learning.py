@@ -52,6 +52,9 @@ class KeypointView:
     version: int = 0
     #: arm -> the key-point indices of each shown demo (in the order of ``demos``).
     indices: dict[Arm, list[np.ndarray]] = field(default_factory=dict)
+    #: arms whose key-points and centroids are drawn in the frames the skill learns them in (each stretch
+    #: relative to the object it acts on, placed where the objects are now).
+    in_frames: frozenset[Arm] = frozenset()
 
 
 class ShownDemos(Protocol):
@@ -86,6 +89,7 @@ class KeypointTuning:
         self._settings: ThresholdSettings = ctx.session.thresholds
         self._k: int | None = ctx.session.n_clusters
         self._stats: dict[str, tuple[tuple[Demo, ...], DemoStats]] = {}
+        self._framed: dict[Arm, tuple[object, object, tuple, list[Demo] | None]] = {}  # per session, scene, demos
         self._dirty = False
         self._changed = 0.0
         self._version = 0
@@ -96,6 +100,8 @@ class KeypointTuning:
         ctx.events.on(Topic.SESSION, self._on_session)
         for topic in (Topic.DEMOS, Topic.SESSION, Topic.ARMS):
             ctx.events.on(topic, self.request)
+        ctx.events.on(Topic.SCENE, self._on_frames)  # the objects moved: the view in their frames follows
+        ctx.events.on(Topic.TRAINING, self._on_frames)  # "follow the objects" chosen or not
 
     def arms(self) -> tuple[Arm, ...]:
         return self.ctx.arms
@@ -234,21 +240,56 @@ class KeypointTuning:
         used: dict[Arm, KeypointParams] = {}
         indices: dict[Arm, list[np.ndarray]] = {}
         messages: list[str] = []
+        framed: set[Arm] = set()
         for arm in self.arms():
             demos = self.demos.for_arm(arm)
             if not demos:
                 continue
             params = used[arm] = self.params(arm, settings)
             idx = indices[arm] = [np.asarray(self.cache.extract(d, params)) for _, d in demos]
-            items += [_item(i, arm, d, ix) for (i, d), ix in zip(demos, idx, strict=True)]
+            shown = self.in_frames(arm, demos)
+            if shown is None:
+                shown = [d for _, d in demos]
+            else:
+                framed.add(arm)
+            items += [_item(i, arm, d, ix) for (i, _), d, ix in zip(demos, shown, idx, strict=True)]
             try:
-                c = cluster_keypoints([d for _, d in demos], idx, n_clusters=k, seed=0)
+                c = cluster_keypoints(shown, idx, n_clusters=k, seed=0)
             except StudioError as exc:
                 messages.append(f"{arm.capitalize()} arm: {exc}")
                 continue
             centroids[arm] = np.asarray(c)
             ks[arm] = len(c)
-        return KeypointView(tuple(items), centroids, ks, tuple(messages), used, settings, version, indices)
+        return KeypointView(
+            tuple(items), centroids, ks, tuple(messages), used, settings, version, indices, frozenset(framed)
+        )
+
+    def in_frames(self, arm: Arm, demos: Sequence[tuple[int, Demo]]) -> list[Demo] | None:
+        """The shown demos of ``arm`` as a skill that follows the objects learns them (each stretch in its
+        object's frame, placed where the objects are now), or None when the session's skills keep fixed places
+        or these demos cannot follow the objects."""
+        from studio.controller.placed import demo_objects_of
+        from studio.core.segment_view import demos_in_frames
+        from studio.world.relative import objects_now
+
+        session = self.ctx.session
+        if session.frames != "objects":
+            return None
+        scene = session.objects.scene
+        sig = tuple((i, id(d), len(d)) for i, d in demos)
+        hit = self._framed.get(arm)
+        if hit is not None and hit[0] is session and hit[1] is scene and hit[2] == sig:  # same objects, not equal
+            return hit[3]
+        objs = demo_objects_of(session, arm, [i for i, _ in demos])
+        moved = None if isinstance(objs, str) else demos_in_frames([d for _, d in demos], objs, objects_now(scene))
+        self._framed[arm] = (session, scene, sig, moved)
+        return moved
+
+    def _on_frames(self) -> None:
+        """The objects moved, or the way skills are placed changed: recompute when the view depends on it."""
+        view = self.view
+        if self.ctx.session.frames == "objects" or (view is not None and view.in_frames):
+            self.request()
 
     def refresh(self) -> KeypointView:
         """Compute the view now, keep it as :attr:`view`, tell the views, and notify its messages."""

@@ -5,7 +5,7 @@ dashed with its fidelity figure."""
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -15,7 +15,7 @@ from studio.controller.context import Context
 from studio.controller.events import Topic
 from studio.controller.learning import Follower, KeypointView, ShownDemos
 from studio.core.keypoints import KeypointCache
-from studio.core.types import Arm, SkillRoute
+from studio.core.types import Arm, Demo, SkillRoute
 
 
 @dataclass(frozen=True)
@@ -71,6 +71,7 @@ class KeypointSource(Protocol):
     def k(self) -> int | None: ...
     def request(self) -> None: ...
     def add_follower(self, follower: Follower) -> None: ...
+    def in_frames(self, arm: Arm, demos: Sequence[tuple[int, Demo]]) -> list[Demo] | None: ...
 
 
 class LivePaths:
@@ -117,7 +118,9 @@ class LivePaths:
         out: dict[Arm, LivePath] = {}
         try:
             for arm, params in view.params.items():
-                demos = [d for _, d in self.demos.for_arm(arm)]
+                shown = self.demos.for_arm(arm)
+                moved = self.tuning.in_frames(arm, shown) if arm in view.in_frames else None
+                demos = moved if moved is not None else [d for _, d in shown]  # as the key-points are drawn
                 idx = view.indices.get(arm)
                 if stale():
                     return

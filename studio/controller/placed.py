@@ -8,17 +8,36 @@ says, before a run, which objects stand where no demonstration put them.
 from __future__ import annotations
 
 import threading
+from collections.abc import Sequence
 from dataclasses import replace
 
 from studio.controller.context import Context
 from studio.controller.events import Topic
 from studio.core.errors import StudioError
+from studio.core.frames import DemoObjects
 from studio.core.types import Arm, Skill
+from studio.storage import Session
 from studio.words import moved_words
 from studio.world.events import ObjectPose
 from studio.world.moved import moved_objects
 from studio.world.reach import one_place, outside, suggestion
-from studio.world.relative import objects_now
+from studio.world.relative import demo_objects, objects_now
+
+
+def demo_objects_of(session: Session, arm: Arm, indices: Sequence[int]) -> list[DemoObjects] | str:
+    """The objects and ``arm``'s contacts of the session's demonstrations ``indices``, or why a skill cannot
+    follow them (in plain words)."""
+    from studio.core.segments import plan
+
+    out = []
+    for i in indices:
+        events = session.objects.events(session.demo_files[i]) if i < len(session.demo_files) else ()
+        objs = demo_objects(events, arm)
+        if objs is None:
+            return "Some demonstrations were recorded without objects, so the skill follows fixed places."
+        out.append(objs)
+    _, why = plan(out)
+    return why or out
 
 
 class PlacedSkills:

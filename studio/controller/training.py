@@ -3,6 +3,7 @@ and how well each demonstration fits), and answer what the panels show about the
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from concurrent.futures import Future
 from dataclasses import dataclass, replace
@@ -13,15 +14,17 @@ import numpy as np
 from studio.controller.context import Context
 from studio.controller.events import Topic
 from studio.controller.learning import ShownDemos
+from studio.controller.placed import demo_objects_of
 from studio.core.errors import NotEnoughData, StudioError
 from studio.core.frames import DemoObjects
 from studio.core.keypoints import KeypointCache
 from studio.core.pace import remove_pauses, without_pauses
-from studio.core.quality import DemoFit, Verdict
+from studio.core.quality import DemoFit, QualityReport, Verdict
+from studio.core.segment_view import SegmentFit
 from studio.core.thresholds import ThresholdSettings
 from studio.core.types import FRAMES, Arm, Demo, Generalization, KeypointParams, Recording, Skill
 from studio.storage import ReadOnly
-from studio.world.relative import demo_objects, objects_now
+from studio.world.relative import objects_now
 
 #: How each choice of frames is called in the Train panel.
 FRAME_WORDS = {
@@ -54,6 +57,8 @@ class SkillVerdict:
     verdict: Verdict | None
     fits: tuple[DemoFit, ...] = ()
     message: str = ""
+    #: a skill that follows the objects: how closely each stretch follows the demonstrations in its frame
+    segments: tuple[SegmentFit, ...] = ()
 
 
 class DemoSource(ShownDemos, Protocol):
@@ -254,18 +259,7 @@ class Training:
 
     def _objects(self, arm: Arm, demos: list[tuple[int, Demo]]) -> list[DemoObjects] | str:
         """The objects and ``arm``'s contacts of each demonstration, or why the skill cannot follow them."""
-        from studio.core.segments import plan
-
-        session = self.ctx.session
-        out = []
-        for i, _ in demos:
-            events = session.objects.events(session.demo_files[i]) if i < len(session.demo_files) else ()
-            objs = demo_objects(events, arm)
-            if objs is None:
-                return "Some demonstrations were recorded without objects, so the skill follows fixed places."
-            out.append(objs)
-        _, why = plan(out)
-        return why or out
+        return demo_objects_of(self.ctx.session, arm, [i for i, _ in demos])
 
     def _finished(self) -> None:
         if self.busy:  # the job failed: done() never ran
@@ -322,8 +316,54 @@ class Training:
             return SkillVerdict(
                 skill, None, message="Demonstrations were trimmed since this skill was learned: train again."
             )
-        report, verdict = judge_skill(skill, demos, fixed_k=fixed_k)
-        return SkillVerdict(skill, verdict, demo_fits(report))
+        relative = self._in_frames(arm, skill, used, demos)
+        if relative is None:
+            report, verdict = judge_skill(skill, demos, fixed_k=fixed_k)
+            return SkillVerdict(skill, verdict, demo_fits(report))
+        report, verdict, segments = relative
+        return SkillVerdict(skill, verdict, demo_fits(report), segments=segments)
+
+    def _in_frames(
+        self, arm: Arm, skill: Skill, used: list[UsedDemo], demos: list[Demo]
+    ) -> tuple[QualityReport, Verdict, tuple[SegmentFit, ...]] | None:
+        """A skill that follows the objects, judged where they are now: its path placed there against the
+        demonstrations moved there (each stretch with its object), held out with the skill learned the same way
+        without one demonstration, and each stretch measured in its own frame. None for any other skill."""
+        from studio.core import quality
+        from studio.core.frames import adapt
+        from studio.core.segment_view import demos_in_frames, segment_fits
+        from studio.core.segments import learn_relative
+
+        if skill.frames is None:
+            return None
+        objs = demo_objects_of(self.ctx.session, arm, [u.index for u in used if u.index is not None])
+        if isinstance(objs, str):
+            return None
+        now = objects_now(self.ctx.session.objects.scene)
+        moved = demos_in_frames(demos, objs, now, skill.frames)
+        if moved is None:
+            return None
+        try:
+            path = adapt(skill.frames, now)
+        except StudioError:  # an object the skill needs is not on the table
+            return None
+        placed = dataclasses.replace(
+            skill, trajectory=Demo(path.t, path.position, path.orientation, path.gripper, name="learned skill")
+        )
+
+        def learn(dd: list[Demo]) -> Demo:
+            keep = [i for i, m in enumerate(moved) if any(m is d for d in dd)]
+            return learn_relative(
+                [demos[i] for i in keep],
+                [objs[i] for i in keep],
+                skill.params,
+                now=now,
+                generalization=skill.generalization,
+            ).trajectory
+
+        held = quality.held_out(moved, learn, folds=list(range(min(len(moved), 3))))
+        report = quality.assess(placed, moved, held_out_result=held)
+        return report, quality.verdict(report), segment_fits(skill.frames, demos, objs)
 
     def _on_session(self) -> None:
         with self.ctx.lock:

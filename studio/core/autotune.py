@@ -1,10 +1,10 @@
 """Search the key-point thresholds and k for the best held-out fidelity (GUI-free): :func:`suggest`.
 
-Searched: ``detail`` (:mod:`studio.core.thresholds`) and k (a factor on the paper's default). The score is
-held-out G/R: the path learned without one demo (:func:`studio.core.pipeline.learn_path`) against that demo,
-over at most :data:`MAX_FOLDS` folds. The current settings first, then coarse ``detail`` values, then around
-the best and other k; the current thresholds stay (``changed`` False) unless something does better.
-Candidates run here or in the caller's ``executor`` (docs/decisions/030)."""
+Searched: ``detail`` (:mod:`studio.core.thresholds`) and k (a factor on the paper's default). Scored held out
+(learned without one demo, measured on it, at most :data:`MAX_FOLDS` folds) on what the teacher sees: the path
+(G/R) and the task (where the gripper closes and opens). A candidate wins only when no figure is worse and one is
+better; the current thresholds stay (``changed`` False) otherwise. Candidates run here or in the caller's
+``executor`` (docs/decisions/030, 062)."""
 
 from __future__ import annotations
 
@@ -28,8 +28,16 @@ MAX_FOLDS = 3
 COARSE_DETAIL = (-2.0, -1.0, 0.0, 1.0, 2.0)
 #: k factors tried at the best ``detail``.
 K_FACTORS = (0.75, 1.3)
-#: Relative improvement needed to prefer more detail or a different k.
+#: Relative improvement needed to prefer more detail or a different k, or to leave the default thresholds.
 MARGIN = 0.02
+#: Relative improvement needed to leave the teacher's own thresholds (beyond the held-out measure's resolution).
+OWN_MARGIN = 0.005
+#: No round of the search starts after this many seconds.
+BUDGET_S = 2.0
+#: A held-out task figure must also improve by this much, m (less is within a demonstration's own noise).
+TASK_FLOOR_M = 0.0005
+#: Held-out task figures this close are the same, m (the precision the poses are pinned to).
+TASK_TIE_M = 0.0001
 
 
 @dataclass(frozen=True)
@@ -54,12 +62,42 @@ class Score:
         distance: root-mean-square distance to the left-out demos, m.
         keypoints: mean key-points per demo with these thresholds.
         k: clusters used (mean over folds).
+        task: root-mean-square distance from where the learned path closes and opens the gripper to where the
+            left-out demos did, m (0 without gripper actions; inf when the path closes and opens it differently).
     """
 
     g_over_r: float
     distance: float
     keypoints: float
     k: float
+    task: float = 0.0
+
+    def no_worse(self, other: Score) -> bool:
+        """Neither held-out figure is worse than ``other``'s (the task by no more than :data:`TASK_TIE_M`)."""
+        return self.g_over_r <= other.g_over_r and (self.task <= other.task + TASK_TIE_M or self.task == other.task)
+
+    def gains(self, other: Score, margin: float) -> bool:
+        """At least one held-out figure is better than ``other``'s by ``margin`` (relative; the task also by
+        :data:`TASK_FLOOR_M`)."""
+        path = self.g_over_r < other.g_over_r * (1.0 - margin)
+        task = self.task < other.task * (1.0 - margin) and other.task - self.task > TASK_FLOOR_M
+        return path or task
+
+    def same(self, other: Score) -> bool:
+        """The very same figures (the same path and grasps)."""
+        return math.isclose(self.g_over_r, other.g_over_r, rel_tol=1e-9) and (
+            self.task == other.task or math.isclose(self.task, other.task, rel_tol=1e-9)
+        )
+
+    def near(self, other: Score) -> bool:
+        """Both figures within :data:`MARGIN` of ``other``'s (the task also within :data:`TASK_FLOOR_M`): the
+        thresholds changed nothing the teacher would see."""
+        if not (math.isfinite(self.g_over_r) and math.isfinite(other.g_over_r)):
+            return False
+        path = abs(self.g_over_r - other.g_over_r) <= MARGIN * other.g_over_r
+        if math.isinf(self.task) or math.isinf(other.task):
+            return path and self.task == other.task
+        return path and abs(self.task - other.task) <= max(MARGIN * other.task, TASK_FLOOR_M)
 
 
 @dataclass(frozen=True)
@@ -76,7 +114,8 @@ class TuneResult:
         cancelled: the search was cancelled (``settings`` is then the best found so far, or the current one).
         complete: every planned candidate was scored (False when cancelled or out of time).
         changed: the suggestion differs from the current thresholds (False: they are already good — nothing
-            did better by :data:`MARGIN` than the defaults, or at all than the teacher's own values).
+            did better by :data:`MARGIN` than the defaults, or by :data:`OWN_MARGIN` than the teacher's own
+            values (automatic ones with the very same figures replace those), without a held-out figure worse).
     """
 
     settings: ThresholdSettings
@@ -108,7 +147,17 @@ def _state(token: str, demos: list[Demo], generalization: str) -> tuple:
         _STATE.clear()  # one search at a time per worker: drop the previous search's demos
         curves = [quality.curve(d, 300) for d in demos]
         r = quality.spread(curves)[0]
-        st = _STATE[token] = (demos, KeypointCache(), AlignmentCache(), curves, r, DemoStats.of(demos), generalization)
+        actions = [quality.demo_actions(d) for d in demos]
+        st = _STATE[token] = (
+            demos,
+            KeypointCache(),
+            AlignmentCache(),
+            curves,
+            r,
+            DemoStats.of(demos),
+            generalization,
+            actions,
+        )
     return st
 
 
@@ -123,10 +172,10 @@ def _score(c: Candidate, st: tuple, folds: Sequence[int]) -> Score:
     from studio.core.clustering import default_n_clusters
     from studio.core.pipeline import learn_path
 
-    demos, kc, ac, curves, r, stats, generalization = st
+    demos, kc, ac, curves, r, stats, generalization, actions = st
     params = _params(c, stats)
     kps_all = [kc.extract(d, params) for d in demos]
-    msd, ks = [], []
+    msd, ks, task = [], [], []
     for i in folds:
         train = [d for j, d in enumerate(demos) if j != i]
         kps = [k for j, k in enumerate(kps_all) if j != i]
@@ -137,12 +186,17 @@ def _score(c: Candidate, st: tuple, folds: Sequence[int]) -> Score:
         try:
             tr = learn_path(train, params, n_clusters=k, generalization=generalization, cache=kc, align_cache=ac)
         except StudioError:
-            return Score(math.inf, math.inf, float(np.mean([len(x) for x in kps_all])), float(k))
+            return Score(math.inf, math.inf, float(np.mean([len(x) for x in kps_all])), float(k), math.inf)
         msd.append(quality.ndtw(quality.curve(tr, 300), curves[i]))
+        task.append(quality.task_error(tr, actions[i]) ** 2)
         ks.append(k)
     g = float(np.mean(msd))
     return Score(
-        g / r if r > 0 else math.inf, math.sqrt(g), float(np.mean([len(x) for x in kps_all])), float(np.mean(ks))
+        g / r if r > 0 else math.inf,
+        math.sqrt(g),
+        float(np.mean([len(x) for x in kps_all])),
+        float(np.mean(ks)),
+        math.sqrt(float(np.mean(task))),
     )
 
 
@@ -188,12 +242,12 @@ def _folds(n: int) -> list[int]:
 
 
 def _better(a: Score, ca: Candidate, b: Score, cb: Candidate) -> bool:
-    """Is (a, ca) better than the incumbent (b, cb)? More detail or another k must win by MARGIN."""
+    """Is (a, ca) better than the incumbent (b, cb)? No held-out figure worse and one better; more detail or
+    another k must be better by MARGIN."""
     if not math.isfinite(b.g_over_r):
         return math.isfinite(a.g_over_r)
     simpler = ca.detail < cb.detail or (ca.detail == cb.detail and ca.k_factor == 1.0 and cb.k_factor != 1.0)
-    need = 1.0 if simpler else 1.0 - MARGIN
-    return a.g_over_r < b.g_over_r * need
+    return a.no_worse(b) and a.gains(b, 0.0 if simpler else MARGIN)
 
 
 class _Search:
@@ -219,6 +273,8 @@ class _Search:
         self.done = 0
         self.planned = 1 + len(COARSE_DETAIL) + 2 + len(K_FACTORS)
         self.cancelled = False
+        self.memo: dict[tuple, Score] = {}
+        self.evaluated = 0
 
     def report(self, msg: str) -> None:
         if self.progress is not None:
@@ -235,10 +291,32 @@ class _Search:
         if self.stopped():
             return None
         score = _score(before_c, self.st, self.folds)
+        self.memo[self.key(before_c)] = score
         self.done += 1
+        self.evaluated += 1
         return score
 
+    def key(self, c: Candidate) -> tuple:
+        """What decides a candidate's figures: its thresholds in real units and its k (or k factor)."""
+        k = ("k", c.k) if c.k is not None else ("factor", c.k_factor)
+        return (tuple(_params(c, self.st[5]).as_dict().items()), k)
+
     def run(self, cands: list[Candidate], msg: str) -> list[Score] | None:
+        """Score candidates, each set of thresholds once per search (:meth:`key`); None if cancelled."""
+        keys = [self.key(c) for c in cands]
+        todo: dict[tuple, Candidate] = {}
+        for c, k in zip(cands, keys, strict=True):
+            if k not in self.memo and k not in todo:
+                todo[k] = c
+        self.done += len(cands) - len(todo)
+        scores = self._score_all(list(todo.values()), msg)
+        if scores is None:
+            return None
+        self.memo.update(zip(todo, scores, strict=True))
+        self.evaluated += len(scores)
+        return [self.memo[k] for k in keys]
+
+    def _score_all(self, cands: list[Candidate], msg: str) -> list[Score] | None:
         """Score candidates (one per task of the executor); None if cancelled."""
         if self.executor is None:
             out = []
@@ -292,35 +370,36 @@ def _challenge(cands: list[Candidate], scores: list[Score], best_c: Candidate, b
     return best_c, best
 
 
-def _rounds(
-    search: _Search, before_c: Candidate, t0: float, budget_s: float
-) -> tuple[Candidate, Score, Score, int, bool]:
-    """The search itself: (best candidate, its score, "before", candidates scored, every round done).
+def _rounds(search: _Search, before_c: Candidate, t0: float, budget_s: float) -> tuple[Candidate, Score, Score, bool]:
+    """The search itself: (best candidate, its score, "before", every round done).
 
     Round 1: "before" and the coarse ``detail`` values (0 is the incumbent the others challenge); round 2:
-    ±0.5 around the best; round 3: other k at the best. A round starts only within the time budget.
+    ±0.5 around the best; round 3: other k at the best. When every coarse value is near the best
+    (:meth:`Score.near`), the thresholds change nothing the teacher sees and the search ends there. A round
+    starts only within the time budget.
     """
-    nothing = Score(math.inf, math.inf, math.nan, math.nan)
+    nothing = Score(math.inf, math.inf, math.nan, math.nan, math.inf)
     before0 = search.first(before_c)
     coarse_c = [Candidate(d) for d in COARSE_DETAIL]
     coarse = None if before0 is None else search.run(coarse_c, "Trying fewer and more key-points")
     if before0 is None or coarse is None:
-        return before_c, nothing, nothing, 0, False
-    evaluated = 1 + len(coarse)
+        return before_c, nothing, nothing, False
     best_c, best = _challenge(coarse_c, coarse, Candidate(0.0), coarse[COARSE_DETAIL.index(0.0)])
+    if all(sc.near(best) for sc in coarse):
+        search.done = search.planned
+        return best_c, best, before0, True
     for step in ("fine", "k"):
         if time.perf_counter() - t0 >= budget_s:
-            return best_c, best, before0, evaluated, False
+            return best_c, best, before0, False
         if step == "fine":
             cands, msg = [Candidate(best_c.detail - 0.5), Candidate(best_c.detail + 0.5)], "Refining"
         else:
             cands, msg = [Candidate(best_c.detail, f) for f in K_FACTORS], "Trying other numbers of clusters"
         scores = search.run(cands, msg)
         if scores is None:
-            return best_c, best, before0, evaluated, False
-        evaluated += len(scores)
+            return best_c, best, before0, False
         best_c, best = _challenge(cands, scores, best_c, best)
-    return best_c, best, before0, evaluated, True
+    return best_c, best, before0, True
 
 
 def suggest(
@@ -332,7 +411,7 @@ def suggest(
     progress: Callable[[float, str], None] | None = None,
     cancel: threading.Event | None = None,
     executor: Executor | None = None,
-    budget_s: float = 5.0,
+    budget_s: float = BUDGET_S,
 ) -> TuneResult:
     """Search ``detail`` and k for the best held-out fidelity (module docstring; docs/decisions/011).
 
@@ -344,7 +423,7 @@ def suggest(
         progress: called with (fraction 0…1, plain-words step) as candidates finish, from this thread.
         cancel: set it to stop; :func:`suggest` then returns early with ``cancelled=True``.
         executor: runs the candidates after "before" (threads, or processes the caller started); None: here.
-        budget_s: stop starting new rounds after this many seconds (the result says ``complete=False``).
+        budget_s: start no round after this many seconds (the result says ``complete=False``).
 
     Raises:
         NotEnoughData: fewer than two demonstrations.
@@ -362,10 +441,13 @@ def suggest(
     stats = DemoStats.of(demos)
     before_c = _before(current, stats, n_clusters)
     search = _Search(demos, generalization, executor, progress, cancel)
-    best_c, best, before, evaluated, complete = _rounds(search, before_c, t0, budget_s)
+    best_c, best, before, complete = _rounds(search, before_c, t0, budget_s)
+    evaluated = search.evaluated
     defaults = n_clusters is None and (current is None or current == ThresholdSettings())
-    # the defaults stay unless something is clearly better; the teacher's own values unless something is as good
-    better = best.g_over_r < before.g_over_r * (1.0 - MARGIN) if defaults else best.g_over_r <= before.g_over_r
+    # never a held-out figure worse; the defaults stay unless one is better by MARGIN, the teacher's own values
+    # unless one is better by OWN_MARGIN or automatic thresholds give the very same figures (they follow the demos)
+    gains = best.gains(before, MARGIN) if defaults else best.gains(before, OWN_MARGIN) or best.same(before)
+    better = best.no_worse(before) and gains
     keep = math.isfinite(before.g_over_r) and not better
     if search.cancelled or keep:  # keep what the teacher has
         settings = current if isinstance(current, ThresholdSettings) else ThresholdSettings()
@@ -406,6 +488,7 @@ def _suggested_k(demos: list[Demo], params: KeypointParams, k_factor: float) -> 
 
 
 __all__ = [
+    "BUDGET_S",
     "COARSE_DETAIL",
     "K_FACTORS",
     "Candidate",

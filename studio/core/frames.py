@@ -344,10 +344,15 @@ class AdaptedPath:
 def border_frames(frames: ObjectFrames, now: Sequence[ObjectAt]) -> np.ndarray:
     """(K + 2, 4) the frames of the start, each border and the end, with the objects where they are ``now``
     (an object the skill has put down is where the demonstrations let it land)."""
+    return frames_at(frames.borders, now)
+
+
+def frames_at(borders: Sequence[Border], now: Sequence[ObjectAt]) -> np.ndarray:
+    """:func:`border_frames` for ``borders`` alone (before a skill is learned)."""
     start = {o.name: o for o in now}
     state = dict(start)
     out = [np.zeros(4)]
-    for b in frames.borders:
+    for b in borders:
         f = resolve(b.role, state, start)
         out.append(f)
         if b.kind == "release" and b.object in state:

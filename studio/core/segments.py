@@ -47,7 +47,8 @@ RATE_HZ = 100.0
 _ALIGN_HZ = 25.0
 
 
-def _minjerk(u: np.ndarray) -> np.ndarray:
+def minjerk(u: np.ndarray) -> np.ndarray:
+    """The minimum-jerk blend 0 → 1 over ``u`` in 0…1."""
     u = np.clip(u, 0.0, 1.0)
     return u**3 * (10 - 15 * u + 6 * u * u)
 
@@ -107,7 +108,7 @@ def _yaw_dev(y: np.ndarray) -> np.ndarray:
     return np.angle(np.exp(1j * (y - m)))
 
 
-def _frame(o: DemoObjects, k: int, role: str) -> np.ndarray | None:
+def frame_at_contact(o: DemoObjects, k: int, role: str) -> np.ndarray | None:
     """The frame ``role`` names at contact ``k`` of one demonstration (the objects just after it)."""
     if role == ROBOT:
         return np.zeros(4)
@@ -122,7 +123,7 @@ def _frame(o: DemoObjects, k: int, role: str) -> np.ndarray | None:
 def _landed_in(objects: Sequence[DemoObjects], k: int, name: str, role: str) -> np.ndarray | None:
     rows = []
     for o in objects:
-        f, p = _frame(o, k, role), o.contacts[k].pose(name)
+        f, p = frame_at_contact(o, k, role), o.contacts[k].pose(name)
         if f is None or p is None:
             return None
         rows.append([*to_local(f, np.asarray(p.position)), p.yaw - f[3]])
@@ -149,7 +150,7 @@ def regions(objects: Sequence[DemoObjects], borders: Sequence[Border]) -> tuple[
 # -- learning ------------------------------------------------------------------------------------------------
 
 
-def _split(demo: Demo, objects: DemoObjects) -> list[int]:
+def contact_cuts(demo: Demo, objects: DemoObjects) -> list[int]:
     """Sample indices of the borders in ``demo`` (first and last sample included)."""
     t = np.asarray(demo.t) - demo.t[0]
     cut = [int(np.clip(np.searchsorted(t, c.t), 1, len(t) - 2)) for c in objects.contacts]
@@ -159,7 +160,8 @@ def _split(demo: Demo, objects: DemoObjects) -> list[int]:
     return idx
 
 
-def _in_frame(demo: Demo, i0: int, i1: int, f: np.ndarray) -> Demo:
+def in_frame(demo: Demo, i0: int, i1: int, f: np.ndarray) -> Demo:
+    """Samples ``i0``…``i1`` of ``demo`` in frame ``f``, their time from ``i0``."""
     sl = slice(i0, i1 + 1)
     t = np.asarray(demo.t[sl]) - demo.t[i0]
     return Demo(t, to_local(f, demo.position[sl]), turn(demo.orientation[sl], -f[3]), demo.gripper[sl], name=demo.name)
@@ -206,6 +208,27 @@ def _mean_quat(qs: list[np.ndarray]) -> np.ndarray:
     return acc / np.linalg.norm(acc, axis=1, keepdims=True)
 
 
+def path_roles(roles: tuple[str, str]) -> tuple[str, str]:
+    """(the frame a segment from ``roles[0]`` to ``roles[1]`` is learned in, the other one): the end's, unless
+    the segment ends free (the robot's frame), then the start's."""
+    start_role, end_role = roles
+    path_role = end_role if end_role != ROBOT else start_role
+    return path_role, (start_role if path_role == end_role else end_role)
+
+
+def segment_frames(o: DemoObjects, k: int, roles: tuple[str, str]) -> tuple[np.ndarray, np.ndarray]:
+    """(the path's frame, the other frame) of segment ``k`` in one demonstration (a start frame as the objects
+    were at the border before it, an end frame as at the border after it)."""
+    path_role, other_role = path_roles(roles)
+    out = []
+    for role in (path_role, other_role):
+        f = np.zeros(4) if role == ROBOT else frame_at_contact(o, k if role == roles[1] else k - 1, role)
+        if f is None:
+            raise InvalidInput("An object the skill acts on is missing from a demonstration.")
+        out.append(f)
+    return out[0], out[1]
+
+
 def _learn_segment(
     k: int,
     demos: Sequence[Demo],
@@ -220,19 +243,11 @@ def _learn_segment(
     from studio.core.thresholds import auto_params
 
     start_role, end_role = roles
-    path_role = end_role if end_role != ROBOT else start_role
-    other_role = start_role if path_role == end_role else end_role
+    path_role, other_role = path_roles(roles)
     parts = []
     for d, o, c in zip(demos, objects, cuts, strict=True):
-        fp = _frame(o, k - 1, path_role) if path_role != ROBOT else np.zeros(4)
-        fo = _frame(o, k - 1, other_role) if other_role != ROBOT else np.zeros(4)
-        if path_role == end_role and path_role != ROBOT:
-            fp = _frame(o, k, path_role)
-        if other_role == end_role and other_role != ROBOT:
-            fo = _frame(o, k, other_role)
-        if fp is None or fo is None:
-            raise InvalidInput("An object the skill acts on is missing from a demonstration.")
-        parts.append((_in_frame(d, c[k], c[k + 1], fp), _in_frame(d, c[k], c[k + 1], fo)))
+        fp, fo = segment_frames(o, k, roles)
+        parts.append((in_frame(d, c[k], c[k + 1], fp), in_frame(d, c[k], c[k + 1], fo)))
     seg_demos = [p[0] for p in parts]
     try:
         sk = learn_skill(seg_demos, params, seed=seed, generalization=generalization, split_routes=False)
@@ -241,7 +256,7 @@ def _learn_segment(
         sk = learn_skill(seg_demos, auto, seed=seed, generalization=generalization, split_routes=False)
     t, pos, q, g = _resampled(sk.trajectory)
     mp, mo, qp, qo, vp, vo = _statistics(t, pos, parts)
-    pi_end = _minjerk(t / max(t[-1], 1e-9))
+    pi_end = minjerk(t / max(t[-1], 1e-9))
     floor = SIGMA_FLOOR_M**2
     if other_role == path_role:
         w = np.ones_like(t)
@@ -285,7 +300,7 @@ def learn_relative(
     if not borders:
         raise InvalidInput(why)
     params = params or auto_params(demos)
-    cuts = [_split(d, o) for d, o in zip(demos, objects, strict=True)]
+    cuts = [contact_cuts(d, o) for d, o in zip(demos, objects, strict=True)]
     roles = [ROBOT, *(b.role for b in borders), ROBOT]
     segs, parts = [], []
     for k in range(len(borders) + 1):

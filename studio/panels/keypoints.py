@@ -346,6 +346,11 @@ def counts_html(view: KeypointView | None) -> str:
             f'<div class="kp-k" data-arm="{arm}" data-k="{k}">Clusters ({arm} arm): <b>{k}</b> '
             "(large red markers, numbered)</div>"
         )
+    if view.in_frames:
+        rows.append(
+            '<div class="kp-frames" style="color:#555">Drawn as the skill learns them: each stretch between a grasp '
+            "and a release relative to the object it acts on, with the objects where they are now.</div>"
+        )
     for msg in view.messages:
         rows.append(f'<div class="kp-msg" style="color:#b45309">{html.escape(msg)}</div>')
     return '<div class="kp-counts" style="font-size:0.85em">' + "".join(rows) + "</div>"

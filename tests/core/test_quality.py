@@ -105,6 +105,22 @@ def test_gripper_events_of_the_tasks_are_checked():
     assert r.start_error < 0.002 and r.end_error < 0.002
 
 
+def test_a_grasp_taken_in_two_steps_is_one_grasp():
+    # where two segments of a skill that follows the objects meet, the gripper can close in two steps (99 → 89 →
+    # 47): the teacher sees one grasp, and the check counts one
+    ds = list(task_demos("stack-cup"))
+    sk = learn_skill(ds)
+    tr = sk.trajectory
+    g = np.asarray(tr.gripper, dtype=np.float64).copy()
+    first_close = int(np.flatnonzero(np.diff(g) < -1.0)[0]) + 1
+    step = max(1, len(g) // 200)
+    g[first_close - step : first_close] = (g[first_close - step - 1] + g[first_close]) / 2  # half-way first
+    two_steps = Demo(tr.t, tr.position, tr.orientation, g, name="learned skill")
+    checks, mismatch = Q.gripper_checks(two_steps, ds)
+    assert mismatch is None and [c.action for c in checks] == ["close", "open"]
+    assert Q.task_error(two_steps, Q.demo_actions(ds[0])) < 0.05
+
+
 def test_held_out_and_outlier_figures():
     ds = zigzag()
     h = Q.held_out(ds, lambda dd: learn_skill(dd).trajectory)

@@ -143,3 +143,79 @@ def test_suggest_leaves_good_defaults_alone_and_says_so():
     assert r.complete and not r.changed and r.settings == ThresholdSettings() and r.n_clusters is None
     assert r.after == r.before and r.params == auto_params(ds)
     assert tune_summary(r).startswith("Your thresholds are already good")
+
+
+def _held_out(ds, params, k, mode):
+    """The held-out figures the teacher sees, measured outside Suggest: path (G/R on 600-point curves) and task
+    (root-mean-square distance of the grasps and releases to the left-out demo's), every demo left out."""
+    from studio.core import quality
+    from studio.core.pipeline import learn_path
+
+    def learn(train):
+        return learn_path(train, params, n_clusters=k, generalization=mode)
+
+    path = quality.held_out(ds, learn).g_over_r
+    task = [
+        quality.task_error(learn([d for j, d in enumerate(ds) if j != i]), quality.demo_actions(ds[i])) ** 2
+        for i in range(len(ds))
+    ]
+    return path, math.sqrt(float(np.mean(task)))
+
+
+@pytest.mark.parametrize(
+    ("demos", "mode", "current"),
+    [
+        ("zigzag", "paper", -3.0),  # thresholds that cut the corners: Suggest changes them
+        ("stack-cup", "paper", None),  # a task: the grasp and release count too
+        ("pick-place", "paper", -3.0),
+        ("pick-place", "paper", None),  # the path-only search chose thresholds that grasped 0.14 mm further off
+        ("pick-place", "aligned-mean", None),  # the default: already good
+    ],
+)
+def test_suggest_never_makes_a_held_out_figure_worse(demos, mode, current):
+    ds = (
+        list(task_demos(demos))
+        if demos in ("stack-cup", "pick-place")
+        else list(shape_demos(ShapeSpec(demos, 0.15, 2.0), 3))
+    )
+    settings = ThresholdSettings() if current is None else ThresholdSettings(current)
+    r = autotune.suggest(ds, current=settings, generalization=mode, budget_s=math.inf)
+    assert r.complete
+    before = _held_out(ds, settings.resolve(ds), None, mode)
+    after = _held_out(ds, r.params, r.n_clusters, mode)
+    assert after[0] <= before[0] * (1 + 1e-9), (r.changed, before, after)
+    assert after[1] <= before[1] + autotune.TASK_TIE_M, (r.changed, before, after)
+    assert r.after.no_worse(r.before)
+    if r.changed:
+        assert r.after.gains(r.before, autotune.OWN_MARGIN if current is not None else autotune.MARGIN)
+    if current == -3.0 and demos == "zigzag":
+        assert r.changed and after[0] < 0.8 * before[0]
+
+
+def test_a_candidate_wins_only_when_no_held_out_figure_is_worse():
+    base = autotune.Score(g_over_r=1.0, distance=0.01, keypoints=20, k=20, task=0.006)
+    better_path_worse_task = autotune.Score(0.7, 0.008, 20, 20, task=0.008)
+    assert not better_path_worse_task.no_worse(base)
+    better_task = autotune.Score(1.0, 0.01, 20, 20, task=0.004)
+    assert better_task.no_worse(base) and better_task.gains(base, autotune.MARGIN)
+    tiny = autotune.Score(1.0, 0.01, 20, 20, task=0.0058)  # 0.2 mm: within a demonstration's noise
+    assert tiny.no_worse(base) and not tiny.gains(base, autotune.MARGIN) and tiny.near(base)
+    assert not autotune.Score(0.9, 0.01, 20, 20, task=0.006).near(base)
+
+
+def test_suggest_ends_early_when_the_thresholds_change_nothing_the_teacher_sees():
+    ds = list(shape_demos(ShapeSpec("circle", 0.15, 2.0), 3))
+    seen: list[tuple[float, str]] = []
+    r = autotune.suggest(ds, progress=lambda f, m: seen.append((f, m)), budget_s=math.inf)
+    # "before" is the default thresholds, scored once; every coarse Detail near it: no refining, no other k
+    assert r.complete and not r.changed and r.evaluated == len(autotune.COARSE_DETAIL)
+    assert seen[-1] == (1.0, "Done")
+
+
+def test_my_own_values_give_way_to_automatic_ones_that_do_exactly_as_well():
+    ds = list(task_demos("stack-cup"))
+    mine = ThresholdSettings().set("eps5", 0.30)  # far too long: a few key-points, the same learned path
+    r = autotune.suggest(ds, current=mine, budget_s=math.inf)
+    assert r.changed and r.settings.teacher == {} and r.after.same(r.before)
+    assert tune_summary(r).startswith("Automatic thresholds, which follow your demonstrations, do exactly as well")
+    assert "misses it by" in tune_summary(r) and "either way" in tune_summary(r)

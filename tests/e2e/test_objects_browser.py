@@ -1,7 +1,8 @@
 """In real Chromium, a skill that follows the objects: open the stack-cup example, train, choose the bottom cup and
 move it with its handle (the drag messages a page sends, from a second tab), read in
 Preview that the cup now stands where no demonstration put it and the adapted task result ("ended on the bottom
-cup"), preview it; screenshots from the front and the top before and after the move."""
+cup"), preview it; screenshots from the front and the top before and after the move. The verdict speaks per
+stretch and the key-points are drawn in the objects' frames."""
 
 from __future__ import annotations
 
@@ -52,6 +53,12 @@ def test_move_the_cup_and_the_skill_follows_it(browser, tmp_path) -> None:
         ui.tab(page, "Train")
         page.get_by_role("button", name="Train", exact=True).click()
         ui.wait_text(page, "Trained", timeout=120)
+        # The verdict says each stretch relative to its object; the key-points are drawn in those frames.
+        stretch = page.locator(".verdict-segment").first
+        expect(stretch).to_contain_text("Reaching for the cup (relative to the cup): within", timeout=120_000)
+        expect(page.locator(".verdict-segment")).to_have_count(3)
+        ui.tab(page, "Key-points")
+        expect(page.locator(".kp-frames").first).to_contain_text("relative to the object it acts on", timeout=30_000)
         ui.tab(page, "Preview")
         task = page.locator(".task-result").first
         expect(task).to_have_attribute("data-ok", "true", timeout=60_000)

@@ -262,9 +262,17 @@ def _gripper_actions(demo: Demo) -> list[tuple[str, np.ndarray, float]]:
 
 
 def _skill_switches(traj: Demo) -> list[tuple[str, int]]:
+    """The path's gripper actions in order, (action, sample where it completes): steps of the same direction in a
+    row are one action (a close taken in two steps, e.g. where two segments of a skill meet, is one grasp)."""
     g = np.asarray(traj.gripper)
-    i = np.flatnonzero(np.abs(np.diff(g)) > 1.0)
-    return [("close" if g[j + 1] < g[j] else "open", int(j) + 1) for j in i]
+    out: list[tuple[str, int]] = []
+    for j in np.flatnonzero(np.abs(np.diff(g)) > 1.0):
+        action = "close" if g[j + 1] < g[j] else "open"
+        if out and out[-1][0] == action:
+            out[-1] = (action, int(j) + 1)
+        else:
+            out.append((action, int(j) + 1))
+    return out
 
 
 class Disagreement(StrEnum):
