@@ -20,6 +20,13 @@ Parts (``--part NAME`` runs one):
 * ``disk-full`` add, create, import, recover and the CLI on a 3 MB tmpfs (root only).
 * ``fuzz``      random array headers and mutated CSV files, ``--runs`` × 50 each: failures that are not the
   studio's own plain-words errors.
+* ``memory``    peak memory of importing a 10 M-row CSV and of key-points and training with a noisy 3 M-sample
+  demonstration, each in a fresh process (issue 21 §5); baselines: a 100,000-row CSV, the example session.
+* ``issue21``   issue 21's attacks §1–§4 and §7 against a running studio (links with encoded parameters, the
+  key's cookie, an older ``session.json`` put back, upload parts sent again or out of range, Share, a dropdown
+  value outside its options): what the attacker got.
+* ``flood``     another tab's checkbox and the Emergency stop, time until acted on, ``--runs`` times each while
+  one tab sends 10,000 Rename presses (issue 21 §6); baseline: the same without the flood.
 
 Run:  .venv/bin/python bench/bench_hostile.py   (--runs 40 by default; about 15 minutes on 2 busy cores)
 """
@@ -45,7 +52,19 @@ from typing import Any
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 MiB = 1024 * 1024
-PARTS = ("archives", "websocket", "skill", "kill-save", "kill-record", "race", "disk-full", "fuzz")
+PARTS = (
+    "archives",
+    "websocket",
+    "skill",
+    "kill-save",
+    "kill-record",
+    "race",
+    "disk-full",
+    "fuzz",
+    "memory",
+    "flood",
+    "issue21",
+)
 
 
 # -- measuring -----------------------------------------------------------------------------------------------
@@ -530,6 +549,307 @@ def part_fuzz(args: argparse.Namespace) -> list[dict[str, Any]]:
         shutil.rmtree(tmp, ignore_errors=True)
 
 
+# -- issue 21 §5-§6: memory of what is derived, and a flood of presses -----------------------------------------
+def _answer(press: Callable[[], None], done: Callable[[], bool], timeout: float = 60.0) -> float:
+    """Seconds from ``press()`` until ``done()`` holds (polled every millisecond; ``timeout`` when never)."""
+    t0 = time.perf_counter()
+    press()
+    while not done():
+        if time.perf_counter() - t0 > timeout:
+            return timeout
+        time.sleep(0.001)
+    return time.perf_counter() - t0
+
+
+def part_flood(args: argparse.Namespace) -> list[dict[str, Any]]:
+    """Another tab's checkbox and the Emergency stop, answered (the controller's state changed) while one tab
+    sends 10,000 presses of Rename; the same without the flood first (the baseline of this run)."""
+    import threading
+
+    from studio.app import build_app
+    from tests.conftest import free_port
+    from tests.viser_client import ViserClient
+
+    tmp = Path(tempfile.mkdtemp(prefix="bench-hostile-flood-"))
+    shutil.copytree(ROOT / "sessions" / "stack-cup", tmp / "stack-cup")
+    app = build_app(port=free_port(), session="stack-cup", sessions_dir=tmp)
+    ctl = app.controller
+    url = f"ws://127.0.0.1:{app.port}/?key={app.access.key}"
+    flood, other = ViserClient(url), ViserClient(url)
+
+    def uuid(c: ViserClient, label: str, kind: str) -> str:
+        found = c.wait_for(lambda ms: [m["uuid"] for m in ms if m["type"] == kind and m["props"].get("label") == label])
+        return str(found[-1])
+
+    def send(c: ViserClient, u: str, value: Any) -> None:
+        c.send({"type": "GuiUpdateMessage", "uuid": u, "updates": {"value": value}})
+
+    try:
+        rename = uuid(flood, "Demo action", "GuiButtonGroupMessage")
+        show = uuid(other, "Show in the scene", "GuiCheckboxMessage")
+        estop = uuid(other, "Emergency stop", "GuiButtonMessage")
+        name = ctl.demos.names()[-1]
+        time.sleep(2.0)
+
+        def sample(n: int) -> dict[str, list[float]]:
+            out: dict[str, list[float]] = {"tab": [], "estop": []}
+            for i in range(n):
+                hide = i % 2 == 0
+                out["tab"].append(
+                    _answer(lambda h=hide: send(other, show, not h), lambda h=hide: (name in ctl.demos.hidden) == h)
+                )
+                out["estop"].append(_answer(lambda: send(other, estop, True), lambda: ctl.execution.status.estop))
+                ctl.execution.release_emergency_stop()
+                time.sleep(0.05)
+            return out
+
+        base = sample(args.runs)
+        sent = [0]
+
+        def pour() -> None:
+            for _ in range(10_000):
+                send(flood, rename, "Rename")
+                sent[0] += 1
+                if sent[0] % 500 == 0:
+                    time.sleep(0.05)  # 10,000 presses spread over the samples, as a script would send them
+
+        t = threading.Thread(target=pour, daemon=True)
+        t.start()
+        during = sample(args.runs)
+        t.join()
+        counts = app.access.presses.counts if app.access.presses is not None else None
+        # The hardest case: 10,000 presses sent at once (Rename, then the flooding tab's own Emergency stop),
+        # the other tab's checkbox right behind them, waiting for viser's event loop to read through them.
+        flood_estop = uuid(flood, "Emergency stop", "GuiButtonMessage")
+        burst: dict[str, list[float]] = {"Rename": [], "Emergency stop": []}
+        for _ in range(max(2, args.runs // 4)):
+            for button, u, value in (("Rename", rename, "Rename"), ("Emergency stop", flood_estop, True)):
+                for _ in range(10_000):
+                    send(flood, u, value)
+                hide = name not in ctl.demos.hidden
+                burst[button].append(
+                    _answer(lambda h=hide: send(other, show, not h), lambda h=hide: (name in ctl.demos.hidden) == h)
+                )
+                ctl.execution.release_emergency_stop()
+                time.sleep(1.0)  # the loop has read the burst; the next starts from quiet
+        rows: list[dict[str, Any]] = []
+        for what, label in (("tab", "another tab's checkbox"), ("estop", "Emergency stop (another tab)")):
+            rows.append({"case": label, "baseline": base[what], "flood": during[what]})
+        for button, times in burst.items():
+            rows.append({"case": f"checkbox behind {button} x10,000 at once", "baseline": base["tab"], "flood": times})
+        rows.append({"case": "gate", "sent": sent[0], "counts": str(counts)})
+        return rows
+    finally:
+        flood.close()
+        other.close()
+        app.stop()
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def part_issue21(args: argparse.Namespace) -> list[dict[str, Any]]:
+    """Issue 21's attacks §1-§4 and §7 against a running studio, one row each: what the attacker got."""
+    import http.client
+
+    import studio.security.uploads as uploads
+    from studio.app import build_app
+    from studio.storage import SessionStore
+    from tests.conftest import free_port
+    from tests.hostile.builders import make_rec
+    from tests.viser_client import ViserClient
+
+    uploads.MAX_UPLOAD_BYTES = 8 * MiB
+    tmp = Path(tempfile.mkdtemp(prefix="bench-hostile-21-"))
+    shutil.copytree(ROOT / "sessions" / "stack-cup", tmp / "stack-cup")
+    app = build_app(port=free_port(), session="stack-cup", sessions_dir=tmp)
+    ac = app.access
+    rows: list[dict[str, Any]] = []
+
+    def get(path: str) -> tuple[int, str]:
+        conn = http.client.HTTPConnection("127.0.0.1", app.port, timeout=20)
+        try:
+            cookie = f"{ac.cookie_name}={ac.key}"
+            conn.request("GET", path, headers={"Host": f"127.0.0.1:{app.port}", "Cookie": cookie})
+            r = conn.getresponse()
+            r.read()
+            return r.status, r.getheader("Set-Cookie") or ""
+        finally:
+            conn.close()
+
+    try:
+        links = ("/ (the page itself: the baseline)", "/?%77ebsocket=ws://127.0.0.1:1", "/?playback%50ath=/x")
+        for link in (*links, "/?websocket=ws://evil", "/?x=1"):
+            status, _ = get(ac.prefix + link.split(" ")[0])
+            rows.append({"case": f"§1 link {link} (with the cookie)", "got": f"HTTP {status}"})
+        status, cookie = get(f"/?key={ac.key}")
+        path = cookie.split("Path=")[1].split(";")[0] if "Path=" in cookie else "(none)"
+        rows.append({"case": "§2 the key's cookie", "got": f"HTTP {status}, valid only under {path[:4]}… (per launch)"})
+
+        store = SessionStore(tmp / "restore")
+        s = store.create("three")
+        for i in range(3):
+            s.add_recording(make_rec(seed=i, name=f"demo {i + 1}"))
+        backup = (s.path / "session.json").read_bytes()
+        s.add_recording(make_rec(seed=9, name="newest"))
+        (s.path / "session.json").write_bytes(backup)
+        before = len(list(s.path.rglob("d*.npz")))
+        store.open("three")
+        after = len(list(s.path.rglob("d*.npz")))
+        recovered = len(list((s.path / "recovered").glob("d*.npz")))
+        rows.append({"case": "§3 an older session.json put back, then opened",
+                     "got": f"{before - after} demo files deleted, {recovered} moved to recovered/"})  # fmt: skip
+
+        c = ViserClient(f"ws://127.0.0.1:{app.port}/?key={ac.key}")
+        try:
+            up = c.wait_gui("Upload session (.zip)")["uuid"]
+            part = b"\0" * (512 * 1024)
+
+            def start(tid: str) -> None:
+                c.send({"type": "FileTransferStartUpload", "source_component_uuid": up, "transfer_uuid": tid,
+                        "filename": "big.zip", "mime_type": "application/zip", "part_count": 12,
+                        "size_bytes": 6 * MiB})  # fmt: skip
+
+            def send_part(i: int) -> None:
+                c.send({"type": "FileTransferPart", "source_component_uuid": up, "transfer_uuid": "a",
+                        "part_index": i, "content": part})  # fmt: skip
+
+            start("a")
+            for i in [*range(11), 0, 10**6, -1]:
+                send_part(i)
+            start("b")
+            refused = c.wait_for(lambda _m: [m for m in c.notifications() if "still running" in str(m)], 20)
+            rows.append({"case": "§4 parts sent again or out of range, then a second upload over the limit",
+                         "got": "second upload refused" if refused else "second upload NOT refused"})  # fmt: skip
+            send_part(11)
+
+            def asked() -> None:
+                raise RuntimeError("the share relay was asked")
+
+            app.server.request_share_url = asked  # type: ignore[method-assign]
+            c.send({"type": "ShareUrlRequest"})
+            demo = [
+                m["uuid"] for m in c.snapshot() if m["type"] == "GuiDropdownMessage" and m["props"]["label"] == "Demo"
+            ]
+            c.send({"type": "GuiUpdateMessage", "uuid": demo[-1], "updates": {"value": "no such demo"}})
+            time.sleep(1.0)
+            counts = ac.presses.counts if ac.presses is not None else None
+            unexpected = [m for m in c.notifications() if "unexpected" in str(m)]
+            rows.append({"case": "§7 a Share request and a dropdown value outside its options",
+                         "got": f"{counts}, 'unexpected' notices: {len(unexpected)}"})  # fmt: skip
+        finally:
+            c.close()
+        return rows
+    finally:
+        app.stop()
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _rows_csv(path: Path, rows: int) -> None:
+    """A Baxter SDK CSV of ``rows`` rows (time, both arms, grippers), written in chunks."""
+    from studio.csv_io import CSV_COLUMNS
+
+    q = ",".join(["0.100000,-0.500000,0.000000,1.000000,0.000000,0.500000,0.000000,100.0"] * 2)
+    with open(path, "w") as f:
+        f.write(",".join(CSV_COLUMNS) + "\n")
+        for s in range(0, rows, 100_000):
+            f.write("".join(f"{i / 1000:.3f},{q}\n" for i in range(s, min(rows, s + 100_000))))
+
+
+MEMORY_CODE = """
+import sys, time
+sys.path.insert(0, {root!r})
+def hwm():
+    return int([l for l in open('/proc/self/status') if l.startswith('VmHWM')][0].split()[1]) * 1024
+from studio.core.kinematics import Baxter
+Baxter.load()
+import numpy as np
+open('/proc/self/clear_refs', 'w').write('5')
+before, t0 = hwm(), time.perf_counter()
+{body}
+print('PEAK', hwm() - before, 'TOTAL', hwm(), 'SECONDS', time.perf_counter() - t0)
+"""
+
+CSV_BODY = """
+from studio.csv_io import import_csv
+try:
+    r = import_csv({path!r})
+    print('OUTCOME imported', len(r), 'samples')
+except Exception as exc:
+    print('OUTCOME', type(exc).__name__, str(exc)[:200])
+"""
+
+DEMO_BODY = """
+from studio.controller import Controller
+from studio.robot_backend.simulated import SimulatedBaxter
+from studio.storage import SessionStore
+from tests.conftest import RecordingNotifier
+told = RecordingNotifier()
+ctl = Controller(store=SessionStore({root_s!r}), session='long', backend=SimulatedBaxter(), notifier=told)
+try:
+    view = ctl.keypoints.refresh()
+    print('OUTCOME key-points', dict(view.k), list(view.messages)[:2])
+    try:
+        ctl.training.train().result()
+        print('OUTCOME trained', sorted(ctl.session.skills))
+    except Exception as exc:
+        print('OUTCOME training:', type(exc).__name__, str(exc)[:200])
+    print('OUTCOME told', [(t, b[:160]) for _, t, b in told.notes][:4])
+finally:
+    ctl.shutdown()
+"""
+
+
+def _peak(code: str) -> dict[str, Any]:
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=3600)
+    out = proc.stdout
+    row: dict[str, Any] = {"outcome": " | ".join(l[8:] for l in out.splitlines() if l.startswith("OUTCOME "))}
+    if "PEAK" in out:
+        words = out.split("PEAK", 1)[1].split()
+        row.update(peak_mb=int(words[0]) / MiB, total_mb=int(words[2]) / MiB, seconds=float(words[4]))
+    else:
+        row["outcome"] += f" CRASH (exit {proc.returncode}): {proc.stderr[-400:]}"
+    return row
+
+
+def part_memory(args: argparse.Namespace) -> list[dict[str, Any]]:
+    """Peak memory of importing a 10 M-row CSV and of working on a 3 M-sample noisy demonstration (key-points,
+    then training), each in a fresh process; baseline: the same for a 100,000-row CSV and the example session;
+    also the longest CSV accepted (3.6 M rows)."""
+    import numpy as np
+
+    from studio.core.types import Recording
+    from studio.storage import SessionStore
+    from tests.hostile.builders import make_rec
+
+    tmp = Path(tempfile.mkdtemp(prefix="bench-hostile-mem-"))
+    rows: list[dict[str, Any]] = []
+    try:
+        for n in (100_000, 3_600_000, 10_000_000):  # the largest CSV accepted, and the issue's
+            p = tmp / f"rows-{n}.csv"
+            _rows_csv(p, n)
+            r = _peak(MEMORY_CODE.format(root=str(ROOT), body=CSV_BODY.format(path=str(p))))
+            r.update(case=f"import a {n:,}-row CSV ({p.stat().st_size / MiB:,.0f} MB)")
+            rows.append(r)
+            p.unlink()
+        sessions = tmp / "sessions"
+        shutil.copytree(ROOT / "sessions" / "stack-cup", sessions / "long")
+        r = _peak(MEMORY_CODE.format(root=str(ROOT), body=DEMO_BODY.format(root_s=str(sessions))))
+        r.update(case="the example session: key-points, then training (baseline)")
+        rows.append(r)
+        s = SessionStore(sessions).open("long")
+        rng = np.random.default_rng(0)
+        base = make_rec(n=3_000_000, seed=1, name="three million")
+        noisy = Recording(t=base.t, q=base.q + rng.normal(0, 0.01, base.q.shape), gripper=base.gripper,
+                          arms=base.arms, name=base.name)  # fmt: skip
+        s.add_recording(noisy)
+        del base, noisy, s
+        r = _peak(MEMORY_CODE.format(root=str(ROOT), body=DEMO_BODY.format(root_s=str(sessions))))
+        r.update(case="+ a noisy 3 M-sample demonstration: key-points, then training")
+        rows.append(r)
+        return rows
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
 # -- running and reporting ----------------------------------------------------------------------------------
 def run_part(name: str, runs: int) -> list[dict[str, Any]]:
     """One part in a fresh process; its rows."""
@@ -543,6 +863,28 @@ def run_part(name: str, runs: int) -> list[dict[str, Any]]:
     if proc.returncode != 0:
         return [{"case": name, "outcome": f"CRASH (exit {proc.returncode}): {proc.stderr[-800:]}"}]
     return list(json.loads(proc.stdout.strip().splitlines()[-1]))
+
+
+def report_flood(rows: list[dict[str, Any]]) -> None:
+    for r in rows:
+        if "baseline" not in r:
+            print(f"  {r}")
+            continue
+        b, f = sorted(r["baseline"]), sorted(r["flood"])
+        mb, mf = b[len(b) // 2], f[len(f) // 2]
+        print(
+            f"{r['case']:<40} answered: quiet median {mb * 1000:7.1f} ms worst {b[-1] * 1000:7.1f} ms | during "
+            f"10,000 presses median {mf * 1000:7.1f} ms worst {f[-1] * 1000:7.1f} ms (x{mf / max(mb, 1e-9):.1f})"
+        )
+
+
+def report_memory(rows: list[dict[str, Any]]) -> None:
+    nan = float("nan")
+    for r in rows:
+        print(
+            f"{r['case']:<66} peak +{r.get('peak_mb', nan):8.1f} MB (process {r.get('total_mb', nan):7.1f} MB) "
+            f"{r.get('seconds', nan):6.1f} s  {r['outcome'][:300]}"
+        )
 
 
 def report(name: str, rows: list[dict[str, Any]]) -> None:
@@ -599,6 +941,9 @@ def report(name: str, rows: list[dict[str, Any]]) -> None:
         )
         for r in wrong:
             print("  ", r)
+        return
+    if name in ("flood", "memory"):
+        (report_flood if name == "flood" else report_memory)(rows)
         return
     for r in rows:
         print("  " + json.dumps(r, ensure_ascii=False)[:400])

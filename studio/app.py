@@ -32,6 +32,8 @@ log = logging.getLogger(__name__)
 ROOT = Path(__file__).resolve().parent.parent
 LIGHT_URDF = ROOT / "urdf" / "baxter_light.urdf"
 DEFAULT_SESSION = "stack-cup"
+#: Seconds within which a stopped studio (SIGTERM, Ctrl+C) has ended, whatever is still running.
+STOP_S = 2.5
 #: Initial view for every tab (and "Reset view"): in front of Baxter, to its right, framing the robot and table.
 CAMERA_POSITION = HOME_CAMERA_POSITION
 CAMERA_LOOK_AT = HOME_CAMERA_LOOK_AT
@@ -226,13 +228,17 @@ class Studio:
         """The address to open in the browser, with the key (see :mod:`studio.security`)."""
         return self.access.url(self.port)
 
-    def stop(self) -> None:
-        """Keep a running take and unsaved thresholds, then stop the pump, the panels, the robot and the server
-        (idempotent)."""
+    def stop(self, kept: threading.Event | None = None) -> None:
+        """Keep a running take and unsaved thresholds (then ``kept`` is set), then stop the pump, the panels, the
+        robot and the server (idempotent)."""
         if self._stopped:
             return
         self._stopped = True
+        if self.access.presses is not None:
+            self.access.presses.close()  # presses still waiting are dropped: the studio is stopping
         self.controller.close()
+        if kept is not None:
+            kept.set()
         self._pump.stop()
         try:
             self.panels.close()
@@ -315,16 +321,38 @@ def serve(
         if title == "The session could not be opened":
             print(f"studio: {body}", file=sys.stderr, flush=True)
     stop = threading.Event()
+    stopped = threading.Event()
+
+    def on_term(*_: object) -> None:
+        stop.set()
+        end_after(STOP_S, stopped)
+
     if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, lambda *_: stop.set())
+        signal.signal(signal.SIGTERM, on_term)
     print(f"Teaching Studio is running: open {app.url()} in your browser (Ctrl+C stops it).", flush=True)
     try:
-        while not stop.wait(1.0):
+        while not stop.wait(0.5):
             pass
     except KeyboardInterrupt:
-        pass
+        end_after(STOP_S, stopped)
     finally:
-        app.stop()
+        app.stop(kept=stopped)
+
+
+def end_after(seconds: float, stopped: threading.Event) -> None:
+    """End the process ``seconds`` from now if it is still running then (a callback or thread that does not
+    finish must not keep a stopping studio alive; its saves are atomic, a take being saved is recovered at the
+    next open). Exit status 0 when ``stopped`` is set (the studio kept the take and settings), 1 otherwise."""
+    import os
+
+    deadline = time.monotonic() + seconds
+
+    def watch() -> None:
+        while (left := deadline - time.monotonic()) > 0:
+            time.sleep(min(left, 0.1))
+        os._exit(0 if stopped.is_set() else 1)  # nothing else first: a log handler could be what hangs
+
+    threading.Thread(target=watch, name="studio-stop-watch", daemon=True).start()
 
 
 __all__ = [
@@ -333,6 +361,7 @@ __all__ = [
     "Studio",
     "build_app",
     "configure_scene",
+    "end_after",
     "exposure_warning",
     "robot_backend",
     "robot_urdf_path",

@@ -22,7 +22,7 @@ from studio.core.arms import normalize_arms
 from studio.core.errors import InvalidInput, NotEnoughData, StudioError
 from studio.core.quality import Remedy
 from studio.core.types import Arm, Recording, Skill
-from studio.storage import DEFAULT_ROOT, Session, SessionStore
+from studio.storage import DEFAULT_ROOT, Session, SessionStore, check_demo_name
 from studio.words import SHARED_REMEDIES, Remedies, count_words, tune_summary
 from studio.words import verdict_lines as verdict_words
 
@@ -246,25 +246,31 @@ def import_csv(args: argparse.Namespace, out: TextIO | None = None) -> int:
     arms = _arms(getattr(args, "arm", None), ("left",))
     recs: list[tuple[Path, Recording]] = []
     failed: list[str] = []
+    store.path_of(args.session)  # the session's name is checked before any file is read
     for f in args.files:
         try:
-            recs.append((Path(f), read_csv(f, arms=arms)))
+            r = read_csv(f, arms=arms)
+            check_demo_name(r.name)  # the demonstration's name comes from the file's: checked before creating
+            recs.append((Path(f), r))
         except StudioError as exc:
             failed.append(f"  {f}: {exc}")
     if recs:
-        if store.exists(args.session):
-            session = store.open(args.session)
-        else:
-            session = store.create(args.session, arms=arms)
-            print(f'Created session "{session.name}".', file=out)
+        created = not store.exists(args.session)
+        session = store.create(args.session, arms=arms) if created else store.open(args.session)
+        added = 0
         for f, r in recs:
             try:
                 i = session.add_recording(r)
             except StudioError as exc:  # this file is named; the others are still imported
                 failed.append(f"  {f}: {exc}")
                 continue
+            added += 1
+            if created and added == 1:
+                print(f'Created session "{session.name}".', file=out)
             rr = session.recordings[i]
             print(f'Imported {f.name} as "{rr.name}": {len(rr)} samples, {rr.duration:.1f} s.', file=out)
+        if created and not added:  # the session was made for these files only
+            store.delete(session.name)
     if failed:
         print("These files were not imported:\n" + "\n".join(failed), file=out)
         return 1

@@ -40,6 +40,9 @@ MAX_EXPORT_ROWS = int(MAX_DURATION_S * 100) + 1
 MAX_LINE_CHARS = 4096
 #: Rows parsed into numbers at once when reading a CSV.
 PARSE_CHUNK_ROWS = 65_536
+#: The characters a row of decimal numbers is written with (ASCII digits, sign, point, exponent, commas; the
+#: letters of nan and inf, which the plausibility checks refuse in their own words).
+_NUMBER_CHARS = frozenset("0123456789+-.eE, \tnaNAifINFtyTY")
 #: How far beyond Baxter's joint limits (URDF) a recorded angle may be, radians (encoder noise).
 JOINT_LIMIT_SLACK = 0.05
 #: Rows formatted at once when writing a CSV.
@@ -216,7 +219,8 @@ def _parse_rows(
     f: TextIO, header: list[str], capacity: int, label: str
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The rows after the header, a chunk at a time, into arrays of ``capacity`` rows (the counted lines); every
-    problem names its line (the header is line 1). Numbers are read strictly: ``1_00.0`` is not a number here."""
+    problem names its line (the header is line 1). Numbers are read strictly: decimals in ASCII digits (``1_00.0``
+    and ``١٠٠`` are not numbers here)."""
     out = _Rows(header, capacity)
     ncol = len(header)
     flat, numbers = array("d"), array("q")
@@ -234,8 +238,8 @@ def _parse_rows(
         if len(parts) != ncol:
             raise CsvFormatError(f'"{label}" line {number} has {len(parts)} values, expected {ncol}.')
         try:
-            if "_" in text:
-                raise ValueError("underscore")
+            if not _NUMBER_CHARS.issuperset(text):  # float() would also read 1_00 and digits of other scripts
+                raise ValueError("not a plain decimal number")
             flat.extend([float(x) for x in parts])
         except ValueError as exc:
             raise CsvFormatError(f'"{label}" line {number} contains something that is not a number.') from exc

@@ -168,9 +168,10 @@ def test_the_emergency_stop_is_not_queued_behind_another_tabs_presses(
         assert len(done) < 100, f"the emergency stop waited for {len(done)} presses of another tab"
         st = ctl.execution.status
         assert st.estop and st.message.startswith("Emergency stop: the robot halted."), st.message
-        assert wait_for(lambda: len(done) == 300, timeout=120)  # the other tab's presses were all done after it
         # the run is judged once the studio's lock is free again (the presses held it)
         assert wait_for(lambda: ctl.execution.status.phase == "emergency-stopped")
+        # one tab's presses of one button join the one waiting, and beyond its burst they are ignored (decision 052)
+        assert len(done) < 300, len(done)
         assert ctl.execution.status.message.startswith("Emergency stop: the robot halted at ")
     finally:
         flood.close()

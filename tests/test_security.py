@@ -59,7 +59,7 @@ def own_origin(app: Studio) -> str:
 
 
 def attack(app: Studio, *, origin: str | None, cookie: str | None = None, url: str | None = None) -> dict:
-    """What a client with these headers achieves: GUI received, a demo deleted (Delete acts at once), the
+    """What a client with these headers achieves: GUI received, a demo deleted (one Delete press), the
     session zip downloaded. ``refused`` is the HTTP status of a refused handshake (None when accepted)."""
     before = app.controller.demos.names()
     try:
@@ -70,7 +70,7 @@ def attack(app: Studio, *, origin: str | None, cookie: str | None = None, url: s
         c.wait_gui("Demo action")
         c.set_value("Demo", before[0])
         wait_for(lambda: app.panels.demos.demo_pick.value == before[0])
-        c.set_value("Demo action", "Delete")
+        c.set_value("Demo action", "Delete")  # deletes at once (Undo brings it back)
         c.set_value("Download session (.zip)", True)
         c.wait_for(lambda _m: c.downloads(), 20)
         wait_for(lambda: len(app.controller.demos.names()) < len(before))
@@ -493,6 +493,13 @@ def test_the_guard_sits_where_viser_serves(app: Studio) -> None:
     assert "self._handle_incoming_message(client_id, message)" in src
     assert app.access.hooked == "WebsockServer._background_worker.<locals>.viser_http_server"
     assert hasattr(app.server.gui, "_current_file_upload_states")
+    # The press gate (docs/decisions/052): viser's GUI and scene submit callbacks to the pool the gate stands in for.
+    import viser._gui_api as gui_api
+
+    src = inspect.getsource(gui_api.GuiApi._handle_gui_updates)
+    assert "self._thread_executor.submit(" in src and "GuiEvent(client, client_id, handle)" in src
+    assert app.server.gui._thread_executor is app.access.presses
+    assert app.server.scene._thread_executor is app.access.presses
 
 
 def test_the_studio_refuses_to_start_unprotected(sessions: Path, monkeypatch: pytest.MonkeyPatch) -> None:

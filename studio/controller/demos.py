@@ -13,7 +13,7 @@ from studio.controller.context import Context
 from studio.controller.events import Topic
 from studio.core.errors import StudioError
 from studio.core.types import Arm, Demo, Recording
-from studio.storage.format import WORK_SAMPLES
+from studio.storage.format import WORK_SAMPLES, check_demo_name, shown
 from studio.world import WorldEvent
 
 #: Demo colours (RGB), distinct on the light background, never red (red marks the cluster centroids) and never
@@ -177,6 +177,7 @@ class Demos:
         name = name.strip()
         if not name:
             raise StudioError("Give the demonstration a name (it cannot be empty).")
+        name = check_demo_name(name)  # length and visible characters, before the name is shown anywhere
         names = self.names()
         if name in names and names[i] != name:
             raise StudioError(f'There is already a demonstration called "{name}"; choose another name.')
@@ -200,11 +201,15 @@ class Demos:
             session.trim_demo(i, t0, t1, events=events)
         self.changed()
 
-    def delete(self, i: int) -> None:
-        """Delete demonstration ``i``; it is kept in memory a while for Undo (:mod:`studio.controller.undo`)."""
+    def delete(self, i: int, *, name: str | None = None) -> None:
+        """Delete demonstration ``i``; it is kept in memory a while for Undo (:mod:`studio.controller.undo`).
+        ``name``: the one the teacher chose; when ``i`` is another by now (another tab deleted one first), nothing
+        is deleted and the teacher is told."""
         with self.ctx.lock:
             session = self.ctx.session
             rec = session.recordings[i] if 0 <= i < len(session.recordings) else None
+            if name is not None and (rec is None or rec.name != name):
+                raise StudioError(f"{shown(name)} was deleted already (in another tab?); nothing else was deleted.")
             events = session.objects.events(session.demo_files[i]) if rec is not None else ()
             hidden = rec is not None and rec.name in session.hidden_demos
             session.delete_demo(i)

@@ -3,6 +3,7 @@ and switching the whole controller to another session (never while recording or 
 
 from __future__ import annotations
 
+import logging
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -13,6 +14,8 @@ from studio.core.errors import InvalidInput, SessionFormatError, StudioError
 from studio.storage import ReadOnly, Session, SessionStore, check_session_name
 from studio.storage.format import what_went_wrong
 from studio.world import preset
+
+log = logging.getLogger(__name__)
 
 #: Title of the note told once after a crash recovery (damaged files are told to every new tab).
 RECOVERED = "Recovered recordings"
@@ -134,11 +137,22 @@ class SessionActions:
         )
 
     def zip(self) -> tuple[str, bytes]:
-        """(file name, bytes) of the open session as a zip archive, saved first."""
-        self.persist()
-        if not self.ctx.session.read_only:
-            self.ctx.store.save(self.ctx.session)
-        return f"{self.ctx.session.name}.zip", self.ctx.store.export_zip(self.ctx.session.name)
+        """(file name, bytes) of the open session as a zip archive, as the studio holds it (a damaged demonstration
+        it skipped is left out). Every edit is on disk already; threshold settings not yet written are written
+        first when the disk allows it (on a read-only disk the download holds them as last saved, and the
+        teacher is told)."""
+        try:
+            self.persist()
+        except (StudioError, OSError) as exc:
+            log.warning("zip: the newest threshold settings could not be written first: %s", exc)
+            self.ctx.notify(
+                "Downloaded as last saved",
+                "Your newest threshold settings could not be written to disk (is it read-only or full?), so the "
+                "download holds the session as it was last saved.",
+                kind="warning",
+            )
+        session = self.ctx.session
+        return f"{session.name}.zip", self.ctx.store.export_zip(session.name, opened=session)
 
     def import_zip(self, filename: str, data: bytes) -> str:
         """Add an uploaded session archive (validated first: a bad file changes nothing) and open it."""

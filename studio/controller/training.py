@@ -182,6 +182,7 @@ class Training:
             mode, frames = self.ctx.session.generalization, self.ctx.session.frames
             routes = dict(self._routes)
             session = self.ctx.session  # the skill belongs to the session it was learned from
+            used = [session.recordings[i] for demos in per_arm.values() for i, _ in demos]
             self.busy = True
         self.ctx.emit(Topic.TRAINING)
         baxter, cache = self.ctx.baxter, self.tuning.cache
@@ -224,7 +225,9 @@ class Training:
             names = {arm: [d.name for _, d in per_arm[arm]] for arm in skills}
             first: KeypointParams | None = next(iter(params.values()), None)
             with self.ctx.lock:
-                session.set_skills(skills, params=first, demos=names)
+                # A demonstration deleted, trimmed or renamed while it trained: the skill is kept, marked stale.
+                changed = any(all(r is not kept for kept in session.recordings) for r in used)
+                session.set_skills(skills, params=first, demos=names, stale=changed)
                 current = session is self.ctx.session
                 if current:
                     self._verdicts = {}
@@ -237,9 +240,17 @@ class Training:
                 return
             self.tuning.persist(force=True)  # the current settings again (the skill's values replaced them)
             self.ctx.emit(Topic.SKILL)  # the player unloads the preview of the previous skill
-            self.ctx.notify(
-                "Training finished", "The robot learned the skill: open Preview to watch it.", kind="success"
-            )
+            if changed:
+                self.ctx.notify(
+                    "Training finished",
+                    "The robot learned the skill, but a demonstration was changed or deleted while it trained: "
+                    "press Train again to learn from the demonstrations as they are now.",
+                    kind="warning",
+                )
+            else:
+                self.ctx.notify(
+                    "Training finished", "The robot learned the skill: open Preview to watch it.", kind="success"
+                )
             self.judge()
 
         fut = self.ctx.submit(job, done=done, title="Training failed")

@@ -159,7 +159,14 @@ class DemosPanel:
         i = self._selected()
         if i is None:
             raise InvalidInput("Choose a demonstration in the list first.")
-        action = event.target.value
+        action, name = event.target.value, str(self.demo_pick.value)
+        if self.demo_pick.update_timestamp > event.target.update_timestamp:
+            # Another tab's action changed the chosen demonstration after this press was sent (two tabs pressing
+            # Delete at once would otherwise delete two demonstrations): nothing is done to the one chosen now.
+            raise InvalidInput(
+                "The chosen demonstration changed before your press arrived (another tab deleted or chose one), "
+                f'so nothing was done to "{name}". Check the choice and press again.'
+            )
         demos = self.ctl.demos
         if action == "Rename":
             demos.rename(i, self.demo_name.value)
@@ -167,4 +174,4 @@ class DemosPanel:
             t0, t1 = self.demo_trim.value
             demos.trim(i, float(t0), float(t1))
         elif action == "Delete":
-            demos.delete(i)  # at once; Undo (in Teach) brings it back for a while
+            demos.delete(i, name=name)  # at once; Undo (in Teach) brings it back for a while

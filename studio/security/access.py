@@ -29,6 +29,7 @@ from studio.security.addresses import (
     split_host,
 )
 from studio.security.page import PageScripts, policy, read_page_scripts
+from studio.security.presses import Presses
 from studio.security.uploads import MAX_MESSAGE_BYTES, UploadLimit
 
 if TYPE_CHECKING:
@@ -116,6 +117,8 @@ class Access:
         #: the viser function the guard wraps (its qualified name) once the server listens; None before.
         self.hooked: str | None = None
         self.uploads: UploadLimit | None = None
+        #: the gate every GUI message of a tab passes (values checked, presses limited); None before start
+        self.presses: Presses | None = None
         self.scripts = PageScripts(None)
         self._last_log: dict[str, float] = {}
 
@@ -285,6 +288,7 @@ class Access:
             if self.hooked is None:
                 raise StudioError("its web server no longer starts where the studio checks who connects")
             self.uploads = UploadLimit(server)
+            self.presses = Presses(server)  # sees each message first, then hands it to the upload limit
             self.scripts = read_page_scripts(getattr(server._websock_server, "_http_server_root", None))
         except Exception as exc:
             server.stop()

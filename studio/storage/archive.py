@@ -42,12 +42,16 @@ from studio.storage.session import Session
 _NOTHING = "Nothing was imported."
 
 
-def export_zip(session: Session) -> bytes:
-    """The session's manifest, demos and skills as a zip archive (one folder named after the session)."""
+def export_zip(session: Session, manifest: bytes | None = None) -> bytes:
+    """The session's manifest (``manifest``, or its file), demos and skills as a zip archive (one folder named
+    after the session)."""
     name = session.name
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_STORED) as zf:
-        zf.write(session.path / MANIFEST, f"{name}/{MANIFEST}")
+        if manifest is None:
+            zf.write(session.path / MANIFEST, f"{name}/{MANIFEST}")
+        else:
+            zf.writestr(f"{name}/{MANIFEST}", manifest)
         for rel in session.demo_files:
             zf.write(session.path / rel, f"{name}/{rel}")
         for info in session.skill_info.values():

@@ -10,6 +10,7 @@ import json
 import math
 import numbers
 import re
+import unicodedata
 from pathlib import Path
 from typing import Any
 
@@ -73,6 +74,11 @@ ARCHIVE_MEMORY_FLOOR = 64 * 1024**2
 #: Disk space left free after any write the studio plans (bytes).
 DISK_RESERVE = 8 * 1024**2
 
+#: Longest demonstration name (characters).
+MAX_NAME_CHARS = 100
+#: Unicode categories a typed name may not hold (see :func:`invisible`).
+_INVISIBLE = frozenset({"Cc", "Cf", "Cs", "Co", "Cn", "Zl", "Zp"})
+
 # Names and files. Every pattern is matched whole (``fullmatch``): "$" would accept a trailing newline.
 NAME_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9 _\-.()]{0,63}")
 DEMO_FILE_RE = re.compile(r"demos/d(\d{4,9})\.npz")
@@ -91,20 +97,40 @@ def check_session_name(name: str) -> str:
     """Return ``name`` if it is a safe folder name for a session, else raise :class:`InvalidInput`."""
     if not isinstance(name, str) or not NAME_RE.fullmatch(name) or ".." in name or name.endswith((" ", ".")):
         raise InvalidInput(
-            f"{name!r} cannot be a session name: use up to 64 letters, digits, spaces, '-', '_', '.' or "
+            f"{shown(name)} cannot be a session name: use up to 64 letters, digits, spaces, '-', '_', '.' or "
             "brackets, starting with a letter or digit (no '/' and no '..')."
         )
     return name
 
 
-def check_demo_name(name: object) -> str:
-    """A demo name is a label (never a file name): 1–100 printable characters."""
+def check_demo_name(name: object, *, typed: bool = True) -> str:
+    """A demo name is a label (never a file name): 1–100 printable characters; a name given now (``typed``,
+    not one read from an existing session) also holds no invisible ones (:func:`invisible`)."""
     if not isinstance(name, str):
         raise InvalidInput("A demonstration name must be text.")
     name = name.strip()
-    if not name or len(name) > 100 or any(ord(c) < 32 or ord(c) == 127 for c in name):
-        raise InvalidInput("A demonstration name must be 1 to 100 printable characters.")
+    if not name or len(name) > MAX_NAME_CHARS or any(ord(c) < 32 or ord(c) == 127 for c in name):
+        raise InvalidInput(f"A demonstration name must be 1 to {MAX_NAME_CHARS} printable characters.")
+    if typed and invisible(name):
+        raise InvalidInput(
+            "A demonstration name may not hold invisible characters (such as right-to-left marks or zero-width "
+            "spaces), which make it look like another name. Type it again with letters, digits and punctuation."
+        )
     return name
+
+
+def invisible(text: str) -> bool:
+    """Whether ``text`` holds a character that is not shown as itself: controls, format characters (bidi
+    overrides and isolates, zero-width ones), line and paragraph separators, private-use or unassigned ones."""
+    return any(unicodedata.category(c) in _INVISIBLE for c in text)
+
+
+def shown(text: object, limit: int = 60) -> str:
+    """``text`` quoted for a message or a log line: at most ``limit`` characters, invisible ones escaped."""
+    s = str(text)
+    cut = s[:limit]
+    out = "".join(c if unicodedata.category(c) not in _INVISIBLE else f"\\u{ord(c):04x}" for c in cut)
+    return f'"{out}{"…" if len(s) > limit else ""}"'
 
 
 def check_n_clusters(k: object) -> int | None:
@@ -194,7 +220,7 @@ def unique_name(name: str, taken: set[str]) -> str:
         # Cut the base so that name and suffix stay within the 100-character limit reload enforces.
         candidate = f"{name[: 100 - len(suffix)].rstrip()}{suffix}"
         if candidate not in taken:
-            return check_demo_name(candidate)
+            return check_demo_name(candidate, typed=False)
         i += 1
 
 

@@ -342,7 +342,7 @@ class _Reader:
         if not isinstance(f, str) or not DEMO_FILE_RE.fullmatch(f):
             raise self.bad(f"names an unsafe or invalid file for demonstration {i + 1}: {f!r}")
         try:
-            name = check_demo_name(d.get("name"))
+            name = check_demo_name(d.get("name"), typed=False)  # a session saved before invisible ones were refused
         except InvalidInput as exc:
             raise self.bad(f"has an invalid name for demonstration {i + 1}") from exc
         da = d.get("arms")

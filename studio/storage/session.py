@@ -313,6 +313,8 @@ class Session:
         skills: Mapping[Arm, Skill],
         params: KeypointParams | None = None,
         demos: Iterable[str] | Mapping[str, Iterable[str]] | None = None,
+        *,
+        stale: bool = False,
     ) -> None:
         """Save learned skills (arm -> Skill), replacing the previous ones.
 
@@ -320,6 +322,7 @@ class Session:
             params: the thresholds they were learned with (also become the session's parameters).
             demos: names of the demonstrations they were learned from: one list for every arm, or a mapping
                 arm -> names (default: all of the session's).
+            stale: the demonstrations changed while they were learned (the skills are saved marked stale).
         """
         for arm in skills:
             if arm not in ARMS:
@@ -337,7 +340,7 @@ class Session:
         self.skills = dict(skills)
         learned = now()
         self.skill_info = {arm: SkillEntry.for_arm(arm, learned, self.params, per_arm[arm]) for arm in skills}
-        self.skills_stale = False
+        self.skills_stale = stale
         self._write_manifest()
         for arm in old:
             with contextlib.suppress(OSError):

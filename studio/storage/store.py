@@ -233,8 +233,12 @@ class SessionStore:
             raise write_failed(dst, exc, doing="copied") from exc
         return load_session(dst)
 
-    def export_zip(self, name: str) -> bytes:
-        """The session as a zip archive (manifest, demos, skills) for download or sharing."""
+    def export_zip(self, name: str, *, opened: Session | None = None) -> bytes:
+        """The session as a zip archive (manifest, demos, skills) for download or sharing: what loads from its
+        folder, or ``opened``, the session as the studio holds it (damaged demonstrations it skipped are left
+        out, and its list says so; nothing is written)."""
+        if opened is not None:
+            return _archive.export_zip(opened, manifest=opened.manifest().to_bytes())
         return _archive.export_zip(load_session(self.path_of(name)))  # only export what loads
 
     def import_zip(self, data: bytes, name: str | None = None, *, archive: str | None = None) -> str:

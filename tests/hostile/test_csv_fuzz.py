@@ -172,3 +172,29 @@ def test_a_real_stream_with_jitter_is_kept(tmp_path: Path) -> None:
     t[150] = t[149] + 1e-6
     rec = import_csv(write(tmp_path / "jitter.csv", t, shape()))
     SessionStore(tmp_path / "s").create("s").add_recording(rec)
+
+
+@pytest.mark.parametrize("number", ["1_00.0", "\u0661\u0660\u0660", "0x10", "1\u00a0", "\uff11"])
+def test_numbers_are_read_strictly_naming_the_line(tmp_path: Path, number: str) -> None:
+    """Issue 21 §7: Python's float() reads ``1_00.0`` as 100, and digits of other scripts (Arabic-Indic,
+    full-width) and a no-break space as numbers."""
+    p = write(tmp_path / "odd.csv", np.arange(300) / 100, shape())
+    lines = p.read_text().splitlines()
+    cells = lines[50].split(",")
+    cells[4] = number
+    lines[50] = ",".join(cells)
+    p.write_text("\n".join(lines) + "\n")
+    with pytest.raises(StudioError, match=r'"odd\.csv" line 51 contains something that is not a number'):
+        import_csv(p)
+
+
+def test_joints_beyond_baxters_limits_are_refused(tmp_path: Path) -> None:
+    """Issue 21 §7: a joint at 6.28 rad (a full turn, beyond every Baxter joint's range) was accepted."""
+    q = shape()
+    q[80, 0] = 6.28  # left_s0 turns ±1.70 rad
+    p = write(tmp_path / "turn.csv", np.arange(300) / 100, q)
+    with pytest.raises(StudioError, match=r'"turn\.csv" line 82'):
+        import_csv(p)
+    q = shape()
+    q[80, 0] = 1.70 + 0.04  # within the slack for encoder noise
+    import_csv(write(tmp_path / "edge.csv", np.arange(300) / 100, q))

@@ -194,3 +194,29 @@ def test_stopping_a_recording_on_a_full_disk_keeps_the_take(disk: Path) -> None:
     filler.unlink()
     again = store.open("s")
     assert len(again.recordings) == 1 and again.recordings[0].duration > 0.5, again.recovery_message
+
+
+def test_download_works_on_a_read_only_disk(disk: Path) -> None:
+    """Issue 21 §7, today: Download saved the session first, which failed on a read-only disk."""
+    import io
+    import zipfile
+
+    from studio.controller import Controller
+    from studio.robot_backend.simulated import SimulatedBaxter
+    from tests.conftest import ROOT, RecordingNotifier
+
+    shutil.copytree(ROOT / "sessions" / "stack-cup", disk / "stack-cup")
+    told = RecordingNotifier()
+    ctl = Controller(store=SessionStore(disk), session="stack-cup", backend=SimulatedBaxter(), notifier=told)
+    try:
+        ctl.keypoints.set_detail(0.4)  # a setting not written yet
+        subprocess.run(["mount", "-o", "remount,ro", str(disk)], check=True)
+        name, data = ctl.sessions.zip()
+        assert name == "stack-cup.zip"
+        with zipfile.ZipFile(io.BytesIO(data)) as z:
+            entries = z.namelist()
+        assert "stack-cup/session.json" in entries and sum("/demos/" in e for e in entries) == 3, entries
+        assert "Downloaded as last saved" in told.titles()
+    finally:
+        subprocess.run(["mount", "-o", "remount,rw", str(disk)], check=False)
+        ctl.shutdown()

@@ -186,3 +186,18 @@ def test_leftover_upload_folders_are_removed_when_the_studio_starts(
     finally:
         os.close(fd)
     assert store.list_sessions() == ["three"]
+
+
+def test_a_session_with_a_damaged_demonstration_can_be_downloaded(
+    store: SessionStore, three: Session, ctl_factory
+) -> None:
+    """Opened with a damaged demonstration skipped, the session downloads as the studio holds it (without
+    reading its folder again); the archive uploads as a session."""
+    damaged = three.path / "demos" / "d0002.npz"
+    damaged.write_bytes(damaged.read_bytes()[:200])
+    ctl = ctl_factory("three")
+    name, data = ctl.sessions.zip()
+    assert name == "three.zip"
+    back = store.open(store.import_zip(data, "back"))
+    assert back.demo_names == ["demo 1", "demo 3"]
+    assert damaged.exists()  # the damaged file itself is left where it is

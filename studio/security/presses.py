@@ -1,0 +1,276 @@
+"""Every message a browser tab sends to a GUI control passes :class:`Presses` first: the Share relay is never
+asked; values are checked against their control (:mod:`.values`); presses are limited per tab; and each tab's
+callbacks run one at a time, a repeated press or value joining the one still waiting (docs/decisions/052)."""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from concurrent.futures import Future
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+from studio.core.errors import StudioError
+from studio.security.values import refusal, value_refusal
+
+if TYPE_CHECKING:
+    import viser
+
+log = logging.getLogger("studio.security")
+
+#: Button presses one tab may make in a burst, and per second after it.
+PRESS_BURST = 30
+PRESS_RATE = 10.0
+#: Callbacks one tab may have waiting (each control and callback at most once).
+MAX_WAITING = 64
+#: Seconds between two "too many presses" notices to the same tab.
+TELL_EVERY_S = 10.0
+TOO_FAST = (
+    "The studio ignored some presses: they came faster than it can act on them. What you pressed before is done "
+    "or under way; wait a moment before pressing again."
+)
+
+
+@dataclass
+class _Job:
+    key: tuple[int, int, Any]
+    fn: Callable[..., Any]
+    args: tuple[Any, ...]
+    kwargs: dict[str, Any]
+    future: Future[Any]
+    #: the control (viser's handle) and the value its tab sent (the newest, when presses joined)
+    target: Any = None
+    value: Any = None
+
+
+@dataclass
+class _Tab:
+    """One browser tab's presses and waiting callbacks."""
+
+    tokens: float = float(PRESS_BURST)
+    stamp: float = field(default_factory=time.monotonic)
+    told: float = -1e9
+    running: bool = False
+    waiting: deque[_Job] = field(default_factory=deque)
+    keys: dict[tuple[int, int, Any], _Job] = field(default_factory=dict)
+    #: buttons whose (coroutine) callback is being awaited
+    pressing: set[str] = field(default_factory=set)
+    gone: bool = False
+
+
+@dataclass
+class Counts:
+    """What the gate did so far (for tests, the bench and logs)."""
+
+    refused: int = 0
+    joined: int = 0
+    too_fast: int = 0
+    share: int = 0
+    ran: int = 0
+
+
+class Presses:
+    """The gate between viser's websocket and the studio's GUI callbacks on one server.
+
+    Installed once at start (:meth:`Access.start_viser <studio.security.Access.start_viser>`): it wraps the
+    server's message handler (before viser stores a value) and stands in for the thread pool viser's GUI and
+    scene submit callbacks to (so no tab holds more than one of its threads).
+    """
+
+    def __init__(self, server: viser.ViserServer) -> None:
+        from viser import _messages
+        from viser.infra import WebsockServer
+
+        ws = server._websock_server
+        gui, scene = server.gui, server.scene
+        handles = getattr(gui, "_gui_input_handle_from_uuid", None)
+        if not (
+            isinstance(ws, WebsockServer)
+            and callable(getattr(ws, "_handle_incoming_message", None))
+            and isinstance(handles, dict)
+            and all(hasattr(_messages, n) for n in ("GuiUpdateMessage", "ShareUrlRequest", "ShareUrlDisconnect"))
+            and hasattr(gui, "_thread_executor")
+            and hasattr(scene, "_thread_executor")
+        ):
+            raise StudioError("its GUI messages are no longer where the studio checks them")
+        self._msgs = _messages
+        self._server = server
+        self._handles: dict[str, Any] = handles
+        self._pool = gui._thread_executor
+        self._inner = ws._handle_incoming_message
+        self._tabs: dict[int, _Tab] = {}
+        self._lock = threading.Lock()
+        self._closed = False
+        self._last_log: dict[str, float] = {}
+        self.counts = Counts()
+        ws._handle_incoming_message = self.handle  # type: ignore[method-assign]
+        gui._thread_executor = self  # type: ignore[assignment]
+        scene._thread_executor = self  # type: ignore[assignment]
+        ws.on_client_disconnect(self._on_disconnect)
+
+    # -- messages, on viser's event loop -------------------------------------------------------------------
+    async def handle(self, client_id: Any, message: Any) -> None:
+        m = self._msgs
+        if isinstance(message, (m.ShareUrlRequest, m.ShareUrlDisconnect)):
+            self.counts.share += 1
+            self._log("share", "ignored a request for a public share link (the studio never shares itself)")
+            return
+        if not isinstance(message, m.GuiUpdateMessage):
+            await self._inner(client_id, message)
+            return
+        handle = self._handles.get(message.uuid) if isinstance(message.uuid, str) else None
+        if handle is None:
+            return  # viser ignores it too
+        why = refusal(handle, message.updates)
+        if why is not None:
+            self.counts.refused += 1
+            label = str(getattr(handle, "label", "?"))[:60]
+            self._log(f"value {label}", f'ignored a value a tab sent to "{label}": {why}')
+            return
+        if not handle._impl.is_button:
+            await self._inner(client_id, message)
+            return
+        if not self._may_press(client_id, message.uuid):
+            return
+        try:
+            await self._inner(client_id, message)  # a coroutine callback (Stop, Emergency stop) is awaited here
+        finally:
+            with self._lock:
+                tab = self._tabs.get(client_id)
+                if tab is not None:
+                    tab.pressing.discard(message.uuid)
+
+    def _may_press(self, client_id: int, uuid: str) -> bool:
+        """A press counts against its tab's rate; the same button again while its coroutine runs is joined."""
+        now = time.monotonic()
+        with self._lock:
+            if self._closed:
+                return False
+            tab = self._tabs.setdefault(client_id, _Tab())
+            if uuid in tab.pressing:
+                self.counts.joined += 1
+                return False
+            tab.tokens = min(float(PRESS_BURST), tab.tokens + (now - tab.stamp) * PRESS_RATE)
+            tab.stamp = now
+            if tab.tokens < 1.0:
+                self.counts.too_fast += 1
+                tell = now - tab.told >= TELL_EVERY_S
+                if tell:
+                    tab.told = now
+            else:
+                tab.tokens -= 1.0
+                tab.pressing.add(uuid)
+                return True
+        self._log("too fast", "ignored presses of a tab that came faster than the studio acts on them")
+        if tell:
+            self._tell(client_id)
+        return False
+
+    # -- callbacks: viser submits them here (it takes this for its thread pool) ----------------------------
+    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Future[Any]:
+        """Run ``fn(*args)`` for the tab of the event in ``args[0]``, after that tab's earlier callbacks; not again
+        when the same control's callback already waits for that tab (that one runs with this newest value)."""
+        event = args[0] if args else None
+        client_id = getattr(event, "client_id", None)
+        if not isinstance(client_id, int):  # not a tab's event: as viser would
+            return self._pool.submit(fn, *args, **kwargs)
+        future: Future[Any] = Future()
+        target = getattr(event, "target", None)
+        impl = getattr(target, "_impl", None)
+        # The value this tab sent (viser stored it just now, on its event loop). A button group's options are
+        # different presses, and a handle's drag start, moves and end different steps; any other control's newer
+        # value replaces the one still waiting.
+        value = getattr(impl, "value", None)
+        button = bool(getattr(impl, "is_button", False))
+        kind = value if button and isinstance(value, str) else getattr(event, "phase", None)
+        key = (id(target), id(fn), kind)
+        with self._lock:
+            tab = self._tabs.setdefault(client_id, _Tab())
+            waiting = tab.keys.get(key)
+            if waiting is not None:
+                waiting.value = value
+            if self._closed or waiting is not None or len(tab.waiting) >= MAX_WAITING:
+                self.counts.joined += 1
+                future.set_result(None)
+                return future
+            job = _Job(key, fn, args, kwargs, future, target if impl is not None else None, value)
+            tab.keys[key] = job
+            tab.waiting.append(job)
+            start = not tab.running
+            tab.running = True
+        if start:
+            self._pool.submit(self._drain, client_id)
+        return future
+
+    def _drain(self, client_id: int) -> None:
+        """Run one tab's waiting callbacks in order, on one of viser's threads."""
+        while True:
+            with self._lock:
+                tab = self._tabs.get(client_id)
+                if tab is None or not tab.waiting or self._closed:
+                    if tab is not None:
+                        tab.running = False
+                        for job in tab.waiting:
+                            job.future.set_result(None)
+                        tab.waiting.clear()
+                        tab.keys.clear()
+                        if tab.gone:
+                            del self._tabs[client_id]
+                    return
+                job = tab.waiting.popleft()
+                tab.keys.pop(job.key, None)
+            if not self._as_sent(job):
+                job.future.set_result(None)
+                continue
+            self.counts.ran += 1
+            try:
+                job.future.set_result(job.fn(*job.args, **job.kwargs))
+            except BaseException as exc:  # viser prints it (print_threadpool_errors), as before
+                job.future.set_exception(exc)
+
+    def _as_sent(self, job: _Job) -> bool:
+        """Give the control back the value its tab sent before its callback reads it: the studio may have
+        redrawn the control since (another tab's action), and the callback acts on what this tab asked for.
+        False when that value no longer fits the control (its options changed meanwhile)."""
+        impl = getattr(job.target, "_impl", None)
+        if impl is None or getattr(impl, "value", None) == job.value:
+            return True
+        judged = isinstance(job.value, (str, bool, int, float, tuple, list))  # not an uploaded file
+        if judged and value_refusal(job.target, job.value) is not None:
+            self._log("stale", "ignored a value that no longer fits its control")
+            return False
+        impl.value = job.value
+        return True
+
+    def close(self) -> None:
+        """Stop: waiting callbacks are dropped and no new one is taken (the studio is stopping)."""
+        with self._lock:
+            self._closed = True
+
+    def _on_disconnect(self, conn: Any) -> None:
+        with self._lock:
+            tab = self._tabs.get(conn.client_id)
+            if tab is not None and not tab.running:
+                del self._tabs[conn.client_id]
+            elif tab is not None:
+                tab.gone = True  # forgotten once its last callback ran
+
+    # -- words ---------------------------------------------------------------------------------------------
+    def _log(self, what: str, text: str) -> None:
+        now = time.monotonic()
+        if now - self._last_log.get(what, -1e9) < 10.0:
+            return
+        self._last_log[what] = now
+        log.warning("%s", text)
+
+    def _tell(self, client_id: int) -> None:
+        client = self._server.get_clients().get(client_id)
+        if client is None:
+            return
+        try:
+            client.add_notification("Too many presses", TOO_FAST, color="yellow", auto_close_seconds=8.0)
+        except Exception:  # a tab that just closed
+            log.debug("notice to a closed tab", exc_info=True)
