@@ -31,8 +31,6 @@ from tests.e2e.mouse_flow import (
 pytestmark = pytest.mark.e2e
 
 ROOT = Path(__file__).resolve().parents[2]
-#: Ports of this test's studio (the mouse helper's range).
-PORTS = range(8310, 8340)
 
 
 def joint_degrees(page: Page) -> dict[str, float]:
@@ -51,8 +49,7 @@ def test_teach_stack_cup_with_mouse_and_keys(browser, studio_factory, tmp_path: 
     sessions = tmp_path / "sessions"
     sessions.mkdir()
     shutil.copytree(ROOT / "sessions" / "stack-cup", sessions / "stack-cup")
-    port = next((p for p in PORTS if _free(p)), None)
-    server = studio_factory("stack-cup", sessions_dir=sessions, port=port)
+    server = studio_factory("stack-cup", sessions_dir=sessions)
     artifacts = Shots(request.node.name)
     shot_dir = tmp_path / "shots"
     shot_dir.mkdir()
@@ -110,14 +107,3 @@ def test_teach_stack_cup_with_mouse_and_keys(browser, studio_factory, tmp_path: 
     print("parts:", {k: dict(v) for k, v in t.parts.items()})
     print("screenshots:", shot_dir)
     assert teaching <= 60, f"teaching took {teaching} actions"
-
-
-def _free(port: int) -> bool:
-    import socket
-
-    with socket.socket() as s:
-        try:
-            s.bind(("127.0.0.1", port))
-        except OSError:
-            return False
-        return True
