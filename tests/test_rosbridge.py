@@ -197,8 +197,8 @@ def test_emergency_stop_holds_at_once_and_refuses_motion(
     monkeypatch.setattr(robot, "_joint_command", spy)
     assert robot.emergency_stop() == "sent"
     # the robot's own stop follows the hold: the robot confirms it (its state says stopped)
-    assert wait_for(lambda: robot.health().estopped and bridge.stopped)
-    assert "halted" in robot.health().message
+    assert wait_for(lambda: bridge.stopped and "halted" in robot.health().message)  # heard back from the robot
+    assert robot.health().estopped
     # Within one control cycle, whatever the load: the hold of both arms is published by the call itself
     # (not at the command loop's next tick). The time to the bridge is the network's, measured by no test.
     assert sorted(sent) == ["left", "right"]

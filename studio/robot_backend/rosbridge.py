@@ -51,6 +51,8 @@ if TYPE_CHECKING:  # pragma: no cover
     from studio.core.execution import ExecutionPlan
 
 log = logging.getLogger(__name__)
+#: Seconds a release waits for the robot to confirm the stop it was just sent.
+CONFIRM_S = 1.0
 
 #: Seconds a joint target from :meth:`RosbridgeBaxter.command_joints` keeps being republished.
 COMMAND_HOLD_S = 1.0
@@ -263,9 +265,19 @@ class RosbridgeBaxter(RobotBackend):
         return "sent" if sent and fresh else "undelivered"
 
     def clear_emergency_stop(self) -> None:
-        """Release the studio's emergency stop: reset and enable the robot (plain errors when it cannot)."""
+        """Release the studio's emergency stop: reset and enable the robot (plain errors when it cannot).
+
+        A release right after the stop first waits (up to :data:`CONFIRM_S`) for the robot's state to say it
+        stopped: enabling a robot whose stop is still on its way would leave it stopped."""
         with self._lock:
+            was = self._estopped
             self._estopped = False
+        deadline = time.monotonic() + CONFIRM_S
+        while was and self._link.connected and time.monotonic() < deadline:
+            st = self._watch.robot
+            if st is not None and st.stopped:
+                break
+            time.sleep(0.01)
         self.enable()
 
     def progress(self) -> ExecutionProgress:
