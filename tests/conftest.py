@@ -21,6 +21,9 @@ from studio.robot_backend.base import JointStateBatch
 if TYPE_CHECKING:
     from playwright.sync_api import Browser
 
+    from studio.controller import Controller
+    from studio.robot_backend.simulated import SimulatedBaxter
+
 ROOT = Path(__file__).resolve().parent.parent
 CHROMIUM = os.environ.get("STUDIO_CHROMIUM", "/usr/bin/chromium")
 CHROMIUM_ARGS = [
@@ -88,6 +91,38 @@ def sessions(tmp_path: Path) -> Path:
     d.mkdir()
     shutil.copytree(ROOT / "sessions" / "stack-cup", d / "stack-cup")
     return d
+
+
+@pytest.fixture
+def ctl(sessions: Path) -> Iterator[Controller]:
+    """A started controller on the "stack-cup" example with a simulated robot streaming in real time."""
+    from studio.controller import Controller
+    from studio.robot_backend.simulated import SimulatedBaxter
+    from studio.storage import SessionStore
+
+    c = Controller(
+        store=SessionStore(sessions), session="stack-cup", backend=SimulatedBaxter(), notifier=RecordingNotifier()
+    )
+    c.start()
+    yield c
+    c.close()
+    c.shutdown()
+
+
+@pytest.fixture
+def rig(sessions: Path) -> Iterator[tuple[Controller, SimulatedBaxter]]:
+    """A controller on the example session whose simulated robot is stepped by hand (fast, deterministic)."""
+    from studio.controller import Controller
+    from studio.robot_backend.simulated import SimulatedBaxter
+    from studio.storage import SessionStore
+
+    sim = SimulatedBaxter()
+    c = Controller(store=SessionStore(sessions), session="stack-cup", backend=sim, notifier=RecordingNotifier())
+    c.start()
+    sim.stop()  # manual steps from here on
+    yield c, sim
+    c.close()
+    c.shutdown()
 
 
 @pytest.fixture(scope="session")

@@ -3,7 +3,6 @@ training, preview, replay and sessions, on a copy of the example session with a 
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -13,20 +12,8 @@ from studio.controller import PREVIEW, REPLAY, Controller, Topic
 from studio.core.errors import NotEnoughData, SessionFormatError, StudioError
 from studio.core.quality import Issue
 from studio.core.types import Arm
-from studio.robot_backend.simulated import SimulatedBaxter
 from studio.storage import SessionStore
 from tests.conftest import RecordingNotifier, wait_for
-
-
-@pytest.fixture
-def ctl(sessions: Path) -> Iterator[Controller]:
-    c = Controller(
-        store=SessionStore(sessions), session="stack-cup", backend=SimulatedBaxter(), notifier=RecordingNotifier()
-    )
-    c.start()
-    yield c
-    c.close()
-    c.shutdown()
 
 
 def notes(ctl: Controller) -> list[tuple[str, str, str]]:

@@ -4,9 +4,6 @@ handle's mode with their event, and the arm never left trapped by the handle."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -14,20 +11,7 @@ from studio.controller import Controller, Topic
 from studio.controller.guiding import ABOVE_M, MAX_STEP_M, STEP_M
 from studio.core.errors import StudioError
 from studio.core.rotations import matrix_from_quat_wxyz
-from studio.robot_backend.simulated import SimulatedBaxter
-from studio.storage import SessionStore
-from tests.conftest import RecordingNotifier, wait_for
-
-
-@pytest.fixture
-def ctl(sessions: Path) -> Iterator[Controller]:
-    c = Controller(
-        store=SessionStore(sessions), session="stack-cup", backend=SimulatedBaxter(), notifier=RecordingNotifier()
-    )
-    c.start()
-    yield c
-    c.close()
-    c.shutdown()
+from tests.conftest import wait_for
 
 
 def test_a_step_moves_the_gripper_along_one_room_axis(ctl: Controller) -> None:

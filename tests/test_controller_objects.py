@@ -5,32 +5,16 @@ choice."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from pathlib import Path
-
 import numpy as np
-import pytest
 
 from studio.controller import Controller, Step
 from studio.core.quality import Issue
 from studio.panels.train import REMEDIES
 from studio.robot_backend.simulated import SimulatedBaxter
-from studio.storage import SessionStore
 from studio.teacher import Place, Places, teach
 from studio.words import segment_lines, verdict_lines
 from studio.world import preset
-from tests.conftest import RecordingNotifier, wait_for
-
-
-@pytest.fixture
-def rig(sessions: Path) -> Iterator[tuple[Controller, SimulatedBaxter]]:
-    sim = SimulatedBaxter()
-    c = Controller(store=SessionStore(sessions), session="stack-cup", backend=sim, notifier=RecordingNotifier())
-    c.start()
-    sim.stop()  # manual steps from here on
-    yield c, sim
-    c.close()
-    c.shutdown()
+from tests.conftest import wait_for
 
 
 def set_objects(ctl: Controller, task: str, places: Places) -> None:

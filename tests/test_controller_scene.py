@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import shutil
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -18,19 +17,6 @@ from studio.robot_backend.simulated import SimulatedBaxter
 from studio.storage import SessionStore
 from studio.teacher import teach
 from studio.world import Scene, simulate
-from tests.conftest import RecordingNotifier
-
-
-@pytest.fixture
-def rig(sessions: Path) -> Iterator[tuple[Controller, SimulatedBaxter]]:
-    """A controller on the example session whose simulated robot is stepped by hand (fast, deterministic)."""
-    sim = SimulatedBaxter()
-    c = Controller(store=SessionStore(sessions), session="stack-cup", backend=sim, notifier=RecordingNotifier())
-    c.start()
-    sim.stop()  # manual steps from here on
-    yield c, sim
-    c.close()
-    c.shutdown()
 
 
 def record_plan(ctl: Controller, sim: SimulatedBaxter, task: str, seed: int) -> int:

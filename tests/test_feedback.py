@@ -4,7 +4,6 @@ telling them (the latest grasp of the live world, "Saving…" after Stop, a move
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -88,17 +87,6 @@ def test_moved_objects_are_measured_from_where_the_demonstrations_started() -> N
 
 
 # -- the controller ----------------------------------------------------------------------------------------
-@pytest.fixture
-def rig(sessions: Path) -> Iterator[tuple[Controller, SimulatedBaxter]]:
-    sim = SimulatedBaxter()
-    c = Controller(store=SessionStore(sessions), session="stack-cup", backend=sim, notifier=RecordingNotifier())
-    c.start()
-    sim.stop()  # manual steps from here on
-    yield c, sim
-    c.close()
-    c.shutdown()
-
-
 def test_the_live_world_tells_the_latest_grasp(rig) -> None:
     ctl, sim = rig
     assert ctl.scene.last_grip() is None

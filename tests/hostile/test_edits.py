@@ -18,9 +18,8 @@ from studio.app import Studio, build_app
 from studio.controller import Controller
 from studio.core.errors import StudioError
 from studio.csv_io import export_recording_csv
-from studio.robot_backend.simulated import SimulatedBaxter
 from studio.storage import SessionStore
-from tests.conftest import RecordingNotifier, free_port, wait_for
+from tests.conftest import free_port, wait_for
 from tests.hostile.builders import make_rec
 from tests.viser_client import ViserClient
 
@@ -30,17 +29,6 @@ def app(sessions: Path) -> Iterator[Studio]:
     a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
     yield a
     a.stop()
-
-
-@pytest.fixture
-def ctl(sessions: Path) -> Iterator[Controller]:
-    c = Controller(
-        store=SessionStore(sessions), session="stack-cup", backend=SimulatedBaxter(), notifier=RecordingNotifier()
-    )
-    c.start()
-    yield c
-    c.close()
-    c.shutdown()
 
 
 def tab(app: Studio) -> ViserClient:
