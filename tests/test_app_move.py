@@ -91,7 +91,7 @@ def test_view_buttons_and_the_camera_above_the_floor() -> None:
 
 @pytest.fixture
 def tab(app: Studio) -> Iterator[ViserClient]:
-    c = ViserClient(f"ws://127.0.0.1:{app.port}/?key={app.access.key}")
+    c = ViserClient.tab_of(app)
     c.wait_gui("Gripper z (cm)")
     yield c
     c.close()

@@ -33,7 +33,7 @@ def app(sessions: Path) -> Iterator[Studio]:
 @pytest.fixture
 def page(app: Studio) -> Iterator[ViserClient]:
     """A tab of the studio (viser's websocket protocol, no browser): the scene as the page receives it."""
-    c = ViserClient(f"ws://127.0.0.1:{app.port}/?key={app.access.key}")
+    c = ViserClient.tab_of(app)
     assert c.wait_for(lambda _m: c.layer("/demos"), 30)
     yield c
     c.close()

@@ -86,6 +86,11 @@ class ViserClient:
             }
         )
 
+    @classmethod
+    def tab_of(cls, app: Any) -> ViserClient:
+        """A new tab of the running studio ``app`` (its own key in the address, as the printed link has it)."""
+        return cls(f"ws://127.0.0.1:{app.port}/?key={app.access.key}")
+
     def _read(self) -> None:
         try:
             while True:

@@ -68,7 +68,7 @@ def test_move_the_cup_and_the_skill_follows_it(browser, tmp_path) -> None:
         # Choose the bottom cup and drag its handle 6 cm to the robot's right.
         ui.tab(page, "Teach")
         ui.choose(page, "Object", "bottom cup")
-        tab = ViserClient(f"ws://127.0.0.1:{app.port}/?key={app.access.key}")  # a second tab drags the handle
+        tab = ViserClient.tab_of(app)  # a second tab drags the handle
         handle = lambda: tab.scene().get("/objects_handle", {})  # noqa: E731
         assert tab.wait_for(lambda _m: handle().get("visible") and handle().get("position") is not None, 30)
         before = np.array(handle()["position"], dtype=float)

@@ -36,7 +36,7 @@ def app(sessions: Path) -> Iterator[Studio]:
 
 
 def tab(app: Studio) -> ViserClient:
-    c = ViserClient(f"ws://127.0.0.1:{app.port}/?key={app.access.key}")
+    c = ViserClient.tab_of(app)
     c.wait_gui("Demo action")
     return c
 
