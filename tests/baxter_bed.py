@@ -144,7 +144,7 @@ class BaxterBed:
         return t
 
     def stamp_fault(self, kind: str) -> None:
-        """ "inf": the next joint state's stamp is Infinity; "back": the clock steps back an hour from now on."""
+        """ "inf": the next arm joint state's stamp is Infinity; "back": the clock steps back an hour from now on."""
         if kind == "inf":
             self._stamp_once = math.inf
         elif kind == "back":
@@ -346,9 +346,9 @@ class BaxterBed:
                         g.calibrated, g.calibrate_at, g.position, g.target = True, None, 100.0, 100.0
                     g.position += float(np.clip(g.target - g.position, -200.0 * dt, 200.0 * dt))
 
-    def _stamp(self) -> dict[str, Any]:
+    def _stamp(self, arm: bool = False) -> dict[str, Any]:
         s = time.time() + self.stamp_offset
-        if self._stamp_once is not None:
+        if arm and self._stamp_once is not None:  # a finger-only message must not take the arm's bad stamp
             s, self._stamp_once = self._stamp_once, None
             return {"secs": s, "nsecs": 0}
         return {"secs": int(s), "nsecs": int((s % 1) * 1e9)}
@@ -358,7 +358,7 @@ class BaxterBed:
             q = dict(zip(ALL_ARM_JOINTS, self.q.tolist(), strict=True))
         names = [self.renamed.get(n, n) for n in NAMES]
         msg = {
-            "header": {"seq": 0, "stamp": self._stamp(), "frame_id": ""},
+            "header": {"seq": 0, "stamp": self._stamp(arm=True), "frame_id": ""},
             "name": names,
             "position": [q.get(n, 0.0) for n in NAMES],
             "velocity": [0.0] * len(NAMES),
