@@ -635,6 +635,40 @@ def suggest_timing(demos: list[Demo], repeat: int) -> None:
 
 
 #: One BLAS thread per process (set before numpy loads: the bench runs itself again with them when missing).
+def why_loose(sizes: tuple[float, ...] | None, counts: tuple[int, ...] | None, seed: int) -> None:
+    """Per demonstration of each "loose" set: the default's and B1's Fréchet distance and the part its start
+    forces (any path that starts at the demos' mean start is at least that far from a demo that lands elsewhere)."""
+    print("\n# Why the worst Fréchet ratio sits at 1.00 on loose sets (per demo: default / B1 / start bound, mm)")
+    tally = {"start-bound (tie)": 0, "default closer": 0, "B1 closer": 0}
+    excess: list[float] = []
+    for case in cases(False, sizes, counts, ("shapes",), seed):
+        if case.style != "loose":
+            continue
+        demos, _ = case.demos()
+        ref = Ref(demos)
+        pos = np.asarray(learn_skill(demos).trajectory.position)
+        ours = Q.arc_resample(pos)
+        b1 = Q.arc_resample(Q.time_normalised_mean(demos))
+        cells = []
+        for c in ref.curves:
+            fo, fb = Q.frechet(ours, c), Q.frechet(b1, c)
+            bound = float(np.linalg.norm(ours[0] - c[0]))
+            kind = (
+                "start-bound (tie)"
+                if abs(fo - fb) <= 1e-4 + 0.002 * fb
+                else ("default closer" if fo < fb else "B1 closer")
+            )
+            tally[kind] += 1
+            if kind == "B1 closer":
+                excess.append((fo - fb) / max(fb, 1e-12))
+            cells.append(f"{fo * 1e3:.1f}/{fb * 1e3:.1f}/{bound * 1e3:.1f}")
+        ratio = ref.score(pos)["F/B1"]
+        print(f"{case.label:34s} F/B1 {ratio:.3f}  " + "  ".join(cells), flush=True)
+    print("demos:", tally)
+    if excess:
+        print(f"where B1 is closer: by {np.median(excess) * 100:.1f} % (median), {max(excess) * 100:.1f} % (largest)")
+
+
 ONE_THREAD = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 
@@ -656,6 +690,7 @@ def main() -> None:
     ap.add_argument("--no-cache", action="store_true", help="compute the peers again, keep nothing")
     ap.add_argument("--out", type=Path, help="write every set's figures as JSON (for --report)")
     ap.add_argument("--report", type=Path, help="print the tables of a --out file; compute nothing")
+    ap.add_argument("--why-loose", action="store_true", help="per demo of the loose sets: what sets the Fréchet ratio")
     args = ap.parse_args()
     if args.report:
         data = json.loads(args.report.read_text())
@@ -663,6 +698,9 @@ def main() -> None:
         return
     _quiet()
     print(f"machine: {_load()} at start (2 cores shared)")
+    if args.why_loose:
+        why_loose(tuple(args.sizes) if args.sizes else None, tuple(args.counts) if args.counts else None, args.seed)
+        return
     if not args.skip_timing:
         timing(args.quick)
     if not args.skip_quality:

@@ -123,6 +123,25 @@ def _distance_to_mask(mask: np.ndarray, xy: tuple[float, float]) -> float:
     return float(np.min(np.hypot(xs - xy[0], ys - xy[1])))
 
 
+def _gripper_masks(page, grip_nodes: dict, shown: np.ndarray) -> dict[str, np.ndarray]:
+    """Each gripper's drawn pixels: hidden one at a time (left, then right), then both shown again; a pixel
+    belongs to a gripper when it changed as that gripper was hidden and came back when it was shown."""
+    hidden = {}
+    grip_nodes["left"].visible = False
+    hidden["left"] = _settle(page, 0.5)
+    grip_nodes["right"].visible = False
+    grip_nodes["left"].visible = True
+    hidden["right"] = _settle(page, 0.5)
+    grip_nodes["right"].visible = True
+    again = _settle(page, 0.5)
+    out = {}
+    for arm in ("left", "right"):
+        mask = (np.abs(shown - hidden[arm]).sum(axis=2) > 40) & (np.abs(again - hidden[arm]).sum(axis=2) > 40)
+        mask &= np.abs(shown - again).sum(axis=2) <= 24
+        out[arm] = _outline(mask)
+    return out
+
+
 def test_drawn_grippers_cover_their_fk_points(browser, tmp_path) -> None:
     from PIL import Image
 
@@ -171,15 +190,9 @@ def test_drawn_grippers_cover_their_fk_points(browser, tmp_path) -> None:
                 ui.dismiss_notifications(page)
                 shown = _settle(page, 1.5)
                 Image.fromarray(shown.astype(np.uint8)).save(out / f"{c}-{view}.png")
+                masks = _gripper_masks(page, grip_nodes, shown)
                 for arm in ("left", "right"):
-                    grip_nodes[arm].visible = False
-                    hidden = _settle(page, 0.5)
-                    grip_nodes[arm].visible = True
-                    again = _settle(page, 0.5)
-                    # The gripper's pixels: changed when it was hidden, and back when it was shown again.
-                    mask = (np.abs(shown - hidden).sum(axis=2) > 40) & (np.abs(again - hidden).sum(axis=2) > 40)
-                    mask &= np.abs(shown - again).sum(axis=2) <= 24
-                    mask = _outline(mask)
+                    mask = masks[arm]
                     if mask.sum() < 30:
                         failures.append(f"{c}/{view}: the {arm} gripper is not drawn in view (hidden, or elsewhere)")
                         continue
