@@ -125,6 +125,21 @@ def rig(sessions: Path) -> Iterator[tuple[Controller, SimulatedBaxter]]:
     c.shutdown()
 
 
+#: Background threads of a controller (its work thread and helpers): a job still running when a test shut its
+#: controller down (a judge after Train) must end before the next test, or it runs under that test's patches.
+WORK_THREADS = ("studio-work", "studio-helper")
+
+
+@pytest.fixture(autouse=True)
+def _work_threads_end_with_their_test() -> Iterator[None]:
+    before = set(threading.enumerate())
+    yield
+    deadline = time.monotonic() + 30.0
+    for t in threading.enumerate():
+        if t not in before and t.name.startswith(WORK_THREADS):
+            t.join(timeout=max(0.0, deadline - time.monotonic()))
+
+
 @pytest.fixture(scope="session")
 def browser() -> Iterator[Browser]:
     """One headless Debian Chromium for the whole run (pages are opened and closed by each test)."""
