@@ -13,12 +13,11 @@ import urllib.error
 import urllib.request
 from collections.abc import Iterator
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
-from pathlib import Path
 
 import pytest
 from websockets.exceptions import InvalidStatus
 
-from studio.app import Studio, build_app
+from studio.app import Studio
 from tests.conftest import free_port
 from tests.viser_client import ViserClient
 
@@ -49,13 +48,6 @@ class Browser:
         req = urllib.request.Request(url)
         self.jar.add_cookie_header(req)
         return str(req.get_header("Cookie") or "")
-
-
-@pytest.fixture
-def app(sessions: Path) -> Iterator[Studio]:
-    a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
-    yield a
-    a.stop()
 
 
 @pytest.fixture

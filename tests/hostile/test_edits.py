@@ -8,33 +8,19 @@ megabytes long, and ``studio import-csv`` refused for its file's name. The webso
 from __future__ import annotations
 
 import threading
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from studio.app import Studio, build_app
+from studio.app import Studio
 from studio.controller import Controller
 from studio.core.errors import StudioError
 from studio.csv_io import export_recording_csv
 from studio.storage import SessionStore
-from tests.conftest import free_port, wait_for
+from tests.conftest import wait_for
 from tests.hostile.builders import make_rec
-from tests.viser_client import ViserClient
-
-
-@pytest.fixture
-def app(sessions: Path) -> Iterator[Studio]:
-    a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
-    yield a
-    a.stop()
-
-
-def tab(app: Studio) -> ViserClient:
-    c = ViserClient.tab_of(app)
-    c.wait_gui("Demo action")
-    return c
+from tests.hostile.conftest import tab
 
 
 def test_two_tabs_pressing_delete_at_once_delete_one_demonstration(app: Studio) -> None:

@@ -12,33 +12,21 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-from studio.app import Studio, build_app
+from studio.app import Studio
 from studio.controller import Topic
 from tests.conftest import free_port, wait_for
+from tests.hostile.conftest import tab
 from tests.viser_client import ViserClient
 
 ROOT = Path(__file__).resolve().parents[2]
 FLOOD = 10_000
-
-
-@pytest.fixture
-def app(sessions: Path) -> Iterator[Studio]:
-    a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
-    yield a
-    a.stop()
-
-
-def tab(app: Studio) -> ViserClient:
-    c = ViserClient.tab_of(app)
-    c.wait_gui("Demo action")
-    return c
 
 
 def uuid_of(c: ViserClient, label: str, kind: str) -> str:
@@ -185,19 +173,23 @@ def test_sigterm_ends_the_studio_within_5_s_during_a_flood(sessions: Path) -> No
             proc.stdout.close()
 
 
-def test_a_tabs_callback_acts_on_the_value_that_tab_sent(app: Studio, monkeypatch: pytest.MonkeyPatch) -> None:
-    """Found by the flood bench: a redraw caused by another tab's action set the checkbox back before this tab's
-    callback read it, and the tab's press was lost."""
-    import threading
-
-    ctl = app.controller
+def slow_rename(ctl, monkeypatch: pytest.MonkeyPatch) -> tuple[threading.Event, threading.Event]:
+    """Make Rename this tab's earlier action, still running: it sets ``started`` and waits for ``gate``."""
     gate, started = threading.Event(), threading.Event()
 
-    def slow_rename(i: int, name: str) -> None:  # this tab's earlier action, still running
+    def rename(i: int, name: str) -> None:
         started.set()
         gate.wait(30)
 
-    monkeypatch.setattr(ctl.demos, "rename", slow_rename)
+    monkeypatch.setattr(ctl.demos, "rename", rename)
+    return gate, started
+
+
+def test_a_tabs_callback_acts_on_the_value_that_tab_sent(app: Studio, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Found by the flood bench: a redraw caused by another tab's action set the checkbox back before this tab's
+    callback read it, and the tab's press was lost."""
+    ctl = app.controller
+    gate, started = slow_rename(ctl, monkeypatch)
     c = tab(app)
     try:
         shown = ctl.demos.names()[-1]
@@ -220,18 +212,10 @@ def test_a_dragged_handle_keeps_its_start_moves_and_end_and_ends_where_it_was_le
     """A handle's drag fires one callback with three steps (start, moves, end); the object moves at the end. The
     gate joins moves only: with the whole drag waiting behind the tab's earlier action, 1,000 moves leave the
     object where the last one put it (joining the end into a waiting move lost the drag)."""
-    import threading
-
     import numpy as np
 
     ctl = app.controller
-    gate, started = threading.Event(), threading.Event()
-
-    def slow_rename(i: int, name: str) -> None:  # this tab's earlier action, still running
-        started.set()
-        gate.wait(30)
-
-    monkeypatch.setattr(ctl.demos, "rename", slow_rename)
+    gate, started = slow_rename(ctl, monkeypatch)
     c = tab(app)
     try:
         send(c, uuid_of(c, "Object", "GuiDropdownMessage"), "bottom cup")
