@@ -63,20 +63,6 @@ def _settle(page, seconds: float = 1.0) -> np.ndarray:
     raise AssertionError("the page never came to rest")
 
 
-def _set_camera(app, client, view: str) -> None:
-    pos, at, up = VIEWS[view]
-    cam = client.camera
-    cam.up_direction = up
-    cam.position = pos
-    cam.look_at = at
-    deadline = time.monotonic() + 10
-    while time.monotonic() < deadline:
-        if np.allclose(cam.position, pos, atol=1e-3) and np.allclose(cam.look_at, at, atol=1e-3):
-            return
-        time.sleep(0.1)
-    raise AssertionError("the page did not take the camera pose")
-
-
 def _project(client, box: FloatRect, p: np.ndarray) -> tuple[float, float]:
     """Page pixel of world point ``p`` through the page's camera (OpenCV convention, vertical fov)."""
     cam = client.camera
@@ -186,7 +172,8 @@ def test_drawn_grippers_cover_their_fk_points(browser, tmp_path) -> None:
         for c, q in CONFIGS.items():
             backend.teleport(q, np.array([0.0, 0.0]))  # grippers closed (fingertips ~3 cm apart)
             for view in VIEWS:
-                _set_camera(app, client, view)
+                pos, at, up = VIEWS[view]
+                ui.look(client, pos, at, up)
                 ui.dismiss_notifications(page)
                 shown = _settle(page, 1.5)
                 Image.fromarray(shown.astype(np.uint8)).save(out / f"{c}-{view}.png")

@@ -218,8 +218,14 @@ def settle(page: Page, timeout: float = 30.0):
 
 
 def look(client, pos, at, up=(0.0, 0.0, 1.0), timeout: float = 30.0) -> None:
-    """Point a page's camera (``client`` = its viser ClientHandle) and wait until the page reports it back."""
+    """Point a page's camera (``client`` = its viser ClientHandle) and wait until the page reports it back.
+
+    Position and look-at go in one batch, as the studio's View buttons send them: apart, the page can report the
+    pose half-way (viser's position setter moves the look-at along), and from the top view that look-at is below
+    the floor, so the studio lifts it, racing the look-at sent next. Sent again every 2 s until the page reports
+    the pose (with a 0.1 mm nudge, since the setters send nothing for a value the server already holds)."""
     import threading
+    import time
 
     import numpy as np
 
@@ -231,11 +237,18 @@ def look(client, pos, at, up=(0.0, 0.0, 1.0), timeout: float = 30.0) -> None:
             seen.set()
 
     cam.on_update(on_update)
-    cam.up_direction = up
-    cam.position = pos
-    cam.look_at = at
-    if not seen.wait(timeout):
-        raise AssertionError(f"the page did not take the camera pose {pos} → {at}")
+    deadline = time.monotonic() + timeout
+    for attempt in range(1_000):
+        with client.atomic():
+            cam.up_direction = up
+            cam.position = pos
+            cam.look_at = at
+        if seen.wait(max(0.0, min(2.0, deadline - time.monotonic()))):
+            return
+        if time.monotonic() >= deadline:
+            break
+        cam.look_at = np.asarray(at, dtype=float) + np.array([0.0, 0.0, 1e-4 * (-1) ** attempt])
+    raise AssertionError(f"the page did not take the camera pose {pos} → {at}")
 
 
 def views(server, page: Page, out, step: str, poses: dict, rest: bool = True) -> None:
