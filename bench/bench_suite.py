@@ -1,0 +1,113 @@
+"""Where the test suite's time goes: runs a command (by default the test command, ``scripts/run-tests.sh``) and
+reads every process's CPU time from /proc once a second, then prints the CPU seconds per kind of process
+(Chromium's GPU process and renderers, the pytest workers with their in-process studios, the studios started as
+subprocesses, pip, lint) beside the wall time and the share of the two cores left idle.
+
+    .venv/bin/python bench/bench_suite.py                     # the whole test command
+    .venv/bin/python bench/bench_suite.py -- .venv/bin/python -m pytest -n 2 tests/e2e   # any command
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+TICK = os.sysconf("SC_CLK_TCK")
+
+#: (kind, words in the command line that make it so), first match wins.
+KINDS: tuple[tuple[str, tuple[str, ...]], ...] = (
+    ("chromium GPU process (software WebGL)", ("chromium", "gpu-process")),
+    ("chromium renderers", ("chromium", "type=renderer")),
+    ("chromium, other", ("chromium",)),
+    ("studio servers started as subprocesses", ("studio serve",)),
+    ("playwright driver", ("playwright/driver",)),
+    ("pytest workers, with their in-process studios", ("pytest",)),
+    ("pytest workers, with their in-process studios", ("exec(eval(sys.stdin",)),
+    ("lint and types", ("mypy",)),
+    ("lint and types", ("ruff",)),
+    ("pip", ("pip",)),
+)
+
+
+def kind(cmdline: str) -> str:
+    for name, words in KINDS:
+        if all(w in cmdline for w in words):
+            return name
+    return "other"
+
+
+def _cpu(pid: str) -> tuple[str, float] | None:
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        cmd = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+    except OSError:
+        return None
+    return kind(cmd), (int(stat[11]) + int(stat[12])) / TICK
+
+
+def _idle() -> float:
+    return float(Path("/proc/stat").read_text().split("\n", 1)[0].split()[4]) / TICK
+
+
+class Sampler:
+    """CPU seconds per kind of process since it started (each process's last reading before it ended)."""
+
+    def __init__(self) -> None:
+        self.base = self._sweep()
+        self.last: dict[str, tuple[str, float]] = {}
+        self.idle0 = _idle()
+        self.stop = threading.Event()
+
+    @staticmethod
+    def _sweep() -> dict[str, float]:
+        out = {}
+        for pid in os.listdir("/proc"):
+            if pid.isdigit() and (got := _cpu(pid)) is not None:
+                out[pid] = got[1]
+        return out
+
+    def run(self) -> None:
+        me = str(os.getpid())
+        while not self.stop.wait(1.0):
+            for pid in os.listdir("/proc"):
+                if pid.isdigit() and pid != me and (got := _cpu(pid)) is not None:
+                    self.last[pid] = (got[0], got[1] - self.base.get(pid, 0.0))
+
+    def totals(self) -> dict[str, float]:
+        tot: dict[str, float] = {}
+        for k, c in self.last.values():
+            tot[k] = tot.get(k, 0.0) + c
+        return tot
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("command", nargs="*", help="the command to run (default: bash scripts/run-tests.sh)")
+    args = ap.parse_args()
+    cmd = args.command or ["bash", "scripts/run-tests.sh"]
+    sampler = Sampler()
+    th = threading.Thread(target=sampler.run, daemon=True)
+    th.start()
+    t0 = time.monotonic()
+    rc = subprocess.call(cmd, cwd=ROOT)
+    wall = time.monotonic() - t0
+    sampler.stop.set()
+    th.join()
+    idle = _idle() - sampler.idle0
+    cores = os.cpu_count() or 1
+    tot = sampler.totals()
+    print(f"\n# {' '.join(cmd)}: exit {rc}, {wall:.0f} s wall on {cores} cores")
+    print(f"idle: {idle:.0f} core-s of {wall * cores:.0f} ({100 * idle / (wall * cores):.0f} %)")
+    for k, v in sorted(tot.items(), key=lambda kv: -kv[1]):
+        print(f"{v:7.0f} s  {100 * v / max(sum(tot.values()), 1e-9):4.0f} %  {k}")
+    return rc
+
+
+if __name__ == "__main__":
+    sys.exit(main())
