@@ -218,12 +218,9 @@ def settle(page: Page, timeout: float = 30.0):
 
 
 def look(client, pos, at, up=(0.0, 0.0, 1.0), timeout: float = 30.0) -> None:
-    """Point a page's camera (``client`` = its viser ClientHandle) and wait until the page reports it back.
-
-    Position and look-at go in one batch, as the studio's View buttons send them: apart, the page can report the
-    pose half-way (viser's position setter moves the look-at along), and from the top view that look-at is below
-    the floor, so the studio lifts it, racing the look-at sent next. Sent again every 2 s until the page reports
-    the pose (with a 0.1 mm nudge, since the setters send nothing for a value the server already holds)."""
+    """Point a page's camera (``client`` = its viser ClientHandle) in one batch, as the View buttons do (a half-way
+    pose can be lifted above the floor by the studio), and wait until the page reports it back; sent again, nudged
+    by 0.1 mm so that viser sends it, every 2 s until it does."""
     import threading
     import time
 
