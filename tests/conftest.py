@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import shutil
 import socket
+import subprocess
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -21,6 +22,7 @@ from studio.robot_backend.base import JointStateBatch
 if TYPE_CHECKING:
     from playwright.sync_api import Browser
 
+    from studio.app import Studio
     from studio.controller import Controller
     from studio.robot_backend.simulated import SimulatedBaxter
 
@@ -42,6 +44,15 @@ def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
+
+
+def reap(proc: subprocess.Popen) -> None:
+    """Kill ``proc`` if it still runs, wait for it, and close its output."""
+    if proc.poll() is None:
+        proc.kill()
+        proc.wait()
+    if proc.stdout is not None:
+        proc.stdout.close()
 
 
 def wait_for(pred: Callable[[], bool], timeout: float = 30.0) -> bool:
@@ -107,6 +118,18 @@ def ctl(sessions: Path) -> Iterator[Controller]:
     yield c
     c.close()
     c.shutdown()
+
+
+@pytest.fixture
+def app(sessions: Path) -> Iterator[Studio]:
+    """The studio in-process on the "stack-cup" example; its notifications are also kept
+    (``app.controller.notifier.notes``)."""
+    from studio.app import build_app
+
+    a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
+    a.controller.notifier = RecordingNotifier(then=a.notifier)
+    yield a
+    a.stop()
 
 
 @pytest.fixture

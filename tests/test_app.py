@@ -27,14 +27,6 @@ from tests.viser_client import ViserClient
 
 
 @pytest.fixture
-def app(sessions: Path) -> Iterator[Studio]:
-    a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
-    a.controller.notifier = RecordingNotifier(then=a.notifier)
-    yield a
-    a.stop()
-
-
-@pytest.fixture
 def page(app: Studio) -> Iterator[ViserClient]:
     """A tab of the studio (viser's websocket protocol, no browser): the scene as the page receives it."""
     c = ViserClient.tab_of(app)

@@ -6,28 +6,19 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Iterator
-from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from studio.app import Studio, build_app
+from studio.app import Studio
 from studio.controller import FLOOR_Z
 from studio.controller.guiding import STEP_M
 from studio.panels._camera import CAMERA_ABOVE_FLOOR_M, VIEWS, lifted, set_view
 from studio.panels.move import KEYS
 from studio.panels.steps import VIEW_BUTTONS
-from tests.conftest import RecordingNotifier, free_port, wait_for
+from tests.conftest import wait_for
 from tests.viser_client import ViserClient
-
-
-@pytest.fixture
-def app(sessions: Path) -> Iterator[Studio]:
-    a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
-    a.controller.notifier = RecordingNotifier(then=a.notifier)
-    yield a
-    a.stop()
 
 
 def test_the_handle_moves_in_room_axes_and_turns_behind_a_toggle(app: Studio) -> None:

@@ -6,27 +6,13 @@ last session."""
 from __future__ import annotations
 
 import re
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
 from studio.app import Studio, build_app
 from studio.controller import Topic
-from tests.conftest import RecordingNotifier, free_port, wait_for
-
-
-def port() -> int:
-    """A port nothing listens on now (the system's choice: a fixed range collided between the two workers)."""
-    return free_port()
-
-
-@pytest.fixture
-def app(sessions: Path) -> Iterator[Studio]:
-    a = build_app(port=port(), session="stack-cup", sessions_dir=sessions)
-    a.controller.notifier = RecordingNotifier(then=a.notifier)
-    yield a
-    a.stop()
+from tests.conftest import free_port, wait_for
 
 
 def test_the_task_and_the_stand_under_the_cup_held_out(app: Studio) -> None:
@@ -108,12 +94,12 @@ def test_one_demonstration_is_said_in_the_singular(app: Studio) -> None:
 
 
 def test_a_restart_reopens_the_last_session(sessions: Path) -> None:
-    a = build_app(port=port(), session="stack-cup", sessions_dir=sessions)
+    a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
     try:
         a.controller.sessions.duplicate("mine")
     finally:
         a.stop()
-    b = build_app(port=port(), session=None, sessions_dir=sessions)
+    b = build_app(port=free_port(), session=None, sessions_dir=sessions)
     try:
         assert b.controller.session.name == "mine"
     finally:
@@ -124,7 +110,7 @@ def test_the_studio_opens_its_bundled_examples_read_only(sessions: Path, monkeyp
     import studio.app
 
     monkeypatch.setattr(studio.app, "DEFAULT_ROOT", sessions)  # this folder is the studio's own
-    a = build_app(port=port(), session="stack-cup", sessions_dir=sessions)
+    a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
     try:
         assert a.controller.session.read_only
         assert "an example, kept as it is" in a.panels.sessions.current.content

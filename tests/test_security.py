@@ -19,7 +19,7 @@ import pytest
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 
 from studio.app import Studio, build_app
-from tests.conftest import free_port, wait_for
+from tests.conftest import free_port, reap, wait_for
 from tests.viser_client import ViserClient
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -32,13 +32,6 @@ def sessions(tmp_path: Path) -> Path:
     d.mkdir()
     shutil.copytree(ROOT / "sessions" / "stack-cup", d / "stack-cup")
     return d
-
-
-@pytest.fixture
-def app(sessions: Path):
-    a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
-    yield a
-    a.stop()
 
 
 def key_of(app: Studio) -> str:
@@ -608,11 +601,7 @@ def test_the_key_is_read_from_a_file_and_never_shown_in_ps(sessions: Path, tmp_p
         proc.wait(timeout=30)
         assert time.monotonic() - t0 < 5.0 and proc.returncode == 0
     finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-        if proc.stdout is not None:
-            proc.stdout.close()
+        reap(proc)
 
 
 def test_parts_viser_drops_never_end_the_count_of_an_upload(sessions: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -21,7 +21,6 @@ from tests.viser_client import ViserClient
 
 pytestmark = pytest.mark.e2e
 
-ROOT = Path(__file__).resolve().parents[2]
 VIEWS = {
     "front": ((2.7, 0.25, 0.45), (0.4, 0.25, -0.1)),
     "top": ((0.6, 0.25, 2.4), (0.72, 0.25, -0.07)),
@@ -39,13 +38,10 @@ def drawn(tab: ViserClient, prefix: str) -> np.ndarray:
     return np.array(node["position"], dtype=float)
 
 
-def test_move_the_cup_and_the_skill_follows_it(browser, tmp_path) -> None:
+def test_move_the_cup_and_the_skill_follows_it(browser, sessions) -> None:
     out = ARTIFACTS / "objects"
     shutil.rmtree(out, ignore_errors=True)
     out.mkdir(parents=True)
-    sessions = tmp_path / "sessions"
-    sessions.mkdir()
-    shutil.copytree(ROOT / "sessions" / "stack-cup", sessions / "stack-cup")
     app = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
     page, tab = None, None
     try:

@@ -16,14 +16,12 @@ from playwright.sync_api import Page, expect
 
 from studio.app import build_app
 from studio.teacher import teach
-from tests.conftest import wait_for
+from tests.conftest import free_port, wait_for
 from tests.e2e import ui
 from tests.e2e.conftest import ARTIFACTS
-from tests.test_app_words import port
 
 pytestmark = pytest.mark.e2e
 
-ROOT = Path(__file__).resolve().parents[2]
 #: Elements of the side panel wider than the panel (text running past its edge), as the page lays them out.
 OVERFLOW_JS = """() => {
   const panel = [...document.querySelectorAll('[data-dock-group]')].find(e => e.textContent.includes('Step'));
@@ -48,14 +46,11 @@ def fits(page: Page) -> list[str]:
     return list(page.evaluate(OVERFLOW_JS))
 
 
-def test_words_for_a_newcomer(browser, tmp_path) -> None:
+def test_words_for_a_newcomer(browser, sessions) -> None:
     out = ARTIFACTS / "words"
     shutil.rmtree(out, ignore_errors=True)
     out.mkdir(parents=True)
-    sessions = tmp_path / "sessions"
-    sessions.mkdir()
-    shutil.copytree(ROOT / "sessions" / "stack-cup", sessions / "stack-cup")
-    app = build_app(port=port(), session="stack-cup", sessions_dir=sessions)
+    app = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
     ctl = app.controller
     page = None
     try:

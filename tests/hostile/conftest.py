@@ -1,22 +1,9 @@
-"""The hostile tests' running studio (in-process, on the example session) and a tab connected to it."""
+"""A tab connected to the hostile tests' running studio (the ``app`` fixture of tests/conftest.py)."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from pathlib import Path
-
-import pytest
-
-from studio.app import Studio, build_app
-from tests.conftest import free_port
+from studio.app import Studio
 from tests.viser_client import ViserClient
-
-
-@pytest.fixture
-def app(sessions: Path) -> Iterator[Studio]:
-    a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
-    yield a
-    a.stop()
 
 
 def tab(app: Studio) -> ViserClient:

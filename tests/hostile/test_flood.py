@@ -21,7 +21,7 @@ import pytest
 
 from studio.app import Studio
 from studio.controller import Topic
-from tests.conftest import free_port, wait_for
+from tests.conftest import free_port, reap, wait_for
 from tests.hostile.conftest import tab
 from tests.viser_client import ViserClient
 
@@ -166,11 +166,7 @@ def test_sigterm_ends_the_studio_within_5_s_during_a_flood(sessions: Path) -> No
         finally:
             c.close()
     finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-        if proc.stdout is not None:
-            proc.stdout.close()
+        reap(proc)
 
 
 def slow_rename(ctl, monkeypatch: pytest.MonkeyPatch) -> tuple[threading.Event, threading.Event]:

@@ -7,36 +7,21 @@ from __future__ import annotations
 import shutil
 import threading
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
 from studio.controller import Controller, Topic
 from studio.core.errors import StudioError
-from studio.robot_backend.simulated import SimulatedBaxter
 from studio.storage import SessionStore
-from tests.conftest import ROOT, RecordingNotifier, free_port, wait_for
+from tests.conftest import ROOT, free_port, wait_for
 
 
 @pytest.fixture
-def two(tmp_path: Path) -> Path:
-    d = tmp_path / "sessions"
-    d.mkdir()
-    for name in ("stack-cup", "pick-place"):
-        shutil.copytree(ROOT / "sessions" / name, d / name)
-    return d
-
-
-@pytest.fixture
-def ctl(two: Path) -> Iterator[Controller]:
-    c = Controller(
-        store=SessionStore(two), session="stack-cup", backend=SimulatedBaxter(), notifier=RecordingNotifier()
-    )
-    c.start()
-    yield c
-    c.close()
-    c.shutdown()
+def sessions(sessions: Path) -> Path:
+    """The examples stack-cup and pick-place (the shared ``ctl`` fixture opens stack-cup)."""
+    shutil.copytree(ROOT / "sessions" / "pick-place", sessions / "pick-place")
+    return sessions
 
 
 def demo_counts(root: Path) -> dict[str, int]:
@@ -45,7 +30,7 @@ def demo_counts(root: Path) -> dict[str, int]:
 
 
 def test_record_pressed_while_another_session_is_being_opened(
-    ctl: Controller, two: Path, monkeypatch: pytest.MonkeyPatch
+    ctl: Controller, sessions: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """B's open has passed its "not recording" check and is reading pick-place when A presses Record."""
     reading = threading.Event()
@@ -59,7 +44,7 @@ def test_record_pressed_while_another_session_is_being_opened(
         return s
 
     monkeypatch.setattr(ctl.ctx.store, "open", slow_open)
-    before = demo_counts(two)
+    before = demo_counts(sessions)
     outcome: list[BaseException | None] = []
 
     def b() -> None:
@@ -77,13 +62,13 @@ def test_record_pressed_while_another_session_is_being_opened(
     tb.join(10)
     time.sleep(0.3)
     ctl.teaching.stop_recording()
-    after = demo_counts(two)
+    after = demo_counts(sessions)
     assert after == {"stack-cup": before["stack-cup"] + 1, "pick-place": before["pick-place"]}, after
     assert isinstance(outcome[0], StudioError) and "recording" in str(outcome[0]), outcome
     assert ctl.session.name == "stack-cup"
 
 
-def test_a_take_is_saved_into_the_session_it_started_in(ctl: Controller, two: Path) -> None:
+def test_a_take_is_saved_into_the_session_it_started_in(ctl: Controller, sessions: Path) -> None:
     """Even when the open session changes under a running take (switch called directly), it lands where it began."""
     ctl.teaching.start_recording()
     other = ctl.ctx.store.open("pick-place")
@@ -91,15 +76,15 @@ def test_a_take_is_saved_into_the_session_it_started_in(ctl: Controller, two: Pa
         ctl.sessions.switch(other)
     time.sleep(0.2)
     ctl.teaching.stop_recording()
-    assert demo_counts(two)["stack-cup"] == 4 and demo_counts(two)["pick-place"] == 3
+    assert demo_counts(sessions)["stack-cup"] == 4 and demo_counts(sessions)["pick-place"] == 3
 
 
 @pytest.mark.slow
-def test_two_websocket_clients_racing_open_and_record(two: Path) -> None:
+def test_two_websocket_clients_racing_open_and_record(sessions: Path) -> None:
     from studio.app import build_app
     from tests.viser_client import ViserClient
 
-    app = build_app(port=free_port(), session="stack-cup", sessions_dir=two)
+    app = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
     url = f"ws://127.0.0.1:{app.port}/?key={app.access.key}"
     ctl = app.controller
     started_in: list[str] = []
@@ -110,7 +95,7 @@ def test_two_websocket_clients_racing_open_and_record(two: Path) -> None:
             c.wait_gui("Record")
             c.wait_gui("Session action")
         for delay_ms in (0, 5, 10, 20):
-            counts = demo_counts(two)
+            counts = demo_counts(sessions)
             start = ctl.session.name
             other = "pick-place" if start == "stack-cup" else "stack-cup"
             started_in.clear()
@@ -124,7 +109,7 @@ def test_two_websocket_clients_racing_open_and_record(two: Path) -> None:
             a.set_value("Stop", True)
             assert wait_for(lambda: not ctl.teaching.recording)
             time.sleep(0.5)
-            after = demo_counts(two)
+            after = demo_counts(sessions)
             where = started_in[0]
             expected = {**counts, where: counts[where] + 1}
             assert after == expected, f"delay {delay_ms} ms: started in {where}, counts {counts} -> {after}"
