@@ -31,20 +31,13 @@ import pinocchio as pin
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from _timer import median_s
+
 from studio.core.kinematics import Baxter, quat_angle
 from studio.core.rotations import matrix_from_quat_wxyz
 
 POS_OK = 1e-3
 ROT_OK = 0.01
-
-
-def _median_time(fn, repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
 
 
 def fk_and_ik(b: Baxter, n: int) -> None:
@@ -71,9 +64,9 @@ def fk_and_ik(b: Baxter, n: int) -> None:
             b.fk(arm, q)
 
     n_call = 2000
-    t_pin = _median_time(lambda: pin_loop(n_call), 5) / n_call
-    t_call = _median_time(lambda: studio_loop(n_call), 5) / n_call
-    t_batch = _median_time(lambda: b.fk_batch(arm, Q), 15)
+    t_pin = median_s(lambda: pin_loop(n_call), 5) / n_call
+    t_call = median_s(lambda: studio_loop(n_call), 5) / n_call
+    t_batch = median_s(lambda: b.fk_batch(arm, Q), 15)
     t_pin_30k = t_pin * len(Q)
     print(f"FK per call (studio fk, incl. quaternion):       median {t_call * 1e6:8.1f} us")
     print(f"FK per call (pinocchio, position only; baseline): median {t_pin * 1e6:8.1f} us")

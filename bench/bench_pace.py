@@ -13,10 +13,10 @@ from __future__ import annotations
 import shutil
 import statistics
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
+from _timer import median_s
 
 from studio.controller import Controller
 from studio.core.pace import _pieces, at_speed, without_pauses
@@ -25,15 +25,6 @@ from studio.robot_backend.simulated import SimulatedBaxter
 from studio.storage import SessionStore
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def _median(fn, repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
 
 
 def _task(ctl: Controller) -> str:
@@ -67,8 +58,8 @@ def example(name: str, tmp: Path) -> None:
         v, a = b.velocity_limits("left"), b.acceleration_limits("left")
         pieces = _pieces(np.asarray(jt.skill_time), np.asarray(jt.q))
         rate = 1.0 / float(np.median(np.diff(jt.t)))
-        t_base = _median(lambda: retime(pieces, v, a, rate_hz=rate), 3)
-        t_fast = _median(lambda: at_speed(jt, 2.0, v, a), 3)
+        t_base = median_s(lambda: retime(pieces, v, a, rate_hz=rate), 3)
+        t_fast = median_s(lambda: at_speed(jt, 2.0, v, a), 3)
         print(
             f"  at_speed 2x on {len(jt.t):,} samples: median {t_fast * 1000:.0f} ms; baseline retime at 1x of the same "
             f"path {t_base * 1000:.0f} ms (ratio {t_fast / t_base:.2f})"

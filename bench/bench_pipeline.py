@@ -14,7 +14,6 @@ Medians of repeated runs; ratios from the same run.
 from __future__ import annotations
 
 import argparse
-import statistics
 import sys
 import time
 import tracemalloc
@@ -23,6 +22,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from _timer import median_ms
 
 from studio.core.alignment import MAX_POINTS
 from studio.core.clustering import cluster
@@ -47,15 +48,6 @@ def _demo_of_length(seeds: list[int], n: int, name: str) -> Demo:
         grip, q = np.append(grip, grip[-1]), np.vstack([q, q[-1:]])
     t = np.arange(n) / 1000.0
     return Demo(t, pos[:n], ori[:n], grip[:n], q[:n], name=name)
-
-
-def _median_ms(fn, repeat: int, clock=time.perf_counter) -> float:
-    ts = []
-    for _ in range(repeat):
-        t0 = clock()
-        fn()
-        ts.append(clock() - t0)
-    return statistics.median(ts) * 1e3
 
 
 def _load() -> str:
@@ -104,11 +96,11 @@ def main() -> None:
         i[0] += 1
         cache.extract_all(demos3, p)
 
-    slider_ms = _median_ms(slider_move, rep * 4)
-    slider_cpu = _median_ms(slider_move, rep * 4, time.process_time)
-    extract_ms = _median_ms(extract_only, rep * 4)
+    slider_ms = median_ms(slider_move, rep * 4)
+    slider_cpu = median_ms(slider_move, rep * 4, time.process_time)
+    extract_ms = median_ms(extract_only, rep * 4)
     p_ref = KeypointParams(eps5=0.12, eps7=0.16)
-    ref_ms = _median_ms(lambda: [extract_keypoints_reference(d, p_ref, series=cache.series(d)) for d in demos3], 3)
+    ref_ms = median_ms(lambda: [extract_keypoints_reference(d, p_ref, series=cache.series(d)) for d in demos3], 3)
     same = all(
         np.array_equal(cache.extract(d, p_ref), extract_keypoints_reference(d, p_ref, series=cache.series(d)))
         for d in demos3
@@ -125,13 +117,13 @@ def main() -> None:
     )
 
     # 2. learn_skill 3 × 30,000 -------------------------------------------------------------------------
-    cold = _median_ms(lambda: learn_skill(demos3), rep)
-    cold_cpu = _median_ms(lambda: learn_skill(demos3), rep, time.process_time)
+    cold = median_ms(lambda: learn_skill(demos3), rep)
+    cold_cpu = median_ms(lambda: learn_skill(demos3), rep, time.process_time)
     warm_cache = KeypointCache()
     learn_skill(demos3, cache=warm_cache)
-    warm = _median_ms(lambda: learn_skill(demos3, cache=warm_cache), rep)
+    warm = median_ms(lambda: learn_skill(demos3, cache=warm_cache), rep)
     b = Baxter.load()
-    with_ik = _median_ms(lambda: learn_skill(demos3, arm="left", baxter=b), max(3, rep // 3))
+    with_ik = median_ms(lambda: learn_skill(demos3, arm="left", baxter=b), max(3, rep // 3))
     print(
         f"learn_skill 3 × 30,000 (series computed inside):   {cold:8.1f} ms (median of {rep}; CPU time "
         f"{cold_cpu:.1f} ms)"

@@ -52,6 +52,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from _timer import median_ms
+
 from studio.core import autotune
 from studio.core import quality as Q
 from studio.core.errors import StudioError
@@ -539,15 +541,6 @@ def replace_name(d: Demo) -> Demo:
     return Demo(d.t[:n], d.position[:n], d.orientation[:n], d.gripper[:n], name=d.name)
 
 
-def _median_ms(fn: Callable[[], object], repeat: int) -> float:
-    ts = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t0)
-    return statistics.median(ts) * 1e3
-
-
 def timing(quick: bool) -> None:
     from studio.core.clustering import cluster
 
@@ -567,7 +560,7 @@ def timing(quick: bool) -> None:
         cluster(demos, kps, seed=0, backend=backend)
 
     for b in ("numpy", "sklearn", "numpy", "sklearn"):
-        ms = _median_ms(lambda b=b: slider(b), rep)
+        ms = median_ms(lambda b=b: slider(b), rep)
         print(f"slider move (re-extract + re-cluster), k-means {b:<8}: median {ms:6.1f} ms  (budget 30 ms)")
     preview_path(demos, base, cache=cache)  # DTW maps cached, as during a slider drag
 
@@ -576,8 +569,8 @@ def timing(quick: bool) -> None:
         i += 1
         preview_path(demos, replace(base, eps5=base.eps5 * (1.0 + 0.05 * (i % 5))), cache=cache)
 
-    print(f"live preview path (preview_path, warm caches): median {_median_ms(prev, rep):6.1f} ms  (budget 150 ms)")
-    ms = _median_ms(lambda: learn_skill(demos, base, cache=cache), max(3, rep // 3))
+    print(f"live preview path (preview_path, warm caches): median {median_ms(prev, rep):6.1f} ms  (budget 150 ms)")
+    ms = median_ms(lambda: learn_skill(demos, base, cache=cache), max(3, rep // 3))
     print(f"learn_skill (warm key-point cache):            median {ms:6.1f} ms")
     suggest_timing(demos, 1 if quick else 3)
 

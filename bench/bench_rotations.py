@@ -9,9 +9,7 @@ wherever it is not slower where it matters; the figures are quoted in its docstr
 
 from __future__ import annotations
 
-import statistics
 import sys
-import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -20,18 +18,11 @@ from scipy.spatial.transform import Rotation
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from _timer import median_ms
+
 from studio.core import rotations as rot
 
 N = 30_000
-
-
-def _median_ms(fn: Callable[[], object], repeats: int = 15) -> float:
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return 1e3 * statistics.median(times)
 
 
 def main() -> int:
@@ -56,7 +47,7 @@ def main() -> int:
     ]
     print(f"{N:,} rotations, median ms (studio's function | scipy expression | scipy / studio)")
     for name, ours, theirs in cases:
-        t_ours, t_theirs = _median_ms(ours), _median_ms(theirs)
+        t_ours, t_theirs = median_ms(ours, 15), median_ms(theirs, 15)
         print(f"  {name:<24}{t_ours:9.2f} {t_theirs:9.2f} {t_theirs / t_ours:8.1f}x")
     return 0
 

@@ -14,19 +14,11 @@ import statistics
 import time
 
 import numpy as np
+from _timer import median_s
 
 from studio.core.kinematics import Baxter
 from studio.teacher import recording_from_plan, teach
 from studio.world import World, preset, simulate
-
-
-def _median(fn, repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
 
 
 def main() -> None:
@@ -34,8 +26,10 @@ def main() -> None:
     scene = preset("pick-place")
     rec = recording_from_plan(teach("pick-place", 0))
     n = len(rec.t)
-    t_sim = _median(lambda: simulate(rec.t, rec.q, rec.gripper, scene, baxter=b), 7)
-    t_fk = _median(lambda: [b.fk_batch(a, rec.q[:, s]) for a, s in (("left", slice(0, 7)), ("right", slice(7, 14)))], 7)
+    t_sim = median_s(lambda: simulate(rec.t, rec.q, rec.gripper, scene, baxter=b), 7)
+    t_fk = median_s(
+        lambda: [b.fk_batch(a, rec.q[:, s]) for a, s in (("left", slice(0, 7)), ("right", slice(7, 14)))], 7
+    )
     print(f"simulate, pick-place demo of {n} samples ({rec.duration:.1f} s): median {t_sim * 1000:.1f} ms")
     print(f"  baseline fk_batch of both arms over the same samples: {t_fk * 1000:.1f} ms (ratio {t_sim / t_fk:.2f})")
 
@@ -56,7 +50,7 @@ def main() -> None:
     idle = per_batch(1)
     carrying = per_batch(i_hold)
     q15 = rec.q[:15, :7]
-    base = _median(lambda: b.fk_batch("left", q15), 500)
+    base = median_s(lambda: b.fk_batch("left", q15), 500)
     print(f"World.feed, 15-sample batch, nothing held: median {idle * 1e6:.0f} µs")
     print(f"World.feed, 15-sample batch, carrying the block: median {carrying * 1e6:.0f} µs")
     print(f"  baseline fk_batch of one arm over 15 samples: {base * 1e6:.0f} µs")
