@@ -157,10 +157,11 @@ class DemosPanel:
 
     def _on_demo_action(self, event: viser.GuiEvent) -> None:
         i = self._selected()
-        if i is None:
-            raise InvalidInput("Choose a demonstration in the list first.")
         action, name = event.target.value, str(self.demo_pick.value)
-        if self.demo_pick.update_timestamp > event.target.update_timestamp:
+        if i is None and name == "(none)":
+            raise InvalidInput("Choose a demonstration in the list first.")
+        # i is None here when another tab deleted or renamed the chosen one and the list is not redrawn yet.
+        if i is None or self.demo_pick.update_timestamp > event.target.update_timestamp:
             # Another tab's action changed the chosen demonstration after this press was sent (two tabs pressing
             # Delete at once would otherwise delete two demonstrations): nothing is done to the one chosen now.
             raise InvalidInput(

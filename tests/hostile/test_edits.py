@@ -49,6 +49,39 @@ def test_two_tabs_pressing_delete_at_once_delete_one_demonstration(app: Studio) 
         b.close()
 
 
+def test_a_delete_press_arriving_before_the_list_is_redrawn_deletes_nothing(
+    app: Studio, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A press that arrives after another tab deleted the chosen demonstration, but before the list is redrawn
+    (the chosen name is gone), is told that the choice changed; it was once told to choose a demonstration."""
+    ctl, panel = app.controller, app.panels.demos
+    names, chosen = ctl.demos.names(), panel.demo_pick.value
+    drawing, redraw = threading.Event(), threading.Event()
+    draw = panel.draw_traces
+
+    def slow_draw() -> None:
+        drawing.set()
+        redraw.wait(30)
+        draw()
+
+    monkeypatch.setattr(panel, "draw_traces", slow_draw)
+    b = tab(app)
+    try:
+        button = b.wait_gui("Demo action")["uuid"]
+        deleter = threading.Thread(target=ctl.demos.delete, args=(names.index(chosen),), kwargs={"name": chosen})
+        deleter.start()
+        assert drawing.wait(30)  # deleted; the list still shows the deleted name as chosen
+        b.send({"type": "GuiUpdateMessage", "uuid": button, "updates": {"value": "Delete"}})
+        told = lambda: [str(n) for n in b.notifications() if "nothing was done" in str(n)]  # noqa: E731
+        assert b.wait_for(lambda _m: told()), [str(n)[:200] for n in b.notifications()]
+        redraw.set()
+        deleter.join(30)
+        assert ctl.demos.names() == [n for n in names if n != chosen]
+    finally:
+        redraw.set()
+        b.close()
+
+
 def test_a_demo_deleted_while_training_leaves_the_skill_marked_stale(ctl: Controller, sessions: Path) -> None:
     """Today: the skill was saved marked fresh, listing the deleted demonstration."""
     gate = threading.Event()
