@@ -173,6 +173,23 @@ class ViserClient:
 
         return {n: v for n, v in nodes.items() if n.startswith(prefix) and drawn(n)}
 
+    def drawn_position(self, prefix: str) -> np.ndarray | None:
+        """Where this page draws the first node whose name starts with ``prefix`` (None until it has one)."""
+        node = next((v for n, v in self.scene().items() if n.startswith(prefix)), None)
+        return None if node is None or node["position"] is None else np.array(node["position"], dtype=np.float64)
+
+    def wait_drawn_at(self, prefix: str, where: Any = None, atol: float = 1e-6, timeout: float = 20.0) -> np.ndarray:
+        """Wait until this page draws the first node named ``prefix``… within ``atol`` of ``where`` (or at all,
+        without ``where``); return where it is drawn (the last place within ``timeout``, NaN if nowhere)."""
+
+        def placed() -> np.ndarray | None:
+            p = self.drawn_position(prefix)
+            return p if p is not None and (where is None or np.allclose(p, where, atol=atol)) else None
+
+        found = self.wait_for(lambda _m: placed() is not None, timeout)
+        p = placed() if found else self.drawn_position(prefix)
+        return np.full(3, np.nan) if p is None else p
+
     def layer(self, prefix: str) -> dict[str, bool]:
         """The nodes right under ``prefix`` (e.g. "/demos"), each with whether the page draws it."""
         nodes, shown = self.scene(), self.shown(prefix + "/")
@@ -209,8 +226,21 @@ class ViserClient:
                 out[s["filename"]] = b"".join(got[i] for i in range(s["part_count"]))
         return out
 
+    def __enter__(self) -> ViserClient:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
     def close(self) -> None:
         try:
             self.ws.close()
         finally:
             self._thread.join(timeout=5)
+
+
+def drawn_at(app: Any, prefix: str, where: Any = None, atol: float = 1e-6, timeout: float = 20.0) -> np.ndarray:
+    """Where a new tab of the running studio ``app`` draws the first node named ``prefix``… (see
+    :meth:`ViserClient.wait_drawn_at`)."""
+    with ViserClient.tab_of(app) as tab:
+        return tab.wait_drawn_at(prefix, where, atol, timeout)

@@ -24,6 +24,7 @@ from studio.core.kinematics import Baxter
 from studio.teacher import PICK_PLACE_A, PICK_PLACE_B
 from tests.e2e import ui
 from tests.e2e.conftest import ARTIFACTS, free_port
+from tests.viser_client import ViserClient, drawn_at
 
 pytestmark = pytest.mark.e2e
 
@@ -46,12 +47,6 @@ def camera(app: Studio, view: str) -> None:
 
 def node(app: Studio, name: str):
     return app.server.scene._handle_from_node_name[name]
-
-
-def drawn_block(app: Studio) -> np.ndarray:
-    handles = app.server.scene._handle_from_node_name
-    h = next(h for name, h in handles.items() if name.startswith("/objects/block-"))
-    return np.array(h.position, dtype=float)
 
 
 def status(page: Page) -> dict[str, str]:
@@ -103,12 +98,15 @@ def test_run_on_robot_follows_the_plan_and_does_the_task(browser, tmp_path) -> N
             "() => parseFloat(document.querySelector('.run-status').dataset.t) > 7.0", polling=100, timeout=40_000
         )
         camera(app, "front")
-        page.wait_for_function(
-            "() => parseFloat(document.querySelector('.run-status').dataset.t) > 9.9", polling=100, timeout=40_000
-        )
-        world = next(p for p in app.controller.scene.live.poses() if p.name == "block")
-        assert world.on == "pad", world
-        assert np.hypot(*(drawn_block(app)[:2] - np.array(PICK_PLACE_B[:2]))) < 0.03
+        with ViserClient.tab_of(app) as tab:  # a second tab, opened ahead: it has the scene when the block is there
+            page.wait_for_function(
+                "() => parseFloat(document.querySelector('.run-status').dataset.t) > 9.9", polling=100, timeout=40_000
+            )
+            world = next(p for p in app.controller.scene.live.poses() if p.name == "block")
+            assert world.on == "pad", world
+            drawn = tab.wait_drawn_at("/objects/block-", world.position)
+        assert np.allclose(drawn, world.position, atol=1e-6), (drawn, world)
+        assert np.hypot(*(drawn[:2] - np.array(PICK_PLACE_B[:2]))) < 0.03
         page.screenshot(path=str(out / "1-block-on-the-pad-front.png"))
         # (the block is carried back by then)
         ui.views(app.server, page, out, "2-mid-run", {"top": VIEWS["top"]}, rest=False)
@@ -146,7 +144,7 @@ def test_run_on_robot_follows_the_plan_and_does_the_task(browser, tmp_path) -> N
             timeout=30_000,
         )
         block = next(p for p in ctl.scene.live.poses() if p.name == "block")
-        assert np.allclose(drawn_block(app), block.position, atol=1e-6)
+        assert np.allclose(drawn_at(app, "/objects/block-", block.position), block.position, atol=1e-6)
         assert np.hypot(block.position[0] - PICK_PLACE_A[0], block.position[1] - PICK_PLACE_A[1]) < 0.03
         page.locator(".run-result").first.scroll_into_view_if_needed()  # the judgement and the legend in view
         views(app, page, out, "3-end")

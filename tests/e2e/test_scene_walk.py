@@ -30,10 +30,12 @@ from studio.world import simulate
 from tests.conftest import wait_for
 from tests.e2e import ui
 from tests.e2e.conftest import ARTIFACTS, free_port
+from tests.viser_client import drawn_at
 
 pytestmark = pytest.mark.e2e
 
 ROOT = Path(__file__).resolve().parents[2]
+BLOCK = "/objects/block-"  # the drawn block's node (its name ends in an id)
 VIEWS = {
     "front": ((2.9, 0.55, 0.55), (0.3, 0.55, -0.05)),  # shifted: the panel covers the right of the page
     "top": ((0.45, -0.1, 2.6), (0.75, -0.1, -0.07)),
@@ -117,12 +119,6 @@ def views(app, page: Page, out: Path, step: str) -> None:
     ui.views(app.server, page, out, step, VIEWS)
 
 
-def drawn_block(app) -> np.ndarray:
-    handles = app.server.scene._handle_from_node_name
-    node = next(h for name, h in handles.items() if name.startswith("/objects/block-"))
-    return np.array(node.position, dtype=float)  # a copy: viser updates the array in place
-
-
 def test_teach_with_objects_to_the_task_result(browser, tmp_path) -> None:
     out = ARTIFACTS / "scene-walk"
     shutil.rmtree(out, ignore_errors=True)
@@ -145,12 +141,12 @@ def test_teach_with_objects_to_the_task_result(browser, tmp_path) -> None:
         ui.tab(page, "Teach")
         ui.open_folder(page, "Joints")
         views(app, page, out, "1-teach-set-up")
-        start = drawn_block(app)
+        start = drawn_at(app, BLOCK)
         for variant in range(2):  # two are enough to learn from (and keep the suite short)
             record_demo(page, wp, variant)
             if variant == 0:  # the block went onto the pad, drawn where the world put it
-                on_pad = drawn_block(app)
                 world = next(p for p in app.controller.scene.live.poses() if p.name == "block")
+                on_pad = drawn_at(app, BLOCK, world.position)
                 assert np.allclose(on_pad, world.position, atol=1e-6)
                 assert world.on == "pad" and np.linalg.norm(on_pad[:2] - np.array(PICK_PLACE_B[:2])) < 0.03
                 views(app, page, out, "2-teach-first-demo-done")
@@ -205,11 +201,8 @@ def test_teach_with_objects_to_the_task_result(browser, tmp_path) -> None:
         def block_in_world():
             return next(p for p in app.controller.scene.shown()[1] if p.name == "block")
 
-        deadline = time.monotonic() + 10  # the scene panel draws on its own loop: give it time for one frame
-        while time.monotonic() < deadline and not np.allclose(drawn_block(app), block_in_world().position, atol=1e-6):
-            time.sleep(0.05)
-        world = block_in_world()
-        assert np.allclose(drawn_block(app), world.position, atol=1e-6)
+        world = block_in_world()  # drawn by the scene panel's own loop: a new tab waits for it
+        assert np.allclose(drawn_at(app, BLOCK, world.position), world.position, atol=1e-6)
         views(app, page, out, "5-preview-halfway")
         assert result.get_attribute("data-ok") == "true", text  # the demonstrations agree: the skill works
         assert np.linalg.norm(world.position - start) > 0.05
