@@ -45,10 +45,6 @@ def camera(app: Studio, view: str) -> None:
     ui.look(next(iter(app.server.get_clients().values())), *VIEWS[view])
 
 
-def node(app: Studio, name: str):
-    return app.server.scene._handle_from_node_name[name]
-
-
 def status(page: Page) -> dict[str, str]:
     el = page.locator(".run-status").first
     return {k: str(el.get_attribute(f"data-{k}")) for k in ("phase", "estop", "t", "duration")} | {
@@ -131,7 +127,9 @@ def test_run_on_robot_follows_the_plan_and_does_the_task(browser, tmp_path) -> N
         # What the page draws is what was computed: the executed path lies on the plan, ...
         b = Baxter.load()
         planned = b.fk_batch("left", plan.q[::5, :7])[0]
-        drawn = np.asarray(node(app, "/run/left/executed").points, dtype=np.float64).reshape(-1, 3)
+        with ViserClient.tab_of(app) as tab:  # what a page receives
+            executed = tab.wait_for(lambda _m: tab.scene().get("/run/left/executed"))
+        drawn = np.asarray(executed["props"]["points"], dtype=np.float64).reshape(-1, 3)
         assert len(drawn) > 1000
         gap = np.min(np.linalg.norm(drawn[::7, None, :] - planned[None, :, :], axis=2), axis=1)
         assert gap.max() < 3e-3, gap.max()  # (the plan sampled every 5 ms; the executed path every 10 ms)
