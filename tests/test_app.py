@@ -95,6 +95,24 @@ def test_demo_edits_redraw_the_traces(app: Studio, page: ViserClient) -> None:
     assert page.wait_for(lambda _m: len(page.layer("/demos")) == 2)
 
 
+def test_a_renamed_demo_stays_chosen_and_a_delete_chooses_the_last(app: Studio, page: ViserClient) -> None:
+    """The chosen demonstration once jumped to the last one when it was renamed (a Trim pressed next trimmed
+    another demonstration than the one just renamed)."""
+    panel, demos = app.panels.demos, app.controller.demos
+    first = demos.names()[0]
+    page.set_value("Demo", first)
+    assert wait_for(lambda: panel.demo_name.value == first)
+    page.set_value("Name", "pour, first try")
+    assert wait_for(lambda: panel.demo_name.value == "pour, first try")
+    page.set_value("Demo action", "Rename")
+    assert wait_for(lambda: demos.names()[0] == "pour, first try")
+    assert wait_for(lambda: panel.demo_pick.value == "pour, first try"), panel.demo_pick.value  # the list redrawn
+    assert panel.demo_name.value == "pour, first try"
+    page.set_value("Demo action", "Delete")
+    assert wait_for(lambda: len(demos.names()) == 2)
+    assert wait_for(lambda: panel.demo_pick.value == demos.names()[-1]), panel.demo_pick.value
+
+
 def test_keypoints_are_drawn(app: Studio, page: ViserClient) -> None:
     kp = app.controller.keypoints
     kp.set_param("eps5", 0.03)

@@ -31,6 +31,7 @@ class DemosPanel:
         self._traces: dict[str, viser.SceneNodeHandle] = {}
         self._marks: dict[str, viser.SceneNodeHandle] = {}
         self._lock = threading.RLock()  # redrawing and the view's show/hide, one at a time
+        self._listed: list[str] = []  # the names the picker offered before its last redraw
         with gui.add_folder("Demonstrations", order=3):
             self.demo_list = gui.add_html(self._demo_list_html())
             self.demo_pick = gui.add_dropdown("Demo", options=["(none)"], initial_value="(none)")
@@ -126,8 +127,11 @@ class DemosPanel:
             opts = names or ["(none)"]
             current = self.demo_pick.value
             self.demo_pick.options = opts
-            if current not in opts:
-                self.demo_pick.value = opts[-1]
+            if current not in opts:  # a renamed demonstration stays chosen; after a delete, the last one is
+                i = self._listed.index(current) if current in self._listed else -1
+                renamed = len(self._listed) == len(opts) and i >= 0 and opts[i] not in self._listed
+                self.demo_pick.value = opts[i] if renamed else opts[-1]
+            self._listed = list(opts)
         self._on_pick(None)
 
     def _selected(self) -> int | None:
