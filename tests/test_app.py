@@ -97,7 +97,7 @@ def test_demo_edits_redraw_the_traces(app: Studio, page: ViserClient) -> None:
 
 def test_a_renamed_demo_stays_chosen_and_a_delete_chooses_the_last(app: Studio, page: ViserClient) -> None:
     """The chosen demonstration once jumped to the last one when it was renamed (a Trim pressed next trimmed
-    another demonstration than the one just renamed)."""
+    another demonstration than the one just renamed), and the replay's to the first."""
     panel, demos = app.panels.demos, app.controller.demos
     first = demos.names()[0]
     page.set_value("Demo", first)
@@ -108,9 +108,12 @@ def test_a_renamed_demo_stays_chosen_and_a_delete_chooses_the_last(app: Studio, 
     assert wait_for(lambda: demos.names()[0] == "pour, first try")
     assert wait_for(lambda: panel.demo_pick.value == "pour, first try"), panel.demo_pick.value  # the list redrawn
     assert panel.demo_name.value == "pour, first try"
+    replay = app.panels.sessions.replay_pick  # the replay's list follows the rename too
+    assert wait_for(lambda: replay.value == "pour, first try"), replay.value
     page.set_value("Demo action", "Delete")
     assert wait_for(lambda: len(demos.names()) == 2)
     assert wait_for(lambda: panel.demo_pick.value == demos.names()[-1]), panel.demo_pick.value
+    assert wait_for(lambda: replay.value == demos.names()[0]), replay.value
 
 
 def test_keypoints_are_drawn(app: Studio, page: ViserClient) -> None:

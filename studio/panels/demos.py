@@ -13,6 +13,7 @@ import viser
 from studio.controller import Controller, Layer, Topic
 from studio.core.errors import InvalidInput
 from studio.panels._charts import downsample_path, segments
+from studio.panels._choice import kept_choice
 
 #: Small markers where a demonstration's gripper closed (dark diamonds) and opened (grey circles).
 CLOSE_COLOR = (25, 25, 25)
@@ -45,7 +46,7 @@ class DemosPanel:
         self.demo_show.on_update(ctl.guarded()(self._on_show))
         self.demo_actions.on_click(ctl.guarded("Could not change the demonstration")(self._on_demo_action))
         ctl.events.on(Topic.DEMOS, self.refresh_demos)
-        ctl.events.on(Topic.SESSION, self.refresh_demos)
+        ctl.events.on(Topic.SESSION, self._on_session)
         ctl.events.on(Topic.VIEW, self._apply_view)
         self.refresh_demos()
 
@@ -116,6 +117,11 @@ class DemosPanel:
             for node in self._marks.values():
                 node.visible = marks_on
 
+    def _on_session(self) -> None:
+        """Another session is open: its last demonstration is chosen (none of the old names carries over)."""
+        self._listed = []
+        self.refresh_demos()
+
     def refresh_demos(self) -> None:
         try:
             self.draw_traces()
@@ -128,9 +134,7 @@ class DemosPanel:
             current = self.demo_pick.value
             self.demo_pick.options = opts
             if current not in opts:  # a renamed demonstration stays chosen; after a delete, the last one is
-                i = self._listed.index(current) if current in self._listed else -1
-                renamed = len(self._listed) == len(opts) and i >= 0 and opts[i] not in self._listed
-                self.demo_pick.value = opts[i] if renamed else opts[-1]
+                self.demo_pick.value = kept_choice(self._listed, current, opts, -1)
             self._listed = list(opts)
         self._on_pick(None)
 

@@ -6,6 +6,7 @@ import viser
 
 from studio.controller import REPLAY, SCENE_PRESETS, Controller, Topic
 from studio.core.errors import InvalidInput
+from studio.panels._choice import kept_choice
 from studio.words import count_words
 
 EXPORT_WHY = "*Train first: the export is the learned skill.*"
@@ -37,6 +38,7 @@ class SessionsPanel:
             self.actions = gui.add_button_group("Session action", options=("Open", "New", "Save", "Duplicate"))
         with gui.add_folder("Replay a demonstration"):
             self.replay_pick = gui.add_dropdown("Demonstration", options=ctl.demos.names() or ["(none)"])
+            self._listed = list(self.replay_pick.options)  # what the replay's list offered before its last redraw
             self.replay_controls = gui.add_button_group("Replay", options=("Play", "Pause", "Stop"))
             self.replay_time = gui.add_slider(
                 "Replay time (s)",
@@ -100,8 +102,9 @@ class SessionsPanel:
             self.pick.value = self.ctl.session.name
             cur = self.replay_pick.value
             self.replay_pick.options = demos
-            if cur not in demos:
-                self.replay_pick.value = demos[0]
+            if cur not in demos:  # a renamed demonstration stays chosen; else the first one
+                self.replay_pick.value = kept_choice(self._listed, cur, demos, 0)
+            self._listed = list(demos)
 
     def _on_session(self) -> None:
         """Another session is open: the replay starts over on its first demonstration."""
@@ -109,6 +112,7 @@ class SessionsPanel:
         with self.server.atomic():
             self.replay_pick.options = demos or ["(none)"]
             self.replay_pick.value = demos[0] if demos else "(none)"
+            self._listed = list(self.replay_pick.options)
             self.replay_time.max = round(max(self.ctl.demos.duration(0), 0.01), 2) if demos else 1.0
             self.replay_time.value = 0.0
 
