@@ -21,20 +21,11 @@ sys.path.insert(0, str(ROOT))
 
 from playwright.sync_api import sync_playwright  # noqa: E402
 
+from tests.conftest import CHROMIUM, CHROMIUM_ARGS  # noqa: E402
 from tests.e2e import ui  # noqa: E402
 from tests.e2e.conftest import StudioProcess  # noqa: E402
 
 TICK = os.sysconf("SC_CLK_TCK")
-FLAGS = [
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-]
 SIZES = ((1280, 800), (1024, 640), (800, 500))
 
 
@@ -63,7 +54,7 @@ def main() -> None:
     cores: dict[tuple[int, int], list[float]] = {s: [] for s in SIZES}
     try:
         with sync_playwright() as p:
-            browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=FLAGS)
+            browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
             for _ in range(args.rounds):
                 for w, h in SIZES:
                     page = browser.new_page(viewport={"width": w, "height": h})
