@@ -19,28 +19,19 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from bench_suite import process_cpu  # noqa: E402
 from playwright.sync_api import sync_playwright  # noqa: E402
 
 from tests.conftest import CHROMIUM, CHROMIUM_ARGS  # noqa: E402
 from tests.e2e import ui  # noqa: E402
 from tests.e2e.conftest import StudioProcess  # noqa: E402
 
-TICK = os.sysconf("SC_CLK_TCK")
 SIZES = ((1280, 800), (1024, 640), (800, 500))
 
 
 def chromium_cpu() -> float:
     """CPU seconds of every running Chromium process."""
-    total = 0.0
-    for pid in filter(str.isdigit, os.listdir("/proc")):
-        try:
-            if "chromium" not in Path(f"/proc/{pid}/cmdline").read_text():
-                continue
-            fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-        except OSError:
-            continue
-        total += (int(fields[11]) + int(fields[12])) / TICK
-    return total
+    return sum(got[1] for pid in os.listdir("/proc") if (got := process_cpu(pid)) and got[0].startswith("chromium"))
 
 
 def main() -> None:

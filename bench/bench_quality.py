@@ -627,7 +627,6 @@ def suggest_timing(demos: list[Demo], repeat: int) -> None:
     )
 
 
-#: One BLAS thread per process (set before numpy loads: the bench runs itself again with them when missing).
 def why_loose(sizes: tuple[float, ...] | None, counts: tuple[int, ...] | None, seed: int) -> None:
     """Per demonstration of each "loose" set: the default's and B1's Fréchet distance and the part its start
     forces (any path that starts at the demos' mean start is at least that far from a demo that lands elsewhere)."""
@@ -662,6 +661,7 @@ def why_loose(sizes: tuple[float, ...] | None, counts: tuple[int, ...] | None, s
         print(f"where B1 is closer: by {np.median(excess) * 100:.1f} % (median), {max(excess) * 100:.1f} % (largest)")
 
 
+#: One BLAS thread per process (set before numpy loads: the bench runs itself again with them when missing).
 ONE_THREAD = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 

@@ -42,7 +42,8 @@ def kind(cmdline: str) -> str:
     return "other"
 
 
-def _cpu(pid: str) -> tuple[str, float] | None:
+def process_cpu(pid: str) -> tuple[str, float] | None:
+    """The kind of process ``pid`` and its CPU seconds so far (None once it has ended)."""
     try:
         stat = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
         cmd = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
@@ -68,7 +69,7 @@ class Sampler:
     def _sweep() -> dict[str, float]:
         out = {}
         for pid in os.listdir("/proc"):
-            if pid.isdigit() and (got := _cpu(pid)) is not None:
+            if pid.isdigit() and (got := process_cpu(pid)) is not None:
                 out[pid] = got[1]
         return out
 
@@ -76,7 +77,7 @@ class Sampler:
         me = str(os.getpid())
         while not self.stop.wait(1.0):
             for pid in os.listdir("/proc"):
-                if pid.isdigit() and pid != me and (got := _cpu(pid)) is not None:
+                if pid.isdigit() and pid != me and (got := process_cpu(pid)) is not None:
                     self.last[pid] = (got[0], got[1] - self.base.get(pid, 0.0))
 
     def totals(self) -> dict[str, float]:

@@ -104,17 +104,22 @@ def sessions(tmp_path: Path) -> Path:
     return d
 
 
-@pytest.fixture
-def ctl(sessions: Path) -> Iterator[Controller]:
-    """A started controller on the "stack-cup" example with a simulated robot streaming in real time."""
+def _started(sessions: Path) -> tuple[Controller, SimulatedBaxter]:
+    """A started controller on the "stack-cup" example, and its simulated robot (streaming in real time)."""
     from studio.controller import Controller
     from studio.robot_backend.simulated import SimulatedBaxter
     from studio.storage import SessionStore
 
-    c = Controller(
-        store=SessionStore(sessions), session="stack-cup", backend=SimulatedBaxter(), notifier=RecordingNotifier()
-    )
+    sim = SimulatedBaxter()
+    c = Controller(store=SessionStore(sessions), session="stack-cup", backend=sim, notifier=RecordingNotifier())
     c.start()
+    return c, sim
+
+
+@pytest.fixture
+def ctl(sessions: Path) -> Iterator[Controller]:
+    """A started controller on the "stack-cup" example with a simulated robot streaming in real time."""
+    c, _ = _started(sessions)
     yield c
     c.close()
     c.shutdown()
@@ -135,13 +140,7 @@ def app(sessions: Path) -> Iterator[Studio]:
 @pytest.fixture
 def rig(sessions: Path) -> Iterator[tuple[Controller, SimulatedBaxter]]:
     """A controller on the example session whose simulated robot is stepped by hand (fast, deterministic)."""
-    from studio.controller import Controller
-    from studio.robot_backend.simulated import SimulatedBaxter
-    from studio.storage import SessionStore
-
-    sim = SimulatedBaxter()
-    c = Controller(store=SessionStore(sessions), session="stack-cup", backend=sim, notifier=RecordingNotifier())
-    c.start()
+    c, sim = _started(sessions)
     sim.stop()  # manual steps from here on
     yield c, sim
     c.close()

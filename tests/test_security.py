@@ -112,7 +112,7 @@ def test_the_studio_page_with_its_cookie_drives_it(app: Studio) -> None:
 
 
 def test_a_program_with_the_key_in_its_address_may_connect(app: Studio) -> None:
-    c = ViserClient(f"ws://127.0.0.1:{app.port}/?key={key_of(app)}")
+    c = ViserClient.tab_of(app)
     try:
         assert c.wait_gui("Record")
     finally:
@@ -379,7 +379,7 @@ def test_an_oversize_upload_is_refused_before_it_is_buffered(sessions: Path, mon
 
     monkeypatch.setattr(security.uploads, "MAX_UPLOAD_BYTES", 8 * MiB)
     a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
-    c = ViserClient(f"ws://127.0.0.1:{a.port}/?key={key_of(a)}")
+    c = ViserClient.tab_of(a)
     try:
         uuid = c.wait_gui("Upload session (.zip)")["uuid"]
         time.sleep(1.0)  # the initial scene has arrived; the studio is idle
@@ -415,7 +415,7 @@ def test_an_oversize_upload_is_refused_before_it_is_buffered(sessions: Path, mon
 
 def test_parts_beyond_the_declared_size_end_the_upload(sessions: Path) -> None:
     a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
-    c = ViserClient(f"ws://127.0.0.1:{a.port}/?key={key_of(a)}")
+    c = ViserClient.tab_of(a)
     try:
         uuid = c.wait_gui("Upload session (.zip)")["uuid"]
         start_upload(c, uuid, "t-lie", 1 * MiB, 8)  # declares 1 MB, then sends 4 MB
@@ -433,7 +433,7 @@ def test_an_upload_within_the_limit_still_works(app: Studio) -> None:
     """A real session archive (several 512 KB parts, as the browser sends them) is imported."""
     _, data = app.controller.sessions.zip()
     assert len(data) > 1024 * 1024  # three parts or more
-    c = ViserClient(f"ws://127.0.0.1:{app.port}/?key={key_of(app)}")
+    c = ViserClient.tab_of(app)
     try:
         uuid = c.wait_gui("Upload session (.zip)")["uuid"]
         chunk = 512 * 1024
@@ -453,7 +453,7 @@ def test_an_upload_within_the_limit_still_works(app: Studio) -> None:
 def test_a_single_huge_message_closes_only_that_connection(app: Studio) -> None:
     from studio import security
 
-    c = ViserClient(f"ws://127.0.0.1:{app.port}/?key={key_of(app)}")
+    c = ViserClient.tab_of(app)
     try:
         c.wait_gui("Record")
         rss0 = rss_bytes()
@@ -466,7 +466,7 @@ def test_a_single_huge_message_closes_only_that_connection(app: Studio) -> None:
         assert rss_bytes() - rss0 < 24 * MiB
     finally:
         c.close()
-    d = ViserClient(f"ws://127.0.0.1:{app.port}/?key={key_of(app)}")  # the studio still serves others
+    d = ViserClient.tab_of(app)  # the studio still serves others
     try:
         assert d.wait_gui("Record")
     finally:
@@ -531,7 +531,7 @@ def _port_free(port: int) -> bool:
 
 def test_the_share_button_is_not_offered(app: Studio) -> None:
     """viser's Share button would relay the studio to the internet; the page never shows it."""
-    c = ViserClient(f"ws://127.0.0.1:{app.port}/?key={key_of(app)}")
+    c = ViserClient.tab_of(app)
     try:
         theme = c.wait_for(lambda ms: [m for m in ms if m["type"] == "ThemeConfigurationMessage"])
         assert theme and theme[-1]["show_share_button"] is False
@@ -611,7 +611,7 @@ def test_parts_viser_drops_never_end_the_count_of_an_upload(sessions: Path, monk
 
     monkeypatch.setattr(security.uploads, "MAX_UPLOAD_BYTES", 8 * MiB)
     a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
-    c = ViserClient(f"ws://127.0.0.1:{a.port}/?key={key_of(a)}")
+    c = ViserClient.tab_of(a)
     try:
         uuid = c.wait_gui("Upload session (.zip)")["uuid"]
         chunk = 512 * 1024

@@ -7,7 +7,6 @@ stretch and the key-points are drawn in the objects' frames."""
 from __future__ import annotations
 
 import shutil
-import time
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +14,7 @@ import pytest
 from playwright.sync_api import Page, expect
 
 from studio.app import Studio, build_app
+from tests.conftest import wait_for
 from tests.e2e import ui
 from tests.e2e.conftest import ARTIFACTS, free_port
 from tests.viser_client import ViserClient
@@ -30,12 +30,6 @@ VIEWS = {
 def views(app: Studio, page: Page, out: Path, step: str) -> None:
     """Screenshots of ``step`` from the front and from the top, once the drawing has come to rest."""
     ui.views(app.server, page, out, step, VIEWS)
-
-
-def drawn(tab: ViserClient, prefix: str) -> np.ndarray:
-    """Where the tab draws the first node whose name starts with ``prefix``."""
-    node = next(v for n, v in tab.scene().items() if n.startswith(prefix))
-    return np.array(node["position"], dtype=float)
 
 
 def test_move_the_cup_and_the_skill_follows_it(browser, sessions) -> None:
@@ -71,9 +65,14 @@ def test_move_the_cup_and_the_skill_follows_it(browser, sessions) -> None:
         target = (float(before[0]), float(before[1] - 0.06), float(before[2]))
         tab.drag("/objects_handle", target, tuple(float(v) for v in handle()["wxyz"] or (1.0, 0.0, 0.0, 0.0)))
         moved = lambda: app.controller.scene.scene.object("bottom cup")  # noqa: E731
-        assert wait(lambda: abs(moved().position[1] - (before[1] - 0.06)) < 1e-6)
+        assert wait_for(lambda: abs(moved().position[1] - (before[1] - 0.06)) < 1e-6)
         bottom = moved()
-        assert wait(lambda: abs(drawn(tab, "/objects/bottom_cup")[1] - bottom.position[1]) < 1e-6)
+
+        def bottom_cup_drawn_there() -> bool:
+            p = tab.drawn_position("/objects/bottom_cup")
+            return p is not None and abs(p[1] - bottom.position[1]) < 1e-6
+
+        assert wait_for(bottom_cup_drawn_there)
         # Preview: said before the run, and the adapted task result.
         ui.tab(page, "Preview")
         warn = page.locator('.reach-warning[data-outside="true"]').first
@@ -90,10 +89,10 @@ def test_move_the_cup_and_the_skill_follows_it(browser, sessions) -> None:
         app.controller.playback.seek_preview(end)
 
         def on_bottom() -> bool:
-            cup = drawn(tab, "/objects/cup")
-            return bool(np.hypot(cup[0] - bottom.position[0], cup[1] - bottom.position[1]) < 0.01)
+            cup = tab.drawn_position("/objects/cup")
+            return cup is not None and bool(np.hypot(cup[0] - bottom.position[0], cup[1] - bottom.position[1]) < 0.01)
 
-        assert wait(on_bottom), (drawn(tab, "/objects/cup"), bottom.position)
+        assert wait_for(on_bottom), (tab.drawn_position("/objects/cup"), bottom.position)
         views(app, page, out, "2-cup-moved")
     finally:
         if tab is not None:
@@ -101,12 +100,3 @@ def test_move_the_cup_and_the_skill_follows_it(browser, sessions) -> None:
         if page is not None:
             page.close()
         app.stop()
-
-
-def wait(pred, timeout: float = 30.0) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if pred():
-            return True
-        time.sleep(0.05)
-    return bool(pred())

@@ -85,11 +85,10 @@ def test_two_websocket_clients_racing_open_and_record(sessions: Path) -> None:
     from tests.viser_client import ViserClient
 
     app = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
-    url = f"ws://127.0.0.1:{app.port}/?key={app.access.key}"
     ctl = app.controller
     started_in: list[str] = []
     ctl.events.on(Topic.RECORDING, lambda: started_in.append(ctl.session.name) if ctl.teaching.recording else None)
-    a, b = ViserClient(url), ViserClient(url)
+    a, b = ViserClient.tab_of(app), ViserClient.tab_of(app)
     try:
         for c in (a, b):
             c.wait_gui("Record")
