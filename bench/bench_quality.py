@@ -246,6 +246,9 @@ class Ref:
         self.b1f = float(np.mean([Q.frechet(b1c, c) for c in self.curves]))
         self.start = np.mean([d.position[0] for d in demos], axis=0)
         self.end = np.mean([d.position[-1] for d in demos], axis=0)
+        # No path that starts and ends on the demos' mean can be nearer a demo than its ends are.
+        ends = [max(np.linalg.norm(self.start - c[0]), np.linalg.norm(self.end - c[-1])) for c in self.curves]
+        self.floor = float(np.mean(ends)) / self.b1f if self.b1f > 0 else math.nan
 
     def score(self, pos: np.ndarray, among: list[int] | None = None) -> dict[str, float]:
         """G/R, F/B1 and the start/end error; ``among``: against these demos only (the ratios keep the whole
@@ -257,7 +260,12 @@ class Ref:
             start = np.mean([self.demos[i].position[0] for i in among], axis=0)
             end = np.mean([self.demos[i].position[-1] for i in among], axis=0)
         ends = max(np.linalg.norm(pos[0] - start), np.linalg.norm(pos[-1] - end))
-        return {"G/R": f.g_over_r, "F/B1": f.f_over_b1, "ends": float(ends)}
+        return {
+            "G/R": f.g_over_r,
+            "F/B1": f.f_over_b1,
+            "ends": float(ends),
+            "floor": self.floor if among is None else math.nan,
+        }
 
     def held_out(self, fit: Callable[[list[Demo]], np.ndarray]) -> float:
         out = []
@@ -454,6 +462,16 @@ def summary(rows: list[dict], methods: list[str], title: str, held: bool = True)
             parts.append(f"held-out {_compare(col('default', 'held'), col(m, 'held'))}")
         print(f"  default vs {m}: " + ", ".join(parts))
     print(f"  default end error: worst {float(np.max(col('default', 'ends'))) * 1000:.3f} mm (target 0.1 mm)")
+    floor = np.array([r["res"]["default"].get("floor", math.nan) for r in rows], dtype=float)
+    f = col("default", "F/B1")
+    above = [i for i in range(len(rows)) if f[i] > 1.0 + TIE]
+    if above and np.isfinite(floor).any():
+        at = [i for i in above if f[i] - floor[i] <= TIE]
+        print(
+            f"  default Fréchet ratio above the plain mean's in {len(above)} sets; in {len(at)} of them no path that "
+            "starts and ends on the demos' mean can be nearer: "
+            + ", ".join(f"{rows[i]['label']} {f[i]:.4f} (least {floor[i]:.4f})" for i in above)
+        )
 
 
 def report(rows: list[dict], suggest: bool) -> None:

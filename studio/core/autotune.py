@@ -84,9 +84,9 @@ class Score:
         return path or task
 
     def same(self, other: Score) -> bool:
-        """The very same figures (the same path and grasps)."""
-        return math.isclose(self.g_over_r, other.g_over_r, rel_tol=1e-9) and (
-            self.task == other.task or math.isclose(self.task, other.task, rel_tol=1e-9)
+        """The same figures to five digits (the same path and grasps)."""
+        return math.isclose(self.g_over_r, other.g_over_r, rel_tol=1e-5) and (
+            self.task == other.task or math.isclose(self.task, other.task, rel_tol=1e-5)
         )
 
     def near(self, other: Score) -> bool:

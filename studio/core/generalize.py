@@ -102,20 +102,15 @@ def generalize(
         raise InvalidInput("The path contains missing or invalid values.")
     if not (rate_hz > 0 and smoothing >= 0):
         raise InvalidInput("The rate must be positive and the smoothing not negative.")
-    w = np.ones(times.shape[0]) if weights is None else np.asarray(weights, dtype=np.float64)
-    order = np.argsort(times, kind="stable")
-    times, points, w = times[order], points[order].copy(), w[order]
-    points[:, 3:7] = make_sign_continuous(points[:, 3:7])
-    times, points, w = _merge_close(times, points, w)
-    t0 = float(times[0] if t_start is None else t_start)
-    t1 = float(times[-1] if t_end is None else t_end)
-    n = max(2, math.floor((t1 - t0) * rate_hz + 1e-9) + 1)
-    t = t0 + np.arange(n) / rate_hz
+    times, points, w = _prepared(times, points, weights)
+    t = sample_times(
+        float(times[0] if t_start is None else t_start), float(times[-1] if t_end is None else t_end), rate_hz
+    )
     tc = np.clip(t, times[0], times[-1])
     y = points[:, :7]
     s = times.shape[0]
     if s == 1:
-        pose = np.repeat(y, n, axis=0)
+        pose = np.repeat(y, t.shape[0], axis=0)
     elif s < 5:
         pose = make_interp_spline(times, y, k=min(3, s - 1))(tc)
     else:
@@ -127,9 +122,34 @@ def generalize(
     q = pose[:, 3:7]
     nrm = np.linalg.norm(q, axis=1, keepdims=True)
     q = make_sign_continuous(q / np.maximum(nrm, 1e-12))
-    levels, switches = gripper_steps(times, points[:, 7], w)
-    g = levels[np.searchsorted(switches, t, side="right")]
-    return Demo(t, pose[:, :3], q, g, name=name)
+    return Demo(t, pose[:, :3], q, _steps_at(times, points[:, 7], w, t), name=name)
+
+
+def _prepared(
+    times: np.ndarray, points: np.ndarray, weights: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    w = np.ones(times.shape[0]) if weights is None else np.asarray(weights, dtype=np.float64)
+    order = np.argsort(times, kind="stable")
+    times, points, w = times[order], points[order].copy(), w[order]
+    points[:, 3:7] = make_sign_continuous(points[:, 3:7])
+    return _merge_close(times, points, w)
+
+
+def _steps_at(times: np.ndarray, gripper: np.ndarray, weights: np.ndarray, t: np.ndarray) -> np.ndarray:
+    levels, switches = gripper_steps(times, gripper, weights)
+    return levels[np.searchsorted(switches, t, side="right")]
+
+
+def sample_times(t_start: float, t_end: float, rate_hz: float) -> np.ndarray:
+    """The instants :func:`generalize` samples between ``t_start`` and ``t_end`` at ``rate_hz`` (at least two)."""
+    n = max(2, math.floor((t_end - t_start) * rate_hz + 1e-9) + 1)
+    return t_start + np.arange(n) / rate_hz
+
+
+def gripper_at(times: np.ndarray, points: np.ndarray, weights: np.ndarray | None, t: np.ndarray) -> np.ndarray:
+    """The gripper signal :func:`generalize` gives for the same path points, at the instants ``t``."""
+    times, points, w = _prepared(np.asarray(times, dtype=np.float64), np.asarray(points, dtype=np.float64), weights)
+    return _steps_at(times, points[:, 7], w, np.asarray(t, dtype=np.float64))
 
 
 def _mean_quat(qs: np.ndarray | list[np.ndarray]) -> np.ndarray:
@@ -221,7 +241,9 @@ __all__ = [
     "SMOOTHING",
     "demo_pins",
     "generalize",
+    "gripper_at",
     "gripper_steps",
     "joint_trajectory",
     "pin_poses",
+    "sample_times",
 ]

@@ -9,6 +9,7 @@ selection of the reference (hmm.py) ▸ multidimensional DTW of every demo again
 from __future__ import annotations
 
 import functools
+import threading
 import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -20,7 +21,15 @@ from scipy.interpolate import PchipInterpolator
 from studio.core import alignment, hmm, quality
 from studio.core.clustering import Clustering, FeatureScale, align_hemisphere, cluster, default_n_clusters
 from studio.core.errors import InvalidInput, NotEnoughData
-from studio.core.generalize import SMOOTHING, demo_pins, generalize, joint_trajectory, pin_poses
+from studio.core.generalize import (
+    SMOOTHING,
+    demo_pins,
+    generalize,
+    gripper_at,
+    joint_trajectory,
+    pin_poses,
+    sample_times,
+)
 from studio.core.keypoints import KeypointCache
 from studio.core.kinematics import Baxter, make_sign_continuous
 from studio.core.routes import Routes, find_routes
@@ -45,6 +54,10 @@ SPLINE_THROUGH = ("state-means", "centroids")
 #: (it turns sharply at a corner, so corners align exactly); chosen on the shape suite (docs/decisions/003).
 DTW_ORIENTATION_WEIGHT = 0.3
 DTW_DIRECTION_WEIGHT = 0.5
+#: Points per curve when the plain mean is matched to the aligned mean (:func:`_plain_mean_along`).
+_ALONG_POINTS = 400
+#: Shares of the plain mean tried when the aligned mean is farther from the demos than it (decision 083).
+PLAIN_MEAN_SHARES = (0.25, 0.5, 0.75, 1.0)
 
 
 def demo_from_recording(rec: Recording, arm: Arm, baxter: Baxter | None = None) -> Demo:
@@ -120,6 +133,9 @@ class AlignmentCache:
 _SERIES_CACHE = KeypointCache()
 _ALIGN_CACHE = AlignmentCache()
 _ROUTES_CACHE = AlignmentCache(16)
+#: The plain-mean share chosen per aligned mean (:func:`_plain_mean_share`).
+_GUARD_SHARES: dict[tuple, float] = {}
+_GUARD_LOCK = threading.Lock()
 
 
 def routes_of(demos: Sequence[Demo]) -> Routes:
@@ -353,8 +369,87 @@ def _trajectory(
     t = np.asarray(traj.t)
     pose = _aligned_mean(demos, fm, t, cache)
     pins = demo_pins(demos, t, traj.gripper)
-    pos, ori = pin_poses(t, pose[:, :3], make_sign_continuous(pose[:, 3:]), pins)
+    ori = make_sign_continuous(pose[:, 3:])
+    pos, ori = pin_poses(t, pose[:, :3], ori, pins)
+    if len(demos) > 1:
+        tf, pf = t, pose
+        if rate_hz is not None and t.shape[0] > 1 and abs((t[1] - t[0]) - dt) > 1e-12:
+            # decided on the path at the demos' rate, as learn_skill makes it: the preview shows the skill
+            tf = sample_times(0.0, ref_demo.duration, 1.0 / dt)
+            pf = _aligned_mean(demos, fm, tf, cache)
+            share = _plain_mean_share(
+                demos, tf, pf, demo_pins(demos, tf, gripper_at(fm.times, fm.points, fm.weights, tf))
+            )
+        else:
+            share = _plain_mean_share(demos, t, pose, pins)
+        if share:
+            along = _plain_mean_along(demos, tf, pf[:, :3])
+            if tf is not t:
+                along = np.column_stack([np.interp(t, tf, along[:, k]) for k in range(3)])
+            pos = pin_poses(t, (1.0 - share) * pose[:, :3] + share * along, ori, pins)[0]
     return Demo(traj.t, pos, ori, traj.gripper, name="learned skill")
+
+
+def _plain_mean_along(demos: list[Demo], t: np.ndarray, position: np.ndarray) -> np.ndarray:
+    """(len(t), 3) the plain mean (:func:`quality.time_normalised_mean`) walked on the path's own time line: at
+    each instant, the plain mean's point DTW matches to ``position`` (len(t), 3) there (its shape, this timing)."""
+    from dtaidistance import dtw as dtai
+
+    b1 = quality.time_normalised_mean(demos)
+    m = _ALONG_POINTS
+    tm = np.linspace(float(t[0]), float(t[-1]), m)
+    a = np.column_stack([np.interp(tm, t, position[:, k]) for k in range(3)])
+    grid = np.linspace(0.0, b1.shape[0] - 1.0, _ALONG_POINTS)
+    b = np.column_stack([np.interp(grid, np.arange(b1.shape[0]), b1[:, k]) for k in range(3)])
+    path = np.asarray(dtai.warping_path_fast(np.ascontiguousarray(a), np.ascontiguousarray(b)), dtype=np.int64)
+    at = np.bincount(path[:, 0], weights=grid[path[:, 1]], minlength=m) / np.bincount(path[:, 0], minlength=m)
+    index = np.interp(t, tm, at)
+    return np.column_stack([np.interp(index, np.arange(b1.shape[0]), b1[:, k]) for k in range(3)])
+
+
+def _plain_mean_share(
+    demos: list[Demo], t: np.ndarray, pose: np.ndarray, pins: list[tuple[float, np.ndarray, np.ndarray]]
+) -> float:
+    """How far the aligned mean ``pose`` (len(t), 7), bent onto ``pins``, is moved toward the plain mean: 0 when its
+    mean Fréchet distance to the demos is not larger than the plain mean's, else the first of
+    :data:`PLAIN_MEAN_SHARES` that is not farther (or the least far). Remembered per path. Decision 083."""
+    key = _guard_key(demos, t, pose, pins)
+    with _GUARD_LOCK:
+        share = _GUARD_SHARES.get(key)
+    if share is not None:
+        return share
+    curves = np.stack(_GUARD_CURVES.get(demos)[0])
+    D = curves.shape[0]
+
+    def far(paths: list[np.ndarray]) -> np.ndarray:
+        a = np.repeat(np.stack([quality.arc_resample(p) for p in paths]), D, axis=0)
+        return quality.frechet_many(a, np.tile(curves, (len(paths), 1, 1))).reshape(len(paths), D).mean(axis=1)
+
+    def bent(share: float) -> np.ndarray:
+        return pin_poses(t, (1.0 - share) * pose[:, :3] + share * b1, pose[:, 3:], pins)[0]
+
+    b1 = _plain_mean_along(demos, t, pose[:, :3])
+    b1_far, own = far([quality.time_normalised_mean(demos), bent(0.0)])
+    share = 0.0
+    if own > b1_far:
+        fars = far([bent(x) for x in PLAIN_MEAN_SHARES])
+        near = [x for x, f in zip(PLAIN_MEAN_SHARES, fars, strict=True) if f <= b1_far]
+        best = int(np.argmin(fars))
+        share = near[0] if near else (PLAIN_MEAN_SHARES[best] if fars[best] < own else 0.0)
+    with _GUARD_LOCK:
+        _GUARD_SHARES[key] = share
+        while len(_GUARD_SHARES) > 64:
+            _GUARD_SHARES.pop(next(iter(_GUARD_SHARES)))
+    return share
+
+
+def _guard_key(demos: list[Demo], t: np.ndarray, pose: np.ndarray, pins: list) -> tuple:
+    import hashlib
+
+    h = hashlib.blake2b(digest_size=16)
+    for a in (t, pose[:, :3], *(np.r_[p[0], p[1]] for p in pins)):
+        h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
+    return (tuple(id(d) for d in demos), h.hexdigest())
 
 
 def learn_skill(
@@ -549,30 +644,28 @@ class PreviewPath:
 
 
 class _DemoCurves:
-    """The demos' comparison curves and spread, computed once per set of demos (the slider moves ε only)."""
+    """The demos' comparison curves (``n`` points) and spread, computed once per set of demos (the slider moves
+    ε only)."""
 
-    def __init__(self) -> None:
-        self._key: tuple = ()
-        self._refs: tuple = ()
-        self._value: tuple[list[np.ndarray], float] | None = None
+    def __init__(self, n: int, spread: bool = True) -> None:
+        self._n, self._spread = n, spread
+        self._entry: tuple[tuple, tuple, tuple[list[np.ndarray], float]] | None = None
 
     def get(self, demos: Sequence[Demo]) -> tuple[list[np.ndarray], float]:
         from studio.core import quality
 
         key = tuple(id(d) for d in demos)
-        if (
-            self._value is not None
-            and key == self._key
-            and all(r() is d for r, d in zip(self._refs, demos, strict=True))
-        ):
-            return self._value
-        curves = [quality.curve(d, 300) for d in demos]
-        r = quality.spread(curves)[0] if len(curves) > 1 else float("nan")
-        self._key, self._refs, self._value = key, tuple(weakref.ref(d) for d in demos), (curves, r)
-        return self._value
+        entry = self._entry
+        if entry is not None and key == entry[0] and all(r() is d for r, d in zip(entry[1], demos, strict=True)):
+            return entry[2]
+        curves = [quality.curve(d, self._n) for d in demos]
+        r = quality.spread(curves)[0] if self._spread and len(curves) > 1 else float("nan")
+        self._entry = (key, tuple(weakref.ref(d) for d in demos), (curves, r))
+        return curves, r
 
 
-_PREVIEW_CURVES = _DemoCurves()
+_PREVIEW_CURVES = _DemoCurves(300)
+_GUARD_CURVES = _DemoCurves(quality.N_POINTS, spread=False)
 
 
 def preview_path(

@@ -290,3 +290,69 @@ def test_grasp_and_release_land_on_the_demonstrations_mean_within_a_tenth_of_a_m
     ds = list(demos("pick-place", (0, 1, 2)))
     checks, mismatch = quality.gripper_checks(skill("pick-place", (0, 1, 2)).trajectory, ds)
     assert not mismatch and checks and max(c.error for c in checks) < 1e-4
+
+
+def _loose_spiral() -> list[Demo]:
+    from studio.shapes import ShapeSpec, shape_demos
+
+    return list(shape_demos(ShapeSpec("spiral", 0.15, 1.5, style="loose"), 7))
+
+
+def _frechet_ratio(path: np.ndarray, ds: list[Demo]) -> float:
+    from studio.core import quality
+
+    curves = [quality.curve(d) for d in ds]
+    b1 = quality.arc_resample(quality.time_normalised_mean(ds))
+    return quality.fidelity(quality.arc_resample(path), curves, b1=b1).f_over_b1
+
+
+def test_the_path_is_not_farther_from_the_demonstrations_than_their_plain_mean(monkeypatch):
+    """The aligned mean of these 7 loosely drawn spirals is 1.1 % farther (Fréchet) from them than the plain mean;
+    the learned path is moved toward the plain mean until it is not, and still starts and ends on the demos."""
+    import studio.core.pipeline as P
+
+    ds = _loose_spiral()
+    path = learn_skill(ds).trajectory.position
+    assert _frechet_ratio(path, ds) <= 1.0005
+    for k in (0, -1):
+        assert np.linalg.norm(path[k] - np.mean([d.position[k] for d in ds], axis=0)) < 1e-4
+    monkeypatch.setattr(P, "_plain_mean_share", lambda *a: 0.0)
+    assert _frechet_ratio(learn_skill(ds).trajectory.position, ds) > 1.005
+
+
+def test_a_path_nearer_the_demonstrations_than_their_plain_mean_is_left_as_it_is(monkeypatch):
+    import studio.core.pipeline as P
+    from studio.shapes import ShapeSpec, shape_demos
+
+    ds = list(shape_demos(ShapeSpec("zigzag", 0.15, 2.0), 3))
+    shares = []
+    plain = P._plain_mean_share
+
+    def spy(*a):
+        shares.append(plain(*a))
+        return shares[-1]
+
+    monkeypatch.setattr(P, "_plain_mean_share", spy)
+    path = learn_skill(ds).trajectory.position
+    assert shares == [0.0] and _frechet_ratio(path, ds) < 1.0
+
+
+def test_the_live_preview_moves_toward_the_plain_mean_as_the_skill_does(monkeypatch):
+    """The preview (50 samples a second) takes the share the skill (the demos' rate) takes, decided on the
+    skill's own samples."""
+    import studio.core.pipeline as P
+
+    ds = _loose_spiral()
+    calls = []
+    plain = P._plain_mean_share
+
+    def spy(d, t, *a):
+        calls.append((t.shape[0], plain(d, t, *a)))
+        return calls[-1][1]
+
+    monkeypatch.setattr(P, "_plain_mean_share", spy)
+    skill_path = learn_skill(ds).trajectory
+    preview = P.learn_path(ds, rate_hz=50.0)
+    assert len(calls) == 2 and calls[0] == calls[1] and calls[0][1] > 0
+    at = np.column_stack([np.interp(preview.t, skill_path.t, skill_path.position[:, k]) for k in range(3)])
+    assert np.max(np.linalg.norm(preview.position - at, axis=1)) < 1e-4

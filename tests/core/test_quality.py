@@ -67,6 +67,15 @@ def test_frechet_matches_a_double_loop():
         assert Q.frechet(a, b) == pytest.approx(F[-1, -1])
 
 
+def test_frechet_of_many_pairs_at_once_equals_one_pair_at_a_time():
+    rng = np.random.default_rng(4)
+    for m, n in ((1, 1), (1, 7), (7, 1), (40, 25), (25, 40)):
+        a, b = rng.normal(size=(20, m, 3)), rng.normal(size=(20, n, 3))  # 20 pairs: more than one batch
+        assert np.allclose(Q.frechet_many(a, b), [Q.frechet(x, y) for x, y in zip(a, b, strict=True)], atol=1e-12)
+    with pytest.raises(InvalidInput):
+        Q.frechet_many(np.zeros((2, 3, 3)), np.zeros((3, 3, 3)))
+
+
 def test_normalised_dtw_is_the_mean_squared_distance_of_matched_points():
     a = Q.arc_resample(np.array([[0.0, 0, 0], [1, 0, 0]]), 11)
     assert Q.ndtw(a, a) == 0.0

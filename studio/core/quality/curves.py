@@ -13,6 +13,8 @@ from studio.core.types import Demo
 
 #: Points per curve for the shape comparisons (evenly spaced along the path).
 N_POINTS = 600
+#: Pairs of curves measured together by :func:`frechet_many` (their distance matrices are held at once).
+_FRECHET_BATCH = 16
 #: Low-pass applied before any comparison, seconds (tremor and sensor noise are not the path).
 SMOOTH_S = 0.05
 
@@ -64,31 +66,50 @@ def ndtw(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def frechet(a: np.ndarray, b: np.ndarray) -> float:
-    """Discrete Fréchet distance of two curves (M, D), (N, D): the shortest leash that walks both forward.
-
-    F(i, j) = max(‖a_i − b_j‖, min(F(i−1, j), F(i−1, j−1), F(i, j−1))), evaluated one anti-diagonal at a
-    time (all cells with i + j = d depend only on diagonals d − 1 and d − 2).
-    """
+    """Discrete Fréchet distance of two curves (M, D), (N, D): the shortest leash that walks both forward."""
     a = np.asarray(a, dtype=np.float64)
     b = np.asarray(b, dtype=np.float64)
-    if a.ndim != 2 or b.ndim != 2 or a.shape[1] != b.shape[1] or not len(a) or not len(b):
+    if a.ndim != 2 or b.ndim != 2:
         raise InvalidInput("Fréchet distance needs two non-empty curves of the same dimension.")
-    R, T = a.shape[0], b.shape[0]
+    return float(frechet_many(a[None], b[None])[0])
+
+
+def frechet_many(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(K,) discrete Fréchet distances of K pairs of curves, a (K, M, D) and b (K, N, D), computed together.
+
+    F(i, j) = max(‖a_i − b_j‖, min(F(i−1, j), F(i−1, j−1), F(i, j−1))), evaluated one anti-diagonal at a
+    time (all cells with i + j = d depend only on diagonals d − 1 and d − 2; in the flattened distance matrix
+    a diagonal is a slice with stride N − 1).
+    """
+    from scipy.spatial.distance import cdist
+
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    if a.ndim != 3 or b.ndim != 3 or a.shape[0] != b.shape[0] or a.shape[2] != b.shape[2] or not a.size or not b.size:
+        raise InvalidInput("Fréchet distance needs two non-empty curves of the same dimension.")
+    K, R, T = a.shape[0], a.shape[1], b.shape[1]
+    if K > _FRECHET_BATCH:
+        return np.concatenate(
+            [frechet_many(a[k : k + _FRECHET_BATCH], b[k : k + _FRECHET_BATCH]) for k in range(0, K, _FRECHET_BATCH)]
+        )
+    flat = np.empty((K, R * T))
+    for k in range(K):
+        flat[k] = cdist(a[k], b[k]).ravel()
+    step = max(T - 1, 1)
     inf = np.inf
-    bufs = [np.full(R + 1, inf), np.full(R + 1, inf), np.full(R + 1, inf)]
-    bufs[0][0] = 0.0
-    brev = b[::-1]
+    bufs = [np.full((K, R + 1), inf), np.full((K, R + 1), inf), np.full((K, R + 1), inf)]
+    bufs[0][:, 0] = 0.0
     for d in range(2, R + T + 1):
         prev2, prev1, cur = bufs[(d - 2) % 3], bufs[(d - 1) % 3], bufs[d % 3]
         x0, x1 = max(1, d - T), min(R, d - 1)
-        diff = a[x0 - 1 : x1] - brev[T - d + x0 : T - d + x1 + 1]
-        local = np.sqrt(np.einsum("ij,ij->i", diff, diff))
-        best = np.minimum(np.minimum(prev1[x0 - 1 : x1], prev1[x0 : x1 + 1]), prev2[x0 - 1 : x1])
-        cur[x0 : x1 + 1] = np.maximum(local, best)
-        cur[x0 - 1] = inf
+        first = (x0 - 1) * (T - 1) + d - 2  # cell (x0 − 1, d − x0 − 1)
+        local = flat[:, first : first + (x1 - x0) * step + 1 : step]
+        best = np.minimum(np.minimum(prev1[:, x0 - 1 : x1], prev1[:, x0 : x1 + 1]), prev2[:, x0 - 1 : x1])
+        np.maximum(local, best, out=cur[:, x0 : x1 + 1])
+        cur[:, x0 - 1] = inf
         if x1 + 1 <= R:
-            cur[x1 + 1] = inf
-    return float(bufs[(R + T) % 3][R])
+            cur[:, x1 + 1] = inf
+    return bufs[(R + T) % 3][:, R].copy()
 
 
 def time_normalised_mean(demos: Sequence[Demo], n: int = 2000) -> np.ndarray:
