@@ -4,12 +4,15 @@ without it (the share patched to 0), alternating in one process; the guard's mem
     .venv/bin/python bench/bench_guard.py [--repeat 5]
 
 Sets: 7 loosely drawn 15 cm spirals (1.5 s each; the guard moves this path), the scripted teacher's pick-place
-× 3 (1 kHz, ~22 s each). Medians; ratios against "without" from the same run.
+× 3 (1 kHz, ~22 s each); Suggest's CPU on 3 × 30,000 samples (bench_suggest's demos, renamed each time so nothing
+is cached). Medians; ratios against "without" from the same run.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
+import os
 import statistics
 import sys
 import time
@@ -17,7 +20,10 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import studio.core.pipeline as P
 from studio.core.kinematics import Baxter
@@ -25,6 +31,7 @@ from studio.core.thresholds import auto_params
 from studio.core.types import Demo
 from studio.shapes import ShapeSpec, shape_demos
 from studio.teacher import recording_from_plan, teach
+from tests.core.execution_demos import hard_cartesian_pick_place
 
 
 def _sets() -> dict[str, list[Demo]]:
@@ -33,7 +40,19 @@ def _sets() -> dict[str, list[Demo]]:
     return {
         "loose spiral 15 cm × 7": list(shape_demos(ShapeSpec("spiral", 0.15, 1.5, style="loose"), 7)),
         "pick-place × 3 (1 kHz)": tasks,
+        "issue 19's hard pick-place, seed 11": list(hard_cartesian_pick_place(11)),
     }
+
+
+def _largest_move(demos: list[Demo]) -> float:
+    """The most the guard moves the learned path at one instant, m."""
+    plain = P._plain_mean_share
+    try:
+        P._plain_mean_share = lambda *a: 0.0
+        without = P.learn_skill(demos).trajectory.position
+    finally:
+        P._plain_mean_share = plain
+    return float(np.max(np.linalg.norm(P.learn_skill(demos).trajectory.position - without, axis=1)))
 
 
 def _median_s(run: Callable[[], object], repeat: int, before: Callable[[], None]) -> float:
@@ -46,17 +65,49 @@ def _median_s(run: Callable[[], object], repeat: int, before: Callable[[], None]
     return statistics.median(out)
 
 
+def _suggest_cpu(repeat: int) -> dict[str, float]:
+    from bench_quality import _long_demos
+    from bench_suggest import _renamed
+
+    from studio.core import autotune
+
+    demos = _long_demos()
+    plain = P._plain_mean_share
+    cpu: dict[str, list[float]] = {"without": [], "with": []}
+    try:
+        for rep in range(repeat):
+            for label, share in (("without", lambda *a: 0.0), ("with", plain)):
+                P._plain_mean_share = share
+                ds = _renamed(demos, f"{label}-{rep}")
+                c0 = time.process_time()
+                autotune.suggest(ds, budget_s=math.inf)
+                cpu[label].append(time.process_time() - c0)
+    finally:
+        P._plain_mean_share = plain
+    return {k: statistics.median(v) for k, v in cpu.items()}
+
+
 def main() -> None:
+    from bench_quality import ONE_THREAD
+
+    if any(os.environ.get(k) != v for k, v in ONE_THREAD.items()):
+        os.execve(sys.executable, [sys.executable, *sys.argv], {**os.environ, **ONE_THREAD})
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeat", type=int, default=5)
     args = ap.parse_args()
-    print("| set | what | without | with | ratio | share taken |\n|---|---|---|---|---|---|")
+    print("| set | what | without | with | ratio | share taken, largest move |\n|---|---|---|---|---|---|")
     for name, demos in _sets().items():
+        move = _largest_move(demos)
         for what, f, taken in _measure(demos, args.repeat):
             print(
                 f"| {name} | {what} | {f['without'] * 1e3:.0f} ms | {f['with'] * 1e3:.0f} ms | "
-                f"×{f['with'] / f['without']:.2f} | {taken[0] if taken else '—'} |"
+                f"×{f['with'] / f['without']:.2f} | {taken[0] if taken else '—'}, {move * 1e3:.1f} mm |"
             )
+    f = _suggest_cpu(args.repeat)
+    print(
+        f"| 3 × 30,000 samples | Suggest, CPU (calling thread) | {f['without']:.2f} s | {f['with']:.2f} s | "
+        f"×{f['with'] / f['without']:.2f} | |"
+    )
 
 
 def _measure(demos: list[Demo], repeat: int) -> list[tuple[str, dict[str, float], list[float]]]:

@@ -9,6 +9,7 @@ selection of the reference (hmm.py) ▸ multidimensional DTW of every demo again
 from __future__ import annotations
 
 import functools
+import hashlib
 import threading
 import weakref
 from collections.abc import Callable, Sequence
@@ -444,8 +445,6 @@ def _plain_mean_share(
 
 
 def _guard_key(demos: list[Demo], t: np.ndarray, pose: np.ndarray, pins: list) -> tuple:
-    import hashlib
-
     h = hashlib.blake2b(digest_size=16)
     for a in (t, pose[:, :3], *(np.r_[p[0], p[1]] for p in pins)):
         h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
