@@ -115,7 +115,7 @@ class TuneResult:
         complete: every planned candidate was scored (False when cancelled or out of time).
         changed: the suggestion differs from the current thresholds (False: they are already good — nothing
             did better by :data:`MARGIN` than the defaults, or by :data:`OWN_MARGIN` than the teacher's own
-            values (automatic ones with the very same figures replace those), without a held-out figure worse).
+            values (automatic ones with the same figures to five digits replace those), without a held-out figure worse).
     """
 
     settings: ThresholdSettings
@@ -445,7 +445,7 @@ def suggest(
     evaluated = search.evaluated
     defaults = n_clusters is None and (current is None or current == ThresholdSettings())
     # never a held-out figure worse; the defaults stay unless one is better by MARGIN, the teacher's own values
-    # unless one is better by OWN_MARGIN or automatic thresholds give the very same figures (they follow the demos)
+    # unless one is better by OWN_MARGIN or automatic thresholds give the same figures (they follow the demos)
     gains = best.gains(before, MARGIN) if defaults else best.gains(before, OWN_MARGIN) or best.same(before)
     better = best.no_worse(before) and gains
     keep = math.isfinite(before.g_over_r) and not better
