@@ -115,7 +115,8 @@ class TuneResult:
         complete: every planned candidate was scored (False when cancelled or out of time).
         changed: the suggestion differs from the current thresholds (False: they are already good — nothing
             did better by :data:`MARGIN` than the defaults, or by :data:`OWN_MARGIN` than the teacher's own
-            values (automatic ones with the same figures to five digits replace those), without a held-out figure worse).
+            values (automatic ones with the same figures to five digits replace those), without a held-out
+            figure worse).
     """
 
     settings: ThresholdSettings
