@@ -19,6 +19,7 @@ Methods (positions; the peers from the demos' 50 ms smoothed positions over norm
   default   the studio's default (nothing touched)
 Measures: DTW ratio (G/R), Fréchet ratio (F/B1), held-out DTW ratio (learned without one demo, measured on it;
 every demo left out with 3 demos, 3 of 7), start/end error. Per set, "wins" of the default over each peer.
+Where the default's F/B1 is above 1, the least F/B1 any path that starts and ends on the demos' mean can have.
 Multi-modal: routes found; each method measured against the demos of the route its path is nearest to, and
 whether it follows one route (not between them).
 
