@@ -11,12 +11,13 @@ is cached). Medians; ratios against "without" from the same run.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import statistics
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -44,14 +45,25 @@ def _sets() -> dict[str, list[Demo]]:
     }
 
 
-def _largest_move(demos: list[Demo]) -> float:
-    """The most the guard moves the learned path at one instant, m."""
+@contextlib.contextmanager
+def _share(decide: Callable[..., float]) -> Iterator[Callable[..., float]]:
+    """The guard's decision replaced by ``decide`` (:func:`_off`: never moved) inside the block; yields the studio's."""
     plain = P._plain_mean_share
+    P._plain_mean_share = decide
     try:
-        P._plain_mean_share = lambda *a: 0.0
-        without = P.learn_skill(demos).trajectory.position
+        yield plain
     finally:
         P._plain_mean_share = plain
+
+
+def _off(*a: Any) -> float:
+    return 0.0
+
+
+def _largest_move(demos: list[Demo]) -> float:
+    """The most the guard moves the learned path at one instant, m."""
+    with _share(_off):
+        without = P.learn_skill(demos).trajectory.position
     return float(np.max(np.linalg.norm(P.learn_skill(demos).trajectory.position - without, axis=1)))
 
 
@@ -72,18 +84,14 @@ def _suggest_cpu(repeat: int) -> dict[str, float]:
     from studio.core import autotune
 
     demos = _long_demos()
-    plain = P._plain_mean_share
     cpu: dict[str, list[float]] = {"without": [], "with": []}
-    try:
-        for rep in range(repeat):
-            for label, share in (("without", lambda *a: 0.0), ("with", plain)):
-                P._plain_mean_share = share
+    for rep in range(repeat):
+        for label, decide in (("without", _off), ("with", P._plain_mean_share)):
+            with _share(decide):
                 ds = _renamed(demos, f"{label}-{rep}")
                 c0 = time.process_time()
                 autotune.suggest(ds, budget_s=math.inf)
                 cpu[label].append(time.process_time() - c0)
-    finally:
-        P._plain_mean_share = plain
     return {k: statistics.median(v) for k, v in cpu.items()}
 
 
@@ -127,14 +135,11 @@ def _measure(demos: list[Demo], repeat: int) -> list[tuple[str, dict[str, float]
         P.preview_path(demos, params)
 
     figures: dict[str, dict[str, float]] = {"Train (learn_skill), cold": {}, "slider move (preview_path)": {}}
-    try:
-        for label, share in (("without", lambda *a: 0.0), ("with", spy)):
-            P._plain_mean_share = share
+    for label, decide in (("without", _off), ("with", spy)):
+        with _share(decide):
             figures["Train (learn_skill), cold"][label] = _median_s(train, repeat, P._GUARD_SHARES.clear)
             move()  # the first move fills the guard's memory; the next ones find it
             figures["slider move (preview_path)"][label] = _median_s(move, repeat, lambda: None)
-    finally:
-        P._plain_mean_share = plain
     return [(what, f, taken) for what, f in figures.items()]
 
 

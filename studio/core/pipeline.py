@@ -384,23 +384,22 @@ def _trajectory(
         else:
             share = _plain_mean_share(demos, t, pose, pins)
         if share:
-            along = _plain_mean_along(demos, tf, pf[:, :3])
+            along = _plain_mean_along(quality.time_normalised_mean(demos), tf, pf[:, :3])
             if tf is not t:
                 along = np.column_stack([np.interp(t, tf, along[:, k]) for k in range(3)])
             pos = pin_poses(t, (1.0 - share) * pose[:, :3] + share * along, ori, pins)[0]
     return Demo(traj.t, pos, ori, traj.gripper, name="learned skill")
 
 
-def _plain_mean_along(demos: list[Demo], t: np.ndarray, position: np.ndarray) -> np.ndarray:
-    """(len(t), 3) the plain mean (:func:`quality.time_normalised_mean`) walked on the path's own time line: at
-    each instant, the plain mean's point DTW matches to ``position`` (len(t), 3) there (its shape, this timing)."""
+def _plain_mean_along(b1: np.ndarray, t: np.ndarray, position: np.ndarray) -> np.ndarray:
+    """(len(t), 3) the plain mean ``b1`` (:func:`quality.time_normalised_mean`) walked on the path's own time line:
+    at each instant, the plain mean's point DTW matches to ``position`` (len(t), 3) there (its shape, this timing)."""
     from dtaidistance import dtw as dtai
 
-    b1 = quality.time_normalised_mean(demos)
     m = _ALONG_POINTS
     tm = np.linspace(float(t[0]), float(t[-1]), m)
     a = np.column_stack([np.interp(tm, t, position[:, k]) for k in range(3)])
-    grid = np.linspace(0.0, b1.shape[0] - 1.0, _ALONG_POINTS)
+    grid = np.linspace(0.0, b1.shape[0] - 1.0, m)
     b = np.column_stack([np.interp(grid, np.arange(b1.shape[0]), b1[:, k]) for k in range(3)])
     path = np.asarray(dtai.warping_path_fast(np.ascontiguousarray(a), np.ascontiguousarray(b)), dtype=np.int64)
     at = np.bincount(path[:, 0], weights=grid[path[:, 1]], minlength=m) / np.bincount(path[:, 0], minlength=m)
@@ -427,10 +426,11 @@ def _plain_mean_share(
         return quality.frechet_many(a, np.tile(curves, (len(paths), 1, 1))).reshape(len(paths), D).mean(axis=1)
 
     def bent(share: float) -> np.ndarray:
-        return pin_poses(t, (1.0 - share) * pose[:, :3] + share * b1, pose[:, 3:], pins)[0]
+        return pin_poses(t, (1.0 - share) * pose[:, :3] + share * along, pose[:, 3:], pins)[0]
 
-    b1 = _plain_mean_along(demos, t, pose[:, :3])
-    b1_far, own = far([quality.time_normalised_mean(demos), bent(0.0)])
+    b1 = quality.time_normalised_mean(demos)
+    along = _plain_mean_along(b1, t, pose[:, :3])
+    b1_far, own = far([b1, bent(0.0)])
     share = 0.0
     if own > b1_far:
         fars = far([bent(x) for x in PLAIN_MEAN_SHARES])
