@@ -189,7 +189,7 @@ class Case:
         if self.kind == "task":
             both = f" both arms, {self.side}" if self.arm == "both" else ""
             return f"{self.what}{both} ×{self.n}"
-        size = f"{(self.size or 0) * 100:.0f} cm"
+        size = f"{(self.size or 0) * 100:.3g} cm"
         head = self.what if self.kind == "shape" else f"{self.what} routes"
         return f"{head} {size} {self.style} {self.dur:g} s ×{self.n}"
 
@@ -484,7 +484,7 @@ def report(rows: list[dict], suggest: bool) -> None:
         for n in sorted({r["case"]["n"] for r in shapes}):
             sub = [r for r in shapes if r["case"]["size"] == size and r["case"]["n"] == n]
             if sub:
-                summary(sub, methods, f"human-like shapes, {size * 100:.0f} cm, {n} demos")
+                summary(sub, methods, f"human-like shapes, {size * 100:.3g} cm, {n} demos")
     if shapes:
         summary(shapes, methods, "human-like shapes, all")
         for style, dur in sorted({(r["case"]["style"], r["case"]["dur"]) for r in shapes}):
