@@ -12,6 +12,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.interpolate import CubicSpline
 
 from studio.core.errors import IkFailed, InvalidInput, NotEnoughData
 from studio.core.ik_path import (
@@ -25,6 +26,7 @@ from studio.core.ik_path import (
     solve_path,
 )
 from studio.core.kinematics import Baxter, matrix_from_quat_wxyz
+from studio.core.rotations import make_sign_continuous
 from studio.core.timing import _trapezoid, _trapezoid_progress, retime
 from studio.core.types import ALL_ARM_JOINTS, ARMS, Arm, Demo, JointTrajectory, Recording, check_arm, readonly
 
@@ -44,18 +46,16 @@ AT_START_PERCENT = 1e-6
 
 
 def _pose_at(trajectory: Demo, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Positions (M, 3) and rotation matrices (M, 3, 3) of ``trajectory`` at times ``s`` (linear / nlerp)."""
+    """Positions (M, 3) and rotation matrices (M, 3, 3) of ``trajectory`` at times ``s``: cubic splines through
+    its samples (positions and quaternion components, normalised), held at its ends. Decision 084."""
     t = trajectory.t
     n = t.shape[0]
     if n == 1:
         P = np.repeat(trajectory.position, s.shape[0], axis=0)
         return P, np.repeat(matrix_from_quat_wxyz(trajectory.orientation), s.shape[0], axis=0)
-    k = np.clip(np.searchsorted(t, s, side="right") - 1, 0, n - 2)
-    w = np.clip((s - t[k]) / (t[k + 1] - t[k]), 0.0, 1.0)[:, None]
-    P = trajectory.position[k] * (1 - w) + trajectory.position[k + 1] * w
-    qa, qb = trajectory.orientation[k], trajectory.orientation[k + 1]
-    qb = qb * np.where(np.einsum("ij,ij->i", qa, qb) < 0, -1.0, 1.0)[:, None]
-    q = qa * (1 - w) + qb * w
+    s = np.clip(s, t[0], t[-1])
+    P = CubicSpline(t, trajectory.position, axis=0)(s)
+    q = CubicSpline(t, make_sign_continuous(trajectory.orientation), axis=0)(s)
     return P, matrix_from_quat_wxyz(q / np.linalg.norm(q, axis=1, keepdims=True))
 
 

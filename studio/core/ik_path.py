@@ -788,21 +788,21 @@ def feasibility(
 
 def _feasibility_message(arm: Arm, spans: list[UnreachableSpan]) -> str:
     first = spans[0]
-    when = (
-        f"{_fmt_s(first.t_start)} s"
-        if first.t_end - first.t_start < 0.05
-        else f"{_fmt_s(first.t_start)}–{_fmt_s(first.t_end)} s"
-    )
+    moment = first.t_end - first.t_start < 0.05  # one instant, not a stretch: "at 13.6 s", not "during"
+    at = f"{_fmt_s(first.t_start)} s into the skill"
+    during = f"during {_fmt_s(first.t_start)}–{_fmt_s(first.t_end)} s of the skill"
     gripper = f"The {arm} gripper"
     if first.reason == "posture":
         msg = (
-            f"The {arm} arm has to change its posture during {when} of the skill: it can reach each of those "
-            "poses, but not in one continuous motion, so the gripper leaves the taught path there"
+            f"The {arm} arm has to change its posture {f'at {at}' if moment else during}: it can reach each of "
+            f"{'the poses there' if moment else 'those poses'}, but not in one continuous motion, so the gripper "
+            "leaves the taught path there"
         )
         advice = "Teach that part with the arm held the same way throughout."
     elif first.reason == "reach":
+        where = f"the pose at {at}" if moment else f"{_fmt_s(first.t_start)}–{_fmt_s(first.t_end)} s of the skill"
         msg = (
-            f"{gripper} cannot reach {when} of the skill: it would need to be "
+            f"{gripper} cannot reach {where}: it would need to be "
             f"{_distance_words(first.position_error)} farther than the arm reaches"
         )
         if first.orientation_error > ACCEPT_ORIENTATION_RAD:
@@ -810,7 +810,7 @@ def _feasibility_message(arm: Arm, spans: list[UnreachableSpan]) -> str:
         advice = "Teach that part closer to the robot, or with the gripper in a direction the arm can hold."
     else:
         msg = (
-            f"{gripper} cannot turn as taught during {when} of the skill: it would need to turn "
+            f"{gripper} cannot turn as taught {f'at {at}' if moment else during}: it would need to turn "
             f"{math.degrees(first.orientation_error):.0f}° further than the wrist allows"
         )
         advice = "Teach that part with the gripper in a direction the arm can hold."

@@ -167,6 +167,24 @@ def test_feasibility_message_for_an_orientation_the_wrist_cannot_hold() -> None:
     assert feasibility(t, pe, np.zeros(501), "left").message == "The left arm can follow the whole skill."
 
 
+def test_an_instant_is_named_as_a_moment_not_a_duration() -> None:
+    """One bad sample at 13.6 s of a 21.3 s skill reads "at 13.6 s into the skill": "during 13.6 s of the skill"
+    (as CI printed it) reads as if most of the skill were affected."""
+    t = np.linspace(0, 21.3, 2131)
+    pe = np.where(np.isclose(t, 13.6), 0.05, 0.0)
+    f = feasibility(t, pe, np.zeros_like(t), "left", reachable=lambda i: True)
+    assert f.spans[0].reason == "posture"
+    assert f.message.startswith(
+        "The left arm has to change its posture at 13.6 s into the skill: it can reach each of the poses there"
+    ), f.message
+    f = feasibility(t, pe, np.zeros_like(t), "left")
+    assert f.message.startswith(
+        "The left gripper cannot reach the pose at 13.6 s into the skill: it would need to be 5 cm"
+    ), f.message
+    f = feasibility(t, np.zeros_like(t), np.where(np.isclose(t, 13.6), 0.5, 0.0), "right")
+    assert f.message.startswith("The right gripper cannot turn as taught at 13.6 s into the skill"), f.message
+
+
 def test_feasibility_merges_close_spans_and_counts_the_others() -> None:
     t = np.linspace(0, 10, 1001)
     pe = np.zeros(1001)
@@ -238,6 +256,22 @@ def test_a_path_the_wrist_cannot_follow_in_one_posture_is_reported_as_a_posture_
     assert f.message.startswith("The left arm has to change its posture during ")
     assert "it can reach each of those poses" in f.message
     assert _limits_ok(baxter, jt.q, jt.t)
+
+
+def test_a_sharp_stop_between_samples_is_followed_not_called_a_posture_change(baxter: Baxter) -> None:
+    """A path sampled at 100 Hz that stops sharply (as "Go above" does in a demonstration: 3 m/s to rest in a few
+    samples) is followed within 0.1 mm. Judged against straight lines between its samples, the robot's smooth
+    motion was 1.2 mm off there and the skill was refused as "a change of posture" (CI, 2026-11-28)."""
+    q0 = baxter.neutral("left")
+    p0, o0 = baxter.fk("left", q0)
+    t = np.arange(201) / 100.0
+    position = np.tile(p0, (t.shape[0], 1))
+    position[:, 1] -= 0.15 / (1 + np.exp(-(t - 1.0) / 0.012))
+    tr = Demo(t, position, np.tile(o0, (t.shape[0], 1)), np.full(t.shape[0], 100.0), name="snap")
+    jt = joint_trajectory(tr, "left", q0, baxter)
+    assert jt.position_error.max() < 2e-4 and jt.orientation_error.max() < 1e-3
+    f = skill_feasibility(jt, tr, baxter)
+    assert f.ok, f.message
 
 
 @pytest.mark.parametrize("seed", [5, 11])

@@ -111,6 +111,25 @@ class Teacher:
     def settle(self) -> None:
         ui.wait_arm_settled(self.page)
 
+    def send(self, action: Callable[[], None]) -> None:
+        """Send the arm somewhere (a key or a button), then wait as a person does: until the Move panel shows the
+        new goal (the studio took the order; on a busy machine that can take longer than the arm's quiet
+        spell), then until the arm is still there."""
+        before = self.goal()
+        action()
+        self.page.wait_for_function(
+            """before => {
+                const el = document.querySelector('.gripper-goal');
+                if (!el) return false;
+                const v = ['x', 'y', 'z'].map(k => parseFloat(el.dataset[k]) / 100);
+                return Math.hypot(v[0] - before[0], v[1] - before[1], v[2] - before[2]) > 0.01;
+            }""",
+            arg=[float(v) for v in before],
+            polling=100,
+            timeout=30_000,
+        )
+        self.settle()
+
     def press_and_follow(self, code: str, axis: int, sign: int) -> None:
         """Press a key once and wait until the gripper's goal moved that way (a person watches the arm)."""
         before = self.goal()[axis]
@@ -212,8 +231,7 @@ def _wait_view_still(page: Page) -> None:
 
 def grasp_the_cup(t: Teacher) -> None:
     """Go above the handed-over cup, down with the keys, close the gripper (C) until it holds the cup."""
-    t.in_row("Go above the", "cup")
-    t.settle()
+    t.send(lambda: t.in_row("Go above the", "cup"))
     for _ in range(DOWN_PRESSES):
         t.press_and_follow("KeyQ", 2, -1)
     t.settle()
@@ -223,8 +241,7 @@ def grasp_the_cup(t: Teacher) -> None:
 
 def put_into_the_bottom_cup(t: Teacher) -> None:
     """Carry the cup above the bottom cup and open the gripper (O)."""
-    t.in_row("Go above the", "bottom cup")
-    t.settle()
+    t.send(lambda: t.in_row("Go above the", "bottom cup"))
     t.key("KeyO")
     ui.wait_status(t.page, "s.open > 99")
 
@@ -235,8 +252,7 @@ def demonstrate(t: Teacher) -> None:
     ui.wait_text(t.page, "Recording")
     grasp_the_cup(t)
     put_into_the_bottom_cup(t)
-    t.key("KeyH")
-    t.settle()
+    t.send(lambda: t.key("KeyH"))
     t.button("Stop")
     ui.wait_text(t.page, "Not recording")
 
@@ -276,13 +292,11 @@ def out_of_reach_and_back(t: Teacher) -> dict[str, object]:
 
 def finish_excursion(t: Teacher) -> None:
     """After the handle came back: above the bottom cup (a place the example reaches), open, home (H)."""
-    t.in_row("Go above the", "bottom cup")
-    t.settle()
+    t.send(lambda: t.in_row("Go above the", "bottom cup"))
     ui.wait_status(t.page, "Math.abs(s.x - 0.78) < 0.01 && Math.abs(s.y - 0.14) < 0.01")
     t.key("KeyO")
     ui.wait_status(t.page, "s.open > 99")
-    t.key("KeyH")
-    t.settle()
+    t.send(lambda: t.key("KeyH"))
 
 
 def teach_train_preview(t: Teacher) -> str:

@@ -59,8 +59,9 @@ def test_two_tabs_see_the_same_robot_and_session(browser, studio_factory, shots,
     expect(b.get_by_role("button", name="Record")).to_be_disabled()
     shots(b, "tab B while tab A records")
     ui.open_folder(a, "Joints")
+    before = ui.arm_status(a)
     ui.set_number(a, "Left elbow bend (e1) °", 60)
-    ui.wait_arm_settled(a)
+    ui.wait_arm_settled(a, moved_from=before)
     ui.click_in_row(a, "Left gripper", "Open")
     ui.wait_status(b, "s.open > 99")
     b.get_by_role("button", name="Stop", exact=True).click()  # either tab can stop it

@@ -93,22 +93,25 @@ def teach_one_demo(page: Page, variant: int) -> None:
     page.get_by_role("button", name="Record").click()
     ui.wait_text(page, "Recording")
     dv = 4.0 * variant
-    # Each step waits until the arm (or gripper) arrived and held still, as a teacher does.
+    # Each step waits until the arm (or gripper) moved, arrived and held still, as a teacher does.
+    before = ui.arm_status(page)
     for label, value in (
         ("Left shoulder lift (s1) °", -40 + dv),
         ("Left elbow bend (e1) °", 100 - dv),
     ):
         ui.set_number(page, label, value)
-    ui.wait_arm_settled(page)
+    ui.wait_arm_settled(page, moved_from=before)
     ui.click_in_row(page, "Left gripper", "Close")
     ui.wait_status(page, "s.open < 1")
+    before = ui.arm_status(page)
     ui.set_number(page, "Left shoulder turn (s0) °", 30 + dv)
-    ui.wait_arm_settled(page)
+    ui.wait_arm_settled(page, moved_from=before)
     ui.click_in_row(page, "Left gripper", "Open")
     ui.wait_status(page, "s.open > 99")
+    before = ui.arm_status(page)
     ui.set_number(page, "Left shoulder turn (s0) °", 0 - dv)
     ui.set_number(page, "Left shoulder lift (s1) °", -55)
-    ui.wait_arm_settled(page)
+    ui.wait_arm_settled(page, moved_from=before)
     page.get_by_role("button", name="Stop", exact=True).click()
     ui.wait_text(page, "Not recording")
 

@@ -143,23 +143,41 @@ def wait_number(page: Page, label: str, value: float, timeout: float = 30.0) -> 
     expect(box).to_have_value(re.compile(rf"^{re.escape(str(value))}0*$"), timeout=timeout * 1000)
 
 
-_SETTLED_JS = """([arm, quietMs]) => {
+_SETTLED_JS = """([arm, quietMs, movedFrom]) => {
     const el = document.querySelector(`.gripper-status[data-arm="${arm}"]`);
     if (!el) return false;
     const v = ["x", "y", "z", "open"].map(k => el.dataset[k]).join(",");
     const now = performance.now();
     const key = "__settled_" + arm;
     const st = window[key];
+    if (movedFrom !== null && !st && v === movedFrom) return false;
     if (!st || st.v !== v) { window[key] = {v, since: now}; return false; }
     return now - st.since >= quietMs;
 }"""
 
 
-def wait_arm_settled(page: Page, arm: str = "left", quiet_s: float = 0.6, timeout: float = 40.0) -> None:
+def arm_status(page: Page, arm: str = "left") -> str:
+    """The robot's status for ``arm`` (gripper x, y, z and opening) as one string, to wait for it to change."""
+    return str(
+        page.evaluate(
+            """arm => {
+                const el = document.querySelector(`.gripper-status[data-arm="${arm}"]`);
+                return el ? ["x", "y", "z", "open"].map(k => el.dataset[k]).join(",") : "";
+            }""",
+            arm,
+        )
+    )
+
+
+def wait_arm_settled(
+    page: Page, arm: str = "left", quiet_s: float = 0.6, timeout: float = 40.0, moved_from: str | None = None
+) -> None:
     """Wait until the robot's status (gripper position and opening) has not changed for ``quiet_s`` seconds:
-    the arm arrived where it was sent, as a teacher waits before the next step."""
+    the arm arrived where it was sent, as a teacher waits before the next step. With ``moved_from`` (an
+    :func:`arm_status` taken before sending the arm), first wait until the status left it: on a busy machine
+    the order can reach the robot later than the quiet spell."""
     page.evaluate("arm => { delete window['__settled_' + arm]; }", arm)
-    page.wait_for_function(_SETTLED_JS, arg=[arm, quiet_s * 1000], polling=100, timeout=timeout * 1000)
+    page.wait_for_function(_SETTLED_JS, arg=[arm, quiet_s * 1000, moved_from], polling=100, timeout=timeout * 1000)
 
 
 _STATUS_JS = """([arm, expr]) => {
