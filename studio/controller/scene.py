@@ -76,6 +76,7 @@ class SceneActions:
         self._unsubscribe = backend.subscribe(self.live.on_batch)
         self._take: tuple[int, float] | None = None  # (event mark, stream time at the start of the take)
         self._played: tuple[Playback, World, int] | None = None  # (playback, its world, samples fed)
+        self._shown: tuple[tuple[int, ...], tuple[ObjectPose, ...]] | None = None  # shown()'s last answer
         self._result: TaskResult | None = None
         self._result_key: object = None
         ctx.events.on(Topic.SESSION, self._on_session)
@@ -180,11 +181,15 @@ class SceneActions:
         """(key, object poses) to draw now: the live world's, or the replay's or preview's at the moment shown.
         The key changes whenever the poses may have (draw again only then)."""
         pb = self.player.loaded
-        if pb is None or self.display.is_live:
-            return (id(self.live), self.live.version, len(self.scene.objects)), self.live.poses()
         with self._lock:
-            world = self._played_world(pb)
-            return (id(world), world.version), world.poses()
+            if pb is None or self.display.is_live:
+                world, key = self.live, (id(self.live), self.live.version, len(self.scene.objects))
+            else:
+                world = self._played_world(pb)
+                key = (id(world), world.version)
+            if self._shown is None or self._shown[0] != key:  # the panels ask at every pose-pump tick
+                self._shown = (key, world.poses())
+            return self._shown
 
     def _played_world(self, pb: Playback) -> World:
         rec = pb.recording

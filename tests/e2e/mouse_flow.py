@@ -113,8 +113,8 @@ class Teacher:
 
     def send(self, action: Callable[[], None]) -> None:
         """Send the arm somewhere (a key or a button), then wait as a person does: until the Move panel shows the
-        new goal (the studio took the order; on a busy machine that can take longer than the arm's quiet
-        spell), then until the arm is still there."""
+        new goal (the studio took the order), until the gripper is there and still. On a busy machine the order
+        and the arm's status can both come later than the arm's quiet spell."""
         before = self.goal()
         action()
         self.page.wait_for_function(
@@ -128,6 +128,8 @@ class Teacher:
             polling=100,
             timeout=30_000,
         )
+        x, y, z = self.goal()
+        ui.wait_status(self.page, f"Math.hypot(s.x - {x:.4f}, s.y - {y:.4f}, s.z - {z:.4f}) < 0.005", timeout=40)
         self.settle()
 
     def press_and_follow(self, code: str, axis: int, sign: int) -> None:
