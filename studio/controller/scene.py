@@ -181,6 +181,7 @@ class SceneActions:
         """(key, object poses) to draw now: the live world's, or the replay's or preview's at the moment shown.
         The key changes whenever the poses may have (draw again only then)."""
         pb = self.player.loaded
+        key: tuple[int, ...]
         with self._lock:
             if pb is None or self.display.is_live:
                 world, key = self.live, (id(self.live), self.live.version, len(self.scene.objects))
