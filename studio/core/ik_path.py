@@ -790,7 +790,8 @@ def _feasibility_message(arm: Arm, spans: list[UnreachableSpan]) -> str:
     first = spans[0]
     moment = first.t_end - first.t_start < 0.05  # one instant, not a stretch: "at 13.6 s", not "during"
     at = f"{_fmt_s(first.t_start)} s into the skill"
-    during = f"during {_fmt_s(first.t_start)}–{_fmt_s(first.t_end)} s of the skill"
+    stretch = f"{_fmt_s(first.t_start)}–{_fmt_s(first.t_end)} s of the skill"
+    during = f"during {stretch}"
     gripper = f"The {arm} gripper"
     if first.reason == "posture":
         msg = (
@@ -800,7 +801,7 @@ def _feasibility_message(arm: Arm, spans: list[UnreachableSpan]) -> str:
         )
         advice = "Teach that part with the arm held the same way throughout."
     elif first.reason == "reach":
-        where = f"the pose at {at}" if moment else f"{_fmt_s(first.t_start)}–{_fmt_s(first.t_end)} s of the skill"
+        where = f"the pose at {at}" if moment else stretch
         msg = (
             f"{gripper} cannot reach {where}: it would need to be "
             f"{_distance_words(first.position_error)} farther than the arm reaches"
