@@ -51,7 +51,13 @@ def robot_urdf_path(meshes: str = "auto") -> Path:
     if meshes not in ("auto", "light", "full"):
         raise StudioError(f'Unknown mesh choice "{meshes}": use auto, light or full.')
     if meshes == "full":
-        return baxter_urdf_path()
+        try:
+            return baxter_urdf_path()
+        except FileNotFoundError:
+            raise StudioError(
+                "The original robot meshes come with the example-robot-data package, which the first start does "
+                "not install. Install it (.venv/bin/pip install example-robot-data), or use the light meshes."
+            ) from None
     if LIGHT_URDF.is_file():
         return LIGHT_URDF
     if meshes == "light":
@@ -296,6 +302,13 @@ def robot_backend(address: str | None) -> RobotBackend | None:
     """
     if not address:
         return None
+    import importlib.util
+
+    if importlib.util.find_spec("roslibpy") is None:
+        raise StudioError(
+            "Driving a real Baxter needs the roslibpy package, which the first start does not install. Start the "
+            "studio with: bash scripts/run-studio.sh --robot " + address + " (it installs it first)."
+        )
     from studio.robot_backend.rosbridge import RosbridgeBaxter
 
     return RosbridgeBaxter(address)

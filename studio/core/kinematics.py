@@ -1,4 +1,4 @@
-"""Baxter kinematics: the model from example-robot-data's URDF (pinocchio), FK, IK and the paper's DH table.
+"""Baxter kinematics: the model from Baxter's URDF (pinocchio), FK, IK and the paper's DH table.
 
 The end-effector frame is ``<arm>_gripper``: the point between the fingertips, 0.1577 m past the hand.
 It is the frame the Baxter SDK reports as the endpoint pose and the one its IK service (which the paper
@@ -83,6 +83,16 @@ def package_share_dir() -> Path:
 
 def baxter_urdf_path() -> Path:
     return baxter_description_dir() / "urdf" / "baxter.urdf"
+
+
+#: The light Baxter the studio draws (scripts/decimate_meshes.py): example-robot-data's links and joints.
+LIGHT_URDF = Path(__file__).resolve().parents[2] / "urdf" / "baxter_light.urdf"
+
+
+def model_urdf_path() -> Path:
+    """The URDF the kinematic model is built from: the light one in the repository (the same joints and links as
+    example-robot-data's, checked by tests/core/test_kinematics.py), else example-robot-data's."""
+    return LIGHT_URDF if LIGHT_URDF.is_file() else baxter_urdf_path()
 
 
 @dataclass(frozen=True)
@@ -262,8 +272,8 @@ class Baxter:
     @classmethod
     @functools.cache
     def load(cls) -> Baxter:
-        """The process-wide Baxter model built from example-robot-data's URDF."""
-        return cls(baxter_urdf_path())
+        """The process-wide Baxter model (:func:`model_urdf_path`)."""
+        return cls(model_urdf_path())
 
     # -- limits -------------------------------------------------------------------------------------------
     def lower_limits(self, arm: Arm) -> np.ndarray:
@@ -506,6 +516,7 @@ __all__ = [
     "IkResult",
     "baxter_description_dir",
     "baxter_urdf_path",
+    "model_urdf_path",
     "dh_fk",
     "make_sign_continuous",
     "matrix_from_quat_wxyz",
