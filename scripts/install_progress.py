@@ -7,6 +7,7 @@ Standard library only (it runs before anything is installed)."""
 from __future__ import annotations
 
 import argparse
+import os
 import re
 import sys
 import threading
@@ -37,9 +38,13 @@ class Progress:
             m = FETCHED.match(line)
             if m and not line.lstrip().startswith("Processing ./"):
                 self.fetched += 1
-                name = m.group(2).rsplit("/", 1)[-1].split("-")[0]
+                path = m.group(2)
+                name = path.rsplit("/", 1)[-1].split("-")[0]
                 size = SIZE.search(m.group(3))
-                self.last = f"{name}, {size.group(1)}" if size else name
+                if size:
+                    self.last = f"{name}, {size.group(1)}"
+                else:
+                    self.last = f"{name}, {os.path.getsize(path) / 1e6:.1f} MB" if os.path.isfile(path) else name
             elif line.startswith("Installing collected packages"):
                 self.installing = True
             elif line.startswith("ERROR:") or line.lstrip().startswith("error:"):
@@ -90,8 +95,9 @@ def main() -> int:
         sys.stdout.write("\n")
     if progress.errors:
         print("pip said:", *progress.tail, sep="\n    ", file=sys.stderr)
-    print(f"    {time.monotonic() - t0:4.0f} s: done" if not progress.errors else "", flush=True)
-    return 1 if progress.errors else 0
+        return 1
+    print(f"    {time.monotonic() - t0:4.0f} s: done", flush=True)
+    return 0
 
 
 if __name__ == "__main__":
