@@ -20,7 +20,7 @@ if [ ! -f "$STAMP" ]; then
   count="$(grep -c '^[a-zA-Z]' "$LOCK")"
   echo "==> installing the studio and the $count packages it needs (first time only: about $ABOUT s)"
   set +e
-  "$VPY" -m pip install --no-deps --progress-bar off -r "$LOCK" -e "$ROOT" 2>&1 \
+  "$VPY" -m pip install --no-deps --no-compile --progress-bar off -r "$LOCK" -e "$ROOT" 2>&1 \
     | "$VPY" "$ROOT/scripts/install_progress.py" --packages "$((count + 1))" --about "$ABOUT"
   status=("${PIPESTATUS[@]}")
   set -e

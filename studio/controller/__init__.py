@@ -72,7 +72,12 @@ class Controller:
         self.undo = Undo(ctx)  # a discarded take or a deleted demonstration, for a while
         self.demos = Demos(ctx, keep=self.undo.keep)
         self.placed = PlacedSkills(ctx)  # the skills where the objects are now: what preview and runs play
-        self.playback = Player(ctx, guard=lambda: self.execution.check_not_running(), skills=self.placed.get)
+        self.playback = Player(
+            ctx,
+            guard=lambda: self.execution.check_not_running(),
+            skills=self.placed.get,
+            step=lambda: self.view.step.value,
+        )
         self.scene = SceneActions(ctx, backend, player=self.playback)
         self.teaching = Teaching(
             ctx,

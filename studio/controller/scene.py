@@ -114,6 +114,14 @@ class SceneActions:
             raise StudioError(f'Unknown scene "{name}": choose {", ".join(PRESETS)}.')
         self._set(preset(name, self.ctx.arms))
 
+    def put_back_layout(self) -> None:
+        """Every object back to the task's layout (the preset the set-up started from, for the taught arms): the
+        teacher's moves, additions and removals are undone."""
+        name = self.scene.preset
+        if name not in PRESETS or name == PRESETS[0]:
+            raise StudioError('This table has no task layout to go back to: choose one in "Task set-up".')
+        self.use_preset(name)
+
     def put_back(self) -> None:
         """Put every object back where the scene sets it up (what a gripper holds is let go)."""
         if self.taking:
