@@ -253,17 +253,119 @@ def test_an_object_is_moved_with_its_handle(app: Studio, page: ViserClient) -> N
     assert not handle()["visible"]  # no object chosen: no handle
     page.set_value("Object", "block")
     block = ctl.scene.scene.object("block")
+    assert abs(block.yaw) > 0.1  # the example's block stands turned …
     top = np.add(block.position, (0, 0, block.size[2]))
+    # … and its handle is in the room's axes all the same: x and y arrows, no ring, no z arrow
     assert page.wait_for(lambda _m: handle()["visible"] and np.allclose(handle()["position"] or (0, 0, 0), top))
-    # Dragged: the object follows the handle; let go: it settles on what is below and is saved.
+    assert np.allclose(handle()["wxyz"] or (1, 0, 0, 0), (1, 0, 0, 0))
+    props = handle()["props"]
+    assert props["active_axes"] == [True, True, False] or tuple(props["active_axes"]) == (True, True, False)
+    assert not props["disable_axes"] and props["disable_rotations"] and props["disable_sliders"]
+    # Dragged: the object follows the handle in x and y at its height (a tab may send any z); let go: saved.
     page.drag("/objects_handle", (0.6, -0.25, 0.2), end=False)
-    assert page.wait_for(lambda _m: np.allclose(objects(page)["block"]["position"], (0.6, -0.25, 0.15)))
+    z = block.position[2]
+    assert page.wait_for(lambda _m: np.allclose(objects(page)["block"]["position"], (0.6, -0.25, z)))
     page.drag("/objects_handle", (0.6, -0.25, 0.2))
     assert wait_for(lambda: ctl.scene.scene.object("block").position == pytest.approx((0.6, -0.25, -0.07)))
-    # back on the settled block's top
+    assert ctl.scene.scene.object("block").yaw == pytest.approx(block.yaw)  # a move never turns it
+    # back on the block's top, in the room's axes
     assert page.wait_for(lambda _m: np.allclose(handle()["position"], (0.6, -0.25, -0.02)))
     ctl.view.set_step(Step.PREVIEW)
     assert page.wait_for(lambda _m: not handle()["visible"])  # a Teach thing
+
+
+def test_an_object_turns_only_behind_the_toggle(app: Studio, page: ViserClient) -> None:
+    ctl = app.controller
+    handle = lambda: page.scene()["/objects_handle"]  # noqa: E731
+    page.set_value("Object", "block")
+    block = ctl.scene.scene.object("block")
+    page.set_value("Turn with the handle", True)
+    assert wait_for(lambda: ctl.guide.turning)
+    assert page.wait_for(lambda _m: handle()["props"]["disable_axes"] and not handle()["props"]["disable_rotations"])
+    turn = 0.4  # rad about z: the handle shows the ring only, and its turn is added to the block's heading
+    wxyz = (float(np.cos(turn / 2)), 0.0, 0.0, float(np.sin(turn / 2)))
+    page.drag("/objects_handle", tuple(float(v) for v in handle()["position"]), wxyz)
+    assert wait_for(lambda: ctl.scene.scene.object("block").yaw == pytest.approx(block.yaw + turn, abs=1e-6))
+    assert ctl.scene.scene.object("block").position[:2] == pytest.approx(block.position[:2])
+    assert page.wait_for(lambda _m: np.allclose(handle()["wxyz"], (1, 0, 0, 0)))  # back in the room's axes
+    # the Move panel's toggle is the same one: the gripper's handle turns too
+    assert app.panels.move.turn.value is True
+    page.set_value("Turn with the handle", False)
+    assert wait_for(lambda: not ctl.guide.turning and app.panels.move.turn.value is False)
+
+
+def test_an_object_is_put_where_its_boxes_say(app: Studio, page: ViserClient) -> None:
+    ctl = app.controller
+    page.set_value("Object", "block")
+    block = ctl.scene.scene.object("block")
+    boxes = app.panels.scene.boxes
+    assert wait_for(lambda: boxes["x"].visible and boxes["x"].value == pytest.approx(100 * block.position[0], abs=0.05))
+    page.set_value("Object y (cm)", -20.0)
+    assert wait_for(lambda: ctl.scene.scene.object("block").position[1] == pytest.approx(-0.2))
+    assert ctl.scene.scene.object("block").position[0] == pytest.approx(block.position[0])
+    page.set_value("Object x (cm)", 70.0)
+    assert wait_for(lambda: ctl.scene.scene.object("block").position[:2] == pytest.approx((0.7, -0.2)))
+    assert page.wait_for(lambda _m: np.allclose(page.scene()["/objects_handle"]["position"][:2], (0.7, -0.2)))
+    page.set_value("Object", "(none)")
+    assert wait_for(lambda: not boxes["x"].visible and not boxes["y"].visible)
+
+
+def test_put_back_to_the_tasks_layout(app: Studio, page: ViserClient) -> None:
+    from studio.world import preset
+
+    ctl = app.controller
+    layout = preset("pick-place", ctl.ctx.arms)
+    ctl.scene.move("block", (0.6, -0.3, -0.07))
+    ctl.scene.add("cup")
+    # "Put all back" returns them to where they were last put: the teacher's set-up
+    page.set_value("Object action", "Put all back")
+    assert wait_for(lambda: any(p.name == "cup" for p in ctl.scene.live.poses()))
+    assert ctl.scene.scene.object("block").position[:2] == pytest.approx((0.6, -0.3))
+    # the task's layout: every object where the task starts, the added cup gone
+    page.set_value("Put back to the task's layout", True)
+    assert wait_for(lambda: ctl.scene.scene.names() == layout.names())
+    for o in layout.objects:
+        assert ctl.scene.scene.object(o.name).position == pytest.approx(o.position)
+    assert page.wait_for(lambda _m: np.allclose(objects(page)["block"]["position"], layout.object("block").position))
+    ctl.scene.use_preset("empty table")
+    page.set_value("Put back to the task's layout", True)
+    assert wait_for(lambda: any("no task layout" in body for _, _, body in notes(app)))
+
+
+def test_the_preview_stays_in_the_preview_step(app: Studio, page: ViserClient) -> None:
+    """Teach shows the live robot and the objects as placed; Preview shows where its playback was."""
+    ctl = app.controller
+    ctl.training.train().result()
+    ctl.view.set_step(Step.PREVIEW)
+    end = ctl.playback.preview_duration()
+    ctl.playback.seek_preview(end)  # the preview's pose and objects at its end: the block on the pad
+    assert wait_for(lambda: not ctl.display.is_live)
+    moved = {p.name: p.position for p in ctl.scene.shown()[1]}
+    assert moved["block"] != pytest.approx(ctl.scene.scene.object("block").position)
+    ctl.view.set_step(Step.TEACH)
+    assert wait_for(lambda: ctl.display.is_live and ctl.playback.label() == "Showing the robot live.")
+    placed = ctl.scene.scene.object("block").position
+    assert {p.name: p.position for p in ctl.scene.shown()[1]}["block"] == pytest.approx(placed)
+    assert page.wait_for(lambda _m: np.allclose(objects(page)["block"]["position"], placed))  # what the tab draws
+    ctl.view.set_step(Step.PREVIEW)  # back: the preview where it was, paused
+    assert wait_for(lambda: not ctl.display.is_live)
+    assert ctl.playback.label() == "Showing the learned skill (preview), paused."
+    assert {p.name: p.position for p in ctl.scene.shown()[1]}["block"] == pytest.approx(moved["block"])
+
+
+def test_playing_ends_when_the_playback_ends(app: Studio) -> None:
+    ctl = app.controller
+    ctl.training.train().result()
+    ctl.view.set_step(Step.PREVIEW)
+    ctl.playback.play_preview(speed=4.0)
+    assert ctl.playback.label() == "Showing the learned skill (preview), playing."
+    assert wait_for(lambda: ctl.playback.label() == "Showing the learned skill (preview), at its end.", timeout=60)
+    ctl.view.set_step(Step.TEACH)  # playing in Preview, then Teach: paused there, the live robot here
+    ctl.view.set_step(Step.PREVIEW)
+    ctl.playback.play_preview(speed=0.25)
+    ctl.view.set_step(Step.TEACH)
+    assert wait_for(lambda: ctl.display.is_live and ctl.playback.loaded is not None)
+    assert not ctl.playback.loaded.playing  # type: ignore[union-attr]
 
 
 @pytest.mark.parametrize(
