@@ -287,22 +287,38 @@ class GraspFacts(Protocol):
     def closer(self) -> float: ...
     @property
     def height(self) -> float: ...
+    @property
+    def toward(self) -> tuple[float, float]: ...
 
 
 def grasp_words(note: GraspFacts) -> str:
-    """What closing the gripper just did: "Holding the cup." or "Missed the cup by 3 cm — move 1 cm closer."."""
+    """What closing the gripper just did: "Holding the cup." or "Missed the cup by 3 cm — move 1 cm to the robot's
+    left, …", the way in the room's terms."""
     if note.held is not None:
         return f"Holding the {note.held}."
     if note.near is None:
         return "The gripper closed on nothing: there is no cup or block free to pick up."
     by = length_words(note.distance)
     if note.closer > 0.0:
-        fix = f"move {length_words(max(note.closer, 0.01))} closer"
+        fix = f"move {_sideways(note.toward)}"
         if note.height:
             fix += f" and {_height_fix(note.height)}"
         return f"Missed the {note.near} by {by} — {fix}, open the gripper and close it again."
     off, fix = _height_off(note.height), _height_fix(note.height)
     return f"Missed the {note.near}: the gripper is {off} — {fix}, then close it again."
+
+
+def _sideways(toward: tuple[float, float]) -> str:
+    """A sideways move in the room's terms: "1 cm to the robot's left", "2 cm away from the robot and 1 cm to its
+    right" (a part under 5 mm is left out, unless it is the larger one; at least 1 cm is said)."""
+    dx, dy = toward
+    x = f"{'away from' if dx > 0 else 'toward'} the robot"
+    side = "left" if dy > 0 else "right"
+    if abs(dx) >= 0.005 and abs(dy) >= 0.005:
+        return f"{length_words(dx)} {x} and {length_words(dy)} to its {side}"
+    if abs(dx) >= abs(dy):
+        return f"{length_words(max(abs(dx), 0.01))} {x}"
+    return f"{length_words(max(abs(dy), 0.01))} to the robot's {side}"
 
 
 def _height_off(h: float) -> str:

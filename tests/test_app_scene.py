@@ -67,7 +67,8 @@ def test_the_step_shows_its_section_and_its_layers(app: Studio, page: ViserClien
     sections = panels.steps.sections
     assert [s for s, f in sections.items() if f.visible] == [Step.TEACH]
     assert 'data-step="Teach"' in panels.steps.title.content
-    assert all_drawn(page, "/demos") and all_drawn(page, "/demo_grips")
+    # the page may still be receiving the scene: wait until it has the gripper markers too
+    assert page.wait_for(lambda _m: all_drawn(page, "/demos") and all_drawn(page, "/demo_grips"))
     assert all_drawn(page, "/objects") and len(page.layer("/objects")) == 2
     assert none_drawn(page, "/keypoints/left")
     view.set_step(Step.KEYPOINTS)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from studio.controller import Controller, Topic
-from studio.controller.guiding import ABOVE_M, MAX_STEP_M, STEP_M
+from studio.controller.guiding import ABOVE_M, BIG_STEP_M, MAX_SPEED_M_S, MAX_STEP_M, STEP_M, held_step
 from studio.core.errors import StudioError
 from studio.core.rotations import matrix_from_quat_wxyz
 from tests.conftest import wait_for
@@ -32,14 +32,33 @@ def test_a_step_moves_the_gripper_along_one_room_axis(ctl: Controller) -> None:
 def test_a_held_key_goes_faster_up_to_a_cap(ctl: Controller) -> None:
     g = ctl.guide
     z = [float(g.pose("left")[0][2])]
-    for k in range(14):
-        g.step("z", 1, now=1000.0 + 0.1 * k)  # presses 0.1 s apart: a held key
+    for k in range(12):
+        g.step("z", 1, now=1000.0 + 0.09 * k)  # the key script's clicks of a held key, 90 ms apart
         z.append(float(g.pose("left")[0][2]))
     steps = np.diff(z)
-    assert np.allclose(steps[:6], STEP_M, atol=2e-3)
-    assert steps[-1] > 1.5 * STEP_M and steps.max() <= MAX_STEP_M + 2e-3
-    g.step("z", -1, now=1000.0 + 1.5)  # another key: back to one step
+    assert np.allclose(steps[:6], STEP_M, atol=2e-3)  # the first half second: taps
+    assert steps[-1] > 1.2 * STEP_M and steps.max() <= MAX_STEP_M + 2e-3
+    g.step("z", -1, now=1000.0 + 1.2)  # another key: back to one step
     assert z[-1] - float(g.pose("left")[0][2]) == pytest.approx(STEP_M, abs=2e-3)
+    before = float(g.pose("left")[0][0])
+    g.step("x", 1, big=True, now=2000.0)  # Shift: a big step
+    assert float(g.pose("left")[0][0]) - before == pytest.approx(BIG_STEP_M, abs=2e-3)
+
+
+def test_a_held_keys_speed_grows_and_survives_dropped_presses() -> None:
+    def moved(every: float, seconds: float, big: bool = False) -> float:
+        """Metres a key held for ``seconds`` moves when its presses come ``every`` seconds."""
+        n = int(seconds / every)
+        return sum(held_step(k * every, every if k else 0.0, big) for k in range(n + 1))
+
+    assert held_step(0.0, 0.0) == STEP_M and held_step(0.0, 0.0, big=True) == BIG_STEP_M  # taps
+    first, third = moved(0.09, 1.0), moved(0.09, 3.0) - moved(0.09, 2.0)
+    assert third > 2.0 * first  # it speeds up while held …
+    assert moved(0.09, 10.0) - moved(0.09, 9.0) <= MAX_SPEED_M_S * 1.01  # … up to a top speed
+    # presses the studio joined (one in three gets through) move the same way over the same time
+    assert moved(0.27, 3.0) == pytest.approx(moved(0.09, 3.0), rel=0.15)
+    assert moved(0.09, 3.0, big=True) > 1.3 * moved(0.09, 3.0)  # Shift: faster when held too
+    assert held_step(5.0, 5.0) <= MAX_STEP_M  # a stall never jumps far
 
 
 def test_typed_position_and_go_above_a_cup_pointing_down(ctl: Controller) -> None:

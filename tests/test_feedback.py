@@ -36,7 +36,25 @@ def test_a_miss_three_cm_to_the_side_says_by_how_much_and_how_much_closer() -> N
     assert note is not None and note.held is None and note.near == "cup"
     assert note.distance == pytest.approx(0.03) and note.closer == pytest.approx(0.03 - GRASP_XY_TOL)
     assert note.height == 0.0
-    assert grasp_words(note).startswith("Missed the cup by 3 cm — move 1 cm closer")
+    assert note.toward == pytest.approx((-(0.03 - GRASP_XY_TOL), 0.0))
+    assert grasp_words(note).startswith("Missed the cup by 3 cm — move 1 cm toward the robot,")
+
+
+@pytest.mark.parametrize(
+    ("gripper", "way"),
+    [
+        ((0.7, 0.1 - 0.06, -0.14), "move 3.5 cm to the robot's left"),  # the cup is to the robot's left
+        ((0.7, 0.1 + 0.045, -0.14), "move 2 cm to the robot's right"),
+        ((0.7 - 0.045, 0.1, -0.14), "move 2 cm away from the robot"),
+        ((0.7 + 0.04, 0.1 - 0.04, -0.14), "toward the robot and 2.2 cm to its left"),
+    ],
+)
+def test_a_miss_says_which_way_in_the_rooms_terms(gripper: tuple[float, float, float], way: str) -> None:
+    note = grasp_note(miss_at(gripper))
+    assert note is not None and note.near == "cup"
+    assert np.hypot(*note.toward) == pytest.approx(note.closer)  # the move asked for is the one that reaches it
+    words = grasp_words(note)
+    assert way in words and "closer" not in words, words
 
 
 def test_a_miss_above_the_cup_says_lower_it() -> None:

@@ -29,7 +29,8 @@ _KEYS_JS = """
   };
   window.addEventListener('keydown', (e) => {
     if (e.ctrlKey || e.metaKey || e.altKey || typing(e.target)) return;
-    const label = st.keys[e.code];
+    const shifted = e.shiftKey ? st.keys['Shift+' + e.code] : undefined;
+    const label = shifted || st.keys[e.code];
     if (!label) return;
     const b = button(label);
     if (!b) return;
@@ -45,9 +46,10 @@ _KEYS_JS = """
 
 
 def install_keys(server: viser.ViserServer, keys: Mapping[str, str]) -> None:
-    """Send the key script to every tab, now and later. ``keys``: a key's ``KeyboardEvent.code`` (e.g. "KeyW")
-    → the exact label of the button it presses. Uses viser's message queue (an internal): if a viser upgrade
-    moved it, the buttons still work and the studio's log says the keys do not."""
+    """Send the key script to every tab, now and later. ``keys``: a key's ``KeyboardEvent.code`` (e.g. "KeyW"),
+    or "Shift+" and the code, → the exact label of the button it presses (Shift falls back to the plain key's).
+    Uses viser's message queue (an internal): if a viser upgrade moved it, the buttons still work and the
+    studio's log says the keys do not."""
     try:
         from viser import _messages
 
