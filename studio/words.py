@@ -302,7 +302,7 @@ def grasp_words(note: GraspFacts) -> str:
     if note.closer > 0.0:
         fix = f"move {_sideways(note.toward)}"
         if note.height:
-            fix += f" and {_height_fix(note.height)}"
+            fix += f", {_height_fix(note.height)}"
         return f"Missed the {note.near} by {by} — {fix}, open the gripper and close it again."
     off, fix = _height_off(note.height), _height_fix(note.height)
     return f"Missed the {note.near}: the gripper is {off} — {fix}, then close it again."

@@ -300,7 +300,9 @@ def test_an_object_is_put_where_its_boxes_say(app: Studio, page: ViserClient) ->
     page.set_value("Object", "block")
     block = ctl.scene.scene.object("block")
     boxes = app.panels.scene.boxes
-    assert wait_for(lambda: boxes["x"].visible and boxes["x"].value == pytest.approx(100 * block.position[0], abs=0.05))
+    assert wait_for(
+        lambda: not boxes["x"].disabled and boxes["x"].value == pytest.approx(100 * block.position[0], abs=0.05)
+    )
     page.set_value("Object y (cm)", -20.0)
     assert wait_for(lambda: ctl.scene.scene.object("block").position[1] == pytest.approx(-0.2))
     assert ctl.scene.scene.object("block").position[0] == pytest.approx(block.position[0])
@@ -308,7 +310,8 @@ def test_an_object_is_put_where_its_boxes_say(app: Studio, page: ViserClient) ->
     assert wait_for(lambda: ctl.scene.scene.object("block").position[:2] == pytest.approx((0.7, -0.2)))
     assert page.wait_for(lambda _m: np.allclose(page.scene()["/objects_handle"]["position"][:2], (0.7, -0.2)))
     page.set_value("Object", "(none)")
-    assert wait_for(lambda: not boxes["x"].visible and not boxes["y"].visible)
+    assert wait_for(lambda: boxes["x"].disabled and boxes["y"].disabled)  # a fixed slot: disabled, not gone
+    assert boxes["x"].visible and "Choose an object" in app.panels.scene.where.content
 
 
 def test_put_back_to_the_tasks_layout(app: Studio, page: ViserClient) -> None:

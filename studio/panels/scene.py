@@ -27,6 +27,10 @@ TABLE_THICKNESS = 0.03
 NONE = "(none)"
 ADD = {"Cup": "cup", "Block": "block", "Pad": "pad"}
 TURN = "Turn with the handle"
+NO_CHOICE = (
+    '<div class="object-where" data-name="" style="font-size:0.85em;color:#6b7280">Choose an object to move it with '
+    "its handle or its x and y.</div>"
+)
 PUT_BACK = "Put all back"
 LAYOUT = "Put back to the task's layout"
 #: The objects' handle stays in the room's axes (x away from the robot, y to its left), never turned with the object.
@@ -59,13 +63,13 @@ class ScenePanel:
                 "Object", options=[NONE], initial_value=NONE, hint="Choose an object to move it with its handle."
             )
             self.boxes = {
-                axis: gui.add_number(f"Object {axis} (cm)", initial_value=0.0, step=0.5, hint=hint, visible=False)
+                axis: gui.add_number(f"Object {axis} (cm)", initial_value=0.0, step=0.5, hint=hint, disabled=True)
                 for axis, hint in (
                     ("x", "Away from the robot (its front), in centimetres: type a number and press Enter."),
                     ("y", "To the robot's left, in centimetres: type a number and press Enter."),
                 )
             }
-            self.where = gui.add_html("")  # where the chosen object is, x/y/z (see where_html)
+            self.where = gui.add_html(NO_CHOICE)  # where the chosen object is, x/y/z (see where_html)
             self.turn = gui.add_checkbox(
                 TURN,
                 initial_value=ctl.guide.turning,
@@ -302,9 +306,9 @@ class ScenePanel:
         chosen = name != NONE and name in scene.names()
         with self.server.atomic():
             for box in self.boxes.values():
-                box.visible = chosen
+                box.disabled = not chosen  # a fixed slot: the boxes stay where they are
             if not chosen:
-                self.where.content = ""
+                self.where.content = NO_CHOICE
                 return
             o = scene.object(name)
             self.where.content = where_html(name, o.position)

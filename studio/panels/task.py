@@ -1,6 +1,6 @@
 """Task panel (Teach step): the task of the set-up in one sentence, what the gripper just did when it closed
-("Holding the cup" / "Missed the cup by 3 cm — move 1 cm closer"), Undo for a take thrown away or a deleted
-demonstration, and a stand drawn under every object the teacher holds out in the air."""
+("Holding the cup" / "Missed the cup by 3 cm — move 1 cm to the robot's left"), Undo for a take thrown away or a
+deleted demonstration (each in a fixed slot), and a stand drawn under every object held out in the air."""
 
 from __future__ import annotations
 
@@ -13,6 +13,12 @@ import viser
 from studio.controller import Controller, GraspNote, Layer, Topic, WorldEvent
 from studio.words import grasp_words, task_words
 
+#: Fixed slots (docs/decisions/092): the grasp feedback keeps room for three lines, the Undo note for one, so
+#: that nothing below them moves when they change.
+GRASP_SLOT = "min-height:5.2em"
+UNDO_SLOT = "min-height:1.6em;padding:0 12px"
+NO_GRASP = "When the gripper closes, what it caught is said here."
+NOTHING_TO_UNDO = "Nothing to undo."
 STAND_COLOR = (120, 120, 120)
 STAND_RADIUS = 0.008
 FLOOR_Z = -0.93
@@ -33,12 +39,12 @@ class TaskPanel:
         self._stands: dict[str, tuple[viser.SceneNodeHandle, viser.LabelHandle, tuple[float, float, float]]] = {}
         self.task = gui.add_html(self._task_html(), order=-0.5)
         self.grasp = gui.add_html(self._grasp_html(None), order=-0.4)
-        self.undo_text = gui.add_html("", order=-0.3, visible=False)
+        self.undo_text = gui.add_html(self._undo_html(""), order=-0.3)
         self.undo = gui.add_button(
             "Undo",
             icon=viser.Icon.ARROW_BACK_UP,
             color="gray",
-            visible=False,
+            disabled=True,
             order=-0.2,
             hint="Bring back the demonstration you just threw away or deleted.",
         )
@@ -58,25 +64,29 @@ class TaskPanel:
 
     @staticmethod
     def _grasp_html(note: GraspNote | None) -> str:
-        if note is None:
-            return '<div class="grasp-feedback" data-held="" style="display:none"></div>'
-        color = "#15803d" if note.held else "#b45309"
-        return (
-            f'<div class="grasp-feedback" data-held="{html.escape(note.held or "")}" style="font-size:0.9em;'
-            f'border-left:4px solid {color};padding:2px 8px;margin:2px 0;overflow-wrap:anywhere">'
-            f'<b style="color:{color}">{html.escape(grasp_words(note))}</b></div>'
+        """The grasp feedback in its fixed slot (a quiet line until the gripper first closes)."""
+        color = "#d1d5db" if note is None else ("#15803d" if note.held else "#b45309")
+        words = (
+            f'<span style="color:#6b7280">{NO_GRASP}</span>'
+            if note is None
+            else f'<b style="color:{color}">{html.escape(grasp_words(note))}</b>'
         )
+        held = "" if note is None else html.escape(note.held or "")
+        return (
+            f'<div class="grasp-feedback" data-held="{held}" style="font-size:0.9em;{GRASP_SLOT};'
+            f'border-left:4px solid {color};padding:2px 8px;margin:2px 0;overflow-wrap:anywhere">{words}</div>'
+        )
+
+    @staticmethod
+    def _undo_html(what: str) -> str:
+        text = f"Thrown away: {html.escape(what)}." if what else f'<span style="color:#6b7280">{NOTHING_TO_UNDO}</span>'
+        return f'<div class="undo-note" style="font-size:0.85em;{UNDO_SLOT};overflow-wrap:anywhere">{text}</div>'
 
     def _on_undo(self) -> None:
         what = self.ctl.undo.what
         with self.server.atomic():
-            self.undo_text.content = (
-                f'<div class="undo-note" style="font-size:0.85em;overflow-wrap:anywhere">Thrown away: '
-                f"{html.escape(what)}.</div>"
-                if what
-                else ""
-            )
-            self.undo_text.visible = self.undo.visible = bool(what)
+            self.undo_text.content = self._undo_html(what)
+            self.undo.disabled = not what
 
     def _on_scene(self) -> None:
         with self._lock:
@@ -99,7 +109,7 @@ class TaskPanel:
             if not self.ctl.execution.running:
                 self.ctl.notify("Gripper closed", grasp_words(note), kind="success" if note.held else "warning")
         self._draw_stands()
-        if self.undo.visible and not self.ctl.undo.what:  # kept long enough: Undo goes away
+        if not self.undo.disabled and not self.ctl.undo.what:  # kept long enough: nothing to undo any more
             self._on_undo()
 
     def _draw_stands(self) -> None:
