@@ -1,12 +1,11 @@
-"""Guiding the taught gripper in the room's axes: the handle, steps (keys and buttons; a held key goes faster),
+"""Guiding the taught gripper in the room's axes: the handle, steps (keys and buttons, 1 cm or 5 cm),
 a typed position, "Go above" an object, and the home posture. Every move goes through the teaching IK, which
-keeps the arm off its joint limits (docs/decisions/070); the keys: docs/decisions/071."""
+keeps the arm off its joint limits (docs/decisions/070); the keys: docs/decisions/071, 092."""
 
 from __future__ import annotations
 
 import math
 import threading
-import time
 from collections.abc import Callable, Sequence
 from typing import Protocol
 
@@ -20,21 +19,10 @@ from studio.core.rotations import matrix_from_quat_wxyz, quat_wxyz_from_matrix
 from studio.core.types import Arm, check_arm
 from studio.world import ObjectPose
 
-#: One step of a key or an arrow button (a tap), m; with Shift, :data:`BIG_STEP_M`.
+#: One step of a key or an arrow button, m; with Shift (and a key held a while: :mod:`studio.panels._keys`),
+#: :data:`BIG_STEP_M`.
 STEP_M = 0.01
 BIG_STEP_M = 0.05
-#: Presses of the same step closer together than this (s) are one held key (a press the studio joined or
-#: dropped leaves a longer gap: the held key's speed makes up for it).
-HELD_S = 0.35
-#: A held key moves a tap at each press for this long (s), then at a speed: :data:`START_SPEED_M_S` (twice that
-#: with Shift), doubling every :data:`DOUBLING_S` held, at most :data:`MAX_SPEED_M_S`; each press at most
-#: :data:`MAX_STEP_M`.
-RAMP_AFTER_S = 0.5
-START_SPEED_M_S = 0.12
-DOUBLING_S = 1.0
-MAX_SPEED_M_S = 0.3
-SHIFT_SPEED = 2.0
-MAX_STEP_M = 0.08
 #: "Go above": the gripper point (or the bottom of what it carries) this far above the object's top, m.
 ABOVE_M = 0.03
 #: The room's axes by name: x away from the robot, y to its left, z up.
@@ -66,7 +54,6 @@ class Guiding:
         self._lock = threading.Lock()
         self._moving = threading.RLock()  # a step reads where the gripper is going, then moves it: one at a time
         self._asked: dict[Arm, tuple[np.ndarray, np.ndarray]] = {}  # arm: (orientation asked, joints it gave)
-        self._held: tuple[tuple[Arm, int, int, bool], float, float] | None = None  # (step), first, last press
         self._chosen: str | None = None
         self._key_arm: Arm | None = None
         self._turning = False
@@ -140,26 +127,15 @@ class Guiding:
             p[AXES[axis]] = value_m
             return self.move(arm, p)
 
-    def step(
-        self, axis: str, sign: int, arm: Arm | None = None, *, big: bool = False, now: float | None = None
-    ) -> IkResult:
+    def step(self, axis: str, sign: int, arm: Arm | None = None, *, big: bool = False) -> IkResult:
         """One step of the gripper along a room axis (``sign`` +1 or -1): :data:`STEP_M`, or :data:`BIG_STEP_M`
-        with ``big`` (Shift); a held key (presses within :data:`HELD_S`) speeds up (:func:`held_step`)."""
+        with ``big``."""
         if axis not in AXES or sign not in (1, -1):
             raise InvalidInput("A step goes along x, y or z, forwards (+1) or back (-1).")
         arm = self.key_arm if arm is None else check_arm(arm)
-        now = time.monotonic() if now is None else now
-        key = (arm, AXES[axis], sign, bool(big))
-        with self._lock:
-            h = self._held
-            held = h is not None and h[0] == key and now - h[2] < HELD_S
-            first = h[1] if held and h is not None else now
-            gap = now - h[2] if held and h is not None else 0.0
-            self._held = (key, first, now)
-        size = held_step(now - first, gap, big)
         with self._moving:
             p = self.pose(arm)[0]
-            p[AXES[axis]] += sign * size
+            p[AXES[axis]] += sign * (BIG_STEP_M if big else STEP_M)
             return self.move(arm, p)
 
     def above(self, name: str | None = None, arm: Arm | None = None) -> IkResult:
@@ -185,18 +161,6 @@ class Guiding:
         self.hands.home()
         with self._lock:
             self._asked.clear()
-            self._held = None
-
-
-def held_step(held_s: float, gap_s: float, big: bool = False) -> float:
-    """The step (m) of a press ``held_s`` seconds into holding a key, ``gap_s`` after the press before: a tap's
-    step for the first :data:`RAMP_AFTER_S`, then the held key's speed times the gap (docs/decisions/092)."""
-    tap = BIG_STEP_M if big else STEP_M
-    if held_s < RAMP_AFTER_S:
-        return tap
-    start = START_SPEED_M_S * (SHIFT_SPEED if big else 1.0)
-    speed = min(start * 2.0 ** ((held_s - RAMP_AFTER_S) / DOUBLING_S), MAX_SPEED_M_S)
-    return float(min(max(STEP_M, speed * gap_s), MAX_STEP_M))
 
 
 def pointing_down(wxyz: np.ndarray) -> np.ndarray:

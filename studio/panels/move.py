@@ -1,5 +1,5 @@
-"""Move panel (Teach step): move the gripper in the room's axes with keys or their buttons (Shift: big steps; a
-held key speeds up), type its position in centimetres, send it above an object or back to the home posture.
+"""Move panel (Teach step): move the gripper in the room's axes with keys or their buttons (Shift, or a key held
+a second: 5 cm steps), type its position in centimetres, send it above an object or back to the home posture.
 Each key is shown on its button, and the keys in plain words above them."""
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ KEYS = (
 KEY_WORDS = (
     "**Keys** (when you are not typing in a box): **W** / **S** toward / away from the robot, **A** / **D** to "
     "its right / left, **Q** / **E** down / up, **C** close and **O** open the gripper, **H** home pose. A key "
-    "moves 1 cm, with **Shift** 5 cm; hold it and it speeds up."
+    "moves 1 cm, with **Shift** 5 cm; held for a second, it goes on in 5 cm steps."
 )
 #: Seconds after a teacher typed into a position box during which the robot's motion does not overwrite it.
 TYPED_HOLD_S = 2.0

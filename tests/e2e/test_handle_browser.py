@@ -1,6 +1,7 @@
 """In real Chromium (issue 30): the block's handle in the Top view moves it the way the mouse goes (arrows in the
 room's axes, the ring only behind "Turn with the handle"), its x/y boxes and "Put back to the task's layout";
-a hint closes when its control is pressed; status lines keep their place; Shift+key takes 5 cm; after a preview,
+a hint closes when its control is pressed; status lines keep their place; Shift+key takes 5 cm, a held key 5 cm
+steps after a second; after a preview,
 Teach shows the live robot and the objects as placed. Screenshots in test-artifacts/handle/."""
 
 from __future__ import annotations
@@ -165,6 +166,20 @@ def test_hints_close_status_lines_keep_their_place_and_shift_takes_big_steps(bro
         page.keyboard.press("Shift+KeyS")
         assert wait_for(lambda: ctl.guide.pose("left")[0][0] - x0 > 0.04)
         assert ctl.guide.pose("left")[0][0] - x0 == pytest.approx(0.05, abs=0.002)
+        # a held key: 1 cm at first, 5 cm steps once held a second (the page times the hold, not the repeats)
+        ui.wait_arm_settled(page)
+        x0 = ctl.guide.pose("left")[0][0]
+        kb = page.keyboard
+        kb.down("KeyS")
+        assert wait_for(lambda: ctl.guide.pose("left")[0][0] - x0 > 0.009)
+        assert ctl.guide.pose("left")[0][0] - x0 == pytest.approx(0.01, abs=0.002)  # a tap's step
+        page.wait_for_timeout(1100)
+        for _ in range(3):
+            kb.down("KeyS")  # the keyboard's repeats
+            page.wait_for_timeout(300)
+        kb.up("KeyS")
+        assert wait_for(lambda: ctl.guide.pose("left")[0][0] - x0 > 0.155)  # 1 cm, then three steps of 5 cm
+        assert ctl.guide.pose("left")[0][0] - x0 == pytest.approx(0.16, abs=0.005)
     finally:
         page.close()
 
