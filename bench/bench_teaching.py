@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import shutil
 import statistics
 import subprocess
@@ -168,16 +169,20 @@ def _serve(src: Path, sessions: Path) -> tuple[subprocess.Popen[str], str]:
     raise RuntimeError(f"the studio of {src} did not start")
 
 
-def _hold(page: object, key: str, seconds: float) -> None:
-    """Hold ``key`` as a keyboard does: one press, 0.5 s, then a repeat every 1/30 s; then let go."""
+def _hold(page: object, key: str, seconds: float) -> int:
+    """Hold ``key`` as a keyboard does: one press, 0.5 s, then a repeat every 1/30 s; then let go. Returns the
+    key events sent (on a busy machine Playwright delivers fewer than a keyboard would)."""
     kb = page.keyboard  # type: ignore[attr-defined]
     kb.down(key)
     t0 = time.monotonic()
     time.sleep(0.5)
+    sent = 1
     while time.monotonic() - t0 < seconds:
         kb.down(key)  # Playwright marks a second keydown without a keyup as a repeat
+        sent += 1
         time.sleep(1 / 30)
     kb.up(key)
+    return sent
 
 
 def part_keys(baseline: str) -> None:
@@ -187,6 +192,7 @@ def part_keys(baseline: str) -> None:
     from tests.e2e import ui
 
     def goal_x(page: object) -> float:
+        """Where the gripper is going along x, cm (the Move panel's data)."""
         return float(page.locator(".gripper-goal").first.get_attribute("data-x"))  # type: ignore[attr-defined]
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -194,7 +200,8 @@ def part_keys(baseline: str) -> None:
         base = work / "baseline"
         subprocess.run(["git", "clone", "-q", str(ROOT), str(base)], check=True)
         subprocess.run(["git", "-C", str(base), "checkout", "-q", baseline], check=True)
-        print(f"A held key (S: away from the robot), cm the gripper's goal moved; baseline {baseline}:")
+        print(f"A held key (S: away from the robot): how far the gripper's goal moved; baseline {baseline}:")
+        print(f"  load average at the start: {os.getloadavg()[0]:.2f}")
         with sync_playwright() as p:
             browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
             for label, src in (("this commit", ROOT), ("baseline", base)):
@@ -210,15 +217,15 @@ def part_keys(baseline: str) -> None:
                         page.keyboard.press("KeyH")
                         ui.wait_arm_settled(page)
                         x0 = goal_x(page)
-                        _hold(page, "KeyS", seconds)
+                        sent = _hold(page, "KeyS", seconds)
                         time.sleep(1.0)  # the last presses reach the studio
-                        got.append(f"{seconds:.0f} s held: {100 * (goal_x(page) - x0):5.1f} cm")
+                        got.append(f"{seconds:.0f} s held: {goal_x(page) - x0:4.1f} cm ({sent} key events)")
                     page.keyboard.press("KeyH")
                     ui.wait_arm_settled(page)
                     x0 = goal_x(page)
                     page.keyboard.press("Shift+KeyS")
                     time.sleep(1.0)
-                    got.append(f"one Shift+S: {100 * (goal_x(page) - x0):4.1f} cm")
+                    got.append(f"one Shift+S: {goal_x(page) - x0:4.1f} cm")
                     print(f"  {label}: " + "; ".join(got))
                     page.close()
                 finally:
