@@ -285,7 +285,8 @@ def test_an_object_turns_only_behind_the_toggle(app: Studio, page: ViserClient) 
     assert page.wait_for(lambda _m: handle()["props"]["disable_axes"] and not handle()["props"]["disable_rotations"])
     turn = 0.4  # rad about z: the handle shows the ring only, and its turn is added to the block's heading
     wxyz = (float(np.cos(turn / 2)), 0.0, 0.0, float(np.sin(turn / 2)))
-    page.drag("/objects_handle", tuple(float(v) for v in handle()["position"]), wxyz)
+    x, y, z = (float(v) for v in handle()["position"])
+    page.drag("/objects_handle", (x, y, z), wxyz)
     assert wait_for(lambda: ctl.scene.scene.object("block").yaw == pytest.approx(block.yaw + turn, abs=1e-6))
     assert ctl.scene.scene.object("block").position[:2] == pytest.approx(block.position[:2])
     assert page.wait_for(lambda _m: np.allclose(handle()["wxyz"], (1, 0, 0, 0)))  # back in the room's axes

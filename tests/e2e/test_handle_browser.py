@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import io
 import shutil
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -43,7 +43,7 @@ RED, GREEN, BLUE = red, green, blue
 
 
 @pytest.fixture
-def studio(sessions: Path) -> Studio:
+def studio(sessions: Path) -> Iterator[Studio]:
     app = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
     app.controller.sessions.new("handle", scene="pick-place")  # a newcomer's session: no demonstrations yet
     yield app
