@@ -181,8 +181,8 @@ class ScenePanel:
         obj = self.ctl.scene.scene.object(name)
         if phase == "start" or not self._dragging:
             self._turn_from = obj.yaw
-        R = matrix_from_quat_wxyz(np.asarray(h.wxyz))  # the handle's turn from the room's axes
-        yaw = self._turn_from + math.atan2(R[1, 0], R[0, 0])
+        R = matrix_from_quat_wxyz(np.asarray(h.wxyz))  # the handle's turn from the room's axes (its ring only)
+        yaw = self._turn_from + (math.atan2(R[1, 0], R[0, 0]) if self.ctl.guide.turning else 0.0)
         # The handle sits on the object's top and moves in x and y only: the object keeps its height.
         bottom = (float(h.position[0]), float(h.position[1]), obj.position[2])
         if phase == "end":
