@@ -57,7 +57,7 @@ class Progress:
             else:
                 what = f"{min(self.fetched, self.packages)} of {self.packages} packages fetched"
                 what += f" ({self.last})" if self.last else ""
-        late = " — taking longer than usual (slow network or busy computer), still working" if elapsed > about else ""
+        late = " — slower than usual (network or a busy computer), still working" if elapsed > about else ""
         return f"    {elapsed:4.0f} s of about {about:.0f} s: {what}{late}"
 
 
