@@ -150,12 +150,15 @@ def parts(new: Path, base: Path, work: Path) -> None:
         f"  left out of the first start: {len(left)} wheels, {sum(mb for mb, _ in left):.0f} MB; the largest: "
         + ", ".join(f"{n} {mb:.1f} MB" for mb, n in left[:8])
     )
-    for name, folder in (("baseline", wb), ("this commit", wn)):
-        py, _ = venv(work / f"install-{name.replace(' ', '-')}")
+    for name, folder, flags in (
+        ("baseline", wb, []),
+        ("this commit, byte-compiled", wn, []),
+        ("this commit, --no-compile", wn, ["--no-compile"]),
+    ):
+        py, _ = venv(work / f"install-{len(flags)}-{folder.name}")
         files = [str(p) for p in folder.glob("*.whl")]
-        flags = ["--no-compile"] if name == "this commit" else []
         t = timed([str(py), "-m", "pip", "install", "-q", "--no-index", "--no-deps", *flags, *files])
-        print(f"  installing the downloaded wheels only, {name} {' '.join(flags)}: {t:.1f} s")
+        print(f"  installing the downloaded wheels only, {name}: {t:.1f} s")
 
 
 def main() -> None:
