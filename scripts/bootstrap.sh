@@ -9,7 +9,7 @@ PY="${PYTHON:-python3}"
 VPY="$ROOT/.venv/bin/python"
 LOCK="$ROOT/scripts/runtime-requirements.txt"
 #: Seconds the first install usually takes here (bench/bench_install.py, bench/README.md).
-ABOUT=45
+ABOUT=30
 if [ ! -x "$VPY" ]; then
   echo "==> creating the virtual environment in .venv"
   "$PY" -m venv "$ROOT/.venv"
