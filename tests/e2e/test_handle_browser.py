@@ -9,6 +9,7 @@ from __future__ import annotations
 import io
 import shutil
 from collections.abc import Callable, Iterator
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +17,7 @@ import pytest
 from playwright.sync_api import Page, expect
 
 from studio.app import Studio, build_app
+from studio.controller import Controller
 from studio.world import preset
 from tests.conftest import wait_for
 from tests.e2e import mouse_flow, ui
@@ -66,6 +68,11 @@ def colour_near(
     ys, xs = np.mgrid[0 : img.shape[0], 0 : img.shape[1]]
     near = np.hypot(xs - centre[0], ys - centre[1]) < radius
     return int((near & colour(img)).sum())
+
+
+def moved_past(ctl: Controller, x0: float, metres: float) -> bool:
+    """The gripper's goal is more than ``metres`` past ``x0`` along x."""
+    return bool(ctl.guide.pose("left")[0][0] - x0 > metres)
 
 
 def drag_arrow(page: Page, app: Studio, axis: int, metres: float) -> np.ndarray:
@@ -176,7 +183,7 @@ def test_hints_close_status_lines_keep_their_place_and_shift_takes_big_steps(bro
         page.wait_for_timeout(1100)
         for k in range(3):  # the keyboard's repeats, each once the last step is seen (as a person watches)
             kb.down("KeyS")
-            assert wait_for(lambda k=k: ctl.guide.pose("left")[0][0] - x0 > 0.01 + 0.05 * (k + 1) - 0.005)
+            assert wait_for(partial(moved_past, ctl, x0, 0.01 + 0.05 * (k + 1) - 0.005))
             page.wait_for_timeout(300)
         kb.up("KeyS")
         assert ctl.guide.pose("left")[0][0] - x0 == pytest.approx(0.16, abs=0.005)  # 1 cm, then 3 steps of 5 cm
