@@ -63,6 +63,7 @@ PARTS = (
     "fuzz",
     "memory",
     "flood",
+    "burst",
     "issue21",
 )
 
@@ -646,6 +647,119 @@ def part_flood(args: argparse.Namespace) -> list[dict[str, Any]]:
         shutil.rmtree(tmp, ignore_errors=True)
 
 
+#: The tabs of ``--part burst`` (a separate process, as a browser is): one floods, one presses the Emergency
+#: stop, one only watches. Commands on stdin ("go KIND"), one JSON line of times (time.monotonic) per command.
+BURST_TABS = """
+import json, sys, threading, time
+sys.path.insert(0, {root!r})
+import msgspec
+from tests.viser_client import ViserClient
+url = sys.argv[1]
+flood, presser, watcher = ViserClient(url), ViserClient(url), ViserClient(url)
+
+def uuid(c, label, kind):
+    found = c.wait_for(lambda ms: [m["uuid"] for m in ms if m["type"] == kind and m["props"].get("label") == label], 60)
+    return str(found[-1])
+
+def press(u, value):
+    return msgspec.msgpack.encode({{"type": "GuiUpdateMessage", "uuid": u, "updates": {{"value": value}}}})
+
+floods = {{
+    "Rename": [press(uuid(flood, "Demo action", "GuiButtonGroupMessage"), "Rename")] * 10_000,
+    "Detail slider": [press(uuid(flood, "Detail: fewer \u2194 more key-points", "GuiSliderMessage"), v)
+                      for v in (0.5 + (i % 2) * 0.5 for i in range(10_000))],
+}}
+estop = press(uuid(presser, "Emergency stop", "GuiButtonMessage"), True)
+shown, armed, seen = threading.Event(), [False], [0.0]
+
+def watch(msgs):
+    if armed[0] and any('data-estop="true"' in str(m) for m in msgs):
+        seen[0] = time.monotonic()
+        armed[0] = False
+        shown.set()
+
+watcher.watchers.append(watch)
+print("ready", flush=True)
+for line in sys.stdin:
+    kind = line.split(" ", 1)[1].strip()
+    shown.clear()
+    armed[0] = True
+    t0 = time.monotonic()
+    for raw in floods[kind]:
+        flood.ws.send(raw)
+    sent = time.monotonic()
+    presser.ws.send(estop)
+    ok = shown.wait(30)
+    print(json.dumps({{"flood_s": sent - t0, "press": sent, "display": seen[0] if ok else None}}), flush=True)
+"""
+
+
+def part_burst(args: argparse.Namespace) -> list[dict[str, Any]]:
+    """The Emergency stop of one tab right behind 10,000 presses (Rename) or values (a slider) another tab sent at
+    once: time to the robot (the backend's ``emergency_stop`` called) and to a third tab's display (its status
+    says e-stopped); at the machine's own load, then with two CPU-bound processes started, in the same run."""
+    from studio.app import build_app
+    from tests.conftest import free_port, reap
+
+    tmp = Path(tempfile.mkdtemp(prefix="bench-hostile-burst-"))
+    shutil.copytree(ROOT / "sessions" / "stack-cup", tmp / "stack-cup")
+    app = build_app(port=free_port(), session="stack-cup", sessions_dir=tmp)
+    backend = app.controller.execution.backend
+    stopped: list[float] = []
+    real_stop = backend.emergency_stop
+
+    def timed_stop() -> Any:
+        stopped.append(time.monotonic())
+        return real_stop()
+
+    backend.emergency_stop = timed_stop  # type: ignore[method-assign]
+    url = f"ws://127.0.0.1:{app.port}/?key={app.access.key}"
+    tabs = subprocess.Popen(
+        [sys.executable, "-c", BURST_TABS.format(root=str(ROOT)), url],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, cwd=ROOT,
+    )  # fmt: skip
+    busy: list[subprocess.Popen] = []
+    rows: list[dict[str, Any]] = []
+    try:
+        assert tabs.stdin is not None and tabs.stdout is not None
+        if tabs.stdout.readline().strip() != "ready":
+            raise RuntimeError("the tabs did not start")
+        time.sleep(2.0)
+        for load in ("own load", "two CPU-bound processes"):
+            if load != "own load":
+                busy = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
+                time.sleep(5.0)
+            for kind in ("Rename", "Detail slider"):
+                robot, display, flood_s, loads = [], [], [], []
+                for _ in range(max(3, args.runs // 4)):
+                    stopped.clear()
+                    tabs.stdin.write(f"go {kind}\n")
+                    tabs.stdin.flush()
+                    got = json.loads(tabs.stdout.readline())
+                    deadline = time.monotonic() + 30
+                    while not stopped and time.monotonic() < deadline:
+                        time.sleep(0.001)
+                    robot.append(stopped[0] - got["press"] if stopped else 30.0)
+                    display.append(got["display"] - got["press"] if got["display"] else 30.0)
+                    flood_s.append(got["flood_s"])
+                    loads.append(os.getloadavg()[0])
+                    app.controller.execution.release_emergency_stop()
+                    time.sleep(3.0)  # the loop has read the burst and the gate's rate refilled: the next from quiet
+                rows.append({"case": f"{kind} x10,000 at once, {load}", "robot": robot, "display": display,
+                             "flood_s": flood_s, "load": loads})  # fmt: skip
+        rows.append({"case": "studio peak memory", "peak_mb": _status("VmHWM") / MiB})
+        return rows
+    finally:
+        for b in busy:
+            b.kill()
+            b.wait()
+        if tabs.stdin is not None:
+            tabs.stdin.close()
+        reap(tabs)
+        app.stop()
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
 def part_issue21(args: argparse.Namespace) -> list[dict[str, Any]]:
     """Issue 21's attacks §1-§4 and §7 against a running studio, one row each: what the attacker got."""
     import http.client
@@ -878,6 +992,19 @@ def report_flood(rows: list[dict[str, Any]]) -> None:
         )
 
 
+def report_burst(rows: list[dict[str, Any]]) -> None:
+    for r in rows:
+        if "robot" not in r:
+            print(f"  {r}")
+            continue
+        line = f"{r['case']:<58}"
+        for what in ("robot", "display"):
+            v = sorted(r[what])
+            line += f" {what} median {v[len(v) // 2] * 1000:6.1f} ms worst {v[-1] * 1000:6.1f} ms |"
+        loads = sorted(r["load"])
+        print(f"{line} sent in {sorted(r['flood_s'])[len(r['flood_s']) // 2]:.2f} s, load {loads[0]:.1f}–{loads[-1]:.1f}")
+
+
 def report_memory(rows: list[dict[str, Any]]) -> None:
     nan = float("nan")
     for r in rows:
@@ -942,8 +1069,8 @@ def report(name: str, rows: list[dict[str, Any]]) -> None:
         for r in wrong:
             print("  ", r)
         return
-    if name in ("flood", "memory"):
-        (report_flood if name == "flood" else report_memory)(rows)
+    if name in ("flood", "memory", "burst"):
+        {"flood": report_flood, "memory": report_memory, "burst": report_burst}[name](rows)
         return
     for r in rows:
         print("  " + json.dumps(r, ensure_ascii=False)[:400])
