@@ -647,15 +647,16 @@ def part_flood(args: argparse.Namespace) -> list[dict[str, Any]]:
         shutil.rmtree(tmp, ignore_errors=True)
 
 
-#: The tabs of ``--part burst`` (a separate process, as a browser is): one floods, one presses the Emergency
-#: stop, one only watches. Commands on stdin ("go KIND"), one JSON line of times (time.monotonic) per command.
+#: The tabs of ``--part burst``, in two processes as a browser's tabs are: ``press`` floods from one tab and then
+#: presses the Emergency stop in another ("go KIND" on stdin → the times, time.monotonic, as JSON); ``watch`` is a
+#: third tab ("arm" → the time its status next says e-stopped). Separate, so that the watcher's reading never
+#: waits for the flooder's sending.
 BURST_TABS = """
 import json, sys, threading, time
 sys.path.insert(0, {root!r})
 import msgspec
 from tests.viser_client import ViserClient
-url = sys.argv[1]
-flood, presser, watcher = ViserClient(url), ViserClient(url), ViserClient(url)
+url, role = sys.argv[1], sys.argv[2]
 
 def uuid(c, label, kind):
     found = c.wait_for(lambda ms: [m["uuid"] for m in ms if m["type"] == kind and m["props"].get("label") == label], 60)
@@ -664,40 +665,53 @@ def uuid(c, label, kind):
 def press(u, value):
     return msgspec.msgpack.encode({{"type": "GuiUpdateMessage", "uuid": u, "updates": {{"value": value}}}})
 
-floods = {{
-    "Rename": [press(uuid(flood, "Demo action", "GuiButtonGroupMessage"), "Rename")] * 10_000,
-    "Detail slider": [press(uuid(flood, "Detail: fewer \u2194 more key-points", "GuiSliderMessage"), v)
-                      for v in (0.5 + (i % 2) * 0.5 for i in range(10_000))],
-}}
-estop = press(uuid(presser, "Emergency stop", "GuiButtonMessage"), True)
-shown, armed, seen = threading.Event(), [False], [0.0]
+if role == "watch":
+    watcher = ViserClient(url)
+    uuid(watcher, "Emergency stop", "GuiButtonMessage")
+    shown, armed, seen = threading.Event(), [False], {{}}
 
-def watch(msgs):
-    if armed[0] and any('data-estop="true"' in str(m) for m in msgs):
-        seen[0] = time.monotonic()
-        armed[0] = False
-        shown.set()
+    def watch(msgs):
+        if not armed[0]:
+            return
+        if any('data-estop="true"' in str(m) for m in msgs):
+            seen["status"] = time.monotonic()
+            armed[0] = False
+            shown.set()
 
-watcher.watchers.append(watch)
-print("ready", flush=True)
-for line in sys.stdin:
-    kind = line.split(" ", 1)[1].strip()
-    shown.clear()
-    armed[0] = True
-    t0 = time.monotonic()
-    for raw in floods[kind]:
-        flood.ws.send(raw)
-    sent = time.monotonic()
-    presser.ws.send(estop)
-    ok = shown.wait(30)
-    print(json.dumps({{"flood_s": sent - t0, "press": sent, "display": seen[0] if ok else None}}), flush=True)
+    watcher.watchers.append(watch)
+    print("ready", flush=True)
+    for line in sys.stdin:
+        shown.clear()
+        seen.clear()
+        armed[0] = True
+        print("armed", flush=True)
+        shown.wait(30)
+        print(json.dumps(seen), flush=True)
+else:
+    flood, presser = ViserClient(url), ViserClient(url)
+    floods = {{
+        "nothing": [],
+        "Rename": [press(uuid(flood, "Demo action", "GuiButtonGroupMessage"), "Rename")] * 10_000,
+        "Detail slider": [press(uuid(flood, "Detail: fewer \u2194 more key-points", "GuiSliderMessage"), v)
+                          for v in (0.5 + (i % 2) * 0.5 for i in range(10_000))],
+    }}
+    estop = press(uuid(presser, "Emergency stop", "GuiButtonMessage"), True)
+    print("ready", flush=True)
+    for line in sys.stdin:
+        kind = line.split(" ", 1)[1].strip()
+        t0 = time.monotonic()
+        for raw in floods[kind]:
+            flood.ws.send(raw)
+        sent = time.monotonic()
+        presser.ws.send(estop)
+        print(json.dumps({{"flood_s": sent - t0, "press": sent}}), flush=True)
 """
 
 
 def part_burst(args: argparse.Namespace) -> list[dict[str, Any]]:
     """The Emergency stop of one tab right behind 10,000 presses (Rename) or values (a slider) another tab sent at
-    once: time to the robot (the backend's ``emergency_stop`` called) and to a third tab's display (its status
-    says e-stopped); at the machine's own load, then with two CPU-bound processes started, in the same run."""
+    once: time to the robot (the backend's ``emergency_stop`` called) and to a third tab's display (the run
+    panel's status says e-stopped); at the machine's own load, then with two CPU-bound processes started, in the same run."""
     from studio.app import build_app
     from tests.conftest import free_port, reap
 
@@ -714,38 +728,46 @@ def part_burst(args: argparse.Namespace) -> list[dict[str, Any]]:
 
     backend.emergency_stop = timed_stop  # type: ignore[method-assign]
     url = f"ws://127.0.0.1:{app.port}/?key={app.access.key}"
-    tabs = subprocess.Popen(
-        [sys.executable, "-c", BURST_TABS.format(root=str(ROOT)), url],
-        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, cwd=ROOT,
-    )  # fmt: skip
+    tabs, watch = (
+        subprocess.Popen(
+            [sys.executable, "-c", BURST_TABS.format(root=str(ROOT)), url, role],
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, cwd=ROOT,
+        )  # fmt: skip
+        for role in ("press", "watch")
+    )
     busy: list[subprocess.Popen] = []
     rows: list[dict[str, Any]] = []
     try:
-        assert tabs.stdin is not None and tabs.stdout is not None
-        if tabs.stdout.readline().strip() != "ready":
+        assert tabs.stdin and tabs.stdout and watch.stdin and watch.stdout
+        if tabs.stdout.readline().strip() != "ready" or watch.stdout.readline().strip() != "ready":
             raise RuntimeError("the tabs did not start")
         time.sleep(2.0)
         for load in ("own load", "two CPU-bound processes"):
             if load != "own load":
                 busy = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
                 time.sleep(5.0)
-            for kind in ("Rename", "Detail slider"):
-                robot, display, flood_s, loads = [], [], [], []
+            for kind in ("nothing", "Rename", "Detail slider"):
+                robot, status, flood_s, loads = [], [], [], []
                 for _ in range(max(3, args.runs // 4)):
                     stopped.clear()
+                    watch.stdin.write("arm\n")
+                    watch.stdin.flush()
+                    watch.stdout.readline()  # armed
                     tabs.stdin.write(f"go {kind}\n")
                     tabs.stdin.flush()
                     got = json.loads(tabs.stdout.readline())
+                    got.update(json.loads(watch.stdout.readline()))
                     deadline = time.monotonic() + 30
                     while not stopped and time.monotonic() < deadline:
                         time.sleep(0.001)
                     robot.append(stopped[0] - got["press"] if stopped else 30.0)
-                    display.append(got["display"] - got["press"] if got["display"] else 30.0)
+                    status.append(got["status"] - got["press"] if "status" in got else 30.0)
                     flood_s.append(got["flood_s"])
                     loads.append(os.getloadavg()[0])
                     app.controller.execution.release_emergency_stop()
                     time.sleep(3.0)  # the loop has read the burst and the gate's rate refilled: the next from quiet
-                rows.append({"case": f"{kind} x10,000 at once, {load}", "robot": robot, "display": display,
+                what = "quiet (baseline)" if kind == "nothing" else f"{kind} x10,000 at once"
+                rows.append({"case": f"{what}, {load}", "robot": robot, "status": status,
                              "flood_s": flood_s, "load": loads})  # fmt: skip
         rows.append({"case": "studio peak memory", "peak_mb": _status("VmHWM") / MiB})
         return rows
@@ -753,9 +775,10 @@ def part_burst(args: argparse.Namespace) -> list[dict[str, Any]]:
         for b in busy:
             b.kill()
             b.wait()
-        if tabs.stdin is not None:
-            tabs.stdin.close()
-        reap(tabs)
+        for proc in (tabs, watch):
+            if proc.stdin is not None:
+                proc.stdin.close()
+            reap(proc)
         app.stop()
         shutil.rmtree(tmp, ignore_errors=True)
 
@@ -997,10 +1020,10 @@ def report_burst(rows: list[dict[str, Any]]) -> None:
         if "robot" not in r:
             print(f"  {r}")
             continue
-        line = f"{r['case']:<58}"
-        for what in ("robot", "display"):
+        line = f"{r['case']:<52}"
+        for what in ("robot", "status"):
             v = sorted(r[what])
-            line += f" {what} median {v[len(v) // 2] * 1000:6.1f} ms worst {v[-1] * 1000:6.1f} ms |"
+            line += f" {what} {v[len(v) // 2] * 1000:5.1f} / {v[-1] * 1000:6.1f} ms |"
         loads = sorted(r["load"])
         print(f"{line} sent in {sorted(r['flood_s'])[len(r['flood_s']) // 2]:.2f} s, load {loads[0]:.1f}–{loads[-1]:.1f}")
 

@@ -28,6 +28,7 @@ from studio.security.addresses import (
     read_target,
     split_host,
 )
+from studio.security import wire
 from studio.security.page import PageScripts, policy, read_page_scripts
 from studio.security.presses import Presses
 from studio.security.uploads import MAX_MESSAGE_BYTES, UploadLimit
@@ -268,6 +269,7 @@ class Access:
             def guarded_serve(handler: Any, *args: Any, process_request: Any = None, **kw: Any) -> Any:
                 access.hooked = getattr(process_request, "__qualname__", repr(process_request))
                 kw["max_size"] = MAX_MESSAGE_BYTES
+                handler = wire.serving(handler, lambda: access.presses)  # its reader and sender find the gate
                 return real_serve(handler, *args, process_request=access.check(process_request), **kw)
 
             setattr(wss, "serve", guarded_serve)  # noqa: B010 (mypy: `serve` is a class)
@@ -287,6 +289,7 @@ class Access:
         try:
             if self.hooked is None:
                 raise StudioError("its web server no longer starts where the studio checks who connects")
+            wire.install()  # each tab's messages reach the gate as they are read; a frame that fails is mended
             self.uploads = UploadLimit(server)
             self.presses = Presses(server)  # sees each message first, then hands it to the upload limit
             self.scripts = read_page_scripts(getattr(server._websock_server, "_http_server_root", None))
