@@ -144,9 +144,12 @@ class Presses:
             return
         if kind == m.GuiUpdateMessage.__name__:
             uuid = fields.get("uuid")
-            control = self._handles.get(uuid) if isinstance(uuid, str) else None
+            if not isinstance(uuid, str):
+                self.malformed(client_id, "a value for no control")
+                return
+            control = self._handles.get(uuid)
             if control is None:
-                return  # viser ignores it too
+                return  # a control removed since (viser ignores it too)
             why = refusal(control, fields.get("updates"))
             if why is not None:
                 self.counts.refused += 1
