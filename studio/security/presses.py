@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from studio.core.errors import StudioError
+from studio.security.addresses import split_host
+from studio.security.heads import MAX_LINE_BYTES, TOO_MANY_COOKIES_NOTE
 from studio.security.values import refusal, value_refusal
 
 if TYPE_CHECKING:
@@ -65,6 +67,8 @@ class _Tab:
     gone: bool = False
     #: values read from the socket and not yet handed to viser (control → the newest message), in order
     held: dict[str, Any] = field(default_factory=dict)
+    #: what the tab is to be told once viser counts it as connected ("" when nothing)
+    note: str = ""
     #: malformed messages: when the current 10 s began, and how many in them
     malformed_since: float = -1e9
     malformed: int = 0
@@ -123,11 +127,29 @@ class Presses:
         gui._thread_executor = self  # type: ignore[assignment]
         scene._thread_executor = self  # type: ignore[assignment]
         ws.on_client_disconnect(self._on_disconnect)
+        server.on_client_connect(lambda client: self._told(client.client_id))
 
     # -- messages as they are read from a tab's socket, on viser's event loop ------------------------------
     def client_of(self, websocket: Any) -> int | None:
         """The tab (viser's client id) whose connection is ``websocket``."""
         return next((cid for cid, conn in list(self._ws._live_connections.items()) if conn is websocket), None)
+
+    def greet(self, client_id: Any, websocket: Any) -> None:
+        """A tab just connected: told when its browser sent a cookie bomb (:mod:`.heads`) with its request."""
+        n = int(getattr(websocket, "cookie_bytes", 0))
+        if n <= MAX_LINE_BYTES:
+            return
+        request = getattr(websocket, "request", None)
+        host = split_host(request.headers.get("Host", "")) if request is not None else None
+        text = TOO_MANY_COOKIES_NOTE.format(kb=round(n / 1000), host=host[0] if host else "this address")
+        with self._lock:
+            self._tabs.setdefault(client_id, _Tab()).note = text  # told once viser counts the tab as connected
+
+    def _told(self, client_id: Any) -> None:
+        tab = self._tabs.get(client_id)
+        if tab is not None and tab.note and client_id in self._server.get_clients():
+            note, tab.note = tab.note, ""
+            self._tell(client_id, "Too many cookies for this address", note, "yellow")
 
     def receive(
         self, client_id: Any, fields: dict[str, Any], message: Callable[[], Any], handle: Callable[[Any], None]
@@ -244,7 +266,7 @@ class Presses:
                 return True
         self._log("too fast", "ignored presses of a tab that came faster than the studio acts on them")
         if tell:
-            self._tell(client_id)
+            self._tell(client_id, "Too many presses", TOO_FAST, "yellow", 8.0)
         return False
 
     # -- callbacks: viser submits them here (it takes this for its thread pool) ----------------------------
@@ -344,11 +366,13 @@ class Presses:
         self._last_log[what] = now
         log.warning("%s", text)
 
-    def _tell(self, client_id: int) -> None:
+    def _tell(
+        self, client_id: int, title: str, body: str, color: Any = "yellow", close_after: float | None = None
+    ) -> None:
         client = self._server.get_clients().get(client_id)
         if client is None:
             return
         try:
-            client.add_notification("Too many presses", TOO_FAST, color="yellow", auto_close_seconds=8.0)
+            client.add_notification(title, body, color=color, auto_close_seconds=close_after)
         except Exception:  # a tab that just closed
             log.debug("notice to a closed tab", exc_info=True)

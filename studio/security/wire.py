@@ -100,6 +100,7 @@ async def read(gate: Any, websocket: Any, handle_message: Callable[[Any], None],
     import msgspec
 
     client_id = gate.client_of(websocket)
+    gate.greet(client_id, websocket)
     n = 0
     while True:
         raw = await websocket.recv()
