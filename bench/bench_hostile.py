@@ -711,7 +711,8 @@ else:
 def part_burst(args: argparse.Namespace) -> list[dict[str, Any]]:
     """The Emergency stop of one tab right behind 10,000 presses (Rename) or values (a slider) another tab sent at
     once: time to the robot (the backend's ``emergency_stop`` called) and to a third tab's display (the run
-    panel's status says e-stopped); at the machine's own load, then with two CPU-bound processes started, in the same run."""
+    panel's status says e-stopped); at the machine's own load, then with two CPU-bound processes started, in the
+    same run."""
     from studio.app import build_app
     from tests.conftest import free_port, reap
 
@@ -728,11 +729,11 @@ def part_burst(args: argparse.Namespace) -> list[dict[str, Any]]:
 
     backend.emergency_stop = timed_stop  # type: ignore[method-assign]
     url = f"ws://127.0.0.1:{app.port}/?key={app.access.key}"
+    code = BURST_TABS.format(root=str(ROOT))
     tabs, watch = (
         subprocess.Popen(
-            [sys.executable, "-c", BURST_TABS.format(root=str(ROOT)), url, role],
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, cwd=ROOT,
-        )  # fmt: skip
+            [sys.executable, "-c", code, url, role], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, cwd=ROOT
+        )
         for role in ("press", "watch")
     )
     busy: list[subprocess.Popen] = []
@@ -1024,8 +1025,8 @@ def report_burst(rows: list[dict[str, Any]]) -> None:
         for what in ("robot", "status"):
             v = sorted(r[what])
             line += f" {what} {v[len(v) // 2] * 1000:5.1f} / {v[-1] * 1000:6.1f} ms |"
-        loads = sorted(r["load"])
-        print(f"{line} sent in {sorted(r['flood_s'])[len(r['flood_s']) // 2]:.2f} s, load {loads[0]:.1f}–{loads[-1]:.1f}")
+        loads, sent = sorted(r["load"]), sorted(r["flood_s"])
+        print(f"{line} sent in {sent[len(sent) // 2]:.2f} s, load {loads[0]:.1f}–{loads[-1]:.1f}")
 
 
 def report_memory(rows: list[dict[str, Any]]) -> None:

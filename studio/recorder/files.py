@@ -27,7 +27,7 @@ from typing import IO, Any
 import numpy as np
 
 from studio.core.errors import RecordingError, StorageError, StudioError
-from studio.core.types import ALL_ARM_JOINTS, ARMS, Recording
+from studio.core.types import ALL_ARM_JOINTS, ARMS, Arm, Recording
 
 MAGIC = b"TSREC\n"
 FORMAT_VERSION = 1
@@ -154,12 +154,14 @@ def read_recording_file(
 
 
 def demo_from_rows(
-    data: np.ndarray, arms: tuple[str, ...], name: str, path: Path, *, poses: bool = True
+    data: np.ndarray, arms: tuple[Arm, ...], name: str, path: Path, *, poses: bool = True
 ) -> RecordedDemo:
     """A take from its file rows ``data`` (n, columns(arms)), times made to start at 0."""
     t = np.asarray(data[:, 0]) - float(data[0, 0])
     rec = Recording(t=t, q=data[:, 1:15], gripper=np.clip(data[:, 15:17], 0.0, 100.0), arms=arms, name=name)
-    out_poses = {a: np.array(data[:, 17 + 7 * i : 24 + 7 * i]) for i, a in enumerate(arms)} if poses else {}
+    out_poses: dict[str, np.ndarray] = (
+        {a: np.array(data[:, 17 + 7 * i : 24 + 7 * i]) for i, a in enumerate(arms)} if poses else {}
+    )
     return RecordedDemo(recording=rec, poses=out_poses, path=path)
 
 
@@ -183,7 +185,7 @@ def write_spill(
             with open(part, "xb") as f:
                 write_header(f, header)
                 for rows in parts:
-                    f.write(memoryview(np.ascontiguousarray(rows, dtype="<f8")).cast("B"))
+                    f.write(np.ascontiguousarray(rows, dtype="<f8").data.cast("B"))
                 f.flush()
                 os.fsync(f.fileno())
             final = folder / name

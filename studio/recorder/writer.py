@@ -50,7 +50,7 @@ MAX_SECONDS = 3600.0
 DRAIN_CHUNK = 32_768
 #: Samples allowed to wait for the writer before the producer is made to wait (100 s of the stream at 1 kHz).
 MAX_PENDING = 100_000
-#: Bytes of rows a take may hold in memory while the disk takes none (about 20 minutes of one arm at 1 kHz).
+#: Bytes of rows a take may hold in memory while the disk takes none (docs/decisions/090 says how long that lasts).
 MAX_UNSAVED_BYTES = 256 * 1024**2
 
 
@@ -394,7 +394,7 @@ class Recorder:
         fd = f.fileno()
         while self._unsaved:
             rows = self._unsaved[0]
-            data = memoryview(rows).cast("B")
+            data = rows.data.cast("B")
             done, why = 0, None
             try:
                 while done < len(data):

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal
 
 from studio.core.errors import StudioError
+from studio.security import wire
 from studio.security.addresses import (
     KEY_PARAM,
     KEY_RE,
@@ -28,7 +29,6 @@ from studio.security.addresses import (
     read_target,
     split_host,
 )
-from studio.security import wire
 from studio.security.heads import MAX_LINE_BYTES, TOO_MANY_COOKIES_TEXT, connection_class
 from studio.security.page import PageScripts, policy, read_page_scripts
 from studio.security.presses import Presses
@@ -255,7 +255,7 @@ class Access:
         now = time.monotonic()
         if now - self._last_log.get("cookies", -1e9) >= 10.0:
             self._last_log["cookies"] = now
-            log.warning("a request carried %d bytes of cookies (set by another page?); only the studio's own was read", n)
+            log.warning("a request carried %d bytes of cookies (another page's?); only the studio's own was read", n)
 
     def _log_refusal(self, reason: str, request: Request) -> None:
         now = time.monotonic()

@@ -63,8 +63,8 @@ def install() -> None:
                 await send(sender, websocket, buffer, client_id, backlog_done_message)
 
         consumer.studio_hook = True  # type: ignore[attr-defined]
-        _infra._message_consumer = consumer  # type: ignore[assignment]
-        _infra._message_producer = producer  # type: ignore[assignment]
+        _infra._message_consumer = consumer
+        _infra._message_producer = producer
 
 
 def hooked() -> bool:
@@ -80,7 +80,7 @@ def serving(handler: Callable[[Any], Any], gate: Callable[[], Any]) -> Callable[
 
     async def studio_connection(connection: Any) -> None:
         _GATE.set(gate)  # this connection's task and the tasks it starts (reader, senders) see it
-        transport = getattr(connection, "transport", None)
+        transport: Any = getattr(connection, "transport", None)
         if isinstance(getattr(transport, "max_size", None), int):
             transport.max_size = min(transport.max_size, READ_BYTES)
         await handler(connection)

@@ -274,7 +274,7 @@ def field_words(path: tuple[str | int, ...]) -> str:
     if len(path) >= 3 and path[0] == "demos" and isinstance(path[1], int):
         entry = f"demonstration {path[1] + 1}"
         return f"the name of {entry}" if path[2:] == ("name",) else f"the entry {_dotted(path[2:])} of {entry}"
-    words = {("notes",): "the session's notes", ("name",): "the session's name"}
+    words: dict[tuple[str | int, ...], str] = {("notes",): "the session's notes", ("name",): "the session's name"}
     return words.get(path, f"the entry {_dotted(path)}")
 
 

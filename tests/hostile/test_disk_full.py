@@ -231,7 +231,7 @@ def test_a_take_still_in_memory_when_the_studio_stops_is_added_at_the_next_start
     state = disk.parent / "state"
     monkeypatch.setenv("XDG_STATE_HOME", str(state))
     store = SessionStore(disk / "sessions")
-    ctl, told = _recording(store)
+    ctl, _ = _recording(store)
     try:
         _record_until(ctl, 0.5)
         filler = fill(disk)
@@ -246,7 +246,8 @@ def test_a_take_still_in_memory_when_the_studio_stops_is_added_at_the_next_start
     filler.unlink()
     again = store.open("s")
     assert [len(r) for r in again.recordings] == [n], again.recovery_message
-    assert "could not be saved when recorded" in again.recovery_message and "stopped while" not in again.recovery_message
+    words = again.recovery_message
+    assert "could not be saved when recorded" in words and "stopped while" not in words, words
     assert not list(state.rglob("*.rec"))
 
 

@@ -24,6 +24,7 @@ from studio.core.errors import StudioError
 from studio.storage import SessionStore
 from tests.conftest import ROOT, free_port, wait_for
 from tests.hostile.conftest import tab
+from tests.hostile.test_flood import uuid_of
 from tests.viser_client import ViserClient
 
 SURROGATE = "\ud800"
@@ -38,12 +39,6 @@ def bad_session(sessions: Path, name: str = "bad") -> Path:
     (folder / "session.json").write_text(json.dumps(manifest, ensure_ascii=True), encoding="utf-8")
     assert "\\ud800" in (folder / "session.json").read_text(encoding="utf-8")
     return folder
-
-
-def uuid_of(c: ViserClient, label: str, kind: str) -> str:
-    found = c.wait_for(lambda ms: [m["uuid"] for m in ms if m["type"] == kind and m.get("props", {}).get("label") == label])
-    assert found, f"no {kind} {label!r}"
-    return str(found[-1])
 
 
 def press(c: ViserClient, uuid: str, value: Any) -> bytes:
@@ -123,9 +118,7 @@ def test_a_text_no_page_can_be_sent_never_takes_the_tabs_down(app: Studio, caplo
         b.close()
 
 
-def test_malformed_frames_cost_one_log_line_each_and_not_the_tab(
-    app: Studio, caplog: pytest.LogCaptureFixture
-) -> None:
+def test_malformed_frames_cost_one_log_line_each_and_not_the_tab(app: Studio, caplog: pytest.LogCaptureFixture) -> None:
     """Today: each malformed frame logged a full traceback and ended the tab's connection."""
     c = tab(app)
     frames: list[bytes | str] = [b"\xc1", b"\x00garbage", msgspec.msgpack.encode([1, 2]),
@@ -159,11 +152,11 @@ def test_a_burst_sent_at_once_is_judged_as_it_is_read(app: Studio) -> None:
     handled: dict[int, int] = {}
     inner = presses._inner
 
-    async def counted(client_id: int, message: Any) -> None:
+    async def counted(client_id: Any, message: Any) -> None:
         handled[client_id] = handled.get(client_id, 0) + 1
         await inner(client_id, message)
 
-    presses._inner = counted  # type: ignore[method-assign]
+    presses._inner = counted
     flood, other = tab(app), tab(app)
     try:
         rename = press(flood, uuid_of(flood, "Demo action", "GuiButtonGroupMessage"), "Rename")
@@ -180,6 +173,6 @@ def test_a_burst_sent_at_once_is_judged_as_it_is_read(app: Studio) -> None:
         assert sum(handled.values()) < 2_000, handled  # 20,001 messages: each reached viser's handler before
         assert not flood.closed.is_set() and not other.closed.is_set()
     finally:
-        presses._inner = inner  # type: ignore[method-assign]
+        presses._inner = inner
         flood.close()
         other.close()
