@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import msgspec
+import numpy as np
 import pytest
 
 from studio.app import Studio, build_app
@@ -176,3 +177,30 @@ def test_a_burst_sent_at_once_is_judged_as_it_is_read(app: Studio) -> None:
         presses._inner = inner
         flood.close()
         other.close()
+
+
+@pytest.mark.parametrize(
+    ("arrays", "field"),
+    [
+        ({"demo_names": np.array([f"demo {SURROGATE}"])}, "demo_names"),
+        ({"frames_meta": np.array(json.dumps({"regions": [[f"cup{SURROGATE}", "cup"]]}))}, "frames_meta"),
+        ({"trajectory_name": np.array("a\x07b")}, "trajectory_name"),
+    ],
+    ids=["a-name", "json-inside", "a-control"],
+)
+def test_a_skill_file_holding_a_text_no_page_can_show_is_skipped_in_words(
+    sessions: Path, arrays: dict[str, np.ndarray], field: str
+) -> None:
+    """The skill file's texts pass the same door as the manifest's (its names, and the JSON some of them hold)."""
+    folder = sessions / "stack-cup"
+    (folder / "skills").mkdir(exist_ok=True)
+    np.savez(folder / "skills" / "left.npz", format=np.array("teaching-studio-skill/1"), **arrays)
+    manifest = json.loads((folder / "session.json").read_text(encoding="utf-8"))
+    manifest["skills"] = {"left": {"file": "skills/left.npz"}}
+    (folder / "session.json").write_text(json.dumps(manifest), encoding="utf-8")
+    opened = SessionStore(sessions).open("stack-cup", skip_damaged=True)
+    assert not opened.skills and len(opened.problems) == 1
+    assert (
+        f'"skills/left.npz" of session "stack-cup" has a character that cannot be shown in its "{field}"'
+        in (opened.problems[0])
+    )
