@@ -23,10 +23,9 @@ TOO_MANY_COOKIES_TEXT = (
     "  Firefox: click the lock left of the address, then 'Clear cookies and site data'.\n"
 )
 TOO_MANY_COOKIES_NOTE = (
-    "Your browser sends this studio {kb:,} KB of cookies that a page of another program on this computer set for "
-    "{host} (cookies do not tell ports apart). The studio ignores them and keeps working, but other programs at "
-    "this address may stop answering. To clear them, click the icon left of the address, then 'Cookies and site "
-    "data', and delete the data of {host}; then open the address the studio printed again."
+    "Your browser sends this studio {kb:,} KB of cookies that another program's page set for {host}. The studio "
+    "ignores them; other programs at this address may stop answering. To clear them, click the icon left of the "
+    "address, then 'Cookies and site data', and delete the data of {host}."
 )
 
 
