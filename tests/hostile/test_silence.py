@@ -194,7 +194,8 @@ def test_a_skill_file_holding_a_text_no_page_can_show_is_skipped_in_words(
     """The skill file's texts pass the same door as the manifest's (its names, and the JSON some of them hold)."""
     folder = sessions / "stack-cup"
     (folder / "skills").mkdir(exist_ok=True)
-    np.savez(folder / "skills" / "left.npz", format=np.array("teaching-studio-skill/1"), **arrays)
+    members: dict[str, Any] = {"format": np.array("teaching-studio-skill/1"), **arrays}
+    np.savez(folder / "skills" / "left.npz", **members)
     manifest = json.loads((folder / "session.json").read_text(encoding="utf-8"))
     manifest["skills"] = {"left": {"file": "skills/left.npz"}}
     (folder / "session.json").write_text(json.dumps(manifest), encoding="utf-8")
