@@ -20,6 +20,7 @@ import viser
 from studio.controller import Controller, Kind, LogNotifier, Topic
 from studio.core.errors import StudioError
 from studio.core.kinematics import baxter_urdf_path
+from studio.core.text import sendable
 from studio.panels import Panels, build_panels
 from studio.panels._page import install as install_page
 from studio.panels.steps import HOME_CAMERA_FOV_DEG, HOME_CAMERA_LOOK_AT, HOME_CAMERA_POSITION
@@ -109,6 +110,7 @@ class BrowserNotifier:
         if self.server is None:
             LogNotifier().notify(title, body, kind=kind)
             return
+        title, body = sendable(title, line=True), sendable(body)  # words built from a file or the robot's text
         key = (title, body, id(client) if client is not None else None)
         now = time.monotonic()
         if now - self._recent.get(key, -1e9) < 5.0:

@@ -29,6 +29,7 @@ from studio.controller.suggest import Suggesting, SuggestState
 from studio.controller.teaching import Reach, Teaching
 from studio.controller.training import FRAME_WORDS, MODE_WORDS, SkillVerdict, Training, UsedDemo
 from studio.controller.undo import Undo
+from studio.controller.unsaved import UnsavedTakes
 from studio.controller.view import Layer, Step, View
 from studio.core.kinematics import Baxter
 from studio.robot_backend.base import RobotBackend
@@ -70,6 +71,7 @@ class Controller:
         # bound: a part is asked only once all exist); it subscribes to the events it follows itself.
         self.view = View(ctx.events)
         self.undo = Undo(ctx)  # a discarded take or a deleted demonstration, for a while
+        self.unsaved = UnsavedTakes(ctx)  # takes a full disk did not take yet, saved when it has space
         self.demos = Demos(ctx, keep=self.undo.keep)
         self.placed = PlacedSkills(ctx)  # the skills where the objects are now: what preview and runs play
         self.playback = Player(
@@ -85,6 +87,7 @@ class Controller:
             takes=self.scene,
             motion_guard=lambda d: self.execution.check_free(d),
             keep=lambda recording, events: self.undo.keep(recording, events),
+            unsaved=self.unsaved.keep,
         )
         self.guide = Guiding(ctx, self.teaching, objects=lambda: self.scene.live.poses())
         self.keypoints = KeypointTuning(ctx, self.demos)
@@ -165,6 +168,7 @@ class Controller:
     def close(self) -> None:
         """Keep a running take and unsaved thresholds (failures are logged), and stop the key-point thread."""
         self.teaching.save_running_recording()
+        self.unsaved.close()  # what waits for disk space: a last try, else a spill folder (the next open adds it)
         try:
             self.keypoints.persist()
         except Exception:
@@ -226,6 +230,7 @@ __all__ = [
     "Topic",
     "Training",
     "Undo",
+    "UnsavedTakes",
     "UsedDemo",
     "View",
     "WorldEvent",

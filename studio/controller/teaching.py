@@ -8,6 +8,7 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Protocol
 
 import numpy as np
@@ -59,6 +60,8 @@ class Teaching:
         motion_guard: refuses (raises, in plain words) moving by hand or recording ("before {doing}") during a
             run on the robot or an emergency stop.
         keep: keeps a discarded take (and its object events) for Undo.
+        unsaved: keeps trying to save a take its session refused for want of space (its recorder, the session
+            folder, the take, its object events).
     """
 
     def __init__(
@@ -68,6 +71,7 @@ class Teaching:
         takes: Takes,
         motion_guard: Callable[[str], None] = lambda doing: None,
         keep: Callable[[Recording, Sequence[WorldEvent]], None] = lambda recording, events: None,
+        unsaved: Callable[[Recorder, Path, Recording, Sequence[WorldEvent]], None] | None = None,
     ) -> None:
         self.ctx = ctx
         self.backend = backend
@@ -76,6 +80,7 @@ class Teaching:
         self.motion_guard = motion_guard
         #: Keeps a discarded take for Undo.
         self.keep = keep
+        self.unsaved = unsaved
         self.reach: dict[Arm, Reach] = {}
         self._targets: dict[Arm, np.ndarray] = {}
         self._ik_lock = {arm: threading.Lock() for arm in ARMS}
@@ -274,7 +279,13 @@ class Teaching:
             if session.read_only:  # refused before the take, never after it
                 raise ReadOnly(session.name)
             self.display.show_live()
-            rec = Recorder(self.backend, session.recording_dir, self.selected_arms, name=self._next_demo_name())
+            rec = Recorder(
+                self.backend,
+                session.recording_dir,
+                self.selected_arms,
+                name=self._next_demo_name(),
+                on_full=lambda words: self.ctx.notify("The disk is full", words, kind="warning"),
+            )
             rec.start()
             self._recorder, self._session = rec, session  # the take is saved where it was started
             self._owner, self._discard_asked = _tab_id(by), None
@@ -306,9 +317,11 @@ class Teaching:
                 events = self.takes.end_take(recording)
                 try:
                     self._session.add_recording(recording, events=events)
-                except StorageError as exc:  # the take stays in the recorder's file: recovered at the next open
-                    kept = "The take itself is kept and is added when the session is next opened."
-                    raise StorageError(f"{exc} {kept}") from exc
+                except StorageError as exc:  # the take stays whole: in its file and (the rest) in memory
+                    if self.unsaved is None:
+                        raise StorageError(f"{exc} {_kept_words(recording, rec.unsaved, later=False)}") from exc
+                    self.unsaved(rec, self._session.path, recording, events)
+                    raise StorageError(f"{exc} {_kept_words(recording, rec.unsaved, later=True)}") from exc
                 except InvalidInput:
                     # One sample is not a demonstration: nothing to keep. Any other take the session refuses
                     # stays on disk; the next open sets it aside by name (crash recovery), never lost.
@@ -374,6 +387,20 @@ class Teaching:
             self.stop_recording()
         except Exception:
             log.exception("saving the running recording at shutdown")
+
+
+def _kept_words(recording: Recording, in_memory: int, *, later: bool) -> str:
+    """What became of a take its session could not save (disk full), with its length."""
+    where = (
+        f"{in_memory:,} of its samples wait in the studio's memory, the rest in its recording file"
+        if in_memory
+        else "it is whole in its recording file"
+    )
+    when = "as soon as the disk has space (free some space), or " if later else ""
+    return (
+        f'The take "{recording.name}" ({recording.duration:.1f} s, {len(recording):,} samples) is not saved yet: '
+        f"{where}. It is added to the session {when}the next time the session opens."
+    )
 
 
 def take_words(recording: Recording) -> str:
