@@ -106,7 +106,7 @@ class Objects:
     def __init__(self, scene: Scene, start: Sequence[ObjectPose] | None) -> None:
         self.table = scene.table
         if start is None:
-            objects = list(scene.objects)
+            objects = list(scene.settled().objects)  # one left in the air, or beyond the table's edge, falls
         else:
             objects = [WorldObject(p.name, p.kind, p.size, p.position, p.yaw, held_out=p.on == "hand") for p in start]
         self.states: dict[str, _State] = {o.name: _State(o) for o in objects}
