@@ -4,6 +4,7 @@ plain words, from real runs of the scripted teacher (studio/teacher.py) through 
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -18,15 +19,18 @@ from studio.world import (
     DEFAULT_SIZE,
     NEST_STEP,
     PRESETS,
+    START,
     TABLE_TOP_Z,
+    Placement,
     Scene,
     World,
     WorldEvent,
     events_from_dict,
     events_to_dict,
     preset,
+    read_goal,
+    session_goal,
     simulate,
-    task_goal,
     task_result,
 )
 
@@ -52,8 +56,10 @@ def teacher_variant(monkeypatch: pytest.MonkeyPatch):
 
 
 def goal_of(task: str, arm: str = "left", seeds=(0, 1, 2)):
+    """The goal of the task set-up, matched to demonstrations of the scripted teacher, and its scene."""
     scene = preset(task, ("left", "right") if arm == "both" else (arm,))
-    return task_goal([run_plan(teach(task, s, arm=arm), scene).events for s in seeds]), scene
+    events = [run_plan(teach(task, s, arm=arm), scene).events for s in seeds]
+    return session_goal(scene.preset, scene.goal, scene.names(), events), scene
 
 
 # -- the scene -------------------------------------------------------------------------------------------------
@@ -291,20 +297,26 @@ def test_bad_streams_are_refused_or_skipped() -> None:
 @pytest.mark.parametrize("task", TASKS)
 def test_result_a_good_run_works(task: str) -> None:
     goal, scene = goal_of(task)
-    assert goal.demos == 3 and len(goal.objects) == 1
+    assert goal.source == "set-up" and goal.objects == (["cup"] if task == "stack-cup" else ["block"])
     res = task_result(run_plan(teach(task, 7), scene), goal)
     assert res.ok, res.text
-    name = "cup" if task == "stack-cup" else "block"
-    assert res.text.startswith(f"The {name} ended ") and res.text.endswith("from where you put it — the skill works.")
+    if task == "stack-cup":
+        assert re.fullmatch(r"The cup ended in the bottom cup, [\d.]+ cm from its centre\.", res.text), res.text
+    else:  # the scripted teacher brings the block back: the goal's pad, then where it started
+        assert re.fullmatch(
+            r"The block went onto the pad \([\d.]+ cm from its centre\), then ended back where it started, "
+            r"([\d.]+ cm|less than 1 mm) from it\.",
+            res.text,
+        ), res.text
     assert res.objects[0].distance is not None and res.objects[0].distance < 0.02
 
 
 def test_result_both_arms() -> None:
     goal, scene = goal_of("stack-cup", "both", seeds=(0, 1))
-    assert sorted(g.name for g in goal.objects) == ["cup (left)", "cup (right)"]
-    assert {g.arm for g in goal.objects} == {"left", "right"}
+    assert sorted(goal.objects) == ["cup (left)", "cup (right)"]
+    assert {goal.arm(n) for n in goal.objects} == {"left", "right"}
     res = task_result(run_plan(teach("stack-cup", 5, arm="both"), scene), goal)
-    assert res.ok and res.text.count("the skill works") == 2
+    assert res.ok and res.text.count("ended in the bottom cup") == 2, res.text
 
 
 def test_result_never_picked_up_the_gripper_closed_above_it(teacher_variant) -> None:
@@ -367,8 +379,10 @@ def test_result_dropped_early() -> None:
     g[rec.t >= early, 0] = teacher.OPEN_WIDTH["stack-cup"]
     res = task_result(simulate(rec.t, rec.q, g, scene), goal)
     assert res.objects[0].verdict == "dropped early", res.text
-    assert res.text.startswith("The cup was dropped early: it landed ")
-    assert res.text.endswith("from where you put it, because the gripper opened before it got there.")
+    assert res.text.startswith("The cup was dropped early: it landed beside the bottom cup, ")
+    assert res.text.endswith(
+        "from its centre, because the gripper opened before it got there — the skill did not do the task."
+    ), res.text
     assert res.objects[0].distance is not None and res.objects[0].distance > 0.05
 
 
@@ -378,8 +392,10 @@ def test_result_released_in_the_wrong_place(teacher_variant) -> None:
     teacher_variant(PICK_PLACE_B=(b[0], b[1] + 0.07, b[2]))  # puts the block down 7 cm to the robot's left
     res = task_result(run_plan(teach("pick-place", 7), scene), goal)
     assert res.objects[0].verdict == "wrong place"
-    assert res.text.startswith(
-        "The block was released in the wrong place the first time: 7 cm to the robot's left of where you put it"
+    assert re.fullmatch(
+        r"The block was released in the wrong place the first time: it landed beside the pad, \d cm from its "
+        r"centre — the skill did not do the task\.",
+        res.text,
     ), res.text
 
 
@@ -389,12 +405,11 @@ def test_result_ended_elsewhere_and_nothing_to_check() -> None:
     moved = scene.move("bottom cup", (0.60, -0.20, 0.0))
     res = task_result(run_plan(teach("stack-cup", 7), moved), goal)
     assert res.objects[0].verdict == "wrong place"
-    assert res.text == (
-        "The cup was released in the wrong place: 2 cm below where you put it "
-        "(it landed on the table, not on the bottom cup)."
+    assert re.fullmatch(
+        r"The cup ended beside the bottom cup, \d+ cm from its centre — the skill did not do the task\.", res.text
     ), res.text
-    empty = task_goal([run_plan(teach("stack-cup", 0), preset("empty table")).events, []])
-    assert empty.objects == ()
+    empty = read_goal([run_plan(teach("stack-cup", 0), preset("empty table")).events, []])
+    assert empty.placements == () and empty.source == ""
     res = task_result(run_plan(teach("stack-cup", 7), scene), empty)
     assert not res.ok and res.text.startswith("There is nothing to check")
 
@@ -407,9 +422,9 @@ def test_demos_that_disagree_are_left_out_with_a_note() -> None:
     g[rec.t >= plan.event_poses("close")[1].time - 0.2, 0] = 88.0  # this demo picks the block up only once
     events = [run_plan(teach("pick-place", s), scene).events for s in (0, 1)]
     events.append(simulate(rec.t, rec.q, g, scene).events)
-    goal = task_goal(events)
-    assert goal.objects[0].demos == 2 and len(goal.objects[0].releases) == 2
-    assert goal.notes == ("2 of 3 demonstrations pick up the block twice; the others are left out of the check.",)
+    goal = read_goal(events)
+    assert [p.onto for p in goal.of("block")] == ["pad", START]
+    assert goal.notes == ("2 of 3 demonstrations put the block down twice; the others are left out of the goal.",)
 
 
 def test_a_replay_starts_from_the_recorded_poses_even_mid_grasp() -> None:
@@ -431,7 +446,7 @@ def test_a_replay_starts_from_the_recorded_poses_even_mid_grasp() -> None:
         # (the grip is taken again from the first replayed sample: encoder noise moves it by < 2 mm)
         assert p.name == r.name and np.linalg.norm(np.subtract(p.position, r.position)) < 2e-3
     # The live world with a recorded path judges a run as simulate() does.
-    goal = task_goal(
+    goal = read_goal(
         [
             simulate(r.t, r.q, r.gripper, scene).events
             for r in (recording_from_plan(teach("pick-place", s)) for s in (0, 2))
@@ -457,13 +472,16 @@ def test_result_moved_again_after_it_was_put_down() -> None:
         rec = recording_from_plan(plan)
         n = int(np.searchsorted(rec.t, plan.event_poses("open")[0].time + 2.0))
         demos.append(simulate(rec.t[:n], rec.q[:n], rec.gripper[:n], scene).events)
-    goal = task_goal(demos)
-    assert len(goal.objects[0].releases) == 1
+    goal = session_goal(scene.preset, scene.goal, scene.names(), demos)
+    assert goal.placements == (Placement("block", "pad", goal.placements[0].spot),)
     # ... and a run that does the whole task: put on the pad, then picked up again and taken back to A.
     res = task_result(run_plan(teach("pick-place", 7), scene), goal)
     assert res.objects[0].verdict == "moved"
-    assert res.text.startswith("The block ended ") and "to the robot's left of where you put it" in res.text
-    assert res.text.endswith(": it was picked up again afterwards."), res.text
+    assert re.fullmatch(
+        r"The block ended beside the pad, \d+ cm from its centre: it was picked up again afterwards — the skill did "
+        r"not do the task\.",
+        res.text,
+    ), res.text
 
 
 def test_distances_in_plain_words() -> None:

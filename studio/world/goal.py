@@ -39,6 +39,11 @@ class Placement:
     onto: str
     spot: tuple[float, float, float, float] | None = None
 
+    @property
+    def target(self) -> str:
+        """What ``onto`` is: "object", "start" or "table"."""
+        return {START: "start", TABLE: "table"}.get(self.onto, "object")
+
     def to_dict(self) -> dict[str, Any]:
         return {"object": self.object, "onto": self.onto, "spot": None if self.spot is None else list(self.spot)}
 

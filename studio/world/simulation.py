@@ -189,17 +189,29 @@ class World:
 
     def _gripper_events(self, arm: Arm, det: Grip, t: np.ndarray, q: np.ndarray, col: np.ndarray) -> list[WorldEvent]:
         out: list[WorldEvent] = []
+        last = 0
         for k, g in enumerate(col.tolist()):
             action = det.step(g)
             if action is None:
                 continue
+            self._sweep(arm, t[last:k], q[last:k])
+            last = k
             T = self._gripper_T(arm, q[k])
             self._objects.carry(arm, T)
             objects = self._objects
             ev = objects.close(arm, float(t[k]), T) if action == "close" else objects.open(arm, float(t[k]), T)
             if ev is not None:
                 out.append(ev)
+        self._sweep(arm, t[last:], q[last:])
         return out
+
+    def _sweep(self, arm: Arm, t: np.ndarray, q: np.ndarray) -> None:
+        """A held cup's way down into another (:meth:`Objects.sweep`), checked about every 10 ms."""
+        if len(t) == 0 or not any(s.obj.kind == "cup" for s in self._objects.holding(arm)):
+            return
+        idx = np.flatnonzero(np.diff(np.floor(t / 0.01), prepend=-math.inf) > 0)
+        p, wxyz = self.baxter.fk_batch(arm, q[idx, :7] if arm == "left" else q[idx, 7:])
+        self._objects.sweep(arm, [transform(p[i], wxyz[i]) for i in range(len(idx))])
 
     def _record_path(self, t: np.ndarray, q: np.ndarray) -> None:
         bucket = np.floor(t * self._path_rate)
