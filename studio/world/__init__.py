@@ -1,10 +1,10 @@
 """The task scene without a GUI: a table, the task's objects, and how they respond to Baxter's grippers.
 
-A :class:`Scene` is what the teacher sets up (presets "empty table", "stack-cup", "pick-place"). A
+A :class:`Scene` is what the teacher sets up (presets: "empty table", "stack-cup", "pick-place"); a
 :class:`World` plays a stream of robot poses against a scene, live (:meth:`World.on_batch`) or as a function
-(:func:`simulate`); grasp, carry and release are simple deterministic rules (:mod:`.rules`,
-docs/decisions/027). Events (:class:`WorldEvent`) record the objects at a take's start and end and at each
-grasp, release and miss; the task's goal is data (:mod:`.goal`) and :func:`task_result` judges a run by it."""
+(:func:`simulate`); grasp, carry and release are deterministic rules (:mod:`.rules`,
+docs/decisions/027). Events (:class:`WorldEvent`) record the objects at a take's start, end, grasps,
+releases, misses; the task's goal is data (:mod:`.goal`), :func:`task_result` judges a run by it."""
 
 from studio.world.events import (
     ObjectPose,

@@ -1,11 +1,10 @@
 """The grasp, carry and release rules, object by object (what a :class:`~studio.world.simulation.World` applies).
 
-Simple and deterministic (no physics, no randomness): the gripper *closes* when its opening falls
-:data:`SWING` percent below its last maximum and *opens* when it rises as much above its last minimum;
-closing with the gripper point (between the fingertips) near a cup's or block's axis and height grasps it
-(with whatever rests on it), anywhere else is a *miss*; opening lets it down, upright, onto the highest
-surface under its centre (:func:`studio.world.geometry.landing`). A cup has walls: it goes into another
-cup only through its opening (:meth:`Objects.sweep`); one that met the wall ends beside that cup."""
+Deterministic, no physics: the gripper *closes* when its opening falls :data:`SWING` percent below its last
+maximum and *opens* when it rises as much above its last minimum; closing with the gripper point near a cup's
+or block's axis and height grasps it (with what rests on it), elsewhere *misses*; opening lets it down,
+upright, onto the highest surface under its centre (:func:`~studio.world.geometry.landing`). A cup goes into
+another only through its opening (:meth:`Objects.sweep`)."""
 
 from __future__ import annotations
 
