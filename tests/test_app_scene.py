@@ -145,7 +145,7 @@ def test_task_result_in_the_preview_panel(app: Studio) -> None:
     ctl.training.train().result()
     assert wait_for(lambda: 'data-ok="true"' in panel.task.content)
     assert "The skill does the task." in panel.task.content
-    assert "The block ended" in panel.task.content and "from where you put it — the skill works" in panel.task.content
+    assert "The block went onto the pad (" in panel.task.content and 'data-claim="works"' in panel.task.content
     ctl.scene.move("block", (0.55, -0.35, -0.07))  # somewhere the skill never goes
     assert wait_for(lambda: 'data-ok="false"' in panel.task.content)
     assert "The skill misses the task." in panel.task.content
@@ -269,25 +269,39 @@ def test_an_object_is_moved_with_its_handle(app: Studio, page: ViserClient) -> N
 @pytest.mark.parametrize(
     ("verdict", "text"),
     [
-        ("works", "The cup ended 0.6 cm from where you put it — the skill works."),
+        ("works", "The cup ended in the bottom cup, 0.6 cm from its centre."),
         ("never picked up", "The block was never picked up: the gripper closed 3 cm above it."),
         ("never picked up", "The block was not picked up the second time: the gripper did not close again."),
         ("still held", "The cup was still in the gripper at the end: the gripper never opened."),
         (
             "dropped early",
-            "The cup was dropped early: it landed 9 cm from where you put it, because the gripper "
-            "opened before it got there.",
+            "The cup was dropped early: it landed beside the bottom cup, 9 cm from its centre, because the gripper "
+            "opened before it got there — the skill did not do the task.",
         ),
         (
             "wrong place",
-            "The block was released in the wrong place: 5 cm short of where you put it, towards the "
-            "robot (it landed on the table, not on the pad).",
+            "The block was released in the wrong place the first time: it landed beside the pad, 8 cm from its "
+            "centre — the skill did not do the task.",
         ),
-        ("moved", "The block ended 6 cm to the robot's left of where you put it: it was picked up again afterwards."),
+        (
+            "moved",
+            "The block ended beside the pad, 9 cm from its centre: it was picked up again afterwards — the skill did "
+            "not do the task.",
+        ),
         (None, "There is nothing to check: your demonstrations did not pick up any object."),
     ],
 )
 def test_the_preview_panel_shows_each_task_result_wording(verdict: str | None, text: str) -> None:
+    ok = verdict == "works"
+    shown = preview_task_html(verdict, text)
+    assert html_text(shown).endswith(text) and f'data-ok="{str(ok).lower()}"' in shown
+    head = "The skill does the task." if ok else ("Task result." if verdict is None else "The skill misses the task.")
+    assert html_text(shown).startswith(head)
+
+
+def preview_task_html(verdict: str | None, text: str, warnings: list[str] | None = None, follows: bool = True) -> str:
+    """The Preview panel's task result for a result of ``verdict``, with the reach words and whether the robot can
+    follow the whole path."""
     from types import SimpleNamespace
 
     from studio.controller import TaskResult
@@ -297,11 +311,26 @@ def test_the_preview_panel_shows_each_task_result_wording(verdict: str | None, t
     ok = verdict == "works"
     objects = () if verdict is None else (ObjectResult("x", ok, verdict, text, 0.01),)
     result = TaskResult(ok, text, objects)
-    panel = SimpleNamespace(ctl=SimpleNamespace(scene=SimpleNamespace(task_result=lambda: result)))
-    shown = PreviewPanel._task_html(panel)  # type: ignore[arg-type]
-    assert html_text(shown).endswith(text) and f'data-ok="{str(ok).lower()}"' in shown
-    head = "The skill does the task." if ok else ("Task result." if verdict is None else "The skill misses the task.")
-    assert html_text(shown).startswith(head)
+    ctl = SimpleNamespace(
+        scene=SimpleNamespace(task_result=lambda: result),
+        placed=SimpleNamespace(warnings=lambda: list(warnings or [])),
+        execution=SimpleNamespace(feasibility=lambda: {"left": SimpleNamespace(ok=follows)}),
+    )
+    return PreviewPanel._task_html(SimpleNamespace(ctl=ctl))  # type: ignore[arg-type]
+
+
+def test_the_preview_never_claims_works_above_words_that_say_otherwise() -> None:
+    """One story: a result that holds is "does the task" only where the objects stand where the demonstrations had
+    them and the robot can follow the whole path; otherwise the claim says why not (and agrees with the words)."""
+    text = "The block ended on the pad, 0.4 cm from its centre."
+    assert 'data-claim="works"' in preview_task_html("works", text)
+    never = preview_task_html("works", text, warnings=["You never showed me the block this far to the robot's left"])
+    assert 'data-claim="guess"' in never and "The skill does the task" not in never
+    assert html_text(never).startswith("In the preview the skill does the task here, but you never showed me")
+    cannot = preview_task_html("works", text, follows=False)
+    assert 'data-claim="cannot-run"' in cannot and "cannot follow all of its path" in cannot
+    missed = preview_task_html("wrong place", "The block ended beside the pad, 9 cm from its centre.", follows=False)
+    assert 'data-claim="misses"' in missed
 
 
 def html_text(fragment: str) -> str:

@@ -45,7 +45,7 @@ def test_a_skill_taught_in_one_place_works_there_and_says_it_has_seen_no_other(r
     assert skill.frames is not None and [b.role for b in skill.frames.borders] == ["object:cup", "object:bottom cup"]
     result = ctl.scene.task_result()
     assert result is not None and result.ok, result.text
-    assert "ended on the bottom cup" in result.text
+    assert "ended in the bottom cup" in result.text
     assert ctl.placed.warnings() == []
     assert "one place only" in ctl.placed.note()
     # Moved 6 cm: said before the run, in words, and the skill still follows the bottom cup.
@@ -53,7 +53,7 @@ def test_a_skill_taught_in_one_place_works_there_and_says_it_has_seen_no_other(r
     ctl.scene.move("bottom cup", (bottom.position[0], bottom.position[1] - 0.06, bottom.position[2]))
     said = ctl.placed.warnings()
     assert len(said) == 1 and said[0].startswith("You never showed me the bottom cup this far to the robot's right")
-    assert wait_for(lambda: (r := ctl.scene.task_result()) is not None and "ended on the bottom cup" in r.text)
+    assert wait_for(lambda: (r := ctl.scene.task_result()) is not None and "ended in the bottom cup" in r.text)
     result = ctl.scene.task_result()
     assert result is not None and result.ok, result.text
     placed = ctl.placed.get()["left"]
