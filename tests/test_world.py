@@ -3,6 +3,7 @@ plain words, from real runs of the scripted teacher (studio/teacher.py) through 
 
 from __future__ import annotations
 
+import itertools
 import json
 import re
 
@@ -16,10 +17,14 @@ from studio.core.types import ARMS
 from studio.robot_backend.simulated import SimulatedBaxter
 from studio.teacher import TASKS, recording_from_plan, teach
 from studio.world import (
+    CUP_GRASP_HEIGHT,
     DEFAULT_SIZE,
+    FLOOR_Z,
     NEST_STEP,
     PRESETS,
     START,
+    TABLE_CENTER,
+    TABLE_SIZE,
     TABLE_TOP_Z,
     Placement,
     Scene,
@@ -494,3 +499,83 @@ def test_distances_in_plain_words() -> None:
         "25 cm",
         "1.2 m",
     ]
+
+
+# -- the world's own claims (issue 27) ---------------------------------------------------------------------------
+DOWN = np.array([0.0, 0.0, 1.0, 0.0])  # gripper pointing down (as the teacher holds it)
+
+
+def stream_through(points, closes: int, opens: int, step_m: float = 0.01):
+    """A joint stream (t, q, gripper) whose left gripper goes straight through ``points`` (IK every ``step_m``
+    along each straight stretch, 20 ms apart), closing on arriving at point ``closes`` and opening at ``opens``."""
+    b = Baxter.load()
+    rng = np.random.default_rng(1)
+    q_prev = b.neutral("left")
+    qs, gs = [], []
+    closed = False
+    for i, (a, c) in enumerate(itertools.pairwise(points)):
+        a, c = np.asarray(a, dtype=float), np.asarray(c, dtype=float)
+        n = max(1, int(np.ceil(np.linalg.norm(c - a) / step_m)))
+        for u in np.linspace(0.0, 1.0, n + 1)[(1 if i else 0) :]:
+            for seed in [q_prev, b.neutral("left"), *b.random_configuration("left", rng, 20)]:
+                res = b.ik("left", a + u * (c - a), DOWN, seed, max_iterations=200)
+                if res.converged:
+                    break
+            assert res.converged, f"cannot reach {a + u * (c - a)}"
+            q_prev = res.q
+            qs.append(np.concatenate([res.q, b.neutral("right")]))
+            gs.append([0.0 if closed else 100.0, 100.0])
+        if i + 1 == closes:
+            closed = True
+        if i + 1 == opens:
+            closed = False
+        for _ in range(10):  # a pause at each point: the gripper closes or opens there
+            qs.append(qs[-1])
+            gs.append([0.0 if closed else 100.0, 100.0])
+    q = np.array(qs)
+    return np.arange(len(q)) * 0.02, q, np.array(gs, dtype=float)
+
+
+def test_a_cup_goes_into_another_only_through_its_opening() -> None:
+    """A cup has walls: lowered from above it goes in; slid in sideways below the other cup's rim, it meets the
+    wall, and it ends beside that cup, not in it."""
+    scene = preset("empty table").add("cup", (0.75, 0.30, 0.0), name="bottom cup").add("cup", (0.60, 0.30, 0.0))
+    grip_z = TABLE_TOP_Z + CUP_GRASP_HEIGHT
+    nest_z = TABLE_TOP_Z + NEST_STEP + CUP_GRASP_HEIGHT + 0.005
+    from_above = [
+        (0.60, 0.30, 0.15),
+        (0.60, 0.30, grip_z),
+        (0.60, 0.30, 0.15),
+        (0.75, 0.30, 0.15),
+        (0.75, 0.30, nest_z),
+    ]
+    run = simulate(*stream_through([*from_above, (0.75, 0.30, 0.15)], closes=1, opens=4), scene)
+    cup = next(p for p in run.final if p.name == "cup")
+    assert cup.on == "bottom cup" and cup.position[2] == pytest.approx(TABLE_TOP_Z + NEST_STEP)
+    low = TABLE_TOP_Z + 0.03 + CUP_GRASP_HEIGHT  # the carried cup's bottom 3 cm above the table: below the rim
+    sideways = [(0.60, 0.30, 0.15), (0.60, 0.30, grip_z), (0.60, 0.30, low), (0.75, 0.30, low), (0.75, 0.30, 0.15)]
+    run = simulate(*stream_through(sideways, closes=1, opens=3), scene)
+    release = next(e for e in run.events if e.kind == "release")
+    cup = release.pose("cup")
+    assert cup is not None and cup.on == "table", cup
+    bottom = scene.object("bottom cup").position
+    assert np.hypot(cup.position[0] - bottom[0], cup.position[1] - bottom[1]) >= 0.07 - 1e-9  # beside it
+
+
+def test_an_object_whose_centre_is_beyond_the_tables_edge_falls() -> None:
+    """Nothing standing on the table holds up what is beyond its edge; an object left in the air comes down."""
+    edge = TABLE_CENTER[0] + TABLE_SIZE[0] / 2
+    scene = preset("empty table").add("pad", (edge - 0.02, 0.0, 0.0))  # the pad sticks out 4 cm
+    on_pad = scene.add("block", (edge - 0.03, 0.0, 0.1))  # centre over the pad, on the table side: on the pad
+    assert on_pad.object("block").position[2] == pytest.approx(TABLE_TOP_Z + 0.004)
+    beyond = scene.add("block", (edge + 0.02, 0.0, 0.1))  # centre over the pad's overhang: falls
+    assert beyond.object("block").position[2] == pytest.approx(FLOOR_Z)
+    # The pad moved away from under the block: the block comes down onto the table.
+    moved = on_pad.move("pad", (0.6, 0.4, 0.0))
+    assert moved.object("block").position[2] == pytest.approx(TABLE_TOP_Z)
+    # A saved scene whose block stands half over the edge (as an older studio could leave it): the world drops it.
+    raw = preset("empty table").add("block", (0.7, 0.0, 0.0)).to_dict()
+    raw["objects"][0]["position"] = [edge + 0.01, 0.0, TABLE_TOP_Z]
+    world = World(Scene.from_dict(raw))
+    (block,) = world.poses()
+    assert block.on == "floor" and block.position[2] == pytest.approx(FLOOR_Z)

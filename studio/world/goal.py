@@ -287,7 +287,7 @@ def session_goal(
             continue
         if len(mine) >= len(rs):  # every release stated (a confirmed goal): as stated, spots from the demos
             for i, p in enumerate(mine):
-                spot = rs[i].spot(p.onto) if i < len(rs) and p.spot is None else None
+                spot = rs[i].spot(p.onto) if i < len(rs) and p.spot is None and p.onto != START else None
                 out.append(replace(p, spot=spot) if spot is not None else p)
                 if i < len(rs) and rs[i].count(p.onto) == 0:
                     differs.append(p)
@@ -299,7 +299,7 @@ def session_goal(
             if rs[i].count(p.onto) == 0:
                 i = free[-1]
                 differs.append(p)
-            spot = rs[i].spot(p.onto) if p.spot is None else None
+            spot = rs[i].spot(p.onto) if p.spot is None and p.onto != START else None
             chosen[i] = replace(p, spot=spot) if spot is not None else p
         out += [chosen.get(i) or r.read() for i, r in enumerate(rs)]
     return Goal(tuple(out), source, tuple(arms.items()), tuple(notes), tuple(differs))
