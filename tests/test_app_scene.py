@@ -338,3 +338,49 @@ def html_text(fragment: str) -> str:
     import re
 
     return html.unescape(re.sub(r"<[^>]+>", "", fragment)).strip()
+
+
+def test_the_teach_step_says_the_goal_and_the_teacher_confirms_or_corrects_it(app: Studio, page: ViserClient) -> None:
+    ctl, panel = app.controller, app.panels.task
+    # The set-up's goal, matched to the example's demonstrations (they bring the block back).
+    assert 'data-source="set-up"' in panel.goal.content
+    assert "The goal of this set-up:</b> Put the block on the pad, then back where it started." in panel.goal.content
+    assert not panel.goal_ok.visible and panel.goal_pick.visible
+    # The teacher's own table: no goal stated, so it is read from the demonstrations and asked about.
+    ctl.scene.set_goal(())
+    assert wait_for(lambda: 'data-source="demonstrations"' in panel.goal.content)
+    assert "Put the block on the pad, then back where it started. Is that right?" in panel.goal.content
+    assert panel.goal_ok.visible
+    page.set_value("Yes, that is the goal", True)
+    assert wait_for(lambda: 'data-source="you"' in panel.goal.content)
+    assert [p.onto for p in ctl.scene.scene.goal] == ["pad", "where it started"] and not panel.goal_ok.visible
+    # Corrected: the block stays on the table where the demonstrations put it at the end, a fixed spot.
+    choice = "Put the block on the pad, then on the table where you put it."
+    assert choice in panel.goal_pick.options
+    page.set_value("Or the goal is", choice)
+    assert wait_for(lambda: [p.onto for p in ctl.scene.scene.goal] == ["pad", "a spot on the table"])
+    assert wait_for(lambda: choice in panel.goal.content and 'data-source="you"' in panel.goal.content)
+    assert ctl.session.objects.scene.goal == ctl.scene.scene.goal  # kept with the session's scene
+
+
+def test_the_path_drawn_in_preview_is_the_path_play_plays(app: Studio) -> None:
+    """The cyan path is where the gripper goes when the joints Play plays are followed, with the objects where
+    they are now: moved with the block, it reaches the block where it now stands."""
+    ctl, panel = app.controller, app.panels.preview
+    ctl.training.train().result()
+    assert wait_for(lambda: "path_left" in panel._nodes)
+    block = ctl.scene.scene.object("block")
+
+    def reach_to(at: tuple[float, float, float]) -> float:
+        pts = np.asarray(panel._nodes["path_left"].points).reshape(-1, 3)
+        return float(np.min(np.linalg.norm(pts[:, :2] - np.asarray(at[:2]), axis=1)))
+
+    assert reach_to(block.position) < 0.01
+    ctl.scene.move("block", (block.position[0] - 0.06, block.position[1] - 0.08, block.position[2]))
+    moved = ctl.scene.scene.object("block").position
+    assert wait_for(lambda: reach_to(moved) < 0.01), reach_to(moved)
+    rec = ctl.playback.preview_recording()
+    played = ctl.baxter.fk_batch("left", np.asarray(rec.q)[:, :7])[0]
+    drawn = np.asarray(panel._nodes["path_left"].points).reshape(-1, 3)
+    far = max(float(np.min(np.linalg.norm(played - p, axis=1))) for p in drawn[::25])
+    assert far < 0.005, far  # every drawn point lies on the played path
