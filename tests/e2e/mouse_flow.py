@@ -200,12 +200,12 @@ def out_of_reach_label(page: Page) -> Locator:
 
 
 # -- the flow -------------------------------------------------------------------------------------------------
-def new_session(t: Teacher, name: str = NEW_SESSION) -> None:
-    """Sessions step → a new session on the stack-cup table → back to Teach."""
+def new_session(t: Teacher, name: str = NEW_SESSION, table: str = "stack-cup") -> None:
+    """Sessions step → a new session on the ``table`` set-up → back to Teach."""
     t.part("new session")
     t.step("Sessions")
     t.type_into("New name", name)
-    t.choose("New session's table", "stack-cup")
+    t.choose("New session's table", table)
     t.in_row("Session action", "New")
     ui.wait_text(t.page, re.escape(name))
     t.step("Teach")
@@ -301,12 +301,41 @@ def finish_excursion(t: Teacher) -> None:
     t.send(lambda: t.key("KeyH"))
 
 
-def teach_train_preview(t: Teacher) -> str:
-    """Three demonstrations, Train, Preview played to its end; returns the preview's task result in words."""
+def grasp_the_block(t: Teacher) -> None:
+    """Go above the block, down with the keys to 1 cm below its top, close the gripper (C)."""
+    t.send(lambda: t.in_row("Go above the", "block"))
+    for _ in range(DOWN_PRESSES):
+        t.press_and_follow("KeyQ", 2, -1)
+    t.settle()
+    t.key("KeyC")
+    ui.wait_status(t.page, "s.open < 1")
+
+
+def put_on_the_pad(t: Teacher) -> None:
+    """Carry the block above the pad and open the gripper (O): it comes down onto the pad."""
+    t.send(lambda: t.in_row("Go above the", "pad"))
+    t.key("KeyO")
+    ui.wait_status(t.page, "s.open > 99")
+
+
+def demonstrate_pick_place(t: Teacher) -> None:
+    """One take of pick-place as a newcomer shows it: Record, the block onto the pad, home (H), Stop."""
+    t.button("Record")
+    ui.wait_text(t.page, "Recording")
+    grasp_the_block(t)
+    put_on_the_pad(t)
+    t.send(lambda: t.key("KeyH"))
+    t.button("Stop")
+    ui.wait_text(t.page, "Not recording")
+
+
+def teach_train_preview(t: Teacher, take: Callable[[Teacher], None] = demonstrate) -> str:
+    """Three demonstrations (each one ``take``), Train, Preview played to its end; returns the preview's task
+    result in words."""
     t.part("demonstrations")
     t.in_row("View", "Reset")
     for _ in range(3):
-        demonstrate(t)
+        take(t)
     expect(t.page.locator(".demo-row")).to_have_count(3)
     t.shot("three demonstrations")
     t.part("train and preview")
@@ -314,11 +343,16 @@ def teach_train_preview(t: Teacher) -> str:
     t.button("Train")
     ui.wait_text(t.page, r"^Trained\.", timeout=180)
     t.shot("trained")
+    return preview_to_the_end(t)
+
+
+def preview_to_the_end(t: Teacher, shot: str = "preview: the skill works") -> str:
+    """The Preview step, Play, until the time reaches the end; returns the task result in words."""
     t.step("Preview")
     t.in_row("Playback", "Play")
     ui.wait_text(t.page, "learned skill \\(preview\\), playing")
     result = t.page.locator(".task-result").first
-    expect(result).to_contain_text(re.compile(r"ended"), timeout=120_000)
+    expect(result).to_contain_text(re.compile(r"ended|picked up|in the gripper"), timeout=120_000)
     m = re.search(r"Learned path \(([\d.]+) s\)", t.page.get_by_text(re.compile(r"Learned path \(")).first.inner_text())
     assert m is not None
     length = float(m.group(1))
@@ -333,8 +367,21 @@ def teach_train_preview(t: Teacher) -> str:
         polling=200,
         timeout=120_000,
     )
-    t.shot("preview: the skill works")
+    t.shot(shot)
     return result.inner_text()
+
+
+def move_with_the_handle(t: Teacher, name: str, at: np.ndarray, axis: int, metres: float) -> None:
+    """Teach step: choose object ``name`` (its handle sits on its top, ``at``), then drag the handle's arrow along
+    room ``axis`` by ``metres`` (Top view)."""
+    t.part("move an object")
+    t.step("Teach")
+    t.choose("Object", name)
+    t.in_row("View", "Top")
+    _wait_view_still(t.page)
+    start = arrow_point(t.page, "Top", at, axis)
+    along = pixels_per_metre("Top", at, axis)
+    t.drag([start, (start[0] + along[0] * metres, start[1] + along[1] * metres)])
 
 
 TEACHING_PARTS = ("new session", "demonstrations", "train and preview")
