@@ -199,6 +199,7 @@ def test_taught_at_one_place_the_preview_never_claims_the_task_when_the_block_is
         "Every demonstration had the block in the same place: I will follow the block for the grasp and the pad for "
         "the release. Show me one more with the block somewhere else to be sure.",
     )
+    assert ctl.placed.suggestion().startswith("Move the block somewhere else")  # the same object as above
     block, pad = ctl.scene.scene.object("block"), ctl.scene.scene.object("pad")
     moves = [("block", 0.0, 0.08), ("block", -0.1, 0.15), ("block", 0.0, 0.37), ("pad", 0.05, 0.1)]
     claims = []

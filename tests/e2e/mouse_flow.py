@@ -371,17 +371,23 @@ def preview_to_the_end(t: Teacher, shot: str = "preview: the skill works") -> st
     return result.inner_text()
 
 
-def move_with_the_handle(t: Teacher, name: str, at: np.ndarray, axis: int, metres: float) -> None:
-    """Teach step: choose object ``name`` (its handle sits on its top, ``at``), then drag the handle's arrow along
-    room ``axis`` by ``metres`` (Top view)."""
+def choose_object(t: Teacher, name: str) -> None:
+    """Teach step: choose object ``name`` (its handle appears on it) and look from the top."""
     t.part("move an object")
     t.step("Teach")
     t.choose("Object", name)
     t.in_row("View", "Top")
     _wait_view_still(t.page)
-    start = arrow_point(t.page, "Top", at, axis)
-    along = pixels_per_metre("Top", at, axis)
-    t.drag([start, (start[0] + along[0] * metres, start[1] + along[1] * metres)])
+
+
+def drag_handle(t: Teacher, at: np.ndarray, wxyz: np.ndarray, axis: int, metres: float, scale: float = 0.16) -> None:
+    """Drag the chosen object's handle (``scale`` m, at ``at``, turned as ``wxyz``) along its own arrow ``axis`` by
+    ``metres`` (Top view), pressing on the arrow's head."""
+    from studio.core.rotations import matrix_from_quat_wxyz
+
+    along = matrix_from_quat_wxyz(np.asarray(wxyz, dtype=float))[:, axis]
+    grab = np.asarray(at, dtype=float) + along * 0.85 * scale  # the arrow's head, beyond the turning ring
+    t.drag([project("Top", grab), project("Top", grab + along * metres)])
 
 
 TEACHING_PARTS = ("new session", "demonstrations", "train and preview")
