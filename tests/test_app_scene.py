@@ -372,7 +372,7 @@ def test_the_path_drawn_in_preview_is_the_path_play_plays(app: Studio) -> None:
     block = ctl.scene.scene.object("block")
 
     def reach_to(at: tuple[float, float, float]) -> float:
-        pts = np.asarray(panel._nodes["path_left"].points).reshape(-1, 3)
+        pts = np.asarray(panel._nodes["path_left"].points).reshape(-1, 3)  # type: ignore[attr-defined]
         return float(np.min(np.linalg.norm(pts[:, :2] - np.asarray(at[:2]), axis=1)))
 
     assert reach_to(block.position) < 0.01
@@ -381,6 +381,6 @@ def test_the_path_drawn_in_preview_is_the_path_play_plays(app: Studio) -> None:
     assert wait_for(lambda: reach_to(moved) < 0.01), reach_to(moved)
     rec = ctl.playback.preview_recording()
     played = ctl.baxter.fk_batch("left", np.asarray(rec.q)[:, :7])[0]
-    drawn = np.asarray(panel._nodes["path_left"].points).reshape(-1, 3)
+    drawn = np.asarray(panel._nodes["path_left"].points).reshape(-1, 3)  # type: ignore[attr-defined]
     far = max(float(np.min(np.linalg.norm(played - p, axis=1))) for p in drawn[::25])
     assert far < 0.005, far  # every drawn point lies on the played path

@@ -549,13 +549,13 @@ def test_a_cup_goes_into_another_only_through_its_opening() -> None:
         (0.75, 0.30, 0.15),
         (0.75, 0.30, nest_z),
     ]
-    run = simulate(*stream_through([*from_above, (0.75, 0.30, 0.15)], closes=1, opens=4), scene)
-    cup = next(p for p in run.final if p.name == "cup")
-    assert cup.on == "bottom cup" and cup.position[2] == pytest.approx(TABLE_TOP_Z + NEST_STEP)
+    t, q, g = stream_through([*from_above, (0.75, 0.30, 0.15)], closes=1, opens=4)
+    nested = next(p for p in simulate(t, q, g, scene).final if p.name == "cup")
+    assert nested.on == "bottom cup" and nested.position[2] == pytest.approx(TABLE_TOP_Z + NEST_STEP)
     low = TABLE_TOP_Z + 0.03 + CUP_GRASP_HEIGHT  # the carried cup's bottom 3 cm above the table: below the rim
     sideways = [(0.60, 0.30, 0.15), (0.60, 0.30, grip_z), (0.60, 0.30, low), (0.75, 0.30, low), (0.75, 0.30, 0.15)]
-    run = simulate(*stream_through(sideways, closes=1, opens=3), scene)
-    release = next(e for e in run.events if e.kind == "release")
+    t, q, g = stream_through(sideways, closes=1, opens=3)
+    release = next(e for e in simulate(t, q, g, scene).events if e.kind == "release")
     cup = release.pose("cup")
     assert cup is not None and cup.on == "table", cup
     bottom = scene.object("bottom cup").position

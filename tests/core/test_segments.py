@@ -136,7 +136,7 @@ def _contacts(task: str, seeds, hands, scenes) -> list[DemoObjects]:
 def test_at_one_place_a_release_follows_its_target_even_when_one_take_missed_it():
     scene = preset("pick-place")
     objs = _contacts("pick-place", (1, 2, 3), [Places(), Places(put=Place(0.07, 0.0, 0.0)), Places()], [scene] * 3)
-    assert [o.contacts[1].pose("block").on for o in objs] == ["pad", "table", "pad"]
+    assert [getattr(o.contacts[1].pose("block"), "on", None) for o in objs] == ["pad", "table", "pad"]
     borders, choices, why = choose_frames(objs)  # no goal: the object most takes put it on
     assert not why and [b.role for b in borders] == ["object:block", "object:pad"]
     assert [(c.rule, c.told, c.against) for c in choices] == [
