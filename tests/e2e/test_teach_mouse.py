@@ -104,9 +104,8 @@ def test_teach_stack_cup_with_mouse_and_keys(browser, studio_factory, tmp_path: 
 
     # Three demonstrations with the mouse and the keys, Train, Preview: the skill does the task.
     words = teach_train_preview(t)
-    assert re.fullmatch(
-        r"The skill does the task\. The cup ended in the bottom cup, [\d.]+ cm from its centre\.", words
-    )
+    said = r"The skill does the task\. The cup ended in the bottom cup, ([\d.]+ cm|less than 1 mm) from its centre\."
+    assert re.fullmatch(said, words), words
     expect(page.locator('.task-result[data-ok="true"]')).to_be_visible()
     expect(page.get_by_text(re.compile(r"The arm can follow all of it"))).to_be_visible()
 
