@@ -97,7 +97,7 @@ class TaskPanel:
             differs = ""
             if goal.differs:
                 differs = (
-                    f" Your demonstrations did not all do this ({goal_words(goal.differs, kinds)[:-1].lower()}): "
+                    f" None of your demonstrations did this ({goal_words(goal.differs, kinds)[:-1].lower()}): "
                     "show it again, or choose the goal they show."
                 )
             content = (

@@ -215,11 +215,16 @@ class Scene:
             table = None if d.get("table") is None else Table.from_dict(d["table"])
             objects = tuple(WorldObject.from_dict(o) for o in d.get("objects", []))
             preset = str(d.get("preset", ""))
-            if "goal" in d:
-                goal = placements_from(d["goal"])
+            names = {o.name for o in objects}
+            if "goal" in d:  # a placement naming an object no longer there is left out
+                goal = tuple(
+                    p
+                    for p in placements_from(d["goal"])
+                    if p.object in names and (p.onto in (START, TABLE) or p.onto in names)
+                )
             else:
                 goal = declared(preset, [o.name for o in objects])
-            return cls(preset, table, objects).with_goal(goal)
+            return cls(preset, table, objects, goal)
         except SessionFormatError:
             raise
         except (KeyError, TypeError, ValueError, AttributeError) as exc:
