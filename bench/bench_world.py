@@ -24,34 +24,42 @@ from studio.teacher import recording_from_plan, teach
 from studio.world import CUP_GRASP_HEIGHT, World, preset, simulate
 
 
+def whole_demo(b: Baxter, task: str, repeat: int):
+    """``simulate`` of the scripted teacher's first ``task`` demonstration against ``fk_batch`` of both arms over
+    the same samples (printed); returns the recording."""
+    scene = preset(task)
+    rec = recording_from_plan(teach(task, 0))
+    t_sim = median_s(lambda: simulate(rec.t, rec.q, rec.gripper, scene, baxter=b), repeat)
+    t_fk = median_s(
+        lambda: [b.fk_batch(a, rec.q[:, s]) for a, s in (("left", slice(0, 7)), ("right", slice(7, 14)))], repeat
+    )
+    print(f"simulate, {task} demo of {len(rec.t)} samples ({rec.duration:.1f} s): median {t_sim * 1000:.1f} ms")
+    print(f"  baseline fk_batch of both arms over the same samples: {t_fk * 1000:.1f} ms (ratio {t_sim / t_fk:.2f})")
+    return rec
+
+
+def per_batch(world: World, rec, start: int, count: int = 200) -> float:
+    """Median seconds of ``world.feed`` of 15-sample batches of ``rec`` from sample ``start`` on (fed up to it)."""
+    world.feed(rec.t[:start], rec.q[:start], rec.gripper[:start])
+    times = []
+    for k in range(count):
+        s = start + 15 * k
+        t0 = time.perf_counter()
+        world.feed(rec.t[s : s + 15], rec.q[s : s + 15], rec.gripper[s : s + 15])
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
 def main() -> None:
     b = Baxter.load()
     scene = preset("pick-place")
     rec = recording_from_plan(teach("pick-place", 0))
-    n = len(rec.t)
-    t_sim = median_s(lambda: simulate(rec.t, rec.q, rec.gripper, scene, baxter=b), 7)
-    t_fk = median_s(
-        lambda: [b.fk_batch(a, rec.q[:, s]) for a, s in (("left", slice(0, 7)), ("right", slice(7, 14)))], 7
-    )
-    print(f"simulate, pick-place demo of {n} samples ({rec.duration:.1f} s): median {t_sim * 1000:.1f} ms")
-    print(f"  baseline fk_batch of both arms over the same samples: {t_fk * 1000:.1f} ms (ratio {t_sim / t_fk:.2f})")
+    whole_demo(b, "pick-place", 7)
 
     close = teach("pick-place", 0).event_poses("close")[0].time
     i_hold = int(np.searchsorted(rec.t, close + 1.0))
-
-    def per_batch(start: int, count: int = 200) -> float:
-        world = World(scene, b)
-        world.feed(rec.t[:start], rec.q[:start], rec.gripper[:start])
-        times = []
-        for k in range(count):
-            s = start + 15 * k
-            t0 = time.perf_counter()
-            world.feed(rec.t[s : s + 15], rec.q[s : s + 15], rec.gripper[s : s + 15])
-            times.append(time.perf_counter() - t0)
-        return statistics.median(times)
-
-    idle = per_batch(1)
-    carrying = per_batch(i_hold)
+    idle = per_batch(World(scene, b), rec, 1)
+    carrying = per_batch(World(scene, b), rec, i_hold)
     q15 = rec.q[:15, :7]
     base = median_s(lambda: b.fk_batch("left", q15), 500)
     print(f"World.feed, 15-sample batch, nothing held: median {idle * 1e6:.0f} µs")
@@ -64,24 +72,10 @@ def main() -> None:
 def walls(b: Baxter, seeds: int = 40) -> None:
     """A carried cup's way into the bottom cup: what it costs, and the teacher's takes against the opening."""
     scene = preset("stack-cup")
-    rec = recording_from_plan(teach("stack-cup", 0))
-    t_sim = median_s(lambda: simulate(rec.t, rec.q, rec.gripper, scene, baxter=b), 5)
-    t_fk = median_s(
-        lambda: [b.fk_batch(a, rec.q[:, s]) for a, s in (("left", slice(0, 7)), ("right", slice(7, 14)))], 5
-    )
-    print(f"simulate, stack-cup demo of {len(rec.t)} samples: median {t_sim * 1000:.1f} ms")
-    print(f"  baseline fk_batch of both arms over the same samples: {t_fk * 1000:.1f} ms (ratio {t_sim / t_fk:.2f})")
+    rec = whole_demo(b, "stack-cup", 5)
     close = teach("stack-cup", 0).event_poses("close")[0].time
-    i = int(np.searchsorted(rec.t, close + 1.0))
-    world = World(scene, b)
-    world.feed(rec.t[:i], rec.q[:i], rec.gripper[:i])
-    times = []
-    for k in range(200):
-        s = i + 15 * k
-        t0 = time.perf_counter()
-        world.feed(rec.t[s : s + 15], rec.q[s : s + 15], rec.gripper[s : s + 15])
-        times.append(time.perf_counter() - t0)
-    print(f"World.feed, 15-sample batch, carrying a cup over another: median {statistics.median(times) * 1e6:.0f} µs")
+    carrying = per_batch(World(scene, b), rec, int(np.searchsorted(rec.t, close + 1.0)))
+    print(f"World.feed, 15-sample batch, carrying a cup over another: median {carrying * 1e6:.0f} µs")
     bottom = scene.object("bottom cup")
     rim = bottom.position[2] + bottom.size[2]
     offsets, nested = [], 0

@@ -165,14 +165,14 @@ def fit_note(fit: DemoFit) -> str:
     return ""
 
 
-def _frame_words(role: str) -> str:
-    """A segment's frame as a person says it: "the cup", "where the block stood", "the robot"."""
+def _frame_words(role: str, robot: str = "the robot") -> str:
+    """A segment's frame as a person says it: "the cup", "where the block stood", ``robot``."""
     kind, _, name = role.partition(":")
     if kind == "object":
         return f"the {name}"
     if kind == "start":
         return f"where the {name} stood"
-    return "the robot"
+    return robot
 
 
 def _segment_name(fit: SegmentFit) -> str:
@@ -351,12 +351,7 @@ GOAL_SOURCES = {
 
 def _role_words(role: str) -> str:
     """A frame as the teacher says where something goes: "the pad", "where the block stood", "a fixed place"."""
-    kind, _, name = role.partition(":")
-    if kind == "object":
-        return f"the {name}"
-    if kind == "start":
-        return f"where the {name} stood"
-    return "a fixed place on the table"
+    return _frame_words(role, "a fixed place on the table")
 
 
 def frame_lines(choices: Sequence[FrameChoice]) -> tuple[str, ...]:

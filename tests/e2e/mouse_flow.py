@@ -231,9 +231,9 @@ def _wait_view_still(page: Page) -> None:
         page.wait_for_timeout(250)
 
 
-def grasp_the_cup(t: Teacher) -> None:
-    """Go above the handed-over cup, down with the keys, close the gripper (C) until it holds the cup."""
-    t.send(lambda: t.in_row("Go above the", "cup"))
+def grasp(t: Teacher, name: str) -> None:
+    """Go above object ``name``, down with the keys (to 1 cm below its top), close the gripper (C)."""
+    t.send(lambda: t.in_row("Go above the", name))
     for _ in range(DOWN_PRESSES):
         t.press_and_follow("KeyQ", 2, -1)
     t.settle()
@@ -241,22 +241,36 @@ def grasp_the_cup(t: Teacher) -> None:
     ui.wait_status(t.page, "s.open < 1")
 
 
-def put_into_the_bottom_cup(t: Teacher) -> None:
-    """Carry the cup above the bottom cup and open the gripper (O)."""
-    t.send(lambda: t.in_row("Go above the", "bottom cup"))
+def let_go_above(t: Teacher, name: str) -> None:
+    """Carry what the gripper holds above object ``name`` and open the gripper (O): it comes down onto (into) it."""
+    t.send(lambda: t.in_row("Go above the", name))
     t.key("KeyO")
     ui.wait_status(t.page, "s.open > 99")
 
 
-def demonstrate(t: Teacher) -> None:
-    """One take: Record, the cup into the bottom cup, back home (H), Stop (so the next take starts at home)."""
+def grasp_the_cup(t: Teacher) -> None:
+    grasp(t, "cup")
+
+
+def take(t: Teacher, carried: str, target: str) -> None:
+    """One take: Record, ``carried`` onto ``target``, back home (H), Stop (so the next take starts at home)."""
     t.button("Record")
     ui.wait_text(t.page, "Recording")
-    grasp_the_cup(t)
-    put_into_the_bottom_cup(t)
+    grasp(t, carried)
+    let_go_above(t, target)
     t.send(lambda: t.key("KeyH"))
     t.button("Stop")
     ui.wait_text(t.page, "Not recording")
+
+
+def demonstrate(t: Teacher) -> None:
+    """One take of stack-cup: the cup into the bottom cup."""
+    take(t, "cup", "bottom cup")
+
+
+def demonstrate_pick_place(t: Teacher) -> None:
+    """One take of pick-place as a newcomer shows it: the block onto the pad (no way back)."""
+    take(t, "block", "pad")
 
 
 def out_of_reach_and_back(t: Teacher) -> dict[str, object]:
@@ -299,34 +313,6 @@ def finish_excursion(t: Teacher) -> None:
     t.key("KeyO")
     ui.wait_status(t.page, "s.open > 99")
     t.send(lambda: t.key("KeyH"))
-
-
-def grasp_the_block(t: Teacher) -> None:
-    """Go above the block, down with the keys to 1 cm below its top, close the gripper (C)."""
-    t.send(lambda: t.in_row("Go above the", "block"))
-    for _ in range(DOWN_PRESSES):
-        t.press_and_follow("KeyQ", 2, -1)
-    t.settle()
-    t.key("KeyC")
-    ui.wait_status(t.page, "s.open < 1")
-
-
-def put_on_the_pad(t: Teacher) -> None:
-    """Carry the block above the pad and open the gripper (O): it comes down onto the pad."""
-    t.send(lambda: t.in_row("Go above the", "pad"))
-    t.key("KeyO")
-    ui.wait_status(t.page, "s.open > 99")
-
-
-def demonstrate_pick_place(t: Teacher) -> None:
-    """One take of pick-place as a newcomer shows it: Record, the block onto the pad, home (H), Stop."""
-    t.button("Record")
-    ui.wait_text(t.page, "Recording")
-    grasp_the_block(t)
-    put_on_the_pad(t)
-    t.send(lambda: t.key("KeyH"))
-    t.button("Stop")
-    ui.wait_text(t.page, "Not recording")
 
 
 def teach_train_preview(t: Teacher, take: Callable[[Teacher], None] = demonstrate) -> str:
