@@ -306,9 +306,14 @@ def one_place(task: str, args: argparse.Namespace) -> None:
         try:
             ctl.sessions.new("one place", scene=task)
             t0 = time.perf_counter()
-            for i, seed in enumerate((1, 2, 3)):
-                hand = Places(put=SLOPPY[task]) if variant == "sloppy" and i == 1 else Places()
-                plan = teacher.teach(task, seed, places=hand, once=True)
+            seed = 0
+            while len(ctl.session.recordings) < 3:
+                seed += 1
+                sloppy = variant == "sloppy" and len(ctl.session.recordings) == 1
+                try:
+                    plan = teacher.teach(task, seed, places=Places(put=SLOPPY[task]) if sloppy else Places(), once=True)
+                except RuntimeError:  # the arm cannot follow this take's key-frames: the next seed
+                    continue
                 sim.teleport(plan.q[0], plan.gripper[0])
                 sim.step(20)
                 ctl.teaching.start_recording()
