@@ -18,6 +18,7 @@ from studio.core.types import SkillRoute
 if TYPE_CHECKING:
     from studio.core.autotune import TuneResult
     from studio.core.segment_view import SegmentFit
+    from studio.core.segments import FrameChoice
 
 #: How an audience says each :class:`Remedy` (a phrase that follows a dash, lower case, no full stop).
 Remedies = Mapping[Remedy, str]
@@ -164,14 +165,14 @@ def fit_note(fit: DemoFit) -> str:
     return ""
 
 
-def _frame_words(role: str) -> str:
-    """A segment's frame as a person says it: "the cup", "where the block stood", "the robot"."""
+def _frame_words(role: str, robot: str = "the robot") -> str:
+    """A segment's frame as a person says it: "the cup", "where the block stood", ``robot``."""
     kind, _, name = role.partition(":")
     if kind == "object":
         return f"the {name}"
     if kind == "start":
         return f"where the {name} stood"
-    return "the robot"
+    return robot
 
 
 def _segment_name(fit: SegmentFit) -> str:
@@ -329,6 +330,76 @@ def _height_fix(h: float) -> str:
     return f"{'lower' if h > 0 else 'raise'} it {length_words(max(abs(h), 0.01))}"
 
 
+class PlacementFacts(Protocol):
+    """One step of a task's goal (:class:`studio.world.goal.Placement`)."""
+
+    @property
+    def object(self) -> str: ...
+    @property
+    def onto(self) -> str: ...
+    @property
+    def target(self) -> str: ...
+
+
+def _onto(p: PlacementFacts, kinds: Mapping[str, str]) -> str:
+    if p.target == "start":
+        return "back where it started"
+    if p.target == "table":
+        return "on the table where you put it"
+    return f"{'into' if kinds.get(p.onto) == 'cup' else 'on'} the {p.onto}"
+
+
+def goal_words(placements: Sequence[PlacementFacts], kinds: Mapping[str, str]) -> str:
+    """A task's goal in plain words: "Put the block on the pad, then back where it started." (``kinds``: each
+    object's kind, "cup" is put into); "" without one."""
+    steps: dict[str, list[str]] = {}
+    for p in placements:
+        steps.setdefault(p.object, []).append(_onto(p, kinds))
+    return " ".join(f"Put the {name} {', then '.join(where)}." for name, where in steps.items())
+
+
+GOAL_SOURCES = {
+    "set-up": "The goal of this set-up:",
+    "you": "The goal you chose:",
+    "demonstrations": "The goal, as I read it from your demonstrations:",
+}
+
+
+def _role_words(role: str) -> str:
+    """A frame as the teacher says where something goes: "the pad", "where the block stood", "a fixed place"."""
+    return _frame_words(role, "a fixed place on the table")
+
+
+def frame_lines(choices: Sequence[FrameChoice]) -> tuple[str, ...]:
+    """How a skill that follows the objects chose what each grasp and release follows, when the demonstrations
+    could not decide it ("Every demonstration had the block in the same place: I will follow the block for the
+    grasp and the pad for the release. …") or when they contradicted the task's meaning (then followed)."""
+    out = []
+    unsure = [c for c in choices if c.rule and not c.told]
+    if unsure:
+        held = list(dict.fromkeys(c.object for c in choices if c.kind == "grasp"))
+        things = " and the ".join(held) or "objects"
+        parts = []
+        for kind, word in (("grasp", "grasp"), ("release", "release")):
+            mine = [c for c in choices if c.kind == kind]
+            if not mine:
+                continue
+            plural = f"{word}s" if len(mine) > 1 else word
+            roles = list(dict.fromkeys(_role_words(c.role) for c in mine))
+            parts.append(f"{' and '.join(roles)} for the {plural}")
+        out.append(
+            f"Every demonstration had the {things} in the same place: I will follow {' and '.join(parts)}. "
+            f"Show me one more with the {held[0] if held else 'objects'} somewhere else to be sure."
+        )
+    for c in choices:
+        if c.against:
+            out.append(
+                f"Your demonstrations put the {c.object} down relative to {_role_words(c.role)}, not "
+                f"{_role_words(c.rule)}: I follow your demonstrations."
+            )
+    return tuple(out)
+
+
 def moved_words(name: str, distance: float) -> str:
     """An object a fixed-places skill will not follow: "The bottom cup is 11 cm from where it stood when you
     taught; your skill repeats the taught motion."."""
@@ -339,12 +410,16 @@ def moved_words(name: str, distance: float) -> str:
 
 
 __all__ = [
+    "GOAL_SOURCES",
     "OWN_TASK",
     "SHARED_REMEDIES",
     "TASKS",
+    "PlacementFacts",
     "Remedies",
     "count_words",
     "fit_note",
+    "frame_lines",
+    "goal_words",
     "grasp_words",
     "length_words",
     "moved_words",

@@ -146,7 +146,7 @@ def test_task_result_in_the_preview_panel(app: Studio) -> None:
     ctl.training.train().result()
     assert wait_for(lambda: 'data-ok="true"' in panel.task.content)
     assert "The skill does the task." in panel.task.content
-    assert "The block ended" in panel.task.content and "from where you put it — the skill works" in panel.task.content
+    assert "The block went onto the pad (" in panel.task.content and 'data-claim="works"' in panel.task.content
     ctl.scene.move("block", (0.55, -0.35, -0.07))  # somewhere the skill never goes
     assert wait_for(lambda: 'data-ok="false"' in panel.task.content)
     assert "The skill misses the task." in panel.task.content
@@ -377,25 +377,39 @@ def test_playing_ends_when_the_playback_ends(app: Studio) -> None:
 @pytest.mark.parametrize(
     ("verdict", "text"),
     [
-        ("works", "The cup ended 0.6 cm from where you put it — the skill works."),
+        ("works", "The cup ended in the bottom cup, 0.6 cm from its centre."),
         ("never picked up", "The block was never picked up: the gripper closed 3 cm above it."),
         ("never picked up", "The block was not picked up the second time: the gripper did not close again."),
         ("still held", "The cup was still in the gripper at the end: the gripper never opened."),
         (
             "dropped early",
-            "The cup was dropped early: it landed 9 cm from where you put it, because the gripper "
-            "opened before it got there.",
+            "The cup was dropped early: it landed beside the bottom cup, 9 cm from its centre, because the gripper "
+            "opened before it got there — the skill did not do the task.",
         ),
         (
             "wrong place",
-            "The block was released in the wrong place: 5 cm short of where you put it, towards the "
-            "robot (it landed on the table, not on the pad).",
+            "The block was released in the wrong place the first time: it landed beside the pad, 8 cm from its "
+            "centre — the skill did not do the task.",
         ),
-        ("moved", "The block ended 6 cm to the robot's left of where you put it: it was picked up again afterwards."),
+        (
+            "moved",
+            "The block ended beside the pad, 9 cm from its centre: it was picked up again afterwards — the skill did "
+            "not do the task.",
+        ),
         (None, "There is nothing to check: your demonstrations did not pick up any object."),
     ],
 )
 def test_the_preview_panel_shows_each_task_result_wording(verdict: str | None, text: str) -> None:
+    ok = verdict == "works"
+    shown = preview_task_html(verdict, text)
+    assert html_text(shown).endswith(text) and f'data-ok="{str(ok).lower()}"' in shown
+    head = "The skill does the task." if ok else ("Task result." if verdict is None else "The skill misses the task.")
+    assert html_text(shown).startswith(head)
+
+
+def preview_task_html(verdict: str | None, text: str, warnings: list[str] | None = None, follows: bool = True) -> str:
+    """The Preview panel's task result for a result of ``verdict``, with the reach words and whether the robot can
+    follow the whole path."""
     from types import SimpleNamespace
 
     from studio.controller import TaskResult
@@ -405,11 +419,26 @@ def test_the_preview_panel_shows_each_task_result_wording(verdict: str | None, t
     ok = verdict == "works"
     objects = () if verdict is None else (ObjectResult("x", ok, verdict, text, 0.01),)
     result = TaskResult(ok, text, objects)
-    panel = SimpleNamespace(ctl=SimpleNamespace(scene=SimpleNamespace(task_result=lambda: result)))
-    shown = PreviewPanel._task_html(panel)  # type: ignore[arg-type]
-    assert html_text(shown).endswith(text) and f'data-ok="{str(ok).lower()}"' in shown
-    head = "The skill does the task." if ok else ("Task result." if verdict is None else "The skill misses the task.")
-    assert html_text(shown).startswith(head)
+    ctl = SimpleNamespace(
+        scene=SimpleNamespace(task_result=lambda: result),
+        placed=SimpleNamespace(warnings=lambda: list(warnings or [])),
+        execution=SimpleNamespace(feasibility=lambda: {"left": SimpleNamespace(ok=follows)}),
+    )
+    return PreviewPanel._task_html(SimpleNamespace(ctl=ctl))  # type: ignore[arg-type]
+
+
+def test_the_preview_never_claims_works_above_words_that_say_otherwise() -> None:
+    """One story: a result that holds is "does the task" only where the objects stand where the demonstrations had
+    them and the robot can follow the whole path; otherwise the claim says why not (and agrees with the words)."""
+    text = "The block ended on the pad, 0.4 cm from its centre."
+    assert 'data-claim="works"' in preview_task_html("works", text)
+    never = preview_task_html("works", text, warnings=["You never showed me the block this far to the robot's left"])
+    assert 'data-claim="guess"' in never and "The skill does the task" not in never
+    assert html_text(never).startswith("In the preview the skill does the task here, but you never showed me")
+    cannot = preview_task_html("works", text, follows=False)
+    assert 'data-claim="cannot-run"' in cannot and "cannot follow all of its path" in cannot
+    missed = preview_task_html("wrong place", "The block ended beside the pad, 9 cm from its centre.", follows=False)
+    assert 'data-claim="misses"' in missed
 
 
 def html_text(fragment: str) -> str:
@@ -417,3 +446,49 @@ def html_text(fragment: str) -> str:
     import re
 
     return html.unescape(re.sub(r"<[^>]+>", "", fragment)).strip()
+
+
+def test_the_teach_step_says_the_goal_and_the_teacher_confirms_or_corrects_it(app: Studio, page: ViserClient) -> None:
+    ctl, panel = app.controller, app.panels.task
+    # The set-up's goal, matched to the example's demonstrations (they bring the block back).
+    assert 'data-source="set-up"' in panel.goal.content
+    assert "The goal of this set-up:</b> Put the block on the pad, then back where it started." in panel.goal.content
+    assert not panel.goal_ok.visible and panel.goal_pick.visible
+    # The teacher's own table: no goal stated, so it is read from the demonstrations and asked about.
+    ctl.scene.set_goal(())
+    assert wait_for(lambda: 'data-source="demonstrations"' in panel.goal.content)
+    assert "Put the block on the pad, then back where it started. Is that right?" in panel.goal.content
+    assert panel.goal_ok.visible
+    page.set_value("Yes, that is the goal", True)
+    assert wait_for(lambda: 'data-source="you"' in panel.goal.content)
+    assert [p.onto for p in ctl.scene.scene.goal] == ["pad", "where it started"] and not panel.goal_ok.visible
+    # Corrected: the block stays on the table where the demonstrations put it at the end, a fixed spot.
+    choice = "Put the block on the pad, then on the table where you put it."
+    assert choice in panel.goal_pick.options
+    page.set_value("Or the goal is", choice)
+    assert wait_for(lambda: [p.onto for p in ctl.scene.scene.goal] == ["pad", "a spot on the table"])
+    assert wait_for(lambda: choice in panel.goal.content and 'data-source="you"' in panel.goal.content)
+    assert ctl.session.objects.scene.goal == ctl.scene.scene.goal  # kept with the session's scene
+
+
+def test_the_path_drawn_in_preview_is_the_path_play_plays(app: Studio) -> None:
+    """The cyan path is where the gripper goes when the joints Play plays are followed, with the objects where
+    they are now: moved with the block, it reaches the block where it now stands."""
+    ctl, panel = app.controller, app.panels.preview
+    ctl.training.train().result()
+    assert wait_for(lambda: "path_left" in panel._nodes)
+    block = ctl.scene.scene.object("block")
+
+    def reach_to(at: tuple[float, float, float]) -> float:
+        pts = np.asarray(panel._nodes["path_left"].points).reshape(-1, 3)  # type: ignore[attr-defined]
+        return float(np.min(np.linalg.norm(pts[:, :2] - np.asarray(at[:2]), axis=1)))
+
+    assert reach_to(block.position) < 0.01
+    ctl.scene.move("block", (block.position[0] - 0.06, block.position[1] - 0.08, block.position[2]))
+    moved = ctl.scene.scene.object("block").position
+    assert wait_for(lambda: reach_to(moved) < 0.01), reach_to(moved)
+    rec = ctl.playback.preview_recording()
+    played = ctl.baxter.fk_batch("left", np.asarray(rec.q)[:, :7])[0]
+    drawn = np.asarray(panel._nodes["path_left"].points).reshape(-1, 3)  # type: ignore[attr-defined]
+    far = max(float(np.min(np.linalg.norm(played - p, axis=1))) for p in drawn[::25])
+    assert far < 0.005, far  # every drawn point lies on the played path

@@ -105,17 +105,32 @@ def test_moved_objects_are_measured_from_where_the_demonstrations_started() -> N
 
 
 # -- the controller ----------------------------------------------------------------------------------------
-def test_the_live_world_tells_the_latest_grasp(rig) -> None:
+def test_the_live_world_tells_the_latest_grasp_until_the_gripper_opens(rig) -> None:
+    """ "Holding the cup." is true while the gripper holds it: through Stop and Home, and no longer once the
+    gripper opens."""
     ctl, sim = rig
     assert ctl.scene.last_grip() is None
     plan = teach("stack-cup", 0)
+    opened = plan.event_poses("open")[0].time
+    n = int(np.searchsorted(plan.t, opened - 0.3))  # carried to the stack, the gripper still closed
     sim.teleport(plan.q[0], plan.gripper[0])
     sim.step(20)
-    sim.run_targets(plan.q, plan.gripper, batch=16)
+    ctl.teaching.start_recording()
+    sim.run_targets(plan.q[:n], plan.gripper[:n], batch=16)
     grip = ctl.scene.last_grip()
     assert grip is not None and grip[0].kind == "grasp"
     ev, note = grip
     assert grasp_words(note) == f"Holding the {ev.object}." and ctl.scene.last_grip()[0] is ev
+    ctl.teaching.stop_recording()  # Stop: it still holds the cup, and says so
+    assert ctl.scene.last_grip() is not None and ctl.scene.live.held("left") == ["cup"]
+    ctl.guide.home()  # Home: the arm goes home with the cup
+    sim.step(3000)
+    assert ctl.scene.last_grip() is not None and ctl.scene.live.held("left") == ["cup"]
+    ctl.teaching.set_gripper("left", 100.0)  # Open: it lets go, and no longer says it holds it
+    sim.step(1000)
+    assert ctl.scene.live.held("left") == []
+    assert ctl.scene.last_grip() is None
+    assert [e.kind for e in ctl.scene.live.events if e.kind in ("grasp", "release")] == ["grasp", "release"]
 
 
 def test_stop_says_saving_until_the_take_is_kept(rig) -> None:

@@ -34,7 +34,7 @@ from studio.controller.view import Layer, Step, View
 from studio.core.kinematics import Baxter
 from studio.robot_backend.base import RobotBackend
 from studio.storage import Session, SessionStore
-from studio.world import FLOOR_Z, GraspNote, ObjectPose, Scene, TaskResult, WorldEvent, WorldObject
+from studio.world import FLOOR_Z, Goal, GraspNote, ObjectPose, Placement, Scene, TaskResult, WorldEvent, WorldObject
 from studio.world import PRESETS as SCENE_PRESETS
 
 log = logging.getLogger(__name__)
@@ -200,6 +200,7 @@ __all__ = [
     "Display",
     "Events",
     "ExecutionActions",
+    "Goal",
     "GraspNote",
     "Guiding",
     "KeypointItem",
@@ -211,6 +212,7 @@ __all__ = [
     "LogNotifier",
     "Notifier",
     "ObjectPose",
+    "Placement",
     "Playback",
     "PlaybackKind",
     "Player",

@@ -19,9 +19,10 @@ from studio.core.types import Arm, Skill
 from studio.storage import Session
 from studio.words import moved_words
 from studio.world.events import ObjectPose
+from studio.world.goal import Goal, session_goal
 from studio.world.moved import moved_objects
 from studio.world.reach import one_place, outside, suggestion
-from studio.world.relative import demo_objects, objects_now
+from studio.world.relative import demo_objects, objects_now, release_rules
 
 
 def demo_objects_of(session: Session, arm: Arm, indices: Sequence[int]) -> list[DemoObjects] | str:
@@ -38,6 +39,21 @@ def demo_objects_of(session: Session, arm: Arm, indices: Sequence[int]) -> list[
         out.append(objs)
     _, why = plan(out)
     return why or out
+
+
+def goal_of(session: Session, indices: Sequence[int] | None = None) -> Goal:
+    """The task's goal (:func:`studio.world.session_goal`): the scene's own, or the teacher's, matched to the
+    releases of the demonstrations ``indices`` (default: the shown ones); else read from them."""
+    if indices is None:
+        indices = [i for i, r in enumerate(session.recordings) if r.name not in session.hidden_demos]
+    events = [session.objects.events(session.demo_files[i]) for i in indices if i < len(session.demo_files)]
+    scene = session.objects.scene
+    return session_goal(scene.preset, scene.goal, scene.names(), events)
+
+
+def rules_of(session: Session, objects: Sequence[DemoObjects], indices: Sequence[int]) -> dict[int, str]:
+    """The frame each release of the demonstrations ``indices`` (their ``objects``) follows by the task's goal."""
+    return release_rules(goal_of(session, indices), objects[0]) if objects else {}
 
 
 class PlacedSkills:

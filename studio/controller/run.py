@@ -336,7 +336,9 @@ def judgement(p: ExecutionProgress, verdict: RunVerdict, task: TaskResult | None
             f"The robot followed the plan within {tracking_words(verdict.tracking_error)} at every moment and ended "
             f"{tracking_words(verdict.final_error)} from its last pose"
         )
-        return f"{head}; {task.text[:1].lower()}{task.text[1:]}" if task is not None else head + " — the skill works."
+        if task is None:
+            return head + " — the skill works."
+        return f"{head}; {task.text[:1].lower()}{task.text[1:].rstrip('.')} — the skill works."
     failed = verdict.failures() or [f"the run ended before its end ({p.state})"]
     text = "The skill did not work: " + "; ".join(failed) + "."
     if task is not None and not task.ok:

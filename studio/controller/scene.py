@@ -18,6 +18,7 @@ import numpy as np
 
 from studio.controller.context import Context
 from studio.controller.events import Topic
+from studio.controller.placed import goal_of
 from studio.controller.playback import Playback, PlaybackKind
 from studio.core.errors import StudioError
 from studio.core.types import ARMS, Recording
@@ -25,10 +26,11 @@ from studio.robot_backend.base import RobotBackend
 from studio.world import (
     KINDS,
     PRESETS,
+    Goal,
     GraspNote,
     ObjectPose,
+    Placement,
     Scene,
-    TaskGoal,
     TaskResult,
     World,
     WorldEvent,
@@ -38,10 +40,9 @@ from studio.world import (
     on_clock,
     preset,
     simulate,
-    task_goal,
     task_result,
 )
-from studio.world.relative import relative_goal
+from studio.world.goal import alternatives
 
 log = logging.getLogger(__name__)
 
@@ -179,8 +180,13 @@ class SceneActions:
 
     def last_grip(self) -> tuple[WorldEvent, GraspNote] | None:
         """The live world's latest grasp or miss and what it did (None before any since the objects were last
-        put back); the same event object until the next one."""
-        ev = next((e for e in reversed(self.live.events) if e.kind in ("grasp", "miss")), None)
+        put back, and once the gripper that grasped let go: it holds nothing then); the same event object until
+        the next one."""
+        events = self.live.events
+        i = next((i for i in range(len(events) - 1, -1, -1) if events[i].kind in ("grasp", "miss")), -1)
+        ev = events[i] if i >= 0 else None
+        if ev is not None and ev.kind == "grasp" and any(e.kind == "release" and e.arm == ev.arm for e in events[i:]):
+            return None
         note = grasp_note(ev) if ev is not None else None
         return None if ev is None or note is None else (ev, note)
 
@@ -231,34 +237,44 @@ class SceneActions:
             self._result = None
             self.ctx.emit(Topic.TASK)
 
-    def _shown_events(self) -> list[tuple[WorldEvent, ...]]:
-        """The object events of every shown demonstration (what the task goal is read from)."""
-        session = self.ctx.session
-        shown = [i for i, r in enumerate(session.recordings) if r.name not in session.hidden_demos]
-        return [session.objects.events(session.demo_files[i]) for i in shown if i < len(session.demo_files)]
-
     def _update_result(self) -> None:
         session = self.ctx.session
         if not session.skills:
             result = None
             key: object = None
         else:
-            events = self._shown_events()
+            events = [session.objects.events(f) for f in session.demo_files]
             key = (id(session), tuple(id(s) for s in session.skills.values()), self.scene, tuple(map(id, events)))
+            key = (*key, tuple(session.hidden_demos))
             if key == self._result_key:
                 return
             rec = self.player.preview_recording()
             run = simulate(rec.t, rec.q, rec.gripper, self.scene, baxter=self.ctx.baxter)
-            result = task_result(run, self._goal(events))
+            result = task_result(run, self.goal())
         self._result, self._result_key = result, key
         self.ctx.emit(Topic.TASK)
 
-    def _goal(self, events: list[tuple[WorldEvent, ...]]) -> TaskGoal:
-        """What the demonstrations did with the objects; for a skill that follows them, relative to where the
-        objects are now."""
-        goal = task_goal(events)
-        frames = next((s.frames for s in self.ctx.session.skills.values() if s.frames is not None), None)
-        return goal if frames is None else relative_goal(goal, frames, self.scene)
+    # -- the task's goal -------------------------------------------------------------------------------
+    def goal(self) -> Goal:
+        """The task's goal the skill is judged by (:func:`studio.world.session_goal`): the set-up's, or the one
+        the teacher confirmed, matched to the shown demonstrations; else read from them."""
+        return goal_of(self.ctx.session)
+
+    def goal_choices(self) -> list[tuple[Placement, ...]]:
+        """Other goals the teacher may choose instead (another target for the last release of each object)."""
+        scene = self.scene
+        return alternatives(self.goal(), scene.names(), {o.name: o.kind for o in scene.objects})
+
+    def set_goal(self, placements: Sequence[Placement]) -> None:
+        """The teacher's goal for the task (kept with the scene; the skill follows it once trained again)."""
+        self._set(self.scene.with_goal(placements))
+
+    def confirm_goal(self) -> None:
+        """The teacher agrees with the goal as read from the demonstrations: keep it."""
+        goal = self.goal()
+        if not goal.placements:
+            raise StudioError("There is no goal to confirm yet: record a demonstration that moves an object.")
+        self.set_goal(goal.placements)
 
     # -- a run on the robot (studio.controller.execution) ------------------------------------------------
     def begin_run(
@@ -287,8 +303,8 @@ class SceneActions:
         gripper path the wording uses."""
         self.live.snapshot("end")
         events = tuple(self.live.events_since(mark))
-        goal = self._goal(self._shown_events())
-        if not goal.objects:
+        goal = self.goal()
+        if not goal.placements:
             return None
         step = max(1, round(len(recording) / max(recording.duration * 100.0, 1.0)))  # ~100 Hz, as simulate()
         q = recording.q[::step]

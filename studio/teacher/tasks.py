@@ -37,10 +37,16 @@ class _Key:
 
 
 def _task_keys(
-    task: str, rng: np.random.Generator, home: np.ndarray, places: Places = USUAL, detour: float = 0.0
+    task: str,
+    rng: np.random.Generator,
+    home: np.ndarray,
+    places: Places = USUAL,
+    detour: float = 0.0,
+    once: bool = False,
 ) -> list[_Key]:
     """The task's key-frames for the left arm (the right arm mirrors y), jittered per demonstration, at the
-    objects' ``places``; the first carry bows ``detour`` metres sideways at mid-way (around an obstacle)."""
+    objects' ``places``; the first carry bows ``detour`` metres sideways at mid-way (around an obstacle);
+    ``once``: pick-place puts the block on the pad and goes home (it does not bring it back)."""
     P = np.array
     if task == "stack-cup":
         hand_over, stack = P(STACK_CUP_HANDOVER), P(STACK_CUP_STACK)
@@ -73,6 +79,8 @@ def _task_keys(
             _Key(a + up, ya, rng.uniform(0.0, 0.3), 0.10, site="pick"),
             _Key(home, 0.0, rng.uniform(0.6, 1.2), 0.12, kind="home"),
         ]
+        if once:  # as a newcomer shows "put the block on the pad": no way back
+            keys = [*keys[:7], keys[-1]]
     else:
         raise InvalidInput(f'Unknown task "{task}": choose one of {", ".join(TASKS)}.')
     sites = {"stack-cup": (STACK_CUP_HANDOVER, STACK_CUP_STACK), "pick-place": (PICK_PLACE_A, PICK_PLACE_B)}

@@ -75,6 +75,7 @@ def test_words_for_a_newcomer(browser, sessions) -> None:
         # open, put the cup back, move 3 cm to the side and close: missed, and by how much
         ui.click_in_row(page, "Left gripper", "Open")
         assert wait_for(lambda: ctl.teaching.gripper_width("left") > 95)
+        expect(page.locator(".grasp-feedback")).not_to_contain_text("Holding")  # it let go: it holds nothing
         ctl.scene.put_back()
         pos, wxyz = ctl.baxter.fk("left", ctl.teaching.arm_q("left"))
         ctl.teaching.move_gripper("left", np.asarray(pos) + np.array([0.0, 0.03, 0.0]), np.asarray(wxyz))
