@@ -80,6 +80,7 @@ class Controller:
             takes=self.scene,
             motion_guard=lambda d: self.execution.check_free(d),
             keep=lambda recording, events: self.undo.keep(recording, events),
+            contacts=self.scene.first_contact,
         )
         self.guide = Guiding(ctx, self.teaching, objects=lambda: self.scene.live.poses())
         self.keypoints = KeypointTuning(ctx, self.demos)
@@ -101,6 +102,7 @@ class Controller:
             unload_playback=self.playback.unload,
             skills=self.placed.get,
             warnings=self.placed.warnings,
+            contacts=self.scene.contact_reason,
         )
         self.sessions = SessionActions(ctx, persist=self.keypoints.persist)
 

@@ -21,6 +21,7 @@ from typing import Protocol
 
 import numpy as np
 
+from studio.core.collision import Touch
 from studio.core.errors import StudioError
 from studio.core.execution import ExecutionPlan, RunVerdict, TrackingReport, compare_execution, skill_feasibility
 from studio.core.ik_path import Feasibility
@@ -161,6 +162,7 @@ class RunObjects(Protocol):
         self, t: np.ndarray | None = None, q: np.ndarray | None = None, gripper: np.ndarray | None = None
     ) -> int: ...
     def end_run(self, mark: int, recording: Recording, t0: float) -> TaskResult | None: ...
+    def touches_at(self, q: np.ndarray, gripper: np.ndarray, q_now: np.ndarray) -> list[Touch]: ...
 
 
 class Run:
@@ -177,6 +179,8 @@ class Run:
         self.mark = 0
         self.cancel = threading.Event()
         self.thread: threading.Thread | None = None
+        #: what the robot touched during the run (it was stopped then), or None
+        self.touch: Touch | None = None
         self._unsubscribe: Callable[[], None] | None = None
 
     @classmethod
@@ -196,11 +200,20 @@ class Run:
             raise
         return run
 
-    def follow(self, on_progress: Callable[[ExecutionProgress], None]) -> ExecutionProgress | None:
-        """Read the robot's progress until it reports the end (returned) or the run is abandoned (None)."""
+    def follow(
+        self, on_progress: Callable[[ExecutionProgress], None], on_touch: Callable[[Touch], None] | None = None
+    ) -> ExecutionProgress | None:
+        """Read the robot's progress until it reports the end (returned) or the run is abandoned (None); at each
+        reading, whether the robot touches something where it is now (``on_touch`` is told, once)."""
         while not self.cancel.wait(POLL_S):
             p = self.backend.progress()
             on_progress(p)
+            if on_touch is not None and p.active and self.touch is None:
+                st = self.backend.state()
+                found = self.scene.touches_at(st.q[None, :], st.gripper[None, :], st.q)
+                if found:
+                    self.touch = found[0]
+                    on_touch(found[0])
             if not p.active:
                 return p
         return None

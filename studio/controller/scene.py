@@ -19,9 +19,11 @@ import numpy as np
 from studio.controller.context import Context
 from studio.controller.events import Topic
 from studio.controller.playback import Playback, PlaybackKind
+from studio.core.collision import Touch
 from studio.core.errors import StudioError
-from studio.core.types import ARMS, Recording
+from studio.core.types import ARMS, Arm, Recording
 from studio.robot_backend.base import RobotBackend
+from studio.words import contact_sentence
 from studio.world import (
     KINDS,
     PRESETS,
@@ -41,6 +43,7 @@ from studio.world import (
     task_goal,
     task_result,
 )
+from studio.world.contacts import first_contact, touches, touches_at
 from studio.world.relative import relative_goal
 
 log = logging.getLogger(__name__)
@@ -79,6 +82,8 @@ class SceneActions:
         self._shown: tuple[tuple[int, ...], tuple[ObjectPose, ...]] | None = None  # shown()'s last answer
         self._result: TaskResult | None = None
         self._result_key: object = None
+        self._touches: tuple[Touch, ...] = ()  # what the learned skill touches, as the preview plays it
+        self._touch_rec: Recording | None = None
         ctx.events.on(Topic.SESSION, self._on_session)
         for topic in (Topic.SKILL, Topic.DEMOS, Topic.SESSION):
             ctx.events.on(topic, self._result_may_change)
@@ -231,6 +236,8 @@ class SceneActions:
 
     def _update_result(self) -> None:
         session = self.ctx.session
+        found: tuple[Touch, ...] = ()
+        rec: Recording | None = None
         if not session.skills:
             result = None
             key: object = None
@@ -242,8 +249,49 @@ class SceneActions:
             rec = self.player.preview_recording()
             run = simulate(rec.t, rec.q, rec.gripper, self.scene, baxter=self.ctx.baxter)
             result = task_result(run, self._goal(events))
+            found = tuple(touches(rec.t, rec.q, rec.gripper, self.scene, run, self.ctx.baxter, new=self._new(events)))
+            result = with_contacts(result, found)
         self._result, self._result_key = result, key
+        self._touches, self._touch_rec = found, rec
         self.ctx.emit(Topic.TASK)
+
+    def _new(self, events: list[tuple[WorldEvent, ...]]) -> set[str]:
+        """The objects of the scene that no shown demonstration had at its start."""
+        had = {p.name for evs in events for e in evs if e.kind == "start" for p in e.poses}
+        return {o.name for o in self.scene.objects if o.name not in had} if had else set()
+
+    # -- what the robot touches --------------------------------------------------------------------------
+    def skill_touches(self) -> tuple[Touch, ...]:
+        """What the learned skill (as the preview plays it, the objects where they are now) touches that it must
+        not: the table, an object, the other arm, the robot's body (decision 087); () when nothing."""
+        return self._touches
+
+    def contact_reason(self) -> str:
+        """Why the skill must not run because it touches something, in words ("" when it touches nothing)."""
+        return contact_sentence(self._touches)
+
+    def contact_paths(self) -> dict[Arm, list[np.ndarray]]:
+        """arm -> the stretches (each (n, 3) m) of its gripper's path, as the preview plays it, where it touches
+        something (to draw in red)."""
+        rec, out = self._touch_rec, {}
+        if rec is None:
+            return {}
+        for x in self._touches:
+            for arm in x.arms:
+                cols = slice(0, 7) if arm == "left" else slice(7, 14)
+                lo, hi = max(x.i_start - 1, 0), min(x.i_end + 2, len(rec))
+                out.setdefault(arm, []).append(self.ctx.baxter.fk_batch(arm, rec.q[lo:hi, cols])[0])
+        return out
+
+    def touches_at(self, q: np.ndarray, gripper: np.ndarray, q_now: np.ndarray) -> list[Touch]:
+        """What the robot would touch at poses ``q`` (N, 14) with grippers (N, 2), the objects where they are now
+        (one held moves with its gripper from where the arms are now, ``q_now``)."""
+        return touches_at(q, gripper, self.live.poses(), self.scene, self.ctx.baxter, q_now=q_now)
+
+    def first_contact(self, q: np.ndarray, gripper: np.ndarray, q_now: np.ndarray) -> tuple[int, Touch] | None:
+        """Along poses ``q`` (N, 14) from where the arms are: the first that touches something (or deeper than at
+        ``q[0]``) and what; None when the way is free (:func:`studio.world.contacts.first_contact`)."""
+        return first_contact(q, gripper, self.live.poses(), self.scene, self.ctx.baxter, q_now=q_now)
 
     def _goal(self, events: list[tuple[WorldEvent, ...]]) -> TaskGoal:
         """What the demonstrations did with the objects; for a skill that follows them, relative to where the
@@ -290,6 +338,14 @@ class SceneActions:
 
     def close(self) -> None:
         self._unsubscribe()
+
+
+def with_contacts(result: TaskResult | None, found: tuple[Touch, ...]) -> TaskResult | None:
+    """The task result of a skill that touches what it must not: never "works", and what it touches said first."""
+    if result is None or not found:
+        return result
+    said = result.text.replace(" — the skill works", "")
+    return TaskResult(False, f"{contact_sentence(found)} {said}", result.objects)
 
 
 def _free_spot(scene: Scene) -> tuple[float, float]:

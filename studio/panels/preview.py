@@ -109,14 +109,35 @@ class PreviewPanel:
                         thickness_units="screen",
                         visible=self.ctl.view.shown(Layer.LEARNED_PATH),
                     )
+            self._draw_contacts()
             duration = self.ctl.playback.preview_duration()
             self.time.max = round(max(duration, 0.01), 2)
             self.time.value = 0.0
             for h in (self.speed, self.time, self.skill_speed):
                 h.disabled = not skills
             self.skill_speed.value = _speed_label(self.ctl.placed.speed)
-            self.info.content = _info(duration, feasibility) if skills else NOT_TRAINED
+            self.info.content = _info(duration, feasibility, self.ctl.scene.contact_reason()) if skills else NOT_TRAINED
         self._on_run_state()
+
+    def _draw_contacts(self) -> None:
+        """Where the skill touches what it must not (the table, an object, the other arm): red over the path."""
+        for arm in ARMS:
+            old = self._nodes.pop(f"contact_{arm}", None)
+            if old is not None:
+                old.remove()
+        if not self.ctl.training.skills():
+            return
+        for arm, stretches in self.ctl.scene.contact_paths().items():
+            spans = [segments(downsample_path(p, 200)) for p in stretches if len(p) > 1]
+            if spans:
+                self._nodes[f"contact_{arm}"] = self.scene.add_line_segments(
+                    f"/preview/{arm}/contact",
+                    np.concatenate(spans),
+                    colors=IK_FAIL,
+                    thickness=10.0,
+                    thickness_units="screen",
+                    visible=self.ctl.view.shown(Layer.LEARNED_PATH),
+                )
 
     # -- Run on robot ------------------------------------------------------------------------------------------
     def _on_run(self, event: viser.GuiEvent) -> None:
@@ -129,6 +150,8 @@ class PreviewPanel:
         running = execution.running
         if any(not f.ok for f in execution.feasibility().values()):  # its words are above, with the red path
             reason = "The robot does not run a skill it cannot follow: see what is red on the learned path."
+        elif self.ctl.scene.contact_reason():
+            reason = "The robot does not run a skill that would hit something: see what is red on the learned path."
         quiet = running or reason.startswith("The emergency stop")  # the run's status says so, on every step
         disabled = bool(reason)
         task = self.ctl.scene.task_result()
@@ -208,6 +231,10 @@ class PreviewPanel:
         with self.server.atomic():
             self.reach.content = self._reach_html()
             self.task.content = self._task_html()
+            self._draw_contacts()
+            if self.ctl.training.skills():
+                duration = self.ctl.playback.preview_duration()
+                self.info.content = _info(duration, self.ctl.execution.feasibility(), self.ctl.scene.contact_reason())
         self._on_run_state()
 
     def _reach_html(self) -> str:
@@ -242,8 +269,8 @@ class PreviewPanel:
             self.time.value = round(min(pos, self.time.max), 2)
 
 
-def _info(duration: float, feasibility: dict[Arm, Feasibility]) -> str:
-    bad = [f.message for f in feasibility.values() if not f.ok]
+def _info(duration: float, feasibility: dict[Arm, Feasibility], contacts: str = "") -> str:
+    bad = [f.message for f in feasibility.values() if not f.ok] + ([contacts] if contacts else [])
     if bad:
         return f"Learned path ({duration:.1f} s) in cyan. In red: {' '.join(bad)} Press **Play** to watch it."
     return (

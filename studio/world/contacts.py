@@ -14,7 +14,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from studio.core.collision import CollisionModel, Near, Obstacle, Touch, stretches
+from studio.core.collision import CollisionModel, Near, Obstacle, Part, Touch, stretches
 from studio.core.kinematics import Baxter
 from studio.core.rotations import matrix_from_quat_wxyz
 from studio.core.types import ARMS
@@ -294,20 +294,33 @@ def touches_at(
     baxter: Baxter,
     *,
     q_now: np.ndarray | None = None,
-    t: np.ndarray | None = None,
 ) -> list[Touch]:
     """What the robot touches at poses ``q`` (N, 14) with grippers (N, 2), the objects where they are now (one held
     by a gripper moves with it: ``q_now`` (14,) is where the arms are now, default ``q[0]``). The fingers may touch
-    an object they are around."""
+    an object they are around. One stretch per pair of parts over all N poses."""
+    near, parts, objs = _live_near(q, gripper, objects, scene, baxter, q_now)
+    t = np.arange(objs.holder.shape[0], dtype=np.float64)
+    return [_with_facts(x, objs, ()) for x in stretches(near, parts, t, gap_s=math.inf)]
+
+
+def _live_near(
+    q: np.ndarray,
+    gripper: np.ndarray,
+    objects: Sequence[ObjectPose],
+    scene: Scene,
+    baxter: Baxter,
+    q_now: np.ndarray | None,
+) -> tuple[Near, tuple[Part, ...], Along]:
+    """The contacts at poses ``q`` with the objects where they are now (see :func:`touches_at`)."""
     q = np.atleast_2d(np.asarray(q, dtype=np.float64))
     g = np.atleast_2d(np.asarray(gripper, dtype=np.float64))
+    if g.shape[0] == 1 and q.shape[0] > 1:
+        g = np.repeat(g, q.shape[0], axis=0)
     n = q.shape[0]
-    t = np.arange(n, dtype=np.float64) if t is None else np.asarray(t, dtype=np.float64)
     names = tuple(p.name for p in objects)
     G = _grip_frames(q, baxter)
     bottom = np.zeros((len(names), n, 4, 4))
     holder = np.full((n, len(names)), -1, dtype=np.int8)
-    held = [p for p in objects if p.held_by in ARMS]
     now = _grip_frames(np.atleast_2d(q[0] if q_now is None else np.asarray(q_now, dtype=np.float64)), baxter)
     for k, p in enumerate(objects):
         T = _bottom(p)
@@ -318,22 +331,45 @@ def touches_at(
         else:
             bottom[k] = T
     sizes = np.array([p.size for p in objects], dtype=np.float64).reshape(len(names), 3)
-    objs = Along(
-        names,
-        tuple(p.kind for p in objects),
-        sizes,
-        bottom,
-        holder,
-        G[:, :, :3, 3],
-        np.full((n, 2), -1),
-        np.full((n, 2), -1),
-    )
-    carried = {p.name for p in held}
-    model = scene_model(scene, [(p.name, p.kind, p.size) for p in objects], carried)
+    none = np.full((n, 2), -1)
+    objs = Along(names, tuple(p.kind for p in objects), sizes, bottom, holder, G[:, :, :3, 3], none, none)
+    model = scene_model(scene, [(p.name, p.kind, p.size) for p in objects], {p.name for p in objects if p.held_by})
     poses = {name: _centres(bottom[k], sizes[k, 2]) for k, name in enumerate(names)}
     rules = _Rules(model, objs, scene.table, live=True)
     near = model.near(q, g, poses, skip=rules)
-    return [_with_facts(x, objs, ()) for x in stretches(near.rows(rules.real(near)), model.parts, t, gap_s=math.inf)]
+    return near.rows(rules.real(near)), model.parts, objs
+
+
+def first_contact(
+    q: np.ndarray,
+    gripper: np.ndarray,
+    objects: Sequence[ObjectPose],
+    scene: Scene,
+    baxter: Baxter,
+    *,
+    q_now: np.ndarray | None = None,
+) -> tuple[int, Touch] | None:
+    """Along poses ``q`` (N, 14) from where the arms are (``q[0]``): the first sample where something touches that
+    did not at ``q[0]``, or touches deeper than there (by 1 mm), and that contact; None when the way is free."""
+    near, parts, objs = _live_near(q, gripper, objects, scene, baxter, q_now)
+    start: dict[tuple[int, int], float] = {}
+    for a, b, s, d in zip(near.a.tolist(), near.b.tolist(), near.sample.tolist(), near.distance.tolist(), strict=True):
+        if s == 0:
+            start[(a, b)] = min(start.get((a, b), np.inf), d)
+    worse = [
+        m
+        for m, (a, b, s, d) in enumerate(
+            zip(near.a.tolist(), near.b.tolist(), near.sample.tolist(), near.distance.tolist(), strict=True)
+        )
+        if s > 0 and d < start.get((a, b), np.inf) - 0.001
+    ]
+    if not worse:
+        return None
+    first = min(worse, key=lambda m: (int(near.sample[m]), float(near.distance[m])))
+    s = int(near.sample[first])
+    rows = near.rows(np.isin(np.arange(len(near)), worse) & (near.sample == s))
+    t = np.arange(objs.holder.shape[0], dtype=np.float64)
+    return s, _with_facts(stretches(rows, parts, t)[0], objs, ())
 
 
 def _centres(bottom: np.ndarray, height: float) -> np.ndarray:
@@ -356,4 +392,4 @@ def _with_facts(x: Touch, objs: Along, new: Collection[str]) -> Touch:
     return replace(x, a=a, carry=carry, new=(not x.b.robot and x.b.part in new))
 
 
-__all__ = ["TABLE", "Along", "along", "centre_pose", "scene_model", "touches", "touches_at"]
+__all__ = ["TABLE", "Along", "along", "centre_pose", "first_contact", "scene_model", "touches", "touches_at"]
