@@ -212,14 +212,10 @@ class _Rules:
         return (self.o.next_grasp[s, arm] == k) | (self.o.last_release[s, arm] == k)
 
     def real(self, near: Near) -> np.ndarray:
-        """Which rows of ``near`` are contacts: all within the margin, except a finger and the object it closes
-        around next or let go of last (live: any object), which touch only when they overlap."""
-        k, s = near.pair, near.sample
-        ob, arm = self.obj_b[k], self.arm[k]
-        soft = self.fingers[k] & (ob >= 0)
-        if not self.live and soft.any():
-            idx = np.flatnonzero(soft)
-            soft[idx] = self._grasped(s[idx], arm[idx], ob[idx])
+        """Which rows of ``near`` are contacts: the robot's parts with each other and with the table within the
+        margin; an object (standing, or carried) only where it overlaps (decision 087)."""
+        k = near.pair
+        soft = (self.obj_b[k] >= 0) | (self.obj_a[k] >= 0)
         return ~soft | (near.distance < 0.0)
 
     def _around(self, s: np.ndarray, arm: np.ndarray, k: np.ndarray) -> np.ndarray:
