@@ -130,6 +130,7 @@ class RosbridgeBaxter(RobotBackend):
         self.commands_refused = 0
         self._link_was_up: bool | None = None  # None: never connected yet
         self._after_outage = False  # the link came back: nothing is sent until a person presses Enable
+        self._lost_busy = False  # the link was lost while the robot moved under the studio's commands, or closed
         from studio.core.kinematics import Baxter
 
         b = Baxter.load()
@@ -351,6 +352,10 @@ class RosbridgeBaxter(RobotBackend):
             if h.connected and self._link_was_up is False:  # the socket, or the robot's stream, is back
                 self._came_back()
                 h = self.health()
+            if not h.connected and self._link_was_up:  # lost now: while moving the robot, or the socket closed?
+                self._lost_busy = self._run is not None or bool(self._target)
+            if not self._link.connected and self._link_was_up is not None:
+                self._lost_busy = True
             if h.connected or self._link_was_up is not None:  # None until first connected
                 self._link_was_up = h.connected
             run = self._run
@@ -378,11 +383,13 @@ class RosbridgeBaxter(RobotBackend):
             self._run_tick(run, now)
 
     def _came_back(self) -> None:
-        """The link is back after an outage: the SDK's default speed ratio again (a run may have left it at 1), and
-        nothing else until a person presses Enable robot (:data:`OUTAGE_WORDS`)."""
+        """The link is back after an outage: the SDK's default speed ratio again (a run may have left it at 1); after
+        a closed socket, or an outage while the robot moved under the studio's commands, nothing else until a
+        person presses Enable robot (:data:`OUTAGE_WORDS`). A stream that only paused while idle needs no Enable."""
         self._target.clear()
         self._ratio(ARMS, DEFAULT_RATIO)
-        self._after_outage = True
+        self._after_outage = self._after_outage or self._lost_busy
+        self._lost_busy = False
 
     def _run_tick(self, run: PlanClock, now: float) -> None:
         q, g = run.advance(now)
