@@ -402,6 +402,35 @@ def contact_advice(x: Touch) -> str:
     return f"move the gripper away from the {b.part} first"
 
 
+class HitFacts(Protocol):
+    """An object the robot ran into (:class:`studio.world.hits.Hit`)."""
+
+    @property
+    def t(self) -> float: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def by(self) -> Part: ...
+    @property
+    def distance(self) -> float: ...
+    @property
+    def toppled(self) -> bool: ...
+
+
+def hit_words(hits: Sequence[HitFacts]) -> str:
+    """What the robot did to the objects it ran into: "The cup was knocked over by the left forearm at 7.3 s."."""
+    out = []
+    for name in dict.fromkeys(h.name for h in hits):
+        mine = [h for h in hits if h.name == name]
+        first, by = mine[0], part_words(mine[0].by)
+        moved = length_words(sum(h.distance for h in mine))
+        if any(h.toppled for h in mine):
+            out.append(f"The {name} was knocked over by {by} at {first.t:.1f} s.")
+        else:
+            out.append(f"The {name} was pushed {moved} by {by} at {first.t:.1f} s.")
+    return " ".join(out)
+
+
 def blocked_words(x: Touch) -> str:
     """An arm moved by hand stopped at a contact: "The left fingers touch the table — lift the gripper first"."""
     said = touch_words(x, "now")
@@ -419,6 +448,7 @@ __all__ = [
     "count_words",
     "fit_note",
     "grasp_words",
+    "hit_words",
     "length_words",
     "moved_words",
     "part_words",

@@ -235,9 +235,11 @@ class ExecutionActions:
             )
 
     def _stop_at_contact(self, run: Run, touch: Touch) -> None:
-        """The robot touches something during a run: the emergency stop, and why in words."""
+        """The robot touches something during a run: the emergency stop, and why in words; an object it ran into
+        is pushed or knocked over in the scene."""
         self.emergency_stop()
         t = self.backend.progress().t
+        self.scene.hit(touch, self.backend.state().q)
         with self._lock:
             msg = (
                 f"The robot was stopped at {t:.1f} s: {touch_words(touch, 'did')}. When it is safe, press Release "

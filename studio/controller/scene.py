@@ -23,7 +23,7 @@ from studio.core.collision import Touch
 from studio.core.errors import StudioError
 from studio.core.types import ARMS, Arm, Recording
 from studio.robot_backend.base import RobotBackend
-from studio.words import contact_sentence
+from studio.words import contact_sentence, hit_words
 from studio.world import (
     KINDS,
     PRESETS,
@@ -39,11 +39,11 @@ from studio.world import (
     grasp_note,
     on_clock,
     preset,
-    simulate,
     task_goal,
     task_result,
 )
-from studio.world.contacts import first_contact, touches, touches_at
+from studio.world.contacts import first_contact, touches_at
+from studio.world.hits import Hit, simulate_hits, struck
 from studio.world.relative import relative_goal
 
 log = logging.getLogger(__name__)
@@ -83,6 +83,7 @@ class SceneActions:
         self._result: TaskResult | None = None
         self._result_key: object = None
         self._touches: tuple[Touch, ...] = ()  # what the learned skill touches, as the preview plays it
+        self._run_hits: list[Hit] = []  # objects the robot ran into during the current run
         self._touch_rec: Recording | None = None
         ctx.events.on(Topic.SESSION, self._on_session)
         for topic in (Topic.SKILL, Topic.DEMOS, Topic.SESSION):
@@ -163,7 +164,8 @@ class SceneActions:
             return ()
         self.live.snapshot("end")
         mark, t0 = take
-        return bounded(on_clock(self.live.events_since(mark), t0, float(recording.duration)))
+        kept = [e for e in self.live.events_since(mark) if e.kind != "push"]  # a session keeps no "push"
+        return bounded(on_clock(kept, t0, float(recording.duration)))
 
     def cancel_take(self) -> None:
         self._take = None
@@ -247,10 +249,11 @@ class SceneActions:
             if key == self._result_key:
                 return
             rec = self.player.preview_recording()
-            run = simulate(rec.t, rec.q, rec.gripper, self.scene, baxter=self.ctx.baxter)
-            result = task_result(run, self._goal(events))
-            found = tuple(touches(rec.t, rec.q, rec.gripper, self.scene, run, self.ctx.baxter, new=self._new(events)))
-            result = with_contacts(result, found)
+            run, hits, touched = simulate_hits(
+                rec.t, rec.q, rec.gripper, self.scene, self.ctx.baxter, new=self._new(events)
+            )
+            found = tuple(touched)
+            result = with_contacts(task_result(run, self._goal(events)), found, hits)
         self._result, self._result_key = result, key
         self._touches, self._touch_rec = found, rec
         self.ctx.emit(Topic.TASK)
@@ -314,6 +317,7 @@ class SceneActions:
         """
         t0 = float(t[0]) if t is not None and len(t) else self.live.last_time
         self.live.reset(self.scene)
+        self._run_hits = []
         mark = self.live.mark()
         self.live.snapshot("start", t0)
         if t is not None and q is not None and gripper is not None and len(t):
@@ -329,23 +333,41 @@ class SceneActions:
         events = tuple(self.live.events_since(mark))
         goal = self._goal(self._shown_events())
         if not goal.objects:
-            return None
+            return None if not self._run_hits else TaskResult(False, hit_words(self._run_hits), ())
         step = max(1, round(len(recording) / max(recording.duration * 100.0, 1.0)))  # ~100 Hz, as simulate()
         q = recording.q[::step]
         path = {arm: self.ctx.baxter.fk_batch(arm, q[:, :7] if arm == "left" else q[:, 7:])[0] for arm in ARMS}
         run = WorldRun(events, self.live.poses(), recording.t[::step] + t0, path)
-        return task_result(run, goal)
+        return with_contacts(task_result(run, goal), (), self._run_hits)
+
+    def hit(self, touch: Touch, q_now: np.ndarray) -> None:
+        """During a run the robot ran into ``touch.b`` (an object standing on its own): it is pushed along the arm's
+        way, or knocked over, in the live world; the run's task result says so."""
+        pose = next((p for p in self.live.poses() if p.name == touch.b.part and p.held_by is None), None)
+        if pose is None or touch.b.robot or touch.depth <= 0.0:
+            return
+        arm = touch.a.arm or "left"
+        grip = self.ctx.baxter.fk(arm, q_now[:7] if arm == "left" else q_now[7:])[0]
+        way = np.asarray(pose.center[:2]) - grip[:2]
+        way = way / max(float(np.linalg.norm(way)), 1e-9)
+        t = self.live.last_time or 0.0
+        moved, hit = struck(pose, touch, way, t)
+        self.live.push(moved, t, touch.a.arm)
+        self._run_hits.append(hit)
+        self.ctx.emit(Topic.SCENE)
 
     def close(self) -> None:
         self._unsubscribe()
 
 
-def with_contacts(result: TaskResult | None, found: tuple[Touch, ...]) -> TaskResult | None:
-    """The task result of a skill that touches what it must not: never "works", and what it touches said first."""
-    if result is None or not found:
+def with_contacts(result: TaskResult | None, found: Sequence[Touch], hits: Sequence[Hit] = ()) -> TaskResult | None:
+    """The task result of a skill that touches what it must not: never "works"; what it touches said first, then
+    the objects it pushed or knocked over."""
+    if result is None or not (found or hits):
         return result
     said = result.text.replace(" — the skill works", "")
-    return TaskResult(False, f"{contact_sentence(found)} {said}", result.objects)
+    words = " ".join(w for w in (contact_sentence(found), hit_words(hits), said) if w)
+    return TaskResult(False, words, result.objects)
 
 
 def _free_spot(scene: Scene) -> tuple[float, float]:

@@ -112,7 +112,7 @@ def along(t: np.ndarray, q: np.ndarray, run: WorldRun, baxter: Baxter) -> Along:
     bottom = np.zeros((K, n, 4, 4))
     holder = np.full((n, K), -1, dtype=np.int8)
     now = {p.name: (_bottom(p), p.held_by) for p in poses0}
-    cuts = [(int(np.searchsorted(t, e.t - 1e-9)), e) for e in events if e.kind in ("grasp", "release")]
+    cuts = [(int(np.searchsorted(t, e.t - 1e-9)), e) for e in events if e.kind in ("grasp", "release", "push")]
     bounds = [0, *[c for c, _ in cuts], n]
     for j in range(len(bounds) - 1):
         a, b = bounds[j], bounds[j + 1]
