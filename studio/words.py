@@ -388,13 +388,24 @@ def contact_sentence(touches: Sequence[Touch], tense: str = "would") -> str:
     return f"{head}{tail}. {advice}".strip()
 
 
+def recorded_touch_words(touches: Sequence[Touch]) -> str:
+    """A demonstration that went through something (imported, or recorded on a real robot): "At 4.1–4.6 s the block
+    went 3 cm into the table" ("" when it touched nothing)."""
+    if not touches:
+        return ""
+    x = touches[0]
+    more = len(touches) - 1
+    tail = f" (and {count_words(more, 'more contact')} later)" if more else ""
+    return f"At {_when(x)} {touch_words(x, 'did')}{tail}."
+
+
 def contact_advice(x: Touch) -> str:
     """What to do when an arm moved by hand stops at a contact: "lift the gripper first"."""
     a, b = x.a, x.b
     if not a.robot:
         return f"lift the {a.part} first, or open the gripper to put it down"
     if b.robot and b.arm is not None:
-        return f"move the {b.arm if b.arm != a.arm else a.arm} arm away first"
+        return f"move the {b.arm} arm away first" if b.arm != a.arm else "move the gripper away from the arm first"
     if b.robot:
         return "move the gripper away from the robot's body first"
     if b.part == "table":
@@ -452,6 +463,7 @@ __all__ = [
     "length_words",
     "moved_words",
     "part_words",
+    "recorded_touch_words",
     "route_label",
     "route_sides",
     "routes_words",

@@ -23,7 +23,7 @@ from studio.core.collision import Touch
 from studio.core.errors import StudioError
 from studio.core.types import ARMS, Arm, Recording
 from studio.robot_backend.base import RobotBackend
-from studio.words import contact_sentence, hit_words
+from studio.words import contact_sentence, hit_words, recorded_touch_words
 from studio.world import (
     KINDS,
     PRESETS,
@@ -39,10 +39,11 @@ from studio.world import (
     grasp_note,
     on_clock,
     preset,
+    simulate,
     task_goal,
     task_result,
 )
-from studio.world.contacts import first_contact, touches_at
+from studio.world.contacts import first_contact, touches, touches_at
 from studio.world.hits import Hit, simulate_hits, struck
 from studio.world.relative import relative_goal
 
@@ -84,6 +85,7 @@ class SceneActions:
         self._result_key: object = None
         self._touches: tuple[Touch, ...] = ()  # what the learned skill touches, as the preview plays it
         self._run_hits: list[Hit] = []  # objects the robot ran into during the current run
+        self._demo_said: dict[int, tuple[Recording, str]] = {}  # what each demonstration went through, in words
         self._touch_rec: Recording | None = None
         ctx.events.on(Topic.SESSION, self._on_session)
         for topic in (Topic.SKILL, Topic.DEMOS, Topic.SESSION):
@@ -285,6 +287,27 @@ class SceneActions:
                 lo, hi = max(x.i_start - 1, 0), min(x.i_end + 2, len(rec))
                 out.setdefault(arm, []).append(self.ctx.baxter.fk_batch(arm, rec.q[lo:hi, cols])[0])
         return out
+
+    def demo_contact(self, i: int) -> str:
+        """What demonstration ``i`` went through (imported, or recorded on a real robot by hand), in words with the
+        stretch ("" when nothing; computed once per demonstration)."""
+        session = self.ctx.session
+        if not 0 <= i < len(session.recordings):
+            return ""
+        rec = session.recordings[i]
+        with self._lock:
+            hit = self._demo_said.get(id(rec))
+        if hit is not None and hit[0] is rec:
+            return hit[1]
+        events = session.objects.events(session.demo_files[i]) if i < len(session.demo_files) else ()
+        step = max(1, round(len(rec) / max(rec.duration * 100.0, 1.0)))  # about 100 a second
+        t, q, g = rec.t[::step], rec.q[::step], rec.gripper[::step]
+        start = next((e.poses for e in events if e.kind == "start"), None)
+        run = simulate(t, q, g, self.scene, baxter=self.ctx.baxter, start=start)
+        said = recorded_touch_words(touches(t, q, g, self.scene, run, self.ctx.baxter))
+        with self._lock:
+            self._demo_said[id(rec)] = (rec, said)
+        return said
 
     def touches_at(self, q: np.ndarray, gripper: np.ndarray, q_now: np.ndarray) -> list[Touch]:
         """What the robot would touch at poses ``q`` (N, 14) with grippers (N, 2), the objects where they are now
