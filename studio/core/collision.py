@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import coal
@@ -51,6 +51,8 @@ BODY_PARTS: dict[str, str] = {
     "collision_head_link_1": "head",
     "collision_head_link_2": "head",
 }
+#: The parts of an arm whose place the arm's posture decides (the gripper's place is the path's).
+ARM_NOT_GRIPPER = frozenset({"shoulder", "upper arm", "elbow", "forearm"})
 #: Parts of one arm that never meet each other (one rigid mechanism, fingers sliding on it).
 _GRIPPER = frozenset({"wrist", "hand", "fingers"})
 #: Geometry smaller than this (m, a sphere's radius) is a placeholder in the URDF, not a body.
@@ -274,6 +276,10 @@ def _times_const(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     return out
 
 
+def _of(p: Part, arm: Arm, parts: Collection[str]) -> bool:
+    return p.robot and p.arm == arm and p.part in parts
+
+
 def _part_of(link: str) -> Part | None:
     if link in BODY_PARTS:
         return Part(None, BODY_PARTS[link], True)
@@ -397,6 +403,39 @@ class CollisionModel:
             if g.joint >= 0:
                 self._cluster[i] = keys.index((g.part.arm or "", g.part.part))
         self._members = [np.flatnonzero(self._cluster == c) for c in range(len(keys))]
+
+    def arm_touching(
+        self,
+        arm: Arm,
+        other: np.ndarray | None,
+        poses: Mapping[str, np.ndarray] | None = None,
+        *,
+        parts: Collection[str] = ARM_NOT_GRIPPER,
+    ) -> Callable[[np.ndarray], np.ndarray]:
+        """For the path IK: joints (K, 7) of ``arm`` -> (K,) True where its ``parts`` (default: all but the wrist,
+        hand and fingers, whose place the path decides) come within the margin of anything: the obstacles at
+        ``poses``, the robot's body, the other arm held at ``other`` (7,; None: the other arm is left out)."""
+        mine = [
+            k
+            for k, (a, b) in enumerate(self.pairs.tolist())
+            if (_of(self.parts[a], arm, parts) or _of(self.parts[b], arm, parts))
+            and (other is not None or None in (self.parts[a].arm, self.parts[b].arm))
+        ]
+        chosen = np.asarray(mine, dtype=np.int64)
+        cols = slice(0, 7) if arm == "left" else slice(7, 14)
+        rest = slice(7, 14) if arm == "left" else slice(0, 7)
+
+        def touching(Q: np.ndarray) -> np.ndarray:
+            Q = np.atleast_2d(np.asarray(Q, dtype=np.float64))
+            full = np.empty((Q.shape[0], 14))
+            full[:, cols] = Q
+            full[:, rest] = Q if other is None else other  # (left out when None: mirrored, never checked)
+            near = self.near(full, np.full((Q.shape[0], 2), 100.0), poses, pairs=chosen)
+            out = np.zeros(Q.shape[0], dtype=bool)
+            out[near.sample] = True
+            return out
+
+        return touching
 
     def index(self, name: str) -> int:
         """The body index of obstacle ``name``."""
@@ -732,6 +771,7 @@ def obstacle_pose(position: Sequence[float] | np.ndarray, R: np.ndarray | None =
 
 
 __all__ = [
+    "ARM_NOT_GRIPPER",
     "ARM_PARTS",
     "BODY_PARTS",
     "MARGIN_M",

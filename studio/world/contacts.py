@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Collection, Sequence
+from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -17,10 +17,10 @@ import numpy as np
 from studio.core.collision import CollisionModel, Near, Obstacle, Part, Touch, stretches
 from studio.core.kinematics import Baxter
 from studio.core.rotations import matrix_from_quat_wxyz
-from studio.core.types import ARMS
+from studio.core.types import ARMS, Arm
 from studio.world.events import ObjectPose
-from studio.world.geometry import FLOOR_Z, GRASP_BELOW_TOL, GRASP_XY_TOL, NEST_STEP, SNAP_UP, Table
-from studio.world.scene import Scene
+from studio.world.geometry import FLOOR_Z, GRASP_BELOW_TOL, GRASP_XY_TOL, NEST_STEP, SNAP_UP, Table, yaw_quat
+from studio.world.scene import Scene, WorldObject
 from studio.world.simulation import WorldRun
 
 #: Fingers may touch an object they are about to close around, or just let go of, while the gripper point is this
@@ -55,6 +55,19 @@ def scene_model(
     the scene's); ``moving``: the objects that may be carried."""
     objs = tuple(names) if names is not None else tuple((o.name, o.kind, o.size) for o in scene.objects)
     return _model(scene.table, objs, frozenset(moving))
+
+
+def arm_clearance(scene: Scene, arm: Arm, other: np.ndarray | None) -> Callable[[np.ndarray], np.ndarray]:
+    """For the path IK (:func:`studio.core.ik_path.solve_path`'s ``avoid``): joints (K, 7) of ``arm`` -> where its
+    shoulder, upper arm, elbow or forearm touch the table, an object where it stands, the robot's body or the other
+    arm held at ``other`` (7,; None: left out)."""
+    model = scene_model(scene)
+    poses = {o.name: centre_pose(_standing(o)) for o in scene.objects}
+    return model.arm_touching(arm, other, poses)
+
+
+def _standing(o: WorldObject) -> ObjectPose:
+    return ObjectPose(o.name, o.kind, o.size, o.position, yaw_quat(o.yaw))
 
 
 def centre_pose(p: ObjectPose) -> np.ndarray:
@@ -388,4 +401,14 @@ def _with_facts(x: Touch, objs: Along, new: Collection[str]) -> Touch:
     return replace(x, a=a, carry=carry, new=(not x.b.robot and x.b.part in new))
 
 
-__all__ = ["TABLE", "Along", "along", "centre_pose", "first_contact", "scene_model", "touches", "touches_at"]
+__all__ = [
+    "TABLE",
+    "Along",
+    "along",
+    "arm_clearance",
+    "centre_pose",
+    "first_contact",
+    "scene_model",
+    "touches",
+    "touches_at",
+]
