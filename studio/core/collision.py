@@ -355,7 +355,6 @@ class CollisionModel:
                 pairs += [(R + k, i) for i in fixed]
         self.pairs = np.array(pairs, dtype=np.int64).reshape(-1, 2)
         self._geometry = [g.geometry for g in geoms] + [o.geometry() for o in self.obstacles]
-        self._compute = {(a, b): coal.ComputeDistance(self._geometry[a], self._geometry[b]) for a, b in pairs}
         self._request = coal.DistanceRequest()
         self._request.enable_signed_distance = True
         self._index_bounds()
@@ -565,7 +564,7 @@ class CollisionModel:
         res = coal.DistanceResult()
         ta, tb = coal.Transform3s(), coal.Transform3s()
         dist = np.empty(cand_s.shape[0])
-        compute = self._compute
+        geometry, distance = self._geometry, coal.distance
         for m, (s, k) in enumerate(zip(cand_s.tolist(), cand_p.tolist(), strict=True)):
             a, b = int(sel[k, 0]), int(sel[k, 1])
             Ra, pa = at.placement(s, a)
@@ -574,8 +573,8 @@ class CollisionModel:
             ta.setTranslation(pa)
             tb.setRotation(Rb)
             tb.setTranslation(pb)
-            res.clear()
-            dist[m] = compute[(a, b)](ta, tb, req, res)
+            res.clear()  # (coal's ComputeDistance kept a guess between calls that led it astray: decision 087)
+            dist[m] = distance(geometry[a], ta, geometry[b], tb, req, res)
         keep = dist < self.margin
         return Near(cand_s[keep], sel[cand_p[keep], 0], sel[cand_p[keep], 1], dist[keep], cand_p[keep])
 
@@ -742,7 +741,7 @@ def stretches(near: Near, parts: Sequence[Part], t: np.ndarray, *, gap_s: float 
         d = near.distance[r]
         order = np.argsort(s, kind="stable")
         s, d = s[order], d[order]
-        cut = np.flatnonzero(np.diff(t[s]) > gap_s) + 1
+        cut = np.flatnonzero((np.diff(s) > 1) & (np.diff(t[s]) > gap_s * (1 + 1e-9))) + 1
         for seg_s, seg_d in zip(np.split(s, cut), np.split(d, cut), strict=True):
             k = int(np.argmin(seg_d))
             out.append(
