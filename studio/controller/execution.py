@@ -208,7 +208,7 @@ class ExecutionActions:
             st = self.backend.state()
             plan = plan_execution(jts, st.q, st.gripper, self.ctx.baxter, rate_hz=self.backend.rate_hz)
             self._check_approach(plan, st.q)
-            run = Run.start(plan, self.backend, self.scene, self.ctx.baxter)
+            run = Run.start(plan, self.backend, self.scene, self.ctx.baxter, on_touch=self._stop_at_contact)
             with self._lock:
                 self._run = self._last = run
                 self.plan, self.recording, self.report, self.task, self.verdict = plan, None, None, None, None
@@ -234,17 +234,14 @@ class ExecutionActions:
                 "hand first (clear of the table and the objects), then press Run on robot again."
             )
 
-    def _stop_at_contact(self, run: Run, touch: Touch) -> None:
+    def _stop_at_contact(self, touch: Touch) -> None:
         """The robot touches something during a run: the emergency stop, and why in words; an object it ran into
         is pushed or knocked over in the scene."""
         self.emergency_stop()
         t = self.backend.progress().t
         self.scene.hit(touch, self.backend.state().q)
         with self._lock:
-            msg = (
-                f"The robot was stopped at {t:.1f} s: {touch_words(touch, 'did')}. When it is safe, press Release "
-                f"emergency stop, then {contact_advice(touch)}."
-            )
+            msg = stopped_words(touch, t)
             self._status = dataclasses.replace(self._status, estop=True, message=msg)
         self.ctx.emit(Topic.EXECUTION)
         self.ctx.notify("The robot touched something", msg, kind="warning")
@@ -322,7 +319,7 @@ class ExecutionActions:
 
     # -- the run's thread ----------------------------------------------------------------------------------
     def _follow(self, run: Run) -> None:
-        p = run.follow(self._on_progress, lambda touch: self._stop_at_contact(run, touch))
+        p = run.follow(self._on_progress)
         if p is None:  # abandoned (the studio stops)
             return
         try:
@@ -345,7 +342,8 @@ class ExecutionActions:
         with self._lock:
             st = self._status
             duration = p.duration or run.plan.duration
-            self._status = RunStatus(p.state, p.t, duration, ended(p, st.estop), result, ok, st.estop)
+            said = stopped_words(run.touch, p.t) if run.touch is not None and st.estop else ended(p, st.estop)
+            self._status = RunStatus(p.state, p.t, duration, said, result, ok, st.estop)
             if self._run is run:
                 self._run = None
         self.ctx.emit(Topic.EXECUTION)
@@ -390,6 +388,15 @@ class ExecutionActions:
         if run is None:
             return
         abandon(run, self.backend)
+
+
+def stopped_words(touch: Touch, t: float) -> str:
+    """A run stopped at a contact, in words: "The robot was stopped at 7.3 s: the left fingers touched the table.
+    When it is safe, press Release emergency stop, then lift the gripper first."."""
+    return (
+        f"The robot was stopped at {t:.1f} s: {touch_words(touch, 'did')}. When it is safe, press Release emergency "
+        f"stop, then {contact_advice(touch)}."
+    )
 
 
 class RobotActions:

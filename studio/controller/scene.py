@@ -222,11 +222,19 @@ class SceneActions:
     # -- the task result -------------------------------------------------------------------------------
     def task_result(self) -> TaskResult | None:
         """What the learned skill does with the objects, in plain words (None before a skill is learned)."""
+        self._up_to_date()
         return self._result
+
+    def _up_to_date(self) -> None:
+        """The task result and the skill's contacts are of the skills and the scene now (a session opened with a
+        learned skill has had no event yet)."""
+        if self.ctx.session.skills and self._result_key is None:
+            self._result_may_change()
 
     def _result_may_change(self) -> None:
         try:
-            self._update_result()
+            with self._lock:
+                self._update_result()
         except Exception:
             log.exception("task result")
             self._result = None
@@ -269,15 +277,17 @@ class SceneActions:
     def skill_touches(self) -> tuple[Touch, ...]:
         """What the learned skill (as the preview plays it, the objects where they are now) touches that it must
         not: the table, an object, the other arm, the robot's body (decision 087); () when nothing."""
+        self._up_to_date()
         return self._touches
 
     def contact_reason(self) -> str:
         """Why the skill must not run because it touches something, in words ("" when it touches nothing)."""
-        return contact_sentence(self._touches)
+        return contact_sentence(self.skill_touches())
 
     def contact_paths(self) -> dict[Arm, list[np.ndarray]]:
         """arm -> the stretches (each (n, 3) m) of its gripper's path, as the preview plays it, where it touches
         something (to draw in red)."""
+        self._up_to_date()
         rec, out = self._touch_rec, {}
         if rec is None:
             return {}

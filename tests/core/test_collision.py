@@ -98,7 +98,9 @@ def test_the_home_posture_touches_nothing_and_an_overlap_is_as_deep_as_it_is() -
     block = CollisionModel([table(), Obstacle("block", "box", (0.05, 0.05, 0.05))], moving=["block"])
     T = obstacle_pose((0.8, 0.0, TABLE_TOP - 0.068 + 0.025))  # its bottom 6.8 cm into the table top
     near = block.near(home[None], np.array([[100.0, 100.0]]), {"block": T})
-    pair = [(block.parts[a].part, block.parts[b].part, d) for a, b, d in zip(near.a, near.b, near.distance, strict=True)]
+    pair = [
+        (block.parts[a].part, block.parts[b].part, d) for a, b, d in zip(near.a, near.b, near.distance, strict=True)
+    ]
     assert [(a, b) for a, b, _ in pair] == [("block", "table")]
     assert -pair[0][2] == pytest.approx(0.068, abs=1e-6)
 
