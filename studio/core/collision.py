@@ -24,6 +24,12 @@ from studio.core.types import ARMS, Arm
 
 #: Pairs closer than this (m) touch: the safety margin every check keeps.
 MARGIN_M = 0.005
+#: A path's broad phase looks at every this many samples (each standing for its neighbours, the margin widened by
+#: how far anything moves to them); the exact distances are then taken at every sample it leaves in.
+COARSE_STRIDE = 4
+#: Up to this many poses, each is taken on its own (pinocchio's kinematics pose by pose, no coarse pass): fewer
+#: steps than in batch for a move by hand.
+FEW = 24
 #: A finger's travel (m) from closed to fully open (the URDF's prismatic finger joints).
 FINGER_TRAVEL_M = 0.020833
 #: Parts of an arm by the URDF link its geometry hangs on (a link name without the arm's prefix).
@@ -161,6 +167,7 @@ class RobotGeometry:
         self.placements = [model.jointPlacements[j] for j in self.joint_ids]
         self.prismatic = [model.joints[j].shortname().startswith("JointModelP") for j in self.joint_ids]
         self.q_index = [model.joints[j].idx_q for j in self.joint_ids]
+        self._model = model
         data = model.createData()
         pin.forwardKinematics(model, data, pin.neutral(model))
         geoms: list[_Geom] = []
@@ -220,6 +227,44 @@ class RobotGeometry:
             for arm in ARMS
         }
         self.finger_sign = {arm: [1.0, -1.0] for arm in ARMS}
+        self.reach = self._reach(baxter)
+
+    def _frames_each(self, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        model = self._model
+        data = model.createData()  # this call's own: safe from any thread
+        q = pin.neutral(model)
+        R = np.empty((v.shape[0], len(self.joint_ids), 3, 3))
+        p = np.empty((v.shape[0], len(self.joint_ids), 3))
+        for k in range(v.shape[0]):
+            q[self.q_index] = v[k]
+            pin.forwardKinematics(model, data, q)
+            for j, jid in enumerate(self.joint_ids):
+                M = data.oMi[jid]
+                R[k, j], p[k, j] = M.rotation, M.translation
+        return R, p
+
+    def _reach(self, baxter: Baxter) -> np.ndarray:
+        """(7,) per arm joint (s0..w2), how far (m) any part of the arm beyond it reaches from it (sampled over
+        postures, 5 % added): a joint turned by θ moves nothing farther than that × θ."""
+        rng = np.random.default_rng(11)
+        n = 256
+        Q = np.concatenate([baxter.random_configuration(a, rng, n) for a in ARMS], axis=1)
+        Rj, pj = self.frames(Q, np.full((n, 2), 100.0))
+        below = [{j} for j in range(len(self.joint_ids))]  # each joint and those it carries
+        for j in range(len(self.joint_ids)):
+            p = self.parents[j]
+            while p >= 0:
+                below[p].add(j)
+                p = self.parents[p]
+        out = np.zeros(7)
+        for arm in ARMS:
+            for k, j in enumerate(self.arm_q[arm].tolist()):
+                for g in self.geoms:
+                    if g.joint in below[j]:
+                        c = _apply(Rj[:, g.joint], g.spheres @ g.R.T + g.p) + pj[:, g.joint, None, :]
+                        far = float(np.linalg.norm(c - pj[:, j, None, :], axis=2).max()) + g.radius
+                        out[k] = max(out[k], far)
+        return out * 1.05
 
     @classmethod
     @functools.cache
@@ -238,10 +283,12 @@ class RobotGeometry:
         return out
 
     def frames(self, Q: np.ndarray, G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """World rotations (N, J, 3, 3) and origins (N, J, 3) of the moving joints, vectorised over N (element-wise
-        products, not stacked 3 × 3 matrix products: bench/README.md, "Kinematics")."""
+        """World rotations (N, J, 3, 3) and origins (N, J, 3) of the moving joints: vectorised over N, or pose by
+        pose with pinocchio for a few (fewer steps)."""
         v = self.joint_values(Q, G)
         n, J = v.shape
+        if n <= FEW:
+            return self._frames_each(v)
         R = np.empty((n, J, 3, 3))
         p = np.empty((n, J, 3))
         for j in range(J):
@@ -267,13 +314,8 @@ class RobotGeometry:
 
 
 def _times_const(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """A (N, 3, 3) times a constant B (3, 3), by columns (skipping B's zero entries)."""
-    out = np.zeros(A.shape)
-    for j in range(3):
-        for k in range(3):
-            if B[k, j] != 0.0:
-                out[:, :, j] += A[:, :, k] * B[k, j]
-    return out
+    """A (N, 3, 3) times a constant B (3, 3): one matrix product of the rows (N·3, 3) · (3, 3)."""
+    return (np.ascontiguousarray(A).reshape(-1, 3) @ B).reshape(A.shape)
 
 
 def _of(p: Part, arm: Arm, parts: Collection[str]) -> bool:
@@ -402,6 +444,10 @@ class CollisionModel:
             if g.joint >= 0:
                 self._cluster[i] = keys.index((g.part.arm or "", g.part.part))
         self._members = [np.flatnonzero(self._cluster == c) for c in range(len(keys))]
+        width = max(len(m) for m in self._members)
+        self._cl_index = np.array([[*m, *[m[0]] * (width - len(m))] for m in self._members], dtype=np.int64)
+        self._cl_weight = np.array([[1.0 / len(m)] * len(m) + [0.0] * (width - len(m)) for m in self._members])
+        self._moving = np.flatnonzero(self._bj >= 0)
 
     def arm_touching(
         self,
@@ -471,21 +517,68 @@ class CollisionModel:
             raise InvalidInput("A collision check needs 14 joint angles and 2 gripper openings per sample.")
         if not (np.all(np.isfinite(Q)) and np.all(np.isfinite(G))):
             raise InvalidInput("The joint angles contain missing or invalid values (NaN or infinity).")
-        at = _Frames(self, Q, G, poses or {})
+        poses = dict(poses or {})
         idx = np.arange(self.pairs.shape[0]) if pairs is None else np.asarray(pairs, dtype=np.int64)
         sel = self.pairs[idx]
-        cand_s, cand_p = self._broad(at, sel, self._kind[idx])
+        n = Q.shape[0]
+        at = None
+        if n > 4 * FEW:
+            cand_s, cand_p = self._coarse(Q, G, poses, sel, self._kind[idx])
+        else:
+            at = _Frames(self, Q, G, poses)
+            cand_s, cand_p = self._broad(at, sel, self._kind[idx], np.full(n, self.margin))
         if skip is not None and cand_s.size:
             keep = ~np.asarray(skip(cand_s, idx[cand_p]), dtype=bool)
             cand_s, cand_p = cand_s[keep], cand_p[keep]
-        near = self._narrow(at, sel, cand_s, cand_p)
-        return Near(near.sample, near.a, near.b, near.distance, idx[near.pair])
+        if at is not None:
+            near = self._narrow(at, sel, cand_s, cand_p)
+            return Near(near.sample, near.a, near.b, near.distance, idx[near.pair])
+        # the exact distances, at the candidates' samples only
+        rows, at_rows = np.unique(cand_s, return_inverse=True)
+        sub = {k: (v[rows] if np.ndim(v) == 3 else v) for k, v in poses.items()}
+        near = self._narrow(_Frames(self, Q[rows], G[rows], sub), sel, at_rows.reshape(-1), cand_p)
+        return Near(rows[near.sample], near.a, near.b, near.distance, idx[near.pair])
 
-    def _broad(self, at: _Frames, sel: np.ndarray, kind: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(sample, pair) candidates: pairs whose bounds come within the margin, tested coarse to fine (a part's
-        bodies together, each body's bounding sphere, its covering spheres) against the other's bounding box (an
-        obstacle, a fixed body) or spheres (two moving robot bodies)."""
-        margin = self.margin
+    def _coarse(
+        self, Q: np.ndarray, G: np.ndarray, poses: dict[str, np.ndarray], sel: np.ndarray, kind: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The broad phase of a path at every :data:`COARSE_STRIDE`-th sample, each with the margin widened by how
+        far anything may move to the samples it stands for (the joints' changes times the arm's reach beyond each
+        joint, the obstacles' own moves); its candidates stand for those samples."""
+        n = Q.shape[0]
+        coarse = np.unique(np.append(np.arange(0, n, COARSE_STRIDE), n - 1))
+        owner = np.clip(np.searchsorted(coarse, np.arange(n) - COARSE_STRIDE / 2.0), 0, coarse.shape[0] - 1)
+        rep = coarse[owner]
+        dq = np.abs(Q - Q[rep])
+        reach = self.robot.reach
+        move = np.maximum(dq[:, :7] @ reach, dq[:, 7:] @ reach)
+        move += np.abs(G - G[rep]).max(axis=1) / 100.0 * FINGER_TRAVEL_M
+        for o in self.obstacles:
+            T = poses.get(o.name)
+            if T is not None and np.ndim(T) == 3:
+                c, r, _ = _cover(o.geometry())
+                turn = np.linalg.norm((T[:, :3, :3] - T[rep, :3, :3]).reshape(n, 9), axis=1)  # ≥ the turn's angle
+                move += np.linalg.norm(T[:, :3, 3] - T[rep, :3, 3], axis=1) + turn * (float(np.abs(c).max()) + r)
+        widen = np.zeros(coarse.shape[0])
+        np.maximum.at(widen, owner, move)
+        sub = {k: (v[coarse] if np.ndim(v) == 3 else v) for k, v in poses.items()}
+        at = _Frames(self, Q[coarse], G[coarse], sub)
+        c_s, c_p = self._broad(at, sel, kind, self.margin + widen)
+        if not c_s.size:
+            return c_s, c_p
+        # each coarse candidate stands for the samples it owns
+        first = np.searchsorted(owner, np.arange(coarse.shape[0]), side="left")
+        last = np.searchsorted(owner, np.arange(coarse.shape[0]), side="right")
+        count = last[c_s] - first[c_s]
+        s = np.repeat(first[c_s], count) + (np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count))
+        return s, np.repeat(c_p, count)
+
+    def _broad(
+        self, at: _Frames, sel: np.ndarray, kind: np.ndarray, margin: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(sample, pair) candidates: pairs whose bounds come within ``margin`` (N,) of each other, tested coarse to
+        fine (a part's bodies together, each body's bounding sphere, its covering spheres) against the other's
+        bounding box (an obstacle, a fixed body) or spheres (two moving robot bodies)."""
         out_s: list[np.ndarray] = []
         out_p: list[np.ndarray] = []
         Cb = at.robot_bounds()  # (N, R, 3)
@@ -498,32 +591,33 @@ class CollisionModel:
             for a_group, k_group in _split_by_kind(sel, ks, self.n_robot):
                 if a_group is not None:  # a moving obstacle's spheres
                     pts, rad = at.obstacle_centres(a_group)
-                    hit = (_box_gap2(pts, Rb, pb, h) < np.square(margin + rad)).any(axis=1)
+                    hit = (_box_gap2(pts, Rb, pb, h) < np.square(margin[:, None] + rad)).any(axis=1)
                     out_s.append(np.flatnonzero(hit))
                     out_p.append(np.full(int(hit.sum()), k_group[0]))
                     continue
                 bodies = sel[k_group, 0]
                 clusters = np.unique(self._cluster[bodies])
-                s_c, c_c = np.nonzero(_box_gap2(Pc[:, clusters], Rb, pb, h) < np.square(margin + Pr[:, clusters]))
+                reach = np.square(margin[:, None] + Pr[:, clusters])
+                s_c, c_c = np.nonzero(_box_gap2(Pc[:, clusters], Rb, pb, h) < reach)
                 for c in np.unique(c_c).tolist():
                     rows = s_c[c_c == c]
                     Rr, pr = (Rb, pb) if Rb.shape[0] == 1 else (Rb[rows], pb[rows])
                     for j in np.flatnonzero(self._cluster[bodies] == clusters[c]).tolist():
                         body = int(bodies[j])
-                        near = _box_gap2(Cb[rows, body, None], Rr, pr, h)[:, 0] < np.square(margin + self._br[body])
+                        gap = _box_gap2(Cb[rows, body, None], Rr, pr, h)[:, 0]
+                        near = gap < np.square(margin[rows] + self._br[body])
                         r2 = rows[near]
                         if not r2.size:
                             continue
                         cols = self._cols[body]
                         R2, p2 = (Rr, pr) if Rr.shape[0] == 1 else (Rr[near], pr[near])
-                        hit = (_box_gap2(at.centres(body, r2), R2, p2, h) < np.square(margin + self._sr[cols])).any(
-                            axis=1
-                        )
+                        gaps = _box_gap2(at.centres(body, r2), R2, p2, h)
+                        hit = (gaps < np.square(margin[r2][:, None] + self._sr[cols])).any(axis=1)
                         out_s.append(r2[hit])
                         out_p.append(np.full(int(hit.sum()), k_group[j]))
         ks = np.flatnonzero(kind == 1)
         if ks.size:
-            self._sphere_pairs(at, sel, ks, out_s, out_p)
+            self._sphere_pairs(at, sel, ks, margin, out_s, out_p)
         if not out_s:
             return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
         s = np.concatenate(out_s)
@@ -532,29 +626,34 @@ class CollisionModel:
         return s[order], p[order]
 
     def _sphere_pairs(
-        self, at: _Frames, sel: np.ndarray, ks: np.ndarray, out_s: list[np.ndarray], out_p: list[np.ndarray]
+        self,
+        at: _Frames,
+        sel: np.ndarray,
+        ks: np.ndarray,
+        margin: np.ndarray,
+        out_s: list[np.ndarray],
+        out_p: list[np.ndarray],
     ) -> None:
         """Candidates among pairs of moving robot bodies ``ks``: their parts' bounds, their bodies', their spheres."""
-        margin = self.margin
         Cb = at.robot_bounds()
         Pc, Pr = at.cluster_bounds()
         a, b = sel[ks, 0], sel[ks, 1]
         ca, cb = self._cluster[a], self._cluster[b]
         combos = np.unique(np.stack([ca, cb], axis=1), axis=0)
         X, Y = combos[:, 0], combos[:, 1]
-        close = np.square(Pc[:, X] - Pc[:, Y]).sum(axis=2) < np.square(Pr[:, X] + Pr[:, Y] + margin)
+        close = np.square(Pc[:, X] - Pc[:, Y]).sum(axis=2) < np.square(Pr[:, X] + Pr[:, Y] + margin[:, None])
         for m in np.flatnonzero(close.any(axis=0)).tolist():
             x, y = int(X[m]), int(Y[m])
             rows = np.flatnonzero(close[:, m])
             for c in np.flatnonzero((ca == x) & (cb == y)).tolist():
                 ia, ib = int(a[c]), int(b[c])
                 d2 = np.square(Cb[rows, ia] - Cb[rows, ib]).sum(axis=1)
-                s_k = rows[d2 < (self._br[ia] + self._br[ib] + margin) ** 2]
+                s_k = rows[d2 < (self._br[ia] + self._br[ib] + margin[rows]) ** 2]
                 if not s_k.size:
                     continue
                 pa, pb = at.centres(ia, s_k), at.centres(ib, s_k)
                 dd = np.sqrt(np.square(pa[:, :, None, :] - pb[:, None, :, :]).sum(axis=3)).min(axis=(1, 2))
-                keep = dd - self._sr[self._cols[ia][0]] - self._sr[self._cols[ib][0]] < margin
+                keep = dd - self._sr[self._cols[ia][0]] - self._sr[self._cols[ib][0]] < margin[s_k]
                 out_s.append(s_k[keep])
                 out_p.append(np.full(int(keep.sum()), ks[c]))
 
@@ -599,13 +698,9 @@ class _Frames:
         """Per sample, a sphere round each part's moving bodies: centres (N, C, 3) and radii (N, C)."""
         if self._P is None:
             m = self.m
-            B = self.robot_bounds()
-            C = np.empty((self.n, len(m._members), 3))
-            r = np.empty((self.n, len(m._members)))
-            for c, members in enumerate(m._members):
-                X = B[:, members]
-                C[:, c] = X.mean(axis=1)
-                r[:, c] = (np.sqrt(np.square(X - C[:, c, None, :]).sum(axis=2)) + m._br[members]).max(axis=1)
+            X = self.robot_bounds()[:, m._cl_index]  # (N, C, M, 3): each part's bodies, padded with its first
+            C = (X * m._cl_weight[None, :, :, None]).sum(axis=2)
+            r = (np.sqrt(np.square(X - C[:, :, None, :]).sum(axis=3)) + m._br[m._cl_index]).max(axis=2)
             self._P = (C, r)
         return self._P
 
@@ -620,9 +715,8 @@ class _Frames:
         if self._B is None:
             m = self.m
             B = np.zeros((self.n, m.n_robot, 3))
-            for j in np.unique(m._bj[m._bj >= 0]).tolist():
-                bodies = np.flatnonzero(m._bj == j)
-                B[:, bodies] = _apply(self.Rj[:, j], m._bl[bodies]) + self.pj[:, j, None, :]
+            mov, j = m._moving, m._bj[m._moving]
+            B[:, mov] = np.einsum("nbij,bj->nbi", self.Rj[:, j], m._bl[mov]) + self.pj[:, j]
             self._B = B
         return self._B
 

@@ -311,6 +311,13 @@ class Baxter:
         quat = np.array([w, x, y, z]) if w >= 0 else -np.array([w, x, y, z])
         return np.array(M.translation), quat / np.linalg.norm(quat)
 
+    def gripper_transform(self, arm: Arm, q: np.ndarray) -> np.ndarray:
+        """(4, 4) world transform of the gripper frame for one configuration ``q`` (7,) (no input checks)."""
+        model, fid = self._reduced[arm]
+        data = self._reduced_data(arm)
+        pin.forwardKinematics(model, data, np.asarray(q, dtype=np.float64))
+        return np.array(pin.updateFramePlacement(model, data, fid).homogeneous)
+
     def fk_batch(self, arm: Arm, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Gripper poses for N configurations, vectorised.
 

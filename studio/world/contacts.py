@@ -14,7 +14,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from studio.core.collision import CollisionModel, Near, Obstacle, Part, Touch, stretches
+from studio.core.collision import FEW, CollisionModel, Near, Obstacle, Part, Touch, stretches
 from studio.core.kinematics import Baxter
 from studio.core.rotations import matrix_from_quat_wxyz
 from studio.core.types import ARMS, Arm
@@ -103,10 +103,15 @@ class Along:
 
 
 def _grip_frames(q: np.ndarray, baxter: Baxter) -> np.ndarray:
-    """(2, N, 4, 4) the gripper frames of both arms."""
+    """(2, N, 4, 4) the gripper frames of both arms (a few poses: one by one, fewer steps than in batch)."""
     out = np.zeros((2, q.shape[0], 4, 4))
     for i, arm in enumerate(ARMS):
-        R, p = baxter.rotations_batch(arm, q[:, 7 * i : 7 * i + 7])
+        Q = q[:, 7 * i : 7 * i + 7]
+        if Q.shape[0] <= FEW:
+            for k in range(Q.shape[0]):
+                out[i, k] = baxter.gripper_transform(arm, Q[k])
+            continue
+        R, p = baxter.rotations_batch(arm, Q)
         out[i, :, :3, :3], out[i, :, :3, 3], out[i, :, 3, 3] = R, p, 1.0
     return out
 
@@ -168,30 +173,33 @@ def _bottom(p: ObjectPose) -> np.ndarray:
     return T
 
 
+@functools.lru_cache(maxsize=32)
+def _pair_facts(model: CollisionModel, names: tuple[str, ...]) -> tuple[np.ndarray, ...]:
+    """Per pair of ``model``: the first body's arm (-1: none), whether it is a finger or the hand, the objects (by
+    index into ``names``, -1: none) of its first and second body, and whether the second is the table."""
+    index = {name: k for k, name in enumerate(names)}
+    P = model.pairs.shape[0]
+    arm, fingers = np.full(P, -1), np.zeros(P, dtype=bool)
+    obj_a, obj_b, table = np.full(P, -1), np.full(P, -1), np.zeros(P, dtype=bool)
+    for k, (a, b) in enumerate(model.pairs.tolist()):
+        pa, pb = model.parts[a], model.parts[b]
+        if pa.robot and pa.arm is not None:
+            arm[k] = ARMS.index(pa.arm)
+            fingers[k] = pa.part in ("fingers", "hand")
+        if not pa.robot:
+            obj_a[k] = index.get(pa.part, -1)
+        if not pb.robot:
+            obj_b[k] = index.get(pb.part, -1)
+            table[k] = pb.part == TABLE
+    return arm, fingers, obj_a, obj_b, table
+
+
 class _Rules:
     """Which candidate pairs of a :class:`CollisionModel` may touch, sample by sample (see the module docstring)."""
 
     def __init__(self, model: CollisionModel, objs: Along, table: Table | None, *, live: bool) -> None:
         self.m, self.o, self.table, self.live = model, objs, table, live
-        R = model.n_robot
-        index = {name: k for k, name in enumerate(objs.names)}
-        P = model.pairs.shape[0]
-        self.arm = np.full(P, -1)  # a robot body's arm (the pair's first)
-        self.fingers = np.zeros(P, dtype=bool)  # the first is a finger or the hand
-        self.obj_b = np.full(P, -1)  # the second is this object
-        self.obj_a = np.full(P, -1)  # the first is this object (a carried one)
-        self.b_table = np.zeros(P, dtype=bool)
-        for k, (a, b) in enumerate(model.pairs.tolist()):
-            pa, pb = model.parts[a], model.parts[b]
-            if pa.robot and pa.arm is not None:
-                self.arm[k] = ARMS.index(pa.arm)
-                self.fingers[k] = pa.part in ("fingers", "hand")
-            if not pa.robot:
-                self.obj_a[k] = index.get(pa.part, -1)
-            if not pb.robot:
-                self.obj_b[k] = index.get(pb.part, -1)
-                self.b_table[k] = pb.part == TABLE
-        self.n_robot = R
+        self.arm, self.fingers, self.obj_a, self.obj_b, self.b_table = _pair_facts(model, objs.names)
 
     def __call__(self, s: np.ndarray, k: np.ndarray) -> np.ndarray:
         o = self.o
