@@ -288,7 +288,8 @@ class SceneActions:
         """arm -> the stretches (each (n, 3) m) of its gripper's path, as the preview plays it, where it touches
         something (to draw in red)."""
         self._up_to_date()
-        rec, out = self._touch_rec, {}
+        rec = self._touch_rec
+        out: dict[Arm, list[np.ndarray]] = {}
         if rec is None:
             return {}
         for x in self._touches:

@@ -1,11 +1,9 @@
 """Baxter's collision model and what stands around it: which pairs come closer than a margin, one pose or a path.
 
-:class:`CollisionModel` is built once per scene: the robot from example-robot-data's collision geometry
-(pinocchio's ``GeometryModel``: arms, grippers with the fingers at their opening, torso, head, pedestal; the
-SRDF's pairs that never meet left out) and the obstacles given (boxes and cylinders, each where it stands or
-moving per sample). :meth:`CollisionModel.near` checks a path in batch (bounding spheres first, coal's signed
-distance for the pairs they cannot rule out). Words and rules of what may touch: :mod:`studio.world.contacts`.
-Why: docs/decisions/087."""
+:class:`CollisionModel` (built once per scene): the robot from example-robot-data's collision geometry (pinocchio's
+``GeometryModel``: arms, fingers at their opening, torso, head, pedestal; the SRDF's pairs that never meet left out)
+and the obstacles given (boxes, cylinders; moving per sample or not). :meth:`CollisionModel.near`: bounding spheres
+first, coal's signed distance for what they leave in. Rules and words: :mod:`studio.world.contacts`. Decision 087."""
 
 from __future__ import annotations
 
@@ -406,7 +404,10 @@ class CollisionModel:
         bounding sphere each, the obstacles' covering spheres, and a box round every fixed body and obstacle."""
         geoms = self.robot.geoms
         R = self.n_robot
-        sj, sl, sr, sb = [], [], [], []
+        sj: list[int] = []
+        sl: list[np.ndarray] = []
+        sr: list[float] = []
+        sb: list[int] = []
         self._bj = np.full(R, -1)
         self._bl = np.zeros((R, 3))
         self._br = np.zeros(R)
@@ -586,9 +587,9 @@ class CollisionModel:
         by_box: dict[int, list[int]] = {}
         for k in np.flatnonzero(kind == 0).tolist():
             by_box.setdefault(int(sel[k, 1]), []).append(k)
-        for box, ks in by_box.items():
+        for box, group in by_box.items():
             Rb, pb, h = at.box(box)
-            for a_group, k_group in _split_by_kind(sel, ks, self.n_robot):
+            for a_group, k_group in _split_by_kind(sel, group, self.n_robot):
                 if a_group is not None:  # a moving obstacle's spheres
                     pts, rad = at.obstacle_centres(a_group)
                     hit = (_box_gap2(pts, Rb, pb, h) < np.square(margin[:, None] + rad)).any(axis=1)
@@ -615,9 +616,9 @@ class CollisionModel:
                         hit = (gaps < np.square(margin[r2][:, None] + self._sr[cols])).any(axis=1)
                         out_s.append(r2[hit])
                         out_p.append(np.full(int(hit.sum()), k_group[j]))
-        ks = np.flatnonzero(kind == 1)
-        if ks.size:
-            self._sphere_pairs(at, sel, ks, margin, out_s, out_p)
+        spheres = np.flatnonzero(kind == 1)
+        if spheres.size:
+            self._sphere_pairs(at, sel, spheres, margin, out_s, out_p)
         if not out_s:
             return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
         s = np.concatenate(out_s)

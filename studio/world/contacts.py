@@ -139,7 +139,7 @@ def along(t: np.ndarray, q: np.ndarray, run: WorldRun, baxter: Baxter) -> Along:
         for k, name in enumerate(names):
             T, by = now[name]
             if by in ARMS and a < n:
-                h = ARMS.index(by)  # type: ignore[arg-type]
+                h = ARMS.index(by)
                 bottom[k, a:b] = G[h, a:b] @ (np.linalg.inv(G[h, a]) @ T)
                 holder[a:b, k] = h
             else:
@@ -342,7 +342,7 @@ def _live_near(
     for k, p in enumerate(objects):
         T = _bottom(p)
         if p.held_by in ARMS:
-            h = ARMS.index(p.held_by)  # type: ignore[arg-type]
+            h = ARMS.index(p.held_by)
             bottom[k] = G[h] @ (np.linalg.inv(now[h, 0]) @ T)
             holder[:, k] = h
         else:

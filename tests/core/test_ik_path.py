@@ -295,7 +295,6 @@ def test_the_arms_self_motion_keeps_the_elbow_clear_where_it_can(baxter: Baxter)
 
     q_home = baxter.neutral("left")
     right = baxter.neutral("right")
-    _, w = baxter.fk("left", q_home)
     down = np.array([0.0, 1.0, 0.0, 0.0])  # pointing down
     n = 300
     t = np.linspace(0.0, 6.0, n)
