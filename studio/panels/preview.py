@@ -99,16 +99,8 @@ class PreviewPanel:
                     thickness_units="screen",
                     visible=self.ctl.view.shown(Layer.LEARNED_PATH),
                 )
-                spans = [segments(downsample_path(p, 200)) for p in unreachable.get(arm, []) if len(p) > 1]
-                if spans:  # the feasibility check's stretches the arm cannot follow, red over the cyan
-                    self._nodes[f"fail_{arm}"] = self.scene.add_line_segments(
-                        f"/preview/{arm}/unreachable",
-                        np.concatenate(spans),
-                        colors=IK_FAIL,
-                        thickness=10.0,
-                        thickness_units="screen",
-                        visible=self.ctl.view.shown(Layer.LEARNED_PATH),
-                    )
+                # the feasibility check's stretches the arm cannot follow, red over the cyan
+                self._red(f"fail_{arm}", f"/preview/{arm}/unreachable", unreachable.get(arm, []))
             self._draw_contacts()
             duration = self.ctl.playback.preview_duration()
             self.time.max = round(max(duration, 0.01), 2)
@@ -128,16 +120,20 @@ class PreviewPanel:
         if not self.ctl.training.skills():
             return
         for arm, stretches in self.ctl.scene.contact_paths().items():
-            spans = [segments(downsample_path(p, 200)) for p in stretches if len(p) > 1]
-            if spans:
-                self._nodes[f"contact_{arm}"] = self.scene.add_line_segments(
-                    f"/preview/{arm}/contact",
-                    np.concatenate(spans),
-                    colors=IK_FAIL,
-                    thickness=10.0,
-                    thickness_units="screen",
-                    visible=self.ctl.view.shown(Layer.LEARNED_PATH),
-                )
+            self._red(f"contact_{arm}", f"/preview/{arm}/contact", stretches)
+
+    def _red(self, key: str, node: str, stretches: list[np.ndarray]) -> None:
+        """Stretches (each (n, 3) m) of the learned path drawn red over the cyan, as scene node ``node``."""
+        spans = [segments(downsample_path(p, 200)) for p in stretches if len(p) > 1]
+        if spans:
+            self._nodes[key] = self.scene.add_line_segments(
+                node,
+                np.concatenate(spans),
+                colors=IK_FAIL,
+                thickness=10.0,
+                thickness_units="screen",
+                visible=self.ctl.view.shown(Layer.LEARNED_PATH),
+            )
 
     # -- Run on robot ------------------------------------------------------------------------------------------
     def _on_run(self, event: viser.GuiEvent) -> None:
