@@ -2,8 +2,8 @@
 
 The table (down to the floor) and every object with its size are obstacles of a :class:`CollisionModel` (one per
 scene, cached); along a motion the objects stand where the world's events left them, and a carried one moves
-with its gripper. May touch: a gripper's fingers and what it holds, or the object it is about to close around
-or just let go of; a carried object and what it is being put down on (as :func:`landing` would put it)."""
+with its gripper. May touch: a gripper's fingers and what it holds, the object it closes around next or let go of
+last (by hand: one it is around); a carried object and what it is being put down on (as ``landing`` puts it)."""
 
 from __future__ import annotations
 
@@ -213,10 +213,9 @@ class _Rules:
             rest = np.flatnonzero(~ok)
             if rest.size:
                 r_s, r_a, r_k = ss[rest], aa[rest], kk[rest]
-                around = self._around(r_s, r_a, r_k)
-                if not self.live:
-                    around &= self._grasped(r_s, r_a, r_k)
-                ok[rest] = around
+                # along a motion: the object it closes around next or let go of last (its approach and departure);
+                # moved by hand, where the future is unknown: an object the gripper is around
+                ok[rest] = self._around(r_s, r_a, r_k) if self.live else self._grasped(r_s, r_a, r_k)
             allow[fk] = ok
         # a carried object: with what it rests on while carried, or what it is being put down on; never checked
         # while it stands still (objects at rest do not move each other)
