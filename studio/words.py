@@ -17,6 +17,7 @@ from studio.core.types import SkillRoute
 
 if TYPE_CHECKING:
     from studio.core.autotune import TuneResult
+    from studio.core.collision import Part, Touch
     from studio.core.segment_view import SegmentFit
     from studio.core.segments import FrameChoice
 
@@ -409,6 +410,131 @@ def moved_words(name: str, distance: float) -> str:
     )
 
 
+# -- contacts: what the robot touches (facts: studio.core.collision.Touch, studio.world.contacts) --------------
+
+
+def part_words(p: Part) -> str:
+    """ "the left fingers", "the right forearm", "the robot's torso", "the table", "the block"."""
+    if p.robot:
+        return f"the {p.arm} {p.part}" if p.arm else f"the robot's {p.part}"
+    return f"the {p.part}"
+
+
+def _verb(p: Part, one: str, many: str) -> str:
+    return many if p.robot and p.part == "fingers" else one
+
+
+def _when(x: Touch) -> str:
+    if x.t_end - x.t_start < 0.05:
+        return f"{x.t_start:.1f} s"
+    return f"{x.t_start:.1f}–{x.t_end:.1f} s"
+
+
+def touch_words(x: Touch, tense: str = "would") -> str:
+    """One contact: "the block would go 6.8 cm into the table" (``tense``: "would" for a skill, "did" for a run,
+    "now" for the arm moved by hand: "the left fingers touch the table")."""
+    a, b = part_words(x.a), part_words(x.b)
+    deep = x.depth >= 0.001
+    if tense == "now":
+        return f"{a} {_verb(x.a, 'touches', 'touch')} {b}"
+    if tense == "did":
+        return f"{a} went {length_words(x.depth)} into {b}" if deep else f"{a} touched {b}"
+    return f"{a} would go {length_words(x.depth)} into {b}" if deep else f"{a} would touch {b}"
+
+
+def _skill_advice(x: Touch) -> str:
+    b = x.b
+    if x.new:
+        return f"Move the {b.part} out of the way, or teach again with it where it is."
+    if b.robot and b.arm is not None:
+        return "Teach the two arms so that they keep apart."
+    if b.robot:
+        return "Teach that part farther from the robot's body."
+    if b.part == "table":
+        if x.a.robot and x.a.part not in ("fingers", "hand", "wrist"):
+            return "Teach that part with the gripper higher, or the arm held differently."
+        return "Teach that part higher above the table."
+    return f"Teach that part so that it keeps clear of the {b.part}."
+
+
+def contact_sentence(touches: Sequence[Touch], tense: str = "would") -> str:
+    """What the robot touches along a skill or a run, the first contact first: "At 6.8–9.3 s the block would go
+    6.8 cm into the table. Teach that part higher above the table." (a new object: "The new cup is in the way of
+    the carry at 7.3 s: …"); "" when nothing."""
+    if not touches:
+        return ""
+    x = next((t for t in touches if t.new), touches[0])
+    more = len(touches) - 1
+    tail = f" (and {count_words(more, 'more contact')} later)" if more else ""
+    if x.new:
+        way = f"the carry of the {x.carry}" if x.carry else f"the {x.a.arm} arm" if x.a.arm else "the skill"
+        head = f"The new {x.b.part} is in the way of {way} at {x.at:.1f} s: {touch_words(x, tense)}"
+    else:
+        head = f"At {_when(x)} {touch_words(x, tense)}"
+    advice = _skill_advice(x) if tense == "would" else ""
+    return f"{head}{tail}. {advice}".strip()
+
+
+def recorded_touch_words(touches: Sequence[Touch]) -> str:
+    """A demonstration that went through something (imported, or recorded on a real robot): "At 4.1–4.6 s the block
+    went 3 cm into the table" ("" when it touched nothing)."""
+    if not touches:
+        return ""
+    x = touches[0]
+    more = len(touches) - 1
+    tail = f" (and {count_words(more, 'more contact')} later)" if more else ""
+    return f"At {_when(x)} {touch_words(x, 'did')}{tail}."
+
+
+def contact_advice(x: Touch) -> str:
+    """What to do when an arm moved by hand stops at a contact: "lift the gripper first"."""
+    a, b = x.a, x.b
+    if not a.robot:
+        return f"lift the {a.part} first, or open the gripper to put it down"
+    if b.robot and b.arm is not None:
+        return f"move the {b.arm} arm away first" if b.arm != a.arm else "move the gripper away from the arm first"
+    if b.robot:
+        return "move the gripper away from the robot's body first"
+    if b.part == "table":
+        return "lift the gripper first"
+    return f"move the gripper away from the {b.part} first"
+
+
+class HitFacts(Protocol):
+    """An object the robot ran into (:class:`studio.world.hits.Hit`)."""
+
+    @property
+    def t(self) -> float: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def by(self) -> Part: ...
+    @property
+    def distance(self) -> float: ...
+    @property
+    def toppled(self) -> bool: ...
+
+
+def hit_words(hits: Sequence[HitFacts]) -> str:
+    """What the robot did to the objects it ran into: "The cup was knocked over by the left forearm at 7.3 s."."""
+    out = []
+    for name in dict.fromkeys(h.name for h in hits):
+        mine = [h for h in hits if h.name == name]
+        first, by = mine[0], part_words(mine[0].by)
+        moved = length_words(sum(h.distance for h in mine))
+        if any(h.toppled for h in mine):
+            out.append(f"The {name} was knocked over by {by} at {first.t:.1f} s.")
+        else:
+            out.append(f"The {name} was pushed {moved} by {by} at {first.t:.1f} s.")
+    return " ".join(out)
+
+
+def blocked_words(x: Touch) -> str:
+    """An arm moved by hand stopped at a contact: "The left fingers touch the table — lift the gripper first"."""
+    said = touch_words(x, "now")
+    return f"{said[:1].upper()}{said[1:]} — {contact_advice(x)}."
+
+
 __all__ = [
     "GOAL_SOURCES",
     "OWN_TASK",
@@ -416,18 +542,25 @@ __all__ = [
     "TASKS",
     "PlacementFacts",
     "Remedies",
+    "blocked_words",
+    "contact_advice",
+    "contact_sentence",
     "count_words",
     "fit_note",
     "frame_lines",
     "goal_words",
     "grasp_words",
+    "hit_words",
     "length_words",
     "moved_words",
+    "part_words",
+    "recorded_touch_words",
     "route_label",
     "route_sides",
     "routes_words",
     "segment_lines",
     "task_words",
+    "touch_words",
     "tune_summary",
     "verdict_lines",
 ]

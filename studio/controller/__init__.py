@@ -88,6 +88,7 @@ class Controller:
             motion_guard=lambda d: self.execution.check_free(d),
             keep=lambda recording, events: self.undo.keep(recording, events),
             unsaved=self.unsaved.keep,
+            contacts=self.scene.first_contact,
         )
         self.guide = Guiding(ctx, self.teaching, objects=lambda: self.scene.live.poses())
         self.keypoints = KeypointTuning(ctx, self.demos)
@@ -109,6 +110,7 @@ class Controller:
             unload_playback=self.playback.unload,
             skills=self.placed.get,
             warnings=self.placed.warnings,
+            contacts=self.scene.contact_reason,
         )
         self.sessions = SessionActions(ctx, persist=self.keypoints.persist)
 

@@ -140,7 +140,8 @@ class Guiding:
 
     def above(self, name: str | None = None, arm: Arm | None = None) -> IkResult:
         """Send the gripper above an object (default: the chosen one), pointing down, its heading kept; what
-        it carries ends :data:`ABOVE_M` above the object's top (the gripper point itself when empty)."""
+        it carries ends :data:`ABOVE_M` above the object's top (the gripper point itself when empty). It goes over,
+        never through: up to that height first, or across first when it is lower."""
         name = self._chosen if name is None else name
         arm = self.key_arm if arm is None else check_arm(arm)
         poses = {o.name: o for o in self.objects()}
@@ -154,7 +155,14 @@ class Guiding:
         hang = max((p_now[2] - o.position[2] for o in carried), default=0.0)
         top = obj.position[2] + obj.size[2]
         target = np.array([obj.position[0], obj.position[1], top + ABOVE_M + max(hang, 0.0)])
-        return self.move(arm, target, pointing_down(w_now))
+        down = pointing_down(w_now)
+        # over, never through: up to the height first when it is higher, across first when it is lower
+        via = np.array([*(p_now[:2] if target[2] > p_now[2] else target[:2]), max(target[2], p_now[2])])
+        if float(np.linalg.norm(via - target)) > 1e-3 and float(np.linalg.norm(via - p_now)) > 1e-3:
+            first = self.move(arm, via, down)
+            if not first.converged:
+                return first
+        return self.move(arm, target, down)
 
     def home(self) -> None:
         """Send the taught arms back to their home posture."""

@@ -18,6 +18,7 @@ from studio.core.frames import DemoObjects
 from studio.core.types import Arm, Skill
 from studio.storage import Session
 from studio.words import moved_words
+from studio.world import Scene
 from studio.world.events import ObjectPose
 from studio.world.goal import Goal, session_goal
 from studio.world.moved import moved_objects
@@ -74,10 +75,8 @@ class PlacedSkills:
         scene = session.objects.scene
         speed = self.speed
         out: dict[Arm, Skill] = {}
-        for arm, skill in dict(session.skills).items():
-            if skill.frames is None and speed == 1.0:
-                out[arm] = skill
-                continue
+        skills = dict(session.skills)
+        for arm, skill in skills.items():
             with self._lock:
                 hit = self._cache.get(arm)
             if hit is not None and hit[0] is skill and hit[1] == (scene, speed):
@@ -86,11 +85,31 @@ class PlacedSkills:
             placed = skill
             if skill.frames is not None:
                 placed = place_skill(skill, objects_now(scene), arm=arm, baxter=self.ctx.baxter)
+            placed = self._kept_clear(placed, arm, scene, other_free=len(skills) == 1)
             placed = self._at_speed(placed, arm, speed)
             with self._lock:
                 self._cache[arm] = (skill, (scene, speed), placed)
             out[arm] = placed
         return out
+
+    def _kept_clear(self, skill: Skill, arm: Arm, scene: Scene, *, other_free: bool) -> Skill:
+        """The skill with its arm's posture moved (the self-motion) where its shoulder, elbow or forearm would touch
+        the table, an object, the robot's body or the other arm at rest (decision 087); as it is when clear."""
+        from studio.core.execution import joint_trajectory
+        from studio.world.contacts import arm_clearance
+
+        jt = skill.joint_trajectory
+        if jt is None or len(jt.t) < 2:
+            return skill
+        other = None
+        if other_free:
+            live = self.ctx.display.live.get()[2]
+            other = live[7:] if arm == "left" else live[:7]
+        touching = arm_clearance(scene, arm, other)
+        if not touching(jt.q[:: max(1, len(jt.q) // 300)]).any():
+            return skill
+        clear = joint_trajectory(skill.trajectory, arm, jt.q[0], self.ctx.baxter, avoid=touching)
+        return replace(skill, joint_trajectory=clear)
 
     def _at_speed(self, skill: Skill, arm: Arm, speed: float) -> Skill:
         from studio.core.pace import at_speed

@@ -4,12 +4,13 @@ the handle is within reach, and recording demonstrations into the open session."
 from __future__ import annotations
 
 import logging
+import math
 import threading
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
@@ -19,11 +20,15 @@ from studio.core.arms import arm_columns, arm_of_joint, gripper_column, normaliz
 from studio.core.errors import InvalidInput, StorageError, StudioError
 from studio.core.kinematics import IkResult
 from studio.core.posture_ik import reach_pose
-from studio.core.types import ARMS, Arm, Recording
+from studio.core.types import ARMS, Arm, Recording, readonly
 from studio.recorder import Recorder
 from studio.robot_backend.base import JointStateBatch, RobotBackend
 from studio.storage import ReadOnly, Session
+from studio.words import blocked_words
 from studio.world import WorldEvent
+
+if TYPE_CHECKING:
+    from studio.core.collision import Touch
 
 log = logging.getLogger(__name__)
 #: Seconds an out-of-reach handle target stays told (marker and words) once the drag ended: the handle is
@@ -33,14 +38,27 @@ REACH_HOLD_S = 4.0
 DISCARD_CONFIRM_S = 5.0
 
 
+#: Along a move by hand, the gripper moves at most this far (m) between two poses checked for contact.
+CHECK_STEP_M = 0.005
+#: ... and at most this many poses are checked.
+CHECK_POSES = 80
+
+
 @dataclass(frozen=True)
 class Reach:
-    """Whether an arm reached where its handle was dragged (``target``: the handle's position, m)."""
+    """Whether an arm reached where its handle was dragged (``target``: the handle's position, m); ``blocked``:
+    it stopped short because it would touch something, in words ("" otherwise)."""
 
     ok: bool
     target: tuple[float, float, float]
     #: When it was decided (``time.monotonic()``); not part of equality.
     at: float = field(default=0.0, compare=False)
+    blocked: str = ""
+
+
+#: Along poses (N, 14) from where the arms are, with the grippers (N or 1, 2) and the arms now (14,): the first
+#: pose that touches something, and what (None: the way is free).
+Contacts = Callable[[np.ndarray, np.ndarray, np.ndarray], "tuple[int, Touch] | None"]
 
 
 class Takes(Protocol):
@@ -62,6 +80,8 @@ class Teaching:
         keep: keeps a discarded take (and its object events) for Undo.
         unsaved: keeps trying to save a take its session refused for want of space (its recorder, the session
             folder, the take, its object events).
+        contacts: where a move by hand would first touch something (the scene's
+            :meth:`~studio.controller.scene.SceneActions.first_contact`); the arm stops before it.
     """
 
     def __init__(
@@ -72,8 +92,10 @@ class Teaching:
         motion_guard: Callable[[str], None] = lambda doing: None,
         keep: Callable[[Recording, Sequence[WorldEvent]], None] = lambda recording, events: None,
         unsaved: Callable[[Recorder, Path, Recording, Sequence[WorldEvent]], None] | None = None,
+        contacts: Contacts = lambda q, gripper, q_now: None,
     ) -> None:
         self.ctx = ctx
+        self.contacts = contacts
         self.backend = backend
         self.display = ctx.display
         self.takes = takes
@@ -165,10 +187,33 @@ class Teaching:
         with self._ik_lock[arm]:  # one solve per arm at a time (a drag sends many updates)
             found = reach_pose(self.ctx.baxter, arm, position, wxyz, self._target_arm(arm), rest=self.home_q(arm))
             res = found.result
-            self.command_arm(arm, np.asarray(res.q))
+            q, touch = self.free_way(arm, np.asarray(res.q))
+            self.command_arm(arm, q)
         p = np.asarray(position, dtype=float)
-        self._set_reach(arm, Reach(bool(res.converged), (float(p[0]), float(p[1]), float(p[2])), time.monotonic()))
-        return res
+        blocked = blocked_words(touch) if touch is not None else ""
+        ok = bool(res.converged) and touch is None
+        self._set_reach(arm, Reach(ok, (float(p[0]), float(p[1]), float(p[2])), time.monotonic(), blocked))
+        return res if touch is None else replace(res, q=readonly(q), converged=False)
+
+    def free_way(self, arm: Arm, q_to: np.ndarray) -> tuple[np.ndarray, Touch | None]:
+        """Where ``arm`` can go on its way from where it is going now to ``q_to`` (7,) without touching the table,
+        an object (its fingers may close around one) or the other arm: ``q_to`` itself and None, or the last pose
+        before the first contact and that contact. Poses are checked every :data:`CHECK_STEP_M` of the gripper's
+        way (decision 087)."""
+        start = np.concatenate([self._target_arm(a) for a in ARMS])
+        cols = arm_columns(arm)
+        end = start.copy()
+        end[cols] = q_to
+        b = self.ctx.baxter
+        way = float(np.linalg.norm(b.fk(arm, q_to)[0] - b.fk(arm, start[cols])[0]))
+        way = max(way, 0.5 * float(np.max(np.abs(end - start))))  # an elbow swings farther than the gripper
+        n = int(min(max(math.ceil(way / CHECK_STEP_M), 1), CHECK_POSES))
+        Q = start + np.linspace(0.0, 1.0, n + 1)[:, None] * (end - start)
+        hit = self.contacts(Q, self.robot_gripper()[None, :], self.robot_q())
+        if hit is None:
+            return np.asarray(q_to, dtype=np.float64), None
+        k, touch = hit
+        return Q[k - 1, cols].copy(), touch
 
     def _set_reach(self, arm: Arm, reach: Reach) -> None:
         old = self.reach.get(arm)
@@ -191,7 +236,12 @@ class Teaching:
         return r is not None and not r.ok
 
     def reach_message(self) -> str:
-        """Plain words about the last handle target an arm could not reach ("" when all were reached)."""
+        """Plain words about the last handle target an arm could not reach, or where it stopped because it would
+        touch something ("" when all were reached)."""
+        for arm in ARMS:
+            r = self.reach.get(arm)
+            if arm in self.selected_arms and r is not None and r.blocked:
+                return r.blocked
         for arm in ARMS:
             if arm in self.selected_arms and self.unreachable(arm):
                 return f"The {arm} gripper cannot reach the handle's position: the arm stops at the closest pose."
@@ -232,7 +282,13 @@ class Teaching:
         self.forget_reach((arm,))
         q = self._target_arm(arm)
         q[index % 7] = value
+        q, touch = self.free_way(arm, q)
         self.command_arm(arm, q)
+        if touch is not None:
+            p = self.ctx.baxter.fk(arm, q)[0]
+            self._set_reach(
+                arm, Reach(False, (float(p[0]), float(p[1]), float(p[2])), time.monotonic(), blocked_words(touch))
+            )
 
     def set_gripper(self, arm: Arm, width: float) -> None:
         """Gripper opening in percent (0 = closed, 100 = open)."""

@@ -87,6 +87,8 @@ def baxter_urdf_path() -> Path:
 
 #: The light Baxter the studio draws (scripts/decimate_meshes.py): example-robot-data's links and joints.
 LIGHT_URDF = Path(__file__).resolve().parents[2] / "urdf" / "baxter_light.urdf"
+#: example-robot-data's SRDF (the pairs of collision bodies that never meet), copied beside the light URDF.
+LIGHT_SRDF = LIGHT_URDF.parent / "baxter_manipulation.srdf"
 
 
 def model_urdf_path() -> Path:
@@ -320,6 +322,13 @@ class Baxter:
         x, y, z, w = pin.Quaternion(M.rotation).coeffs()
         quat = np.array([w, x, y, z]) if w >= 0 else -np.array([w, x, y, z])
         return np.array(M.translation), quat / np.linalg.norm(quat)
+
+    def gripper_transform(self, arm: Arm, q: np.ndarray) -> np.ndarray:
+        """(4, 4) world transform of the gripper frame for one configuration ``q`` (7,) (no input checks)."""
+        model, fid = self._reduced[arm]
+        data = self._reduced_data(arm)
+        pin.forwardKinematics(model, data, np.asarray(q, dtype=np.float64))
+        return np.array(pin.updateFramePlacement(model, data, fid).homogeneous)
 
     def fk_batch(self, arm: Arm, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Gripper poses for N configurations, vectorised.

@@ -71,6 +71,12 @@ class DemosPanel:
                 f"<span>{d.duration:.1f} s · {d.samples:,} samples · {'/'.join(d.arms)}"
                 f"{'' if d.visible else ' · hidden'}</span></div>"
             )
+            through = self.ctl.scene.demo_contact(d.index)  # recorded through something (imported, a real robot)
+            if through:
+                rows.append(
+                    f'<div class="demo-contact" data-demo="{d.index}" style="font-size:0.8em;color:#b91c1c;'
+                    f'margin:0 0 2px 18px">{html.escape(through)}</div>'
+                )
         if not rows:
             return '<div class="demo-row-empty" style="font-size:0.85em">No demonstrations yet: press Record.</div>'
         legend = (

@@ -108,23 +108,16 @@ class PreviewPanel:
                     thickness_units="screen",
                     visible=self.ctl.view.shown(Layer.LEARNED_PATH),
                 )
-                spans = [segments(downsample_path(p, 200)) for p in unreachable.get(arm, []) if len(p) > 1]
-                if spans:  # the feasibility check's stretches the arm cannot follow, red over the cyan
-                    self._nodes[f"fail_{arm}"] = self.scene.add_line_segments(
-                        f"/preview/{arm}/unreachable",
-                        np.concatenate(spans),
-                        colors=IK_FAIL,
-                        thickness=10.0,
-                        thickness_units="screen",
-                        visible=self.ctl.view.shown(Layer.LEARNED_PATH),
-                    )
+                # the feasibility check's stretches the arm cannot follow, red over the cyan
+                self._red(f"fail_{arm}", f"/preview/{arm}/unreachable", unreachable.get(arm, []))
+            self._draw_contacts()
             duration = self.ctl.playback.preview_duration()
             self.time.max = round(max(duration, 0.01), 2)
             self.time.value = 0.0
             for h in (self.speed, self.time, self.skill_speed):
                 h.disabled = not skills
             self.skill_speed.value = _speed_label(self.ctl.placed.speed)
-            self.info.content = _info(duration, feasibility) if skills else NOT_TRAINED
+            self.info.content = _info(duration, feasibility, self.ctl.scene.contact_reason()) if skills else NOT_TRAINED
         self._on_run_state()
 
     def _executed(self, arm: Arm, skill: Skill) -> np.ndarray:
@@ -134,6 +127,30 @@ class PreviewPanel:
         if jt is None or len(jt.q) == 0:
             return np.asarray(skill.trajectory.position)
         return self.ctl.baxter.fk_batch(arm, np.asarray(jt.q))[0]
+
+    def _draw_contacts(self) -> None:
+        """Where the skill touches what it must not (the table, an object, the other arm): red over the path."""
+        for arm in ARMS:
+            old = self._nodes.pop(f"contact_{arm}", None)
+            if old is not None:
+                old.remove()
+        if not self.ctl.training.skills():
+            return
+        for arm, stretches in self.ctl.scene.contact_paths().items():
+            self._red(f"contact_{arm}", f"/preview/{arm}/contact", stretches)
+
+    def _red(self, key: str, node: str, stretches: list[np.ndarray]) -> None:
+        """Stretches (each (n, 3) m) of the learned path drawn red over the cyan, as scene node ``node``."""
+        spans = [segments(downsample_path(p, 200)) for p in stretches if len(p) > 1]
+        if spans:
+            self._nodes[key] = self.scene.add_line_segments(
+                node,
+                np.concatenate(spans),
+                colors=IK_FAIL,
+                thickness=10.0,
+                thickness_units="screen",
+                visible=self.ctl.view.shown(Layer.LEARNED_PATH),
+            )
 
     # -- Run on robot ------------------------------------------------------------------------------------------
     def _on_run(self, event: viser.GuiEvent) -> None:
@@ -146,6 +163,8 @@ class PreviewPanel:
         running = execution.running
         if any(not f.ok for f in execution.feasibility().values()):  # its words are above, with the red path
             reason = "The robot does not run a skill it cannot follow: see what is red on the learned path."
+        elif self.ctl.scene.contact_reason():
+            reason = "The robot does not run a skill that would hit something: see what is red on the learned path."
         quiet = running or reason.startswith("The emergency stop")  # the run's status says so, on every step
         disabled = bool(reason)
         task = self.ctl.scene.task_result()
@@ -225,6 +244,10 @@ class PreviewPanel:
         with self.server.atomic():
             self.reach.content = self._reach_html()
             self.task.content = self._task_html()
+            self._draw_contacts()
+            if self.ctl.training.skills():
+                duration = self.ctl.playback.preview_duration()
+                self.info.content = _info(duration, self.ctl.execution.feasibility(), self.ctl.scene.contact_reason())
         self._on_run_state()
 
     def _reach_html(self) -> str:
@@ -268,8 +291,8 @@ class PreviewPanel:
             self.time.value = round(min(pos, self.time.max), 2)
 
 
-def _info(duration: float, feasibility: dict[Arm, Feasibility]) -> str:
-    bad = [f.message for f in feasibility.values() if not f.ok]
+def _info(duration: float, feasibility: dict[Arm, Feasibility], contacts: str = "") -> str:
+    bad = [f.message for f in feasibility.values() if not f.ok] + ([contacts] if contacts else [])
     if bad:
         return f"Learned path ({duration:.1f} s) in cyan. In red: {' '.join(bad)} Press **Play** to watch it."
     return (

@@ -201,7 +201,10 @@ class TeachPanel:
                 h.wxyz = ROOM_AXES
                 self._dragging[arm] = False
                 self._drag_end[arm] = self._drag_end_any = time.monotonic()
-                if self.ctl.teaching.unreachable(arm):
+                r = self.ctl.teaching.reach.get(arm)
+                if r is not None and r.blocked:
+                    self.ctl.notify("Stopped before touching", r.blocked, kind="warning", client=event.client)
+                elif self.ctl.teaching.unreachable(arm):
                     self.ctl.notify(
                         "Out of reach",
                         out_of_reach_words(arm, np.asarray(h.position), guide.pose(arm)[0]),
@@ -220,6 +223,9 @@ class TeachPanel:
                 off = r is None or r.ok or arm not in teaching.selected_arms or self.ctl.view.step != Step.TEACH
                 if r is not None:
                     self.miss_markers[arm].position = r.target
+                    label = "Would touch" if r.blocked else "Out of reach"
+                    if self.miss_labels[arm].text != label:
+                        self.miss_labels[arm].text = label
                 self.miss_markers[arm].visible = not off
                 self.miss_labels[arm].visible = not off
 

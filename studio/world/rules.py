@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from studio.core.rotations import quat_wxyz_from_matrix
+from studio.core.rotations import matrix_from_quat_wxyz, quat_wxyz_from_matrix
 from studio.core.types import Arm
 from studio.world.events import ObjectPose, WorldEvent
 from studio.world.geometry import (
@@ -180,6 +180,19 @@ class Objects:
                     out.append(s)
                     frontier.append(s.obj.name)
         return out
+
+    def push(self, pose: ObjectPose) -> None:
+        """The robot ran into an object standing on its own: it is now at ``pose`` (slid, or knocked over), on
+        whatever is under it (off the table it falls to the floor)."""
+        s = self.states[pose.name]
+        upright = abs(matrix_from_quat_wxyz(np.asarray(pose.wxyz))[2, 2]) > 0.9
+        x, y, z = pose.position
+        others = [(p, p.yaw) for p in (o.pose() for o in self.states.values() if o is not s and not o.held_out)]
+        level, on = landing(s.obj.kind, x, y, z, self.table, others)
+        if upright:
+            z = level
+        s.T = transform((x, y, z), pose.wxyz)
+        s.on, s.held_out = on, False
 
     def open(self, arm: Arm, t: float, T_grip: np.ndarray) -> WorldEvent | None:
         """The gripper opened: what it holds drops straight down, upright, onto the highest surface below."""

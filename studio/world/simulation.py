@@ -125,6 +125,16 @@ class World:
         with self._lock:
             return [s.obj.name for s in self._objects.holding(arm)]
 
+    def push(self, pose: ObjectPose, t: float, arm: Arm | None = None) -> WorldEvent:
+        """The robot (``arm``) ran into an object at time ``t``: it stands at ``pose`` now (:mod:`.hits`); a "push"
+        event records it (never kept in a session)."""
+        with self._lock:
+            self._objects.push(pose)
+            ev = WorldEvent(float(t), "push", arm, pose.name, None, self._objects.poses())
+            self._events.append(ev)
+            self.version += 1
+            return ev
+
     def snapshot(self, kind: str, t: float | None = None) -> WorldEvent:
         """Record a "start" or "end" event (every object's pose) at time ``t`` (default: the last sample's)."""
         if kind not in ("start", "end"):
