@@ -286,6 +286,7 @@ def test_an_object_turns_only_behind_the_toggle(app: Studio, page: ViserClient) 
     page.set_value("Turn with the handle", True)
     assert wait_for(lambda: ctl.guide.turning)
     assert page.wait_for(lambda _m: handle()["props"]["disable_axes"] and not handle()["props"]["disable_rotations"])
+    assert page.wait_for(lambda _m: np.allclose(handle()["position"][:2], block.position[:2]))  # on the block
     turn = 0.4  # rad about z: the handle shows the ring only, and its turn is added to the block's heading
     wxyz = (float(np.cos(turn / 2)), 0.0, 0.0, float(np.sin(turn / 2)))
     x, y, z = (float(v) for v in handle()["position"])

