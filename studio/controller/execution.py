@@ -37,7 +37,6 @@ from studio.controller.run import (
     wait_confirmed,
 )
 from studio.core import sampling
-from studio.core.collision import Touch
 from studio.core.errors import StudioError
 from studio.core.execution import (
     ExecutionPlan,
@@ -46,10 +45,12 @@ from studio.core.execution import (
     judge_run,
     plan_execution,
 )
-from studio.core.ik_path import Feasibility
+from studio.core.feasibility import Feasibility
+from studio.core.touches import Touch
 from studio.core.types import Arm, Recording, Skill
 from studio.robot_backend.base import ExecutionProgress, RobotBackend, RobotHealth
 from studio.words import contact_advice, touch_words
+from studio.words.robot import feasibility_words
 from studio.world import TaskResult
 
 log = logging.getLogger(__name__)
@@ -162,7 +163,7 @@ class ExecutionActions:
             return "Wait for the training to finish before running the skill on the robot."
         if not sampling.executable(self.skills()):
             return "There is no learned skill to run yet: record demonstrations and press Train first."
-        bad = [f.message for f in self.feasibility().values() if not f.ok]
+        bad = [feasibility_words(f) for f in self.feasibility().values() if not f.ok]
         if bad:
             return " ".join(bad) + " The robot does not run a skill it cannot follow."
         touching = self.contacts()

@@ -28,7 +28,7 @@ from studio.words import blocked_words
 from studio.world import WorldEvent
 
 if TYPE_CHECKING:
-    from studio.core.collision import Touch
+    from studio.core.touches import Touch
 
 log = logging.getLogger(__name__)
 #: Seconds an out-of-reach handle target stays told (marker and words) once the drag ended: the handle is

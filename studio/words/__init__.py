@@ -17,9 +17,10 @@ from studio.core.types import SkillRoute
 
 if TYPE_CHECKING:
     from studio.core.autotune import TuneResult
-    from studio.core.collision import Part, Touch
+    from studio.core.robot_geometry import Part
     from studio.core.segment_view import SegmentFit
     from studio.core.segments import FrameChoice
+    from studio.core.touches import Touch
 
 #: How an audience says each :class:`Remedy` (a phrase that follows a dash, lower case, no full stop).
 Remedies = Mapping[Remedy, str]
@@ -410,7 +411,7 @@ def moved_words(name: str, distance: float) -> str:
     )
 
 
-# -- contacts: what the robot touches (facts: studio.core.collision.Touch, studio.world.contacts) --------------
+# -- contacts: what the robot touches (facts: studio.core.touches.Touch, studio.world.contacts) --------------
 
 
 def part_words(p: Part) -> str:
