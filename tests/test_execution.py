@@ -258,3 +258,25 @@ def test_both_arms_run_together_and_a_partial_run_is_reported(tmp_path: Path) ->
     # the same-time error grows once the plan goes on without the robot
     assert report.max_path_error < 5e-3 and report.max_position_error > 0.05
     assert f"The robot ran {round(report.completed * 100)}% of the plan" in tracking_summary(report)
+
+
+def test_a_run_verdict_is_facts_and_every_failure_has_its_words() -> None:
+    """The core says what failed (``RunFailure``) and keeps the numbers; ``words.robot`` says it, each failure in
+    its own phrase, in the verdict's order."""
+    from studio.core.execution import COMPLETE_MIN, RunFailure, RunVerdict
+    from studio.words.robot import run_failure_words
+
+    works = RunVerdict(1.0, 0.004, 0.001, 2, 2, True)
+    assert works.works and works.failures() == [] and run_failure_words(works) == []
+    worst = RunVerdict(0.42, 0.031, 0.0062, 1, 2, False, same_time=False)
+    assert worst.failures() == list(RunFailure)
+    assert run_failure_words(worst) == [
+        "the robot did 42 % of the run",
+        "its gripper was up to 3.1 cm from the planned path",
+        "it ended 6.2 mm from the plan's last pose",
+        "it did 1 of the 2 gripper actions",
+        "the objects did not end where you put them",
+    ]
+    late = RunVerdict(COMPLETE_MIN, 0.025, 0.0, 0, 0, None)
+    assert late.failures() == [RunFailure.OFF_TRACK]
+    assert run_failure_words(late) == ["its gripper was up to 2.5 cm from where the plan was at the same moment"]
