@@ -22,7 +22,8 @@ class Obstacle:
         name: how it is called ("table", "cup 2").
         shape: "box" or "cylinder".
         size: box: its extents x, y, z; cylinder: diameter, diameter, height (m).
-        pose: (4, 4) where its centre is (the default where it stands; :meth:`CollisionModel.near` may move it).
+        pose: (4, 4) where its centre is (the default where it stands; a check may move it:
+            :meth:`~studio.core.collision.CollisionModel.near`).
     """
 
     name: str

@@ -1,7 +1,7 @@
 """Contacts as stretches of a motion: which two things come within the margin of each other, when, how deep.
 
 :func:`stretches` groups the rows of a :class:`~studio.core.collision.Near` per pair of parts into
-:class:`Touch` es (a fact; the rules of what may touch: :mod:`studio.world.contacts`; the words:
+:class:`Touch` facts (the rules of what may touch: :mod:`studio.world.contacts`; the words:
 :func:`studio.words.touch_words`). Decisions 087 and 096."""
 
 from __future__ import annotations
