@@ -23,6 +23,7 @@ from studio.core.errors import InvalidInput, NotEnoughData, StudioError
 from studio.core.types import Arm, Recording, Skill
 from studio.storage import DEFAULT_ROOT, Session, SessionStore, check_demo_name
 from studio.words import count_words, tune_summary
+from studio.words.controls import CLI_CONTROLS
 from studio.words.quality import cli_remedies
 from studio.words.quality import verdict_lines as verdict_words
 
@@ -68,7 +69,9 @@ def headless(store: SessionStore, session: Session) -> Iterator[Controller]:
     from studio.controller import Controller
     from studio.robot_backend.simulated import SimulatedBaxter
 
-    ctl = Controller(store=store, session=session, backend=SimulatedBaxter(), notifier=_Quiet(), headless=True)
+    ctl = Controller(
+        store=store, session=session, backend=SimulatedBaxter(), notifier=_Quiet(), headless=True, controls=CLI_CONTROLS
+    )
     try:
         yield ctl
     finally:

@@ -141,6 +141,17 @@ def test_replay_seek_needs_play_first(ctl: Controller) -> None:
     assert ctl.playback.kind is None
 
 
+def test_the_controller_says_each_audience_s_way_to_a_control(ctl: Controller) -> None:
+    from studio.words.controls import CLI_CONTROLS
+
+    ctl.sessions.new("nothing learned")
+    with pytest.raises(StudioError, match="no learned skill to preview yet: press Train first"):
+        ctl.playback.preview_recording()
+    ctl.ctx.controls = CLI_CONTROLS  # as `studio learn`'s headless controller says it
+    with pytest.raises(StudioError, match="no learned skill to preview yet: run `studio learn` first"):
+        ctl.playback.preview_recording()
+
+
 def test_training_needs_two_demos_in_plain_words(ctl: Controller) -> None:
     ctl.sessions.new("only-one")
     with pytest.raises(NotEnoughData, match="at least two"):

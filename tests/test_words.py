@@ -89,6 +89,28 @@ def test_the_command_line_names_its_options_not_the_studio_controls() -> None:
     assert studio_text.endswith("— press Suggest, or lower Corner sharpness.")
 
 
+def test_each_audience_says_every_control_and_the_command_line_never_says_press() -> None:
+    from studio.words.controls import CLI_CONTROLS, STUDIO_CONTROLS, Control, say
+
+    assert set(CLI_CONTROLS) == set(STUDIO_CONTROLS) == set(Control)
+    assert not [v for v in CLI_CONTROLS.values() if re.search(r"\bpress", v, re.IGNORECASE)]
+    assert say(STUDIO_CONTROLS, Control.TRAIN) == "press Train" and say(CLI_CONTROLS, Control.TRAIN, first=True) == (
+        "Run `studio learn`"
+    )
+
+
+def test_the_controller_names_no_control_of_the_studio() -> None:
+    # issue 28: the controller, which `studio learn` runs too, names a Control; each audience says it
+    root = Path(__file__).resolve().parent.parent / "studio" / "controller"
+    found = [
+        f"{p.name}:{i}: {line.strip()}"
+        for p in sorted(root.rglob("*.py"))
+        for i, line in enumerate(p.read_text().splitlines(), 1)
+        if re.search(r"press|open preview|train panel", line, re.IGNORECASE)
+    ]
+    assert not found, "\n".join(found)
+
+
 def test_the_core_names_no_control_of_the_studio() -> None:
     # the issue's check: `grep -rn "press\|Suggest\|Detail" studio/core` finds nothing
     core = Path(__file__).resolve().parent.parent / "studio" / "core"

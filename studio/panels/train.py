@@ -8,12 +8,22 @@ import html
 import numpy as np
 import viser
 
-from studio.controller import FRAME_WORDS, MODE_WORDS, Controller, SkillVerdict, Step, Topic, UsedDemo
-from studio.core.types import DEFAULT_FRAMES, DEFAULT_GENERALIZATION, Arm, Skill
+from studio.controller import Controller, SkillVerdict, Step, Topic, UsedDemo
+from studio.core.types import DEFAULT_FRAMES, DEFAULT_GENERALIZATION, Arm, Generalization, Skill
 from studio.panels._charts import heatmap_svg, position_plot_svg
 from studio.words import frame_lines, route_label, segment_lines
 from studio.words.quality import STUDIO_REMEDIES, fit_note, verdict_lines
 
+#: How each choice of frames is called (the Places chooser).
+FRAME_WORDS = {
+    "objects": "Follow the objects (each part learned relative to the object it acts on)",
+    "robot": "Fixed places (the paper: one path in the robot's frame)",
+}
+#: How each generalisation mode is called (the Path chooser).
+MODE_WORDS: dict[Generalization, str] = {
+    Generalization.ALIGNED_MEAN: "Follow the demonstrations (average of your demonstrations, aligned in time)",
+    Generalization.PAPER: "Paper's spline (a smooth curve through the learned states, as in the paper)",
+}
 _LEVEL_COLOR = {"good": "#15803d", "fair": "#b45309", "poor": "#b91c1c"}
 #: The fold with the model's own terms, each with a plain sentence.
 ADVANCED = "Advanced: how the model sees it"
