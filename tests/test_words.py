@@ -99,26 +99,21 @@ def test_each_audience_says_every_control_and_the_command_line_never_says_press(
     )
 
 
-def test_the_controller_names_no_control_of_the_studio() -> None:
-    # issue 28: the controller, which `studio learn` runs too, names a Control; each audience says it
-    root = Path(__file__).resolve().parent.parent / "studio" / "controller"
+@pytest.mark.parametrize(
+    ("layer", "pattern"),
+    [
+        ("core", re.compile(r"press|Suggest|Detail")),  # the core's facts name no control of the studio
+        # issue 28: the controller, which `studio learn` runs too, names a Control; each audience says it
+        ("controller", re.compile(r"press|open preview|train panel", re.IGNORECASE)),
+    ],
+)
+def test_core_and_controller_name_no_control_of_the_studio(layer: str, pattern: re.Pattern[str]) -> None:
+    root = Path(__file__).resolve().parent.parent / "studio" / layer
     found = [
-        f"{p.name}:{i}: {line.strip()}"
+        f"{p.relative_to(root.parent)}:{i}: {line.strip()}"
         for p in sorted(root.rglob("*.py"))
         for i, line in enumerate(p.read_text().splitlines(), 1)
-        if re.search(r"press|open preview|train panel", line, re.IGNORECASE)
-    ]
-    assert not found, "\n".join(found)
-
-
-def test_the_core_names_no_control_of_the_studio() -> None:
-    # the issue's check: `grep -rn "press\|Suggest\|Detail" studio/core` finds nothing
-    core = Path(__file__).resolve().parent.parent / "studio" / "core"
-    found = [
-        f"{p.relative_to(core.parent)}:{i}: {line.strip()}"
-        for p in sorted(core.rglob("*.py"))
-        for i, line in enumerate(p.read_text().splitlines(), 1)
-        if re.search(r"press|Suggest|Detail", line)
+        if pattern.search(line)
     ]
     assert not found, "\n".join(found)
 
