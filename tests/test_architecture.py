@@ -22,10 +22,11 @@ ALLOWED = {
     "csv_io": {"core", "storage", "csv_io"},
     "teacher": {"core", "teacher"},
     "world": {"core", "robot_backend", "teacher", "world"},
-    "security": {"core", "security"},
+    "viser_adapter": {"core", "viser_adapter"},
+    "security": {"core", "viser_adapter", "security"},
     "words": {"core", "words"},
     "controller": {"core", "robot_backend", "recorder", "storage", "csv_io", "world", "words", "controller"},
-    "panels": {"core", "controller", "words", "panels"},
+    "panels": {"core", "controller", "words", "viser_adapter", "panels"},
     "app": {"core", "robot_backend", "storage", "controller", "panels", "security", "app"},
     "commands": {
         "core",

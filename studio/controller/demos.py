@@ -1,5 +1,5 @@
 """The session's demonstrations as the studio shows them: colours, visibility, the 8-D Demo per arm (FK once,
-cached), and the edits (hide, rename, trim, delete with a second press to confirm)."""
+cached), and the edits (hide, rename, trim, delete with a second click to confirm)."""
 
 from __future__ import annotations
 
@@ -14,6 +14,7 @@ from studio.controller.events import Topic
 from studio.core.errors import StudioError
 from studio.core.types import Arm, Demo, Recording
 from studio.storage.format import WORK_SAMPLES, check_demo_name, shown
+from studio.words.controls import Control
 from studio.world import WorldEvent
 
 #: Demo colours (RGB), distinct on the light background, never red (red marks the cluster centroids) and never
@@ -72,7 +73,7 @@ class Demos:
         self.keep: Keep = keep or _forget
         self._cache: dict[tuple[int, str], tuple[Recording, Demo, int]] = {}
         self._told_stride = 1
-        #: names given in this session, old → new: what became of a name a press in another tab still shows
+        #: names given in this session, old → new: what became of a name a click in another tab still shows
         self._renamed: dict[str, str] = {}
         ctx.events.on(Topic.DEMOS, self._prune)
         ctx.events.on(Topic.SESSION, self.clear)
@@ -231,9 +232,11 @@ class Demos:
             if name is not None:
                 if name not in names:
                     new = self.renamed_to(name)
-                    again = f" To delete it, choose {shown(new)} and press Delete again." if new else ""
+                    again = (
+                        f" To delete it, choose {shown(new)} and {self.ctx.say(Control.DELETE)} again." if new else ""
+                    )
                     raise StudioError(
-                        f"{self.gone(name)} (in another tab?) before your press arrived; nothing was deleted.{again}"
+                        f"{self.gone(name)} (in another tab?) before your click arrived; nothing was deleted.{again}"
                     )
                 i = names.index(name)
             rec = session.recordings[i] if 0 <= i < len(session.recordings) else None
@@ -245,7 +248,7 @@ class Demos:
             self.keep(rec, events, hidden=hidden)
             self.ctx.notify(
                 "Demonstration deleted",
-                f'"{rec.name}" was deleted. Press Undo (in Teach) to bring it back.',
+                f'"{rec.name}" was deleted. {self.ctx.say(Control.UNDO, first=True)} (in Teach) to bring it back.',
                 kind="success",
             )
 

@@ -338,9 +338,10 @@ def abandon(run: Run, backend: RobotBackend) -> None:
     run.release()
 
 
-def hold_still(backend: RobotBackend) -> None:
+def hold_still(backend: RobotBackend, again: str) -> None:
     """A robot still going where it was moved by hand holds where it is, at rest for a few control cycles, so a
-    plan starts from rest there; refused in plain words when it does not settle within :data:`HOLD_S`."""
+    plan starts from rest there; refused in plain words (``again``: how to start the run again) when it does not
+    settle within :data:`HOLD_S`."""
     if not backend.state().moving:
         return
     backend.stop_motion()
@@ -352,8 +353,7 @@ def hold_still(backend: RobotBackend) -> None:
             return
         time.sleep(0.005)
     raise StudioError(
-        "The robot is still moving to where you moved it by hand: wait until it stands still, then press "
-        "Run on robot again."
+        f"The robot is still moving to where you moved it by hand: wait until it stands still, then {again} again."
     )
 
 

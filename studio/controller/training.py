@@ -24,18 +24,8 @@ from studio.core.segments import FrameChoice
 from studio.core.thresholds import ThresholdSettings
 from studio.core.types import FRAMES, Arm, Demo, Generalization, KeypointParams, Recording, Skill
 from studio.storage import ReadOnly
+from studio.words.controls import Control
 from studio.world.relative import objects_now
-
-#: How each choice of frames is called in the Train panel.
-FRAME_WORDS = {
-    "objects": "Follow the objects (each part learned relative to the object it acts on)",
-    "robot": "Fixed places (the paper: one path in the robot's frame)",
-}
-#: How each generalisation mode is called in the Train panel.
-MODE_WORDS: dict[Generalization, str] = {
-    Generalization.ALIGNED_MEAN: "Follow the demonstrations (average of your demonstrations, aligned in time)",
-    Generalization.PAPER: "Paper's spline (a smooth curve through the learned states, as in the paper)",
-}
 
 
 @dataclass(frozen=True)
@@ -258,13 +248,12 @@ class Training:
                 self.ctx.notify(
                     "Training finished",
                     "The robot learned the skill, but a demonstration was changed or deleted while it trained: "
-                    "press Train again to learn from the demonstrations as they are now.",
+                    f"{self.ctx.say(Control.TRAIN)} again to learn from the demonstrations as they are now.",
                     kind="warning",
                 )
             else:
-                self.ctx.notify(
-                    "Training finished", "The robot learned the skill: open Preview to watch it.", kind="success"
-                )
+                said = f"The robot learned the skill: {self.ctx.say(Control.PREVIEW)} to watch it."
+                self.ctx.notify("Training finished", said, kind="success")
             self.judge()
 
         fut = self.ctx.submit(job, done=done, title="Training failed")

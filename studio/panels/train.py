@@ -8,29 +8,23 @@ import html
 import numpy as np
 import viser
 
-from studio.controller import FRAME_WORDS, MODE_WORDS, Controller, SkillVerdict, Step, Topic, UsedDemo
-from studio.core.quality import Remedy
-from studio.core.types import DEFAULT_FRAMES, DEFAULT_GENERALIZATION, Arm, Skill
+from studio.controller import Controller, SkillVerdict, Step, Topic, UsedDemo
+from studio.core.types import DEFAULT_FRAMES, DEFAULT_GENERALIZATION, Arm, Generalization, Skill
 from studio.panels._charts import heatmap_svg, position_plot_svg
-from studio.words import (
-    SHARED_REMEDIES,
-    Remedies,
-    fit_note,
-    frame_lines,
-    route_label,
-    segment_lines,
-    verdict_lines,
-)
+from studio.words import frame_lines, route_label, segment_lines
+from studio.words.quality import STUDIO_REMEDIES, fit_note, verdict_lines
 
-_LEVEL_COLOR = {"good": "#15803d", "fair": "#b45309", "poor": "#b91c1c"}
-#: The knob that would help, said with the studio's own controls.
-REMEDIES: Remedies = {
-    **SHARED_REMEDIES,
-    Remedy.MORE_KEYPOINTS: "press Suggest, or move Detail towards more key-points",
-    Remedy.SHARPER_CORNERS: "press Suggest, or lower Corner sharpness",
-    Remedy.REDO_DEMO: "re-record or hide it",
-    Remedy.CHOOSE_ROUTE: "choose another way under Way",
+#: How each choice of frames is called (the Places chooser).
+FRAME_WORDS = {
+    "objects": "Follow the objects (each part learned relative to the object it acts on)",
+    "robot": "Fixed places (the paper: one path in the robot's frame)",
 }
+#: How each generalisation mode is called (the Path chooser).
+MODE_WORDS: dict[Generalization, str] = {
+    Generalization.ALIGNED_MEAN: "Follow the demonstrations (average of your demonstrations, aligned in time)",
+    Generalization.PAPER: "Paper's spline (a smooth curve through the learned states, as in the paper)",
+}
+_LEVEL_COLOR = {"good": "#15803d", "fair": "#b45309", "poor": "#b91c1c"}
 #: The fold with the model's own terms, each with a plain sentence.
 ADVANCED = "Advanced: how the model sees it"
 STATES_WORDS = "the key-points of all demonstrations, grouped into places the hand passes (large red markers)."
@@ -221,7 +215,7 @@ class TrainPanel:
                     f"{html.escape(v.message)}</div>"
                 )
                 continue
-            head, *notes = verdict_lines(v.verdict, REMEDIES)
+            head, *notes = verdict_lines(v.verdict, STUDIO_REMEDIES)
             color = _LEVEL_COLOR.get(v.verdict.level, "#333")
             bullets = "".join(f"<li>{html.escape(n)}</li>" for n in notes)
             bullets += "".join(f'<li class="verdict-segment">{html.escape(n)}</li>' for n in segment_lines(v.segments))
