@@ -49,7 +49,7 @@ def test_first_skill_from_the_sessions_step(browser, studio_factory, tmp_path: P
         at = np.asarray(watch.scene()["/objects_handle"]["position"], dtype=float)
         t.shot("block handle in the top view")
         drag_handle(t, at, np.array([1.0, 0.0, 0.0, 0.0]), axis=1, metres=-0.04)
-        assert watch.wait_for(lambda _m: _block(watch) is not None and abs(_block(watch)[1] - at[1] + 0.04) < 0.015, 30)
+        assert watch.wait_for(lambda _m: abs(_block_y(watch) - at[1] + 0.04) < 0.015, 30)
         moved = _block(watch)
         t.shot("block moved")
 
@@ -72,6 +72,7 @@ def test_first_skill_from_the_sessions_step(browser, studio_factory, tmp_path: P
         expect(paused).to_contain_text(re.compile(r"\d+ pauses? removed \((\d+) s\)"))
         removed = re.search(r"(\d+) pauses? removed \((\d+) s\)", paused.inner_text())
         assert removed is not None and int(removed.group(2)) >= PAUSE_S - 3, paused.inner_text()
+        listed = [rows.nth(i).inner_text() for i in range(3)]
         lengths = [float(rows.nth(i).get_attribute("data-length") or "nan") for i in range(3)]
         median = statistics.median(lengths)
         t.shot("three demonstrations")
@@ -101,10 +102,16 @@ def test_first_skill_from_the_sessions_step(browser, studio_factory, tmp_path: P
         t.shot("teach after the preview")
         actions = t.total
         print(f"\nactions {dict(t.counts)} total {actions}; demonstrations {lengths} s (median {median:.1f}); "
-              f"skill {length:.1f} s; block moved to {moved}; {words!r}")  # fmt: skip
+              f"skill {length:.1f} s; block moved to {moved}; {words!r}; listed {listed}")  # fmt: skip
         assert actions <= 60, f"the first skill took {actions} actions"
     finally:
         watch.close()
+
+
+def _block_y(watch: ViserClient) -> float:
+    """The block's y as the page draws it (nan before it is drawn)."""
+    p = _block(watch)
+    return float("nan") if p is None else float(p[1])
 
 
 def _block(watch: ViserClient) -> np.ndarray | None:
