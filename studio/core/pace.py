@@ -137,7 +137,7 @@ def take_clock(demos: Sequence[Demo], *, keep: bool = False) -> TakeClock:
     if last - first < 1:
         first, last = 0, max(n - 1, 0)
     src = t[first : last + 1]
-    spans = _stretches(still, t, first, last, PAUSE_S) if n >= 2 else []
+    spans = _stretches(still, t, first, last, PAUSE_S) if len(moving) and n >= 2 else []
     dt = np.diff(src)
     if not keep:
         for i, j in spans:
