@@ -86,8 +86,14 @@ def test_skill_speed_keep_pauses_and_one_skill_length(app: Studio) -> None:
     # the demonstration list says the pauses it shortened; the chosen one can keep them
     demos = app.panels.demos
     assert demos.demo_pauses.value is False and not ctl.demos.keeps_pauses(0)
+    row = re.search(r'data-demo="0"[^>]*>.*?</div>', demos.demo_list.content)
+    assert row and re.search(r"[\d.]+ s of [\d.]+ s recorded", row.group(0)), demos.demo_list.content
+    demos.demo_pick.value = ctl.demos.names()[0]
     ctl.demos.set_keep_pauses(0, True)
     assert ctl.demos.keeps_pauses(0) and ctl.session.skills_stale
+    assert wait_for(lambda: demos.demo_pauses.value is True)
+    ctl.demos.set_keep_pauses(0, False)
+    assert wait_for(lambda: demos.demo_pauses.value is False) and not ctl.demos.keeps_pauses(0)
 
 
 def test_one_demonstration_is_said_in_the_singular(app: Studio) -> None:
