@@ -134,6 +134,9 @@ def take_clock(demos: Sequence[Demo], *, keep: bool = False) -> TakeClock:
     still = _still(demos) if n >= 2 else np.zeros(n, dtype=bool)
     moving = np.flatnonzero(~still)
     first, last = (int(moving[0]), int(moving[-1])) if len(moving) else (0, max(n - 1, 0))
+    if len(moving):  # a moment of stillness kept at each end, as at a pause: the motion starts and ends at rest
+        first = int(np.searchsorted(t, t[first] - KEEP_S))
+        last = int(np.searchsorted(t, t[last] + KEEP_S, side="right")) - 1
     if last - first < 1:
         first, last = 0, max(n - 1, 0)
     src = t[first : last + 1]

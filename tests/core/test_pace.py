@@ -77,9 +77,11 @@ def test_a_take_starts_at_its_first_motion_ends_at_its_last_and_its_pauses_are_s
     d = _take([(6.0, 0.0), (2.0, 0.05), (20.0, 0.0), (2.0, -0.05), (8.0, 0.0)])  # still, move, think, move, still
     c = take_clock([d])
     assert c.take == pytest.approx(37.99, abs=0.02)
-    assert 6.0 - 2 * WINDOW_S <= c.source[0] <= 6.0 and 30.0 <= c.source[-1] <= 30.0 + 2 * WINDOW_S
+    # from the first motion to the last, with a moment (KEEP_S) of stillness at each end
+    assert 6.0 - KEEP_S - 2 * WINDOW_S <= c.source[0] <= 6.0 - KEEP_S
+    assert 30.0 + KEEP_S <= c.source[-1] <= 30.0 + KEEP_S + 2 * WINDOW_S
     assert len(c.pauses) == 1 and c.pauses[0][1] - c.pauses[0][0] > 20.0 - 2 * WINDOW_S
-    assert 4.0 + KEEP_S <= c.duration <= 4.0 + KEEP_S + 4 * WINDOW_S  # a motion's start and end are kept whole
+    assert 4.0 + 3 * KEEP_S <= c.duration <= 4.0 + 3 * KEEP_S + 4 * WINDOW_S  # a motion's start and end kept whole
     assert c.removed == pytest.approx(c.pauses[0][1] - c.pauses[0][0] - KEEP_S)
     taught = c.demo(d)
     assert taught.t[0] == 0.0 and np.all(np.diff(taught.t) > 0) and len(taught.t) == c.last - c.first + 1
@@ -88,13 +90,13 @@ def test_a_take_starts_at_its_first_motion_ends_at_its_last_and_its_pauses_are_s
     objs = c.objects(DemoObjects((), (Contact(31.0, "release", "block", ()),)))
     assert objs.contacts[0].t == pytest.approx(c.duration, abs=0.05)
     kept = take_clock([d], keep=True)
-    assert kept.removed == 0.0 and 24.0 <= kept.duration <= 24.0 + 2 * WINDOW_S
+    assert kept.removed == 0.0 and 24.0 + 2 * KEEP_S <= kept.duration <= 24.0 + 2 * KEEP_S + 2 * WINDOW_S
 
 
 def test_a_slow_careful_drag_is_motion_not_a_pause() -> None:
     for v in (0.005, 0.01):  # 5 mm/s and 1 cm/s, with a real robot's noise (0.4 mm at 100 Hz)
         c = take_clock([_take([(2.0, 0.0), (30.0, v), (2.0, 0.0)])])
-        assert c.pauses == () and abs(c.duration - 30.0) <= 2 * WINDOW_S, v
+        assert c.pauses == () and abs(c.duration - 30.0 - 2 * KEEP_S) <= 2 * WINDOW_S, v
 
 
 def test_a_short_stop_stays_and_a_still_take_is_kept_whole() -> None:
