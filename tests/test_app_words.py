@@ -88,7 +88,7 @@ def test_skill_speed_keep_pauses_and_one_skill_length(app: Studio) -> None:
     assert demos.demo_pauses.value is False and not ctl.demos.keeps_pauses(0)
     row = re.search(r'data-demo="0"[^>]*>.*?</div>', demos.demo_list.content)
     assert row and re.search(r"[\d.]+ s of [\d.]+ s recorded", row.group(0)), demos.demo_list.content
-    demos.demo_pick.value = ctl.demos.names()[0]
+    demos.demo_pick.value = ctl.demos.names()[0]  # type: ignore[misc]
     ctl.demos.set_keep_pauses(0, True)
     assert ctl.demos.keeps_pauses(0) and ctl.session.skills_stale
     assert wait_for(lambda: demos.demo_pauses.value is True)

@@ -95,9 +95,15 @@ def test_first_skill_from_the_sessions_step(browser, studio_factory, tmp_path: P
         assert length <= 1.5 * median, (length, lengths)
         assert re.fullmatch(r"The skill does the task\. The block ended on the pad, .* from its centre\.", words), words
 
-        # Back in Teach: the live robot at home and the block as the teacher left it (on the pad), no preview.
+        # Played again and left on the way: Teach shows the live robot at home and the block as the teacher left
+        # it (on the pad), not the preview's pose.
+        t.in_row("Playback", "Play")
+        ui.wait_status(page, "s.z < 0.05", timeout=120)  # the preview's gripper down at the block or the pad
+        t.shot("preview on the way")
         t.step("Teach")
+        expect(page.get_by_text("Showing the robot live.")).to_be_visible()
         expect(page.get_by_text(re.compile(r"\(preview\)"))).to_have_count(0)
+        ui.wait_status(page, "Math.hypot(s.x - 0.59, s.y - 0.27, s.z - 0.11) < 0.02")  # home, where the live arm is
         t.in_row("View", "Reset")
         t.shot("teach after the preview")
         actions = t.total
