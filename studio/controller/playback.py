@@ -245,6 +245,7 @@ class Player:
 
     # -- the two sources ---------------------------------------------------------------------------------------
     def preview_duration(self) -> float:
+        """The preview's length: the skills it plays (:meth:`PlacedSkills.duration`'s figure)."""
         return sampling.duration(self.skills())
 
     def preview_recording(self) -> Recording:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from concurrent.futures import Future
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
@@ -13,11 +13,10 @@ import numpy as np
 from studio.controller.context import Context
 from studio.controller.events import Topic
 from studio.controller.learning import ShownDemos
-from studio.controller.placed import demo_objects_of, rules_of
+from studio.controller.placed import rules_of
 from studio.core.errors import NotEnoughData, StudioError
 from studio.core.frames import DemoObjects
 from studio.core.keypoints import KeypointCache
-from studio.core.pace import remove_pauses, without_pauses
 from studio.core.quality import DemoFit, QualityReport, Verdict
 from studio.core.segment_view import SegmentFit
 from studio.core.segments import FrameChoice
@@ -87,8 +86,6 @@ class Training:
         self.judgement: Future[None] | None = None
         self._verdicts: dict[Arm, SkillVerdict] = {}
         self._routes: dict[Arm, int] = {}
-        #: Learn from the demonstrations with their long rests shortened (:func:`studio.core.pace.remove_pauses`).
-        self.remove_pauses = False
         ctx.on_leave(self._check_leave)
         ctx.events.on(Topic.SESSION, self._on_session)
 
@@ -123,14 +120,6 @@ class Training:
             self.ctx.session.set_params(mode=frames)
         self.ctx.emit(Topic.TRAINING)
 
-    def set_remove_pauses(self, on: bool) -> None:
-        """Shorten the long rests of each demonstration before learning (the next training on)."""
-        with self.ctx.lock:
-            if bool(on) == self.remove_pauses:
-                return
-            self.remove_pauses = bool(on)
-        self.ctx.emit(Topic.TRAINING)
-
     def _check_leave(self, doing: str) -> None:
         if self.busy:
             raise StudioError(f"Wait for the training to finish before {doing}.")
@@ -162,7 +151,6 @@ class Training:
             if self.ctx.session.read_only:  # its skill could not be kept: say so before the work
                 raise ReadOnly(self.ctx.session.name)
             per_arm = {arm: self.demos.for_arm(arm) for arm in (self.ctx.arms if arms is None else arms)}
-            brisk = self.remove_pauses
             for arm, demos in per_arm.items():
                 if len(demos) < 2:
                     raise NotEnoughData(
@@ -185,9 +173,6 @@ class Training:
             for arm, o in relative.items()
             if not isinstance(o, str)
         }
-        if brisk:  # long rests shortened before learning; the grasps and releases keep their moments
-            relative = {a: o if isinstance(o, str) else _brisk_objects(per_arm[a], o) for a, o in relative.items()}
-            per_arm = {arm: [(i, remove_pauses(d)) for i, d in demos] for arm, demos in per_arm.items()}
         now = objects_now(session.objects.scene)
 
         def way(arm: Arm, demos: list[Demo]) -> int | None:
@@ -262,7 +247,7 @@ class Training:
 
     def _objects(self, arm: Arm, demos: list[tuple[int, Demo]]) -> list[DemoObjects] | str:
         """The objects and ``arm``'s contacts of each demonstration, or why the skill cannot follow them."""
-        return demo_objects_of(self.ctx.session, arm, [i for i, _ in demos])
+        return self.demos.objects_of(arm, [i for i, _ in demos])
 
     def _finished(self) -> None:
         if self.busy:  # the job failed: done() never ran
@@ -341,7 +326,7 @@ class Training:
         if skill.frames is None:
             return None
         indices = [u.index for u in used if u.index is not None]
-        objs = demo_objects_of(self.ctx.session, arm, indices)
+        objs = self.demos.objects_of(arm, indices)
         if isinstance(objs, str):
             return None
         rules = rules_of(self.ctx.session, objs, indices)
@@ -395,8 +380,7 @@ class Training:
         for nm in self.skill_demo_names(arm):
             hit = by_name.get(nm)
             if hit is not None and arm in hit[1].arms:
-                demo = self.demos.demo_of(hit[1], arm)
-                out.append(UsedDemo(nm, hit[0], remove_pauses(demo) if self.remove_pauses else demo))
+                out.append(UsedDemo(nm, hit[0], self.demos.demo_of(hit[1], arm)))
             else:
                 out.append(UsedDemo(nm, None, None))
         return out
@@ -413,14 +397,3 @@ class Training:
         tr = sk.trajectory
         pos = np.column_stack([np.interp(jt.t, tr.t, tr.position[:, c]) for c in range(3)])
         return pos[bad]
-
-
-def _brisk_objects(demos: list[tuple[int, Demo]], objects: list[DemoObjects]) -> list[DemoObjects]:
-    """Each demonstration's contacts at their moments once its long rests are shortened."""
-    out = []
-    for (_, d), objs in zip(demos, objects, strict=True):
-        t = np.asarray(d.t, dtype=np.float64)
-        new = without_pauses(d)
-        contacts = tuple(replace(c, t=float(np.interp(c.t + t[0], t, new) - new[0])) for c in objs.contacts)
-        out.append(replace(objs, contacts=contacts))
-    return out
