@@ -1,7 +1,7 @@
 """Where the test suite's time goes: runs a command (by default the test command, ``scripts/run-tests.sh``) and
-reads every process's CPU time from /proc once a second, then prints the CPU seconds per kind of process
-(Chromium's GPU process and renderers, the pytest workers with their in-process studios, the studios started as
-subprocesses, pip, lint) beside the wall time and the share of the two cores left idle.
+reads the CPU time of every process it starts (its descendants only: the machine may be shared) from /proc once a
+second, then prints the CPU seconds per kind of process (Chromium's GPU process and renderers, the pytest workers
+with their in-process studios, the studios started as subprocesses, pip, lint) beside the wall time.
 
     .venv/bin/python bench/bench_suite.py                     # the whole test command
     .venv/bin/python bench/bench_suite.py -- .venv/bin/python -m pytest -n 2 tests/e2e   # any command
@@ -56,29 +56,43 @@ def _idle() -> float:
     return float(Path("/proc/stat").read_text().split("\n", 1)[0].split()[4]) / TICK
 
 
+def _parent(pid: str) -> str | None:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1]
+    except OSError:
+        return None
+
+
 class Sampler:
-    """CPU seconds per kind of process since it started (each process's last reading before it ended)."""
+    """CPU seconds per kind of process among the descendants of ``root`` (each process's last reading before it
+    ended): other people's processes on a shared machine are not counted."""
 
     def __init__(self) -> None:
-        self.base = self._sweep()
+        self.root = ""
         self.last: dict[str, tuple[str, float]] = {}
         self.idle0 = _idle()
         self.stop = threading.Event()
 
-    @staticmethod
-    def _sweep() -> dict[str, float]:
-        out = {}
+    def _tree(self) -> set[str]:
+        children: dict[str, list[str]] = {}
         for pid in os.listdir("/proc"):
-            if pid.isdigit() and (got := process_cpu(pid)) is not None:
-                out[pid] = got[1]
-        return out
+            if pid.isdigit() and (parent := _parent(pid)) is not None:
+                children.setdefault(parent, []).append(pid)
+        tree, todo = set(), [self.root]
+        while todo:
+            pid = todo.pop()
+            tree.add(pid)
+            todo.extend(children.get(pid, ()))
+        return tree
 
     def run(self) -> None:
-        me = str(os.getpid())
         while not self.stop.wait(1.0):
-            for pid in os.listdir("/proc"):
-                if pid.isdigit() and pid != me and (got := process_cpu(pid)) is not None:
-                    self.last[pid] = (got[0], got[1] - self.base.get(pid, 0.0))
+            self.sweep()
+
+    def sweep(self) -> None:
+        for pid in self._tree():
+            if (got := process_cpu(pid)) is not None:
+                self.last[pid] = got
 
     def totals(self) -> dict[str, float]:
         tot: dict[str, float] = {}
@@ -93,10 +107,12 @@ def main() -> int:
     args = ap.parse_args()
     cmd = args.command or ["bash", "scripts/run-tests.sh"]
     sampler = Sampler()
+    t0 = time.monotonic()
+    proc = subprocess.Popen(cmd, cwd=ROOT)
+    sampler.root = str(proc.pid)
     th = threading.Thread(target=sampler.run, daemon=True)
     th.start()
-    t0 = time.monotonic()
-    rc = subprocess.call(cmd, cwd=ROOT)
+    rc = proc.wait()
     wall = time.monotonic() - t0
     sampler.stop.set()
     th.join()
