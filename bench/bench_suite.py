@@ -10,6 +10,7 @@ with their in-process studios, the studios started as subprocesses, pip, lint) b
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import subprocess
 import sys
@@ -42,11 +43,15 @@ def kind(cmdline: str) -> str:
     return "other"
 
 
+def command(pid: str) -> str:
+    return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+
+
 def process_cpu(pid: str) -> tuple[str, float] | None:
     """The kind of process ``pid`` and its CPU seconds so far (None once it has ended)."""
     try:
         stat = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-        cmd = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+        cmd = command(pid)
     except OSError:
         return None
     return kind(cmd), (int(stat[11]) + int(stat[12])) / TICK
@@ -70,6 +75,7 @@ class Sampler:
     def __init__(self) -> None:
         self.root = ""
         self.last: dict[str, tuple[str, float]] = {}
+        self.commands: dict[str, str] = {}  # of the processes of no known kind
         self.idle0 = _idle()
         self.stop = threading.Event()
 
@@ -93,6 +99,9 @@ class Sampler:
         for pid in self._tree():
             if (got := process_cpu(pid)) is not None:
                 self.last[pid] = got
+                if got[0] == "other" and pid not in self.commands:
+                    with contextlib.suppress(OSError):
+                        self.commands[pid] = command(pid)[:100]
 
     def totals(self) -> dict[str, float]:
         tot: dict[str, float] = {}
@@ -123,6 +132,9 @@ def main() -> int:
     print(f"idle: {idle:.0f} core-s of {wall * cores:.0f} ({100 * idle / (wall * cores):.0f} %)")
     for k, v in sorted(tot.items(), key=lambda kv: -kv[1]):
         print(f"{v:7.0f} s  {100 * v / max(sum(tot.values()), 1e-9):4.0f} %  {k}")
+    others = sorted(((c, sampler.commands.get(p, "?")) for p, (k, c) in sampler.last.items() if k == "other"))
+    for c, cmd in others[::-1][:5]:
+        print(f"        {c:7.1f} s  other: {cmd}")
     return rc
 
 

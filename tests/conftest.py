@@ -55,6 +55,24 @@ def reap(proc: subprocess.Popen) -> None:
         proc.stdout.close()
 
 
+def cpu_seconds(pid: int) -> tuple[str, float]:
+    """The state letter of process ``pid`` ("Z": ended, not yet reaped) and the CPU seconds it used (all threads)."""
+    f = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return f[0], (int(f[11]) + int(f[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def end_with_signal(proc: subprocess.Popen, sig: int, timeout: float = 60.0) -> float:
+    """Send ``sig`` to ``proc`` (a child of this test), wait until it has ended (``timeout``: wall seconds, only
+    against a hang) and reap it; returns the CPU seconds it used after the signal (how long it kept working,
+    whatever else loads the machine)."""
+    _, before = cpu_seconds(proc.pid)
+    proc.send_signal(sig)
+    assert wait_for(lambda: cpu_seconds(proc.pid)[0] == "Z", timeout), f"still running {timeout} s after {sig}"
+    _, after = cpu_seconds(proc.pid)
+    proc.wait(timeout=10)
+    return after - before
+
+
 def wait_for(pred: Callable[[], bool], timeout: float = 30.0) -> bool:
     """Poll ``pred`` until it holds (True) or ``timeout`` seconds passed (its last value)."""
     deadline = time.monotonic() + timeout
