@@ -27,6 +27,7 @@ KINDS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("chromium renderers", ("chromium", "type=renderer")),
     ("chromium, other", ("chromium",)),
     ("studio servers started as subprocesses", ("studio serve",)),
+    ("studio servers started as subprocesses", ("fast_robot", "serve")),
     ("playwright driver", ("playwright/driver",)),
     ("pytest workers, with their in-process studios", ("pytest",)),
     ("pytest workers, with their in-process studios", ("exec(eval(sys.stdin",)),
@@ -98,7 +99,8 @@ class Sampler:
     def sweep(self) -> None:
         for pid in self._tree():
             if (got := process_cpu(pid)) is not None:
-                self.last[pid] = got
+                # an ended process (a zombie) has no command line any more: it keeps the kind it had
+                self.last[pid] = (self.last[pid][0] if got[0] == "other" and pid in self.last else got[0], got[1])
                 if got[0] == "other" and pid not in self.commands:
                     with contextlib.suppress(OSError):
                         self.commands[pid] = command(pid)[:100]

@@ -11,7 +11,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 import pytest
@@ -20,7 +20,7 @@ from studio.controller import Kind, Notifier
 from studio.robot_backend.base import JointStateBatch
 
 if TYPE_CHECKING:
-    from playwright.sync_api import Browser
+    from playwright.sync_api import Browser, BrowserContext, Page
 
     from studio.app import Studio
     from studio.controller import Controller
@@ -37,6 +37,68 @@ CHROMIUM_ARGS = [
     "--disable-component-update",
     "--disable-sync",
 ]
+
+
+#: Test pages draw at most one frame every FRAME_MS while something moves and viser's once-a-second safety-net
+#: frame every HEARTBEAT_MS (docs/decisions/093): software WebGL costs about 0.3 CPU seconds a frame here.
+#: ``drawn()`` asks for a frame and waits until it is drawn, so a screenshot shows what the page holds.
+#: ``STUDIO_TEST_FRAMES=native`` leaves pages as they are (to measure the difference: bench/README.md).
+FRAME_MS, HEARTBEAT_MS = 1000, 10_000
+NATIVE_FRAMES = os.environ.get("STUDIO_TEST_FRAMES") == "native"
+
+
+def page_js(frame_ms: int = FRAME_MS, heartbeat_ms: int = HEARTBEAT_MS) -> str:
+    """A page script (run before the page's own): a callback asking for the next animation frame again (the
+    render loop) waits until ``frame_ms`` after the last such frame, a one-off (a transition) does not;
+    viser's heartbeat every ``heartbeat_ms``; frames counted (``window.__studioFrames``) and one asked for on
+    demand (``window.__studioDraw()``)."""
+    return _PAGE_JS.replace("FRAME_MS_", str(int(frame_ms))).replace("HEARTBEAT_MS_", str(int(heartbeat_ms)))
+
+
+_PAGE_JS = """(() => {
+    const FRAME_MS = FRAME_MS_, HEARTBEAT_MS = HEARTBEAT_MS_;
+    const raf = window.requestAnimationFrame.bind(window), caf = window.cancelAnimationFrame.bind(window);
+    const interval = window.setInterval.bind(window);
+    const ran = new WeakSet(), native = new Map();
+    let last = -Infinity, waiting = false, next = 1, due = new Map();
+    window.__studioFrames = 0;
+    const run = (now) => {
+        waiting = false;
+        last = now;
+        window.__studioFrames += 1;
+        const cbs = [...due.values()];
+        due = new Map();
+        for (const cb of cbs) cb(now);
+    };
+    window.requestAnimationFrame = (cb) => {
+        const id = next++;
+        if (!ran.has(cb)) {
+            ran.add(cb);
+            native.set(id, raf((now) => { native.delete(id); window.__studioFrames += 1; cb(now); }));
+            return id;
+        }
+        due.set(id, cb);
+        if (!waiting) {
+            waiting = true;
+            const wait = last + FRAME_MS - performance.now();
+            if (wait > 0) setTimeout(() => raf(run), wait);
+            else raf(run);
+        }
+        return id;
+    };
+    window.cancelAnimationFrame = (id) => {
+        due.delete(id);
+        if (native.has(id)) { caf(native.get(id)); native.delete(id); }
+    };
+    // viser's render heartbeat is its only one-second interval: slowed, and kept as the way to ask for a frame
+    window.setInterval = (fn, ms, ...args) => {
+        if (ms === 1000 && !window.__studioDraw) {
+            window.__studioDraw = fn;
+            ms = HEARTBEAT_MS;
+        }
+        return interval(fn, ms, ...args);
+    };
+})();"""
 
 
 def free_port() -> int:
@@ -182,15 +244,61 @@ def _work_threads_end_with_their_test() -> Iterator[None]:
 
 @pytest.fixture(scope="session")
 def browser() -> Iterator[Browser]:
-    """One headless Debian Chromium for the whole run (pages are opened and closed by each test)."""
+    """One headless Debian Chromium for the whole run (pages are opened and closed by each test); its pages run
+    :func:`page_js` and take screenshots of a freshly drawn frame (:func:`drawn`)."""
     if not Path(CHROMIUM).exists():
         pytest.skip(f"Debian chromium not found at {CHROMIUM} (apt-get install chromium)")
     from playwright.sync_api import sync_playwright
 
     with sync_playwright() as p:
         b = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
-        yield b
+        yield cast("Browser", _Drawn(b))
         b.close()
+
+
+def drawn(page: Page, timeout: float = 30.0) -> None:
+    """Ask ``page`` for a frame and wait until it is drawn: what the page holds is then on screen."""
+    done = page.evaluate(
+        """(timeout) => new Promise((resolve) => {
+            if (window.__studioFrames === undefined) return resolve(true);  // a page without page_js()
+            const n = window.__studioFrames, until = performance.now() + timeout;
+            if (window.__studioDraw) window.__studioDraw();
+            const check = () => {
+                if (window.__studioFrames > n) resolve(true);
+                else if (performance.now() > until) resolve(false);
+                else setTimeout(check, 20);
+            };
+            check();
+        })""",
+        timeout * 1000,
+    )
+    assert done, f"the page drew no frame within {timeout} s"
+
+
+class _Drawn:
+    """A browser (or context) whose new pages run :func:`page_js` and draw a frame before each screenshot."""
+
+    def __init__(self, inner: Browser | BrowserContext) -> None:
+        self._inner = inner
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(self._inner, name)
+
+    def new_context(self, **kwargs: object) -> BrowserContext:
+        return cast("BrowserContext", _Drawn(self._inner.new_context(**kwargs)))  # type: ignore[union-attr,arg-type]
+
+    def new_page(self, **kwargs: object) -> Page:
+        page = self._inner.new_page(**kwargs)  # type: ignore[arg-type]
+        if not NATIVE_FRAMES:
+            page.add_init_script(page_js())
+        shot = page.screenshot
+
+        def screenshot(**kw: object) -> bytes:
+            drawn(page)
+            return shot(**kw)  # type: ignore[arg-type]
+
+        setattr(page, "screenshot", screenshot)  # noqa: B010
+        return page
 
 
 #: The browser test files of the first of two groups (the rest form the second), balanced on their durations.
