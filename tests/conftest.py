@@ -51,7 +51,7 @@ def page_js(frame_ms: int = FRAME_MS, heartbeat_ms: int = HEARTBEAT_MS) -> str:
     """A page script (run before the page's own): a callback asking for the next animation frame again (the
     render loop) waits until ``frame_ms`` after the last such frame, a one-off (a transition) does not;
     viser's heartbeat every ``heartbeat_ms``; frames counted (``window.__studioFrames``) and one asked for on
-    demand (``window.__studioDraw()``)."""
+    demand (``window.__studioDrawNow()``)."""
     return _PAGE_JS.replace("FRAME_MS_", str(int(frame_ms))).replace("HEARTBEAT_MS_", str(int(heartbeat_ms)))
 
 
@@ -60,7 +60,7 @@ _PAGE_JS = """(() => {
     const raf = window.requestAnimationFrame.bind(window), caf = window.cancelAnimationFrame.bind(window);
     const interval = window.setInterval.bind(window);
     const ran = new WeakSet(), native = new Map();
-    let last = -Infinity, waiting = false, next = 1, due = new Map();
+    let last = -Infinity, waiting = false, next = 1, due = new Map(), timer = null;
     window.__studioFrames = 0;
     const run = (now) => {
         waiting = false;
@@ -81,10 +81,15 @@ _PAGE_JS = """(() => {
         if (!waiting) {
             waiting = true;
             const wait = last + FRAME_MS - performance.now();
-            if (wait > 0) setTimeout(() => raf(run), wait);
+            if (wait > 0) timer = setTimeout(() => { timer = null; raf(run); }, wait);
             else raf(run);
         }
         return id;
+    };
+    // a frame now (for a screenshot): the render loop asked for one, and one that waits is not kept waiting
+    window.__studioDrawNow = () => {
+        if (window.__studioDraw) window.__studioDraw();
+        if (timer !== null) { clearTimeout(timer); timer = null; raf(run); }
     };
     window.cancelAnimationFrame = (id) => {
         due.delete(id);
@@ -262,7 +267,7 @@ def drawn(page: Page, timeout: float = 30.0) -> None:
         """(timeout) => new Promise((resolve) => {
             if (window.__studioFrames === undefined) return resolve(true);  // a page without page_js()
             const n = window.__studioFrames, until = performance.now() + timeout;
-            if (window.__studioDraw) window.__studioDraw();
+            window.__studioDrawNow();
             const check = () => {
                 if (window.__studioFrames > n) resolve(true);
                 else if (performance.now() > until) resolve(false);
