@@ -63,6 +63,7 @@ PARTS = (
     "fuzz",
     "memory",
     "flood",
+    "burst",
     "issue21",
 )
 
@@ -646,6 +647,143 @@ def part_flood(args: argparse.Namespace) -> list[dict[str, Any]]:
         shutil.rmtree(tmp, ignore_errors=True)
 
 
+#: The tabs of ``--part burst``, in two processes as a browser's tabs are: ``press`` floods from one tab and then
+#: presses the Emergency stop in another ("go KIND" on stdin → the times, time.monotonic, as JSON); ``watch`` is a
+#: third tab ("arm" → the time its status next says e-stopped). Separate, so that the watcher's reading never
+#: waits for the flooder's sending.
+BURST_TABS = """
+import json, sys, threading, time
+sys.path.insert(0, {root!r})
+import msgspec
+from tests.viser_client import ViserClient
+url, role = sys.argv[1], sys.argv[2]
+
+def uuid(c, label, kind):
+    found = c.wait_for(lambda ms: [m["uuid"] for m in ms if m["type"] == kind and m["props"].get("label") == label], 60)
+    return str(found[-1])
+
+def press(u, value):
+    return msgspec.msgpack.encode({{"type": "GuiUpdateMessage", "uuid": u, "updates": {{"value": value}}}})
+
+if role == "watch":
+    watcher = ViserClient(url)
+    uuid(watcher, "Emergency stop", "GuiButtonMessage")
+    shown, armed, seen = threading.Event(), [False], {{}}
+
+    def watch(msgs):
+        if not armed[0]:
+            return
+        if any('data-estop="true"' in str(m) for m in msgs):
+            seen["status"] = time.monotonic()
+            armed[0] = False
+            shown.set()
+
+    watcher.watchers.append(watch)
+    print("ready", flush=True)
+    for line in sys.stdin:
+        shown.clear()
+        seen.clear()
+        armed[0] = True
+        print("armed", flush=True)
+        shown.wait(30)
+        print(json.dumps(seen), flush=True)
+else:
+    flood, presser = ViserClient(url), ViserClient(url)
+    floods = {{
+        "nothing": [],
+        "Rename": [press(uuid(flood, "Demo action", "GuiButtonGroupMessage"), "Rename")] * 10_000,
+        "Detail slider": [press(uuid(flood, "Detail: fewer \u2194 more key-points", "GuiSliderMessage"), v)
+                          for v in (0.5 + (i % 2) * 0.5 for i in range(10_000))],
+    }}
+    estop = press(uuid(presser, "Emergency stop", "GuiButtonMessage"), True)
+    print("ready", flush=True)
+    for line in sys.stdin:
+        kind = line.split(" ", 1)[1].strip()
+        t0 = time.monotonic()
+        for raw in floods[kind]:
+            flood.ws.send(raw)
+        sent = time.monotonic()
+        presser.ws.send(estop)
+        print(json.dumps({{"flood_s": sent - t0, "press": sent}}), flush=True)
+"""
+
+
+def part_burst(args: argparse.Namespace) -> list[dict[str, Any]]:
+    """The Emergency stop of one tab right behind 10,000 presses (Rename) or values (a slider) another tab sent at
+    once: time to the robot (the backend's ``emergency_stop`` called) and to a third tab's display (the run
+    panel's status says e-stopped); at the machine's own load, then with two CPU-bound processes started, in the
+    same run."""
+    from studio.app import build_app
+    from tests.conftest import free_port, reap
+
+    tmp = Path(tempfile.mkdtemp(prefix="bench-hostile-burst-"))
+    shutil.copytree(ROOT / "sessions" / "stack-cup", tmp / "stack-cup")
+    app = build_app(port=free_port(), session="stack-cup", sessions_dir=tmp)
+    backend = app.controller.execution.backend
+    stopped: list[float] = []
+    real_stop = backend.emergency_stop
+
+    def timed_stop() -> Any:
+        stopped.append(time.monotonic())
+        return real_stop()
+
+    backend.emergency_stop = timed_stop  # type: ignore[method-assign]
+    url = f"ws://127.0.0.1:{app.port}/?key={app.access.key}"
+    code = BURST_TABS.format(root=str(ROOT))
+    tabs, watch = (
+        subprocess.Popen(
+            [sys.executable, "-c", code, url, role], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, cwd=ROOT
+        )
+        for role in ("press", "watch")
+    )
+    busy: list[subprocess.Popen] = []
+    rows: list[dict[str, Any]] = []
+    try:
+        assert tabs.stdin and tabs.stdout and watch.stdin and watch.stdout
+        if tabs.stdout.readline().strip() != "ready" or watch.stdout.readline().strip() != "ready":
+            raise RuntimeError("the tabs did not start")
+        time.sleep(2.0)
+        for load in ("own load", "two CPU-bound processes"):
+            if load != "own load":
+                busy = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
+                time.sleep(5.0)
+            for kind in ("nothing", "Rename", "Detail slider"):
+                robot, status, flood_s, loads = [], [], [], []
+                for _ in range(max(3, args.runs // 4)):
+                    stopped.clear()
+                    watch.stdin.write("arm\n")
+                    watch.stdin.flush()
+                    watch.stdout.readline()  # armed
+                    tabs.stdin.write(f"go {kind}\n")
+                    tabs.stdin.flush()
+                    got = json.loads(tabs.stdout.readline())
+                    got.update(json.loads(watch.stdout.readline()))
+                    deadline = time.monotonic() + 30
+                    while not stopped and time.monotonic() < deadline:
+                        time.sleep(0.001)
+                    robot.append(stopped[0] - got["press"] if stopped else 30.0)
+                    status.append(got["status"] - got["press"] if "status" in got else 30.0)
+                    flood_s.append(got["flood_s"])
+                    loads.append(os.getloadavg()[0])
+                    app.controller.execution.release_emergency_stop()
+                    time.sleep(3.0)  # the loop has read the burst and the gate's rate refilled: the next from quiet
+                what = "quiet (baseline)" if kind == "nothing" else f"{kind} x10,000 at once"
+                rows.append({"case": f"{what}, {load}", "robot": robot, "status": status,
+                             "flood_s": flood_s, "load": loads})  # fmt: skip
+        rows.append({"case": "studio peak memory", "peak_mb": _status("VmHWM") / MiB})
+        return rows
+    finally:
+        for b in busy:
+            b.kill()
+            b.wait()
+        for proc in (tabs, watch):
+            if proc.stdin is not None:
+                proc.stdin.close()
+            reap(proc)
+        app.stop()
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
 def part_issue21(args: argparse.Namespace) -> list[dict[str, Any]]:
     """Issue 21's attacks §1-§4 and §7 against a running studio, one row each: what the attacker got."""
     import http.client
@@ -878,6 +1016,19 @@ def report_flood(rows: list[dict[str, Any]]) -> None:
         )
 
 
+def report_burst(rows: list[dict[str, Any]]) -> None:
+    for r in rows:
+        if "robot" not in r:
+            print(f"  {r}")
+            continue
+        line = f"{r['case']:<52}"
+        for what in ("robot", "status"):
+            v = sorted(r[what])
+            line += f" {what} {v[len(v) // 2] * 1000:5.1f} / {v[-1] * 1000:6.1f} ms |"
+        loads, sent = sorted(r["load"]), sorted(r["flood_s"])
+        print(f"{line} sent in {sent[len(sent) // 2]:.2f} s, load {loads[0]:.1f}–{loads[-1]:.1f}")
+
+
 def report_memory(rows: list[dict[str, Any]]) -> None:
     nan = float("nan")
     for r in rows:
@@ -942,8 +1093,8 @@ def report(name: str, rows: list[dict[str, Any]]) -> None:
         for r in wrong:
             print("  ", r)
         return
-    if name in ("flood", "memory"):
-        (report_flood if name == "flood" else report_memory)(rows)
+    if name in ("flood", "memory", "burst"):
+        {"flood": report_flood, "memory": report_memory, "burst": report_burst}[name](rows)
         return
     for r in rows:
         print("  " + json.dumps(r, ensure_ascii=False)[:400])

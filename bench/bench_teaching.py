@@ -6,19 +6,25 @@
   demonstrations, solved from the home posture and from two trapped postures. Both for the studio's handle IK
   (``posture_ik.reach_pose``) against the plain warm-started IK it replaced (``Baxter.ik``, the baseline), with
   the median and 95th-percentile time of one solve.
+* ``keys``: a held key in headless Chromium, as a keyboard repeats it (a press, 0.5 s, then 30 a second): how far
+  the gripper's goal moved after 1, 2 and 3 s held, and a Shift press; this commit against a baseline commit
+  (``--baseline``, default main) in the same run.
 * ``actions``: the browser flow of ``tests/e2e/test_teach_mouse.py`` (a new session, the handle out of reach and
   back, three demonstrations, Train, Preview) in headless Chromium, with every click, drag, key press and typed
   word counted; the teaching part (new session, demonstrations, train and preview) has a target of 60.
 
-Run: ``.venv/bin/python bench/bench_teaching.py [--part ik|actions]``. Prints figures; never asserts on time.
+Run: ``.venv/bin/python bench/bench_teaching.py [--part ik|keys|actions] [--baseline main]``. Prints figures;
+never asserts on time.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
 import shutil
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -146,12 +152,99 @@ def part_actions() -> None:
     print(f"  the preview said: {words.strip()}")
 
 
+def _serve(src: Path, sessions: Path) -> tuple[subprocess.Popen[str], str]:
+    """`python -m studio serve` of the checkout ``src`` (its folder first on the import path); its address."""
+    import re
+
+    from tests.conftest import free_port
+
+    cmd = [sys.executable, "-m", "studio", "serve", "--port", str(free_port()), "--session", "stack-cup"]
+    cmd += ["--sessions-dir", str(sessions), "--meshes", "light"]
+    proc = subprocess.Popen(cmd, cwd=src, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    assert proc.stdout is not None
+    for line in proc.stdout:
+        m = re.search(r"open (http://\S+) in your browser", line)
+        if m:
+            return proc, m.group(1)
+    raise RuntimeError(f"the studio of {src} did not start")
+
+
+def _hold(page: object, key: str, seconds: float) -> int:
+    """Hold ``key`` as a keyboard does: one press, 0.5 s, then a repeat every 1/30 s; then let go. Returns the
+    key events sent (on a busy machine Playwright delivers fewer than a keyboard would)."""
+    kb = page.keyboard  # type: ignore[attr-defined]
+    kb.down(key)
+    t0 = time.monotonic()
+    time.sleep(0.5)
+    sent = 1
+    while time.monotonic() - t0 < seconds:
+        kb.down(key)  # Playwright marks a second keydown without a keyup as a repeat
+        sent += 1
+        time.sleep(1 / 30)
+    kb.up(key)
+    return sent
+
+
+def part_keys(baseline: str) -> None:
+    from playwright.sync_api import sync_playwright
+
+    from tests.conftest import CHROMIUM, CHROMIUM_ARGS
+    from tests.e2e import ui
+
+    def goal_x(page: object) -> float:
+        """Where the gripper is going along x, cm (the Move panel's data)."""
+        return float(page.locator(".gripper-goal").first.get_attribute("data-x"))  # type: ignore[attr-defined]
+
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        base = work / "baseline"
+        subprocess.run(["git", "clone", "-q", str(ROOT), str(base)], check=True)
+        subprocess.run(["git", "-C", str(base), "checkout", "-q", baseline], check=True)
+        print(f"A held key (S: away from the robot): how far the gripper's goal moved; baseline {baseline}:")
+        print(f"  load average at the start: {os.getloadavg()[0]:.2f}")
+        with sync_playwright() as p:
+            browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
+            for label, src in (("this commit", ROOT), ("baseline", base)):
+                sessions = work / f"sessions-{label.replace(' ', '-')}"
+                sessions.mkdir()
+                shutil.copytree(ROOT / "sessions" / "stack-cup", sessions / "stack-cup")
+                proc, url = _serve(src, sessions)
+                try:
+                    page = ui.open_studio(browser, url)
+                    page.mouse.click(20, ui.VIEWPORT["height"] - 20)  # the focus on the page, not in a box
+                    got = []
+                    for seconds in (1.0, 2.0, 3.0):
+                        page.keyboard.press("KeyH")
+                        ui.wait_arm_settled(page)
+                        x0 = goal_x(page)
+                        sent = _hold(page, "KeyS", seconds)
+                        time.sleep(1.0)  # the last presses reach the studio
+                        got.append(f"{seconds:.0f} s held: {goal_x(page) - x0:4.1f} cm ({sent} key events)")
+                    page.keyboard.press("KeyH")
+                    ui.wait_arm_settled(page)
+                    x0 = goal_x(page)
+                    page.keyboard.press("Shift+KeyS")
+                    time.sleep(1.0)
+                    got.append(f"one Shift+S: {goal_x(page) - x0:4.1f} cm")
+                    print(f"  {label}: " + "; ".join(got))
+                    page.close()
+                finally:
+                    proc.terminate()
+                    proc.wait(timeout=30)
+                    if proc.stdout is not None:
+                        proc.stdout.close()
+            browser.close()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--part", choices=("ik", "actions"), default=None)
+    ap.add_argument("--part", choices=("ik", "keys", "actions"), default=None)
+    ap.add_argument("--baseline", default="main", help="the commit the keys are compared with")
     args = ap.parse_args()
     if args.part in (None, "ik"):
         part_ik()
+    if args.part in (None, "keys"):
+        part_keys(args.baseline)
     if args.part in (None, "actions"):
         part_actions()
 

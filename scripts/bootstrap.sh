@@ -1,22 +1,39 @@
 #!/usr/bin/env bash
-# Creates .venv (Python 3.11+) and installs the studio with the given extras, only when pyproject.toml changed.
-# Usage: source scripts/bootstrap.sh [extras]   e.g. "test,mesh"
+# Creates .venv (Python 3.11+) and installs the studio, only when what it installs changed: the pinned packages of
+# scripts/runtime-requirements.txt without pip's resolver (docs/decisions/091), then the given extras, if any.
+# Usage: bash scripts/bootstrap.sh [extras]   e.g. "test,mesh"
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 EXTRAS="${1:-}"
 PY="${PYTHON:-python3}"
-if [ ! -x "$ROOT/.venv/bin/python" ]; then
+VPY="$ROOT/.venv/bin/python"
+LOCK="$ROOT/scripts/runtime-requirements.txt"
+#: Seconds the first install usually takes here (bench/bench_install.py, bench/README.md).
+ABOUT=30
+if [ ! -x "$VPY" ]; then
   echo "==> creating the virtual environment in .venv"
   "$PY" -m venv "$ROOT/.venv"
 fi
-STAMP="$ROOT/.venv/.installed-$(sha1sum "$ROOT/pyproject.toml" | cut -c1-12)-${EXTRAS//,/_}"
+STAMP="$ROOT/.venv/.installed-$(cat "$ROOT/pyproject.toml" "$LOCK" | sha1sum | cut -c1-12)-${EXTRAS//,/_}"
 if [ ! -f "$STAMP" ]; then
-  echo "==> installing the studio and its dependencies (first time: about a minute)"
-  "$ROOT/.venv/bin/python" -m pip install --quiet --disable-pip-version-check --upgrade pip 2>&1 | grep -v "^WARNING: Location" || true
-  spec="$ROOT"
-  [ -n "$EXTRAS" ] && spec="$ROOT[$EXTRAS]"
-  "$ROOT/.venv/bin/python" -m pip install --quiet --disable-pip-version-check -e "$spec" 2>&1 | grep -v "^WARNING: Location" || true
-  "$ROOT/.venv/bin/python" -c "import studio, viser, pinocchio, hmmlearn, sklearn" \
-    || { echo "installing the dependencies failed" >&2; exit 1; }
+  export PIP_DISABLE_PIP_VERSION_CHECK=1
+  count="$(grep -c '^[a-zA-Z]' "$LOCK")"
+  echo "==> installing the studio and the $count packages it needs (first time only: about $ABOUT s)"
+  set +e
+  "$VPY" -m pip install --no-deps --no-compile --progress-bar off -r "$LOCK" -e "$ROOT" 2>&1 \
+    | "$VPY" "$ROOT/scripts/install_progress.py" --packages "$((count + 1))" --about "$ABOUT"
+  status=("${PIPESTATUS[@]}")
+  set -e
+  if [ "${status[0]}" -ne 0 ]; then
+    echo "Installing the studio's packages failed (see what pip said above). Check the internet connection and" \
+      "run the command again." >&2
+    exit 1
+  fi
+  if [ -n "$EXTRAS" ]; then
+    echo "==> installing the extras: $EXTRAS"
+    "$VPY" -m pip install --quiet -e "$ROOT[$EXTRAS]" 2>&1 | grep -v "^WARNING: Location" || true
+  fi
+  "$VPY" -c "import studio.app" \
+    || { echo "The studio's packages are installed but do not load (see above)." >&2; exit 1; }
   touch "$STAMP"
 fi

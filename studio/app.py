@@ -20,6 +20,7 @@ import viser
 from studio.controller import Controller, Kind, LogNotifier, Topic
 from studio.core.errors import StudioError
 from studio.core.kinematics import baxter_urdf_path
+from studio.core.text import sendable
 from studio.panels import Panels, build_panels
 from studio.panels._page import install as install_page
 from studio.panels.steps import HOME_CAMERA_FOV_DEG, HOME_CAMERA_LOOK_AT, HOME_CAMERA_POSITION
@@ -51,7 +52,13 @@ def robot_urdf_path(meshes: str = "auto") -> Path:
     if meshes not in ("auto", "light", "full"):
         raise StudioError(f'Unknown mesh choice "{meshes}": use auto, light or full.')
     if meshes == "full":
-        return baxter_urdf_path()
+        try:
+            return baxter_urdf_path()
+        except FileNotFoundError:
+            raise StudioError(
+                "The original robot meshes come with the example-robot-data package, which the first start does "
+                "not install. Install it (.venv/bin/pip install example-robot-data), or use the light meshes."
+            ) from None
     if LIGHT_URDF.is_file():
         return LIGHT_URDF
     if meshes == "light":
@@ -103,6 +110,7 @@ class BrowserNotifier:
         if self.server is None:
             LogNotifier().notify(title, body, kind=kind)
             return
+        title, body = sendable(title, line=True), sendable(body)  # words built from a file or the robot's text
         key = (title, body, id(client) if client is not None else None)
         now = time.monotonic()
         if now - self._recent.get(key, -1e9) < 5.0:
@@ -296,6 +304,13 @@ def robot_backend(address: str | None) -> RobotBackend | None:
     """
     if not address:
         return None
+    import importlib.util
+
+    if importlib.util.find_spec("roslibpy") is None:
+        raise StudioError(
+            "Driving a real Baxter needs the roslibpy package, which the first start does not install. Start the "
+            "studio with: bash scripts/run-studio.sh --robot " + address + " (it installs it first)."
+        )
     from studio.robot_backend.rosbridge import RosbridgeBaxter
 
     return RosbridgeBaxter(address)

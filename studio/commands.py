@@ -132,7 +132,10 @@ def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
         assert skills is not None and ctl.training.judgement is not None  # a headless controller raises failures
         ctl.training.judgement.result()
         verdicts = ctl.training.verdicts()
+        touching = ctl.scene.contact_reason()  # what the skill would touch, with the objects of the session's scene
     print(report(session, skills, elapsed), file=out)
+    if touching:
+        print(f"\nWhat the skill would touch: {touching} The studio does not run it on the robot.", file=out)
     for arm in skills:
         v = verdicts.get(arm)
         lines = verdict_words(v.verdict, cli_remedies(session.name, auto)) if v and v.verdict else ()

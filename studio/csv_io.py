@@ -143,13 +143,16 @@ def _read_rows(p: Path, label: str) -> tuple[np.ndarray, np.ndarray, np.ndarray,
 
 
 def _count_rows(p: Path) -> int:
-    """Lines after the first (an upper bound on the rows), counted a megabyte at a time."""
+    """Lines after the first (an upper bound on the rows), counted a megabyte at a time; a line ends as the reader
+    ends it: LF, CR LF, or CR alone (old Mac and some spreadsheet exports)."""
     lines, last = 0, b"\n"
     with open(p, "rb") as f:
         while chunk := f.read(1 << 20):
-            lines += chunk.count(b"\n")
+            lines += chunk.count(b"\n") + chunk.count(b"\r") - chunk.count(b"\r\n")
+            if last == b"\r" and chunk[:1] == b"\n":
+                lines -= 1  # a CR LF cut between two chunks
             last = chunk[-1:]
-    return max(0, lines + (last != b"\n") - 1)
+    return max(0, lines + (last not in (b"\n", b"\r")) - 1)
 
 
 def _line(f: TextIO, number: int, label: str) -> str:

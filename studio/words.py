@@ -17,7 +17,9 @@ from studio.core.types import SkillRoute
 
 if TYPE_CHECKING:
     from studio.core.autotune import TuneResult
+    from studio.core.collision import Part, Touch
     from studio.core.segment_view import SegmentFit
+    from studio.core.segments import FrameChoice
 
 #: How an audience says each :class:`Remedy` (a phrase that follows a dash, lower case, no full stop).
 Remedies = Mapping[Remedy, str]
@@ -164,14 +166,14 @@ def fit_note(fit: DemoFit) -> str:
     return ""
 
 
-def _frame_words(role: str) -> str:
-    """A segment's frame as a person says it: "the cup", "where the block stood", "the robot"."""
+def _frame_words(role: str, robot: str = "the robot") -> str:
+    """A segment's frame as a person says it: "the cup", "where the block stood", ``robot``."""
     kind, _, name = role.partition(":")
     if kind == "object":
         return f"the {name}"
     if kind == "start":
         return f"where the {name} stood"
-    return "the robot"
+    return robot
 
 
 def _segment_name(fit: SegmentFit) -> str:
@@ -287,22 +289,38 @@ class GraspFacts(Protocol):
     def closer(self) -> float: ...
     @property
     def height(self) -> float: ...
+    @property
+    def toward(self) -> tuple[float, float]: ...
 
 
 def grasp_words(note: GraspFacts) -> str:
-    """What closing the gripper just did: "Holding the cup." or "Missed the cup by 3 cm — move 1 cm closer."."""
+    """What closing the gripper just did: "Holding the cup." or "Missed the cup by 3 cm — move 1 cm to the robot's
+    left, …", the way in the room's terms."""
     if note.held is not None:
         return f"Holding the {note.held}."
     if note.near is None:
         return "The gripper closed on nothing: there is no cup or block free to pick up."
     by = length_words(note.distance)
     if note.closer > 0.0:
-        fix = f"move {length_words(max(note.closer, 0.01))} closer"
+        fix = f"move {_sideways(note.toward)}"
         if note.height:
-            fix += f" and {_height_fix(note.height)}"
+            fix += f", {_height_fix(note.height)}"
         return f"Missed the {note.near} by {by} — {fix}, open the gripper and close it again."
     off, fix = _height_off(note.height), _height_fix(note.height)
     return f"Missed the {note.near}: the gripper is {off} — {fix}, then close it again."
+
+
+def _sideways(toward: tuple[float, float]) -> str:
+    """A sideways move in the room's terms: "1 cm to the robot's left", "2 cm away from the robot and 1 cm to its
+    right" (a part under 5 mm is left out, unless it is the larger one; at least 1 cm is said)."""
+    dx, dy = toward
+    x = f"{'away from' if dx > 0 else 'toward'} the robot"
+    side = "left" if dy > 0 else "right"
+    if abs(dx) >= 0.005 and abs(dy) >= 0.005:
+        return f"{length_words(dx)} {x} and {length_words(dy)} to its {side}"
+    if abs(dx) >= abs(dy):
+        return f"{length_words(max(abs(dx), 0.01))} {x}"
+    return f"{length_words(max(abs(dy), 0.01))} to the robot's {side}"
 
 
 def _height_off(h: float) -> str:
@@ -311,6 +329,76 @@ def _height_off(h: float) -> str:
 
 def _height_fix(h: float) -> str:
     return f"{'lower' if h > 0 else 'raise'} it {length_words(max(abs(h), 0.01))}"
+
+
+class PlacementFacts(Protocol):
+    """One step of a task's goal (:class:`studio.world.goal.Placement`)."""
+
+    @property
+    def object(self) -> str: ...
+    @property
+    def onto(self) -> str: ...
+    @property
+    def target(self) -> str: ...
+
+
+def _onto(p: PlacementFacts, kinds: Mapping[str, str]) -> str:
+    if p.target == "start":
+        return "back where it started"
+    if p.target == "table":
+        return "on the table where you put it"
+    return f"{'into' if kinds.get(p.onto) == 'cup' else 'on'} the {p.onto}"
+
+
+def goal_words(placements: Sequence[PlacementFacts], kinds: Mapping[str, str]) -> str:
+    """A task's goal in plain words: "Put the block on the pad, then back where it started." (``kinds``: each
+    object's kind, "cup" is put into); "" without one."""
+    steps: dict[str, list[str]] = {}
+    for p in placements:
+        steps.setdefault(p.object, []).append(_onto(p, kinds))
+    return " ".join(f"Put the {name} {', then '.join(where)}." for name, where in steps.items())
+
+
+GOAL_SOURCES = {
+    "set-up": "The goal of this set-up:",
+    "you": "The goal you chose:",
+    "demonstrations": "The goal, as I read it from your demonstrations:",
+}
+
+
+def _role_words(role: str) -> str:
+    """A frame as the teacher says where something goes: "the pad", "where the block stood", "a fixed place"."""
+    return _frame_words(role, "a fixed place on the table")
+
+
+def frame_lines(choices: Sequence[FrameChoice]) -> tuple[str, ...]:
+    """How a skill that follows the objects chose what each grasp and release follows, when the demonstrations
+    could not decide it ("Every demonstration had the block in the same place: I will follow the block for the
+    grasp and the pad for the release. …") or when they contradicted the task's meaning (then followed)."""
+    out = []
+    unsure = [c for c in choices if c.rule and not c.told]
+    if unsure:
+        held = list(dict.fromkeys(c.object for c in choices if c.kind == "grasp"))
+        things = " and the ".join(held) or "objects"
+        parts = []
+        for kind, word in (("grasp", "grasp"), ("release", "release")):
+            mine = [c for c in choices if c.kind == kind]
+            if not mine:
+                continue
+            plural = f"{word}s" if len(mine) > 1 else word
+            roles = list(dict.fromkeys(_role_words(c.role) for c in mine))
+            parts.append(f"{' and '.join(roles)} for the {plural}")
+        out.append(
+            f"Every demonstration had the {things} in the same place: I will follow {' and '.join(parts)}. "
+            f"Show me one more with the {held[0] if held else 'objects'} somewhere else to be sure."
+        )
+    for c in choices:
+        if c.against:
+            out.append(
+                f"Your demonstrations put the {c.object} down relative to {_role_words(c.role)}, not "
+                f"{_role_words(c.rule)}: I follow your demonstrations."
+            )
+    return tuple(out)
 
 
 def moved_words(name: str, distance: float) -> str:
@@ -322,21 +410,157 @@ def moved_words(name: str, distance: float) -> str:
     )
 
 
+# -- contacts: what the robot touches (facts: studio.core.collision.Touch, studio.world.contacts) --------------
+
+
+def part_words(p: Part) -> str:
+    """ "the left fingers", "the right forearm", "the robot's torso", "the table", "the block"."""
+    if p.robot:
+        return f"the {p.arm} {p.part}" if p.arm else f"the robot's {p.part}"
+    return f"the {p.part}"
+
+
+def _verb(p: Part, one: str, many: str) -> str:
+    return many if p.robot and p.part == "fingers" else one
+
+
+def _when(x: Touch) -> str:
+    if x.t_end - x.t_start < 0.05:
+        return f"{x.t_start:.1f} s"
+    return f"{x.t_start:.1f}–{x.t_end:.1f} s"
+
+
+def touch_words(x: Touch, tense: str = "would") -> str:
+    """One contact: "the block would go 6.8 cm into the table" (``tense``: "would" for a skill, "did" for a run,
+    "now" for the arm moved by hand: "the left fingers touch the table")."""
+    a, b = part_words(x.a), part_words(x.b)
+    deep = x.depth >= 0.001
+    if tense == "now":
+        return f"{a} {_verb(x.a, 'touches', 'touch')} {b}"
+    if tense == "did":
+        return f"{a} went {length_words(x.depth)} into {b}" if deep else f"{a} touched {b}"
+    return f"{a} would go {length_words(x.depth)} into {b}" if deep else f"{a} would touch {b}"
+
+
+def _skill_advice(x: Touch) -> str:
+    b = x.b
+    if x.new:
+        return f"Move the {b.part} out of the way, or teach again with it where it is."
+    if b.robot and b.arm is not None:
+        return "Teach the two arms so that they keep apart."
+    if b.robot:
+        return "Teach that part farther from the robot's body."
+    if b.part == "table":
+        if x.a.robot and x.a.part not in ("fingers", "hand", "wrist"):
+            return "Teach that part with the gripper higher, or the arm held differently."
+        return "Teach that part higher above the table."
+    return f"Teach that part so that it keeps clear of the {b.part}."
+
+
+def contact_sentence(touches: Sequence[Touch], tense: str = "would") -> str:
+    """What the robot touches along a skill or a run, the first contact first: "At 6.8–9.3 s the block would go
+    6.8 cm into the table. Teach that part higher above the table." (a new object: "The new cup is in the way of
+    the carry at 7.3 s: …"); "" when nothing."""
+    if not touches:
+        return ""
+    x = next((t for t in touches if t.new), touches[0])
+    more = len(touches) - 1
+    tail = f" (and {count_words(more, 'more contact')} later)" if more else ""
+    if x.new:
+        way = f"the carry of the {x.carry}" if x.carry else f"the {x.a.arm} arm" if x.a.arm else "the skill"
+        head = f"The new {x.b.part} is in the way of {way} at {x.at:.1f} s: {touch_words(x, tense)}"
+    else:
+        head = f"At {_when(x)} {touch_words(x, tense)}"
+    advice = _skill_advice(x) if tense == "would" else ""
+    return f"{head}{tail}. {advice}".strip()
+
+
+def recorded_touch_words(touches: Sequence[Touch]) -> str:
+    """A demonstration that went through something (imported, or recorded on a real robot): "At 4.1–4.6 s the block
+    went 3 cm into the table" ("" when it touched nothing)."""
+    if not touches:
+        return ""
+    x = touches[0]
+    more = len(touches) - 1
+    tail = f" (and {count_words(more, 'more contact')} later)" if more else ""
+    return f"At {_when(x)} {touch_words(x, 'did')}{tail}."
+
+
+def contact_advice(x: Touch) -> str:
+    """What to do when an arm moved by hand stops at a contact: "lift the gripper first"."""
+    a, b = x.a, x.b
+    if not a.robot:
+        return f"lift the {a.part} first, or open the gripper to put it down"
+    if b.robot and b.arm is not None:
+        return f"move the {b.arm} arm away first" if b.arm != a.arm else "move the gripper away from the arm first"
+    if b.robot:
+        return "move the gripper away from the robot's body first"
+    if b.part == "table":
+        return "lift the gripper first"
+    return f"move the gripper away from the {b.part} first"
+
+
+class HitFacts(Protocol):
+    """An object the robot ran into (:class:`studio.world.hits.Hit`)."""
+
+    @property
+    def t(self) -> float: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def by(self) -> Part: ...
+    @property
+    def distance(self) -> float: ...
+    @property
+    def toppled(self) -> bool: ...
+
+
+def hit_words(hits: Sequence[HitFacts]) -> str:
+    """What the robot did to the objects it ran into: "The cup was knocked over by the left forearm at 7.3 s."."""
+    out = []
+    for name in dict.fromkeys(h.name for h in hits):
+        mine = [h for h in hits if h.name == name]
+        first, by = mine[0], part_words(mine[0].by)
+        moved = length_words(sum(h.distance for h in mine))
+        if any(h.toppled for h in mine):
+            out.append(f"The {name} was knocked over by {by} at {first.t:.1f} s.")
+        else:
+            out.append(f"The {name} was pushed {moved} by {by} at {first.t:.1f} s.")
+    return " ".join(out)
+
+
+def blocked_words(x: Touch) -> str:
+    """An arm moved by hand stopped at a contact: "The left fingers touch the table — lift the gripper first"."""
+    said = touch_words(x, "now")
+    return f"{said[:1].upper()}{said[1:]} — {contact_advice(x)}."
+
+
 __all__ = [
+    "GOAL_SOURCES",
     "OWN_TASK",
     "SHARED_REMEDIES",
     "TASKS",
+    "PlacementFacts",
     "Remedies",
+    "blocked_words",
+    "contact_advice",
+    "contact_sentence",
     "count_words",
     "fit_note",
+    "frame_lines",
+    "goal_words",
     "grasp_words",
+    "hit_words",
     "length_words",
     "moved_words",
+    "part_words",
+    "recorded_touch_words",
     "route_label",
     "route_sides",
     "routes_words",
     "segment_lines",
     "task_words",
+    "touch_words",
     "tune_summary",
     "verdict_lines",
 ]

@@ -84,6 +84,26 @@ def test_unreachable_handle_is_marked_and_told(app: Studio) -> None:
     assert wait_for(lambda: "cannot reach" not in robot.status.content)
 
 
+def test_an_out_of_reach_drag_says_where_the_gripper_stopped(app: Studio, page: ViserClient) -> None:
+    """The gripper stops at the closest pose it reaches; the words say how far short and, when its height changed
+    (a later key moves from there), by how much and where it is now."""
+    ctl = app.controller
+    handle = lambda: page.scene()["/teach/left_handle"]  # noqa: E731
+    assert page.wait_for(lambda _m: handle()["visible"] and handle()["position"] is not None)
+    start = np.array(handle()["position"], dtype=float)
+    target = (float(start[0] + 0.9), float(start[1]), float(start[2] + 0.4))  # far in front of it and high
+    page.drag("/teach/left_handle", target)
+    assert wait_for(lambda: any(title == "Out of reach" for _, title, _ in notes(app)))
+    body = next(b for _, title, b in notes(app) if title == "Out of reach")
+    reached = ctl.guide.pose("left")[0]
+    up = reached[2] - target[2]
+    assert abs(up) > 0.01  # the arm could not keep the handle's height
+    short = np.hypot(target[0] - reached[0], target[1] - reached[1])
+    assert re.search(rf"{short * 100:.0f} cm short of it", body), body
+    assert f"{'higher' if up > 0 else 'lower'} than the handle" in body, body
+    assert f"now {reached[2] * 100:.1f} cm high (z), the handle was at {target[2] * 100:.1f} cm" in body, body
+
+
 def test_demo_edits_redraw_the_traces(app: Studio, page: ViserClient) -> None:
     demos = app.controller.demos
     demos.set_visible(0, False)

@@ -13,7 +13,7 @@ from scipy.spatial.transform import Rotation
 
 from studio.app import Studio
 from studio.controller import FLOOR_Z
-from studio.controller.guiding import STEP_M
+from studio.controller.guiding import BIG_STEP_M, STEP_M
 from studio.panels._camera import CAMERA_ABOVE_FLOOR_M, VIEWS, lifted, set_view
 from studio.panels.move import KEYS
 from studio.panels.steps import VIEW_BUTTONS
@@ -54,6 +54,7 @@ def test_go_above_lists_the_objects_and_the_boxes_follow_the_gripper(app: Studio
     # every key shows on a button of the panel: the key script clicks that button
     labels = {o for grp in move.rows.values() for o in grp.options} | set(move.grip.options) | {move.home.label}
     assert set(KEYS.values()) <= labels
+    assert all(f"Shift+{code}" in KEYS for code in ("KeyW", "KeyS", "KeyA", "KeyD", "KeyQ", "KeyE"))  # 5 cm
 
 
 def test_view_buttons_and_the_camera_above_the_floor() -> None:
@@ -110,5 +111,7 @@ def test_a_tab_moves_and_turns_the_gripper_with_the_handle_and_the_buttons(app: 
     z0 = float(g.pose("left")[0][2])
     tab.set_value("Down / up (z)", "Q down")
     assert wait_for(lambda: abs(float(g.pose("left")[0][2]) - (z0 - STEP_M)) < 2e-3)
+    tab.set_value("Big steps (Shift)", "⇧E")  # what Shift+E (or E held a second) presses: 5 cm up
+    assert wait_for(lambda: abs(float(g.pose("left")[0][2]) - (z0 - STEP_M + BIG_STEP_M)) < 2e-3)
     tab.set_value("H home pose", True)
     assert wait_for(lambda: np.allclose(ctl.teaching.target_q("left"), ctl.teaching.home_q("left")))

@@ -105,8 +105,8 @@ def test_run_on_robot_follows_the_plan_and_moves_the_block_onto_the_pad(rig, tmp
     assert topics[0] == "running" and wait_for(lambda: topics[-1] == "done")  # told just after it ends
     m = re.fullmatch(
         r"The robot followed the plan within ([\d.]+) mm at every moment and ended ([\d.]+) mm from its last pose; "
-        r"the block ended back where it started, after its stop on the pad: ([\d.]+ cm|less than 1 mm) from where "
-        r"you put it — the skill works\.",
+        r"the block went onto the pad \(([\d.]+ cm|less than 1 mm) from its centre\), then ended back where it "
+        r"started, ([\d.]+ cm|less than 1 mm) from it — the skill works\.",
         st.result,
     )
     assert m, st.result

@@ -21,6 +21,7 @@ from studio.csv_io import (
     export_recording_csv,
     import_csv,
 )
+from tests.hostile.builders import make_rec
 
 SDK_HEADER = (
     "time,left_s0,left_s1,left_e0,left_e1,left_w0,left_w1,left_w2,left_gripper,"
@@ -54,6 +55,31 @@ def test_export_import_round_trip_within_csv_precision(tmp_path: Path) -> None:
     assert np.abs(back.t - r.t).max() <= 0.5e-6
     assert np.abs(back.q - r.q).max() <= 0.5 * 10.0**-JOINT_DECIMALS + 1e-15
     assert np.abs(back.gripper - r.gripper).max() <= 0.5e-4 + 1e-12
+
+
+@pytest.mark.parametrize("end", ["\r", "\r\n", "\n"], ids=["CR", "CRLF", "LF"])
+def test_every_line_end_a_spreadsheet_writes_is_read(tmp_path: Path, end: str) -> None:
+    """Issue 31 §5, today: a file with CR-only line ends was refused as "changed while it was read" (its rows
+    were counted by LF, then read by every line end). A 1 MiB read may also cut a CR LF in two."""
+    src = tmp_path / "lf.csv"
+    export_recording_csv(make_rec(n=9000), src)  # plausible joints all along
+    text = src.read_text(encoding="utf-8")
+    lf = import_csv(src)
+    p = tmp_path / "ends.csv"
+    p.write_bytes(text.replace("\n", end).encode())
+    got = import_csv(p)
+    assert len(got) == len(lf) == 9000
+    assert np.array_equal(got.t, lf.t) and np.array_equal(got.q, lf.q)
+    if end == "\r\n":  # a CR LF across the 1 MiB boundary of the row count
+        raw = text.replace("\n", end).encode()
+        cut = 1 << 20
+        if len(raw) > cut + 10:
+            i = raw.index(b"\r\n", cut - 200)
+            pad = cut - 1 - i  # spaces at the end of the header move that CR onto the boundary
+            head, rest = raw.split(b"\r\n", 1)
+            p.write_bytes(head + b" " * pad + b"\r\n" + rest)
+            assert p.read_bytes()[cut - 1 : cut + 1] == b"\r\n"
+            assert len(import_csv(p)) == 9000
 
 
 def test_a_long_file_name_gives_a_demo_name_within_the_limit(tmp_path: Path) -> None:

@@ -36,7 +36,25 @@ def test_a_miss_three_cm_to_the_side_says_by_how_much_and_how_much_closer() -> N
     assert note is not None and note.held is None and note.near == "cup"
     assert note.distance == pytest.approx(0.03) and note.closer == pytest.approx(0.03 - GRASP_XY_TOL)
     assert note.height == 0.0
-    assert grasp_words(note).startswith("Missed the cup by 3 cm — move 1 cm closer")
+    assert note.toward == pytest.approx((-(0.03 - GRASP_XY_TOL), 0.0))
+    assert grasp_words(note).startswith("Missed the cup by 3 cm — move 1 cm toward the robot,")
+
+
+@pytest.mark.parametrize(
+    ("gripper", "way"),
+    [
+        ((0.7, 0.1 - 0.06, -0.14), "move 3.5 cm to the robot's left"),  # the cup is to the robot's left
+        ((0.7, 0.1 + 0.045, -0.14), "move 2 cm to the robot's right"),
+        ((0.7 - 0.045, 0.1, -0.14), "move 2 cm away from the robot"),
+        ((0.7 + 0.04, 0.1 - 0.04, -0.14), "toward the robot and 2.2 cm to its left"),
+    ],
+)
+def test_a_miss_says_which_way_in_the_rooms_terms(gripper: tuple[float, float, float], way: str) -> None:
+    note = grasp_note(miss_at(gripper))
+    assert note is not None and note.near == "cup"
+    assert np.hypot(*note.toward) == pytest.approx(note.closer)  # the move asked for is the one that reaches it
+    words = grasp_words(note)
+    assert way in words and "closer" not in words, words
 
 
 def test_a_miss_above_the_cup_says_lower_it() -> None:
@@ -87,17 +105,32 @@ def test_moved_objects_are_measured_from_where_the_demonstrations_started() -> N
 
 
 # -- the controller ----------------------------------------------------------------------------------------
-def test_the_live_world_tells_the_latest_grasp(rig) -> None:
+def test_the_live_world_tells_the_latest_grasp_until_the_gripper_opens(rig) -> None:
+    """ "Holding the cup." is true while the gripper holds it: through Stop and Home, and no longer once the
+    gripper opens."""
     ctl, sim = rig
     assert ctl.scene.last_grip() is None
     plan = teach("stack-cup", 0)
+    opened = plan.event_poses("open")[0].time
+    n = int(np.searchsorted(plan.t, opened - 0.3))  # carried to the stack, the gripper still closed
     sim.teleport(plan.q[0], plan.gripper[0])
     sim.step(20)
-    sim.run_targets(plan.q, plan.gripper, batch=16)
+    ctl.teaching.start_recording()
+    sim.run_targets(plan.q[:n], plan.gripper[:n], batch=16)
     grip = ctl.scene.last_grip()
     assert grip is not None and grip[0].kind == "grasp"
     ev, note = grip
     assert grasp_words(note) == f"Holding the {ev.object}." and ctl.scene.last_grip()[0] is ev
+    ctl.teaching.stop_recording()  # Stop: it still holds the cup, and says so
+    assert ctl.scene.last_grip() is not None and ctl.scene.live.held("left") == ["cup"]
+    ctl.guide.home()  # Home: the arm goes home with the cup
+    sim.step(3000)
+    assert ctl.scene.last_grip() is not None and ctl.scene.live.held("left") == ["cup"]
+    ctl.teaching.set_gripper("left", 100.0)  # Open: it lets go, and no longer says it holds it
+    sim.step(1000)
+    assert ctl.scene.live.held("left") == []
+    assert ctl.scene.last_grip() is None
+    assert [e.kind for e in ctl.scene.live.events if e.kind in ("grasp", "release")] == ["grasp", "release"]
 
 
 def test_stop_says_saving_until_the_take_is_kept(rig) -> None:

@@ -324,3 +324,82 @@ def test_kinesthetic_teaching_records_the_robots_own_stamps_and_says_the_rate(be
     finally:
         ctl.close()
         ctl.shutdown()
+
+
+# -- issue 29: never a harmful target (decision 088) ---------------------------------------------------------------
+STOP_TOPIC = "/robot/set_super_stop"
+
+
+def test_the_estop_stops_first_and_never_holds_a_faulty_reading(bed: BaxterBed, robot: RosbridgeBaxter) -> None:
+    """A reading of 1e6 rad (a faulty encoder) went out as ``left_s0 = 1000000.0`` before the stop: now the stop
+    goes first, and a reading outside the joint limits is never a target."""
+    with bed.lock:
+        bed.q[0] = 1e6
+    assert wait_for(lambda: robot.state().q[0] == 1e6)
+    before = time.monotonic()
+    assert robot.emergency_stop() == "sent"
+    assert wait_for(lambda: bed.stopped and bool(bed.by_op("publish", STOP_TOPIC)))
+    time.sleep(0.3)
+    cmds = [o for t, o in bed.by_op("publish", LEFT_CMD) if t > before]
+    assert not cmds, f"a target went out after the e-stop: {cmds[:1]}"
+    assert robot.commands_refused >= 1
+
+
+def test_the_estop_hold_follows_the_stop_and_stays_within_the_limits(bed: BaxterBed, robot: RosbridgeBaxter) -> None:
+    robot.execute(plan_for(robot))
+    assert wait_for(lambda: robot.progress().t > 0.5)
+    before = time.monotonic()
+    assert robot.emergency_stop() == "sent"
+    assert wait_for(lambda: bool(bed.by_op("publish", STOP_TOPIC)))
+    time.sleep(0.3)
+    stop_at = min(t for t, _ in bed.by_op("publish", STOP_TOPIC) if t > before)
+    holds = [(t, o) for t, o in bed.by_op("publish", LEFT_CMD) if t > before]
+    assert all(t >= stop_at for t, _ in holds), "a hold reached the robot before the stop"
+    lo, hi = bed.lower[:7], bed.upper[:7]
+    for _, o in holds:
+        q = np.array(o["msg"]["command"])
+        assert np.all(q >= lo) and np.all(q <= hi)
+
+
+def test_after_a_lost_link_only_the_speed_ratio_goes_out_until_enable(bed: BaxterBed, robot: RosbridgeBaxter) -> None:
+    """Baxter keeps a speed ratio until told another (limb.py): a run leaves it at 1; after the link came back the
+    studio sets the SDK's 0.3 and sends nothing else until a person presses Enable robot."""
+    robot.execute(plan_for(robot, seconds=6.0))
+    assert wait_for(lambda: bed.speed_ratio[0] == 1.0 and robot.progress().t > 1.0)
+    bed.drop(3.0)
+    assert wait_for(lambda: robot.progress().state == "failed")
+    assert wait_for(lambda: robot.health().connected, timeout=40)
+    back = time.monotonic()
+    assert wait_for(lambda: bed.speed_ratio == [0.3, 0.3]), "the speed ratio was left at the run's"
+    assert "press Enable robot" in robot.health().message and not robot.health().ready
+    with pytest.raises(StudioError, match="Enable robot"):
+        robot.command_joints("left", robot.state().q[:7])
+    time.sleep(0.5)
+    assert not [o for t, o in bed.by_op("publish", LEFT_CMD) if t > back], "a joint command went out before Enable"
+    robot.enable()
+    assert robot.health().ready
+    target = robot.state().q[:7] + np.array([0.05, 0, 0, 0, 0, 0, 0])
+    robot.command_joints("left", target)
+    assert wait_for(lambda: bool(bed.commands_after(back)))
+
+
+def test_a_stall_never_replays_late_targets_in_a_burst(bed: BaxterBed, robot: RosbridgeBaxter) -> None:
+    """The connection's loop is busy for 0.5 s (a slow listener of the joint states) while the studio holds a
+    target at 100 Hz: the targets made meanwhile are dropped, never sent in a burst afterwards."""
+    slow = {"once": True}
+
+    def busy(batch: JointStateBatch) -> None:
+        if slow["once"] and time.monotonic() > start + 0.2:
+            slow["once"] = False
+            time.sleep(0.5)
+
+    robot.subscribe(busy)
+    start = time.monotonic()
+    robot.command_joints("left", robot.state().q[:7] + np.array([0.05, 0, 0, 0, 0, 0, 0]))
+    time.sleep(1.2)
+    times = np.array([t for t, _ in bed.by_op("publish", LEFT_CMD) if t > start])
+    assert times.size > 20 and not slow["once"]
+    after = times[int(np.argmax(np.diff(times))) + 1]  # the first target after the stall
+    burst = int(np.sum((times >= after) & (times < after + 0.03)))
+    assert burst <= 4, f"{burst} targets arrived within 30 ms after the stall"  # 40-50 without dropping
+    assert robot._link.skipped > 0  # the late targets were dropped (how many depends on how busy the machine is)

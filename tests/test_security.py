@@ -493,6 +493,22 @@ def test_the_guard_sits_where_viser_serves(app: Studio) -> None:
     assert "self._thread_executor.submit(" in src and "GuiEvent(client, client_id, handle)" in src
     assert app.server.gui._thread_executor is app.access.presses
     assert app.server.scene._thread_executor is app.access.presses
+    # The socket reader and sender of each tab (docs/decisions/089): looked up by name for each connection, and the
+    # connection class websockets makes (the request head read within its budget).
+    from studio.security import wire
+
+    src = inspect.getsource(infra.WebsockServer._background_worker)
+    assert "_message_consumer(connection, handle_incoming, message_class)" in src
+    assert "_message_producer(" in src and "message_buffer" in src
+    assert wire.hooked() and getattr(infra._message_consumer, "studio_hook", False)
+    assert isinstance(getattr(app.server._websock_server, "_live_connections", None), dict)
+    import websockets.asyncio.server as wss
+
+    assert "create_connection" in inspect.signature(wss.serve).parameters
+    from websockets.server import ServerProtocol  # studio.security.heads reads the head through these
+
+    assert "Request.parse(" in inspect.getsource(ServerProtocol.parse)
+    assert "self.reader.read_line" in inspect.getsource(ServerProtocol.parse)
 
 
 def test_the_studio_refuses_to_start_unprotected(sessions: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -112,3 +112,38 @@ def test_each_stretch_of_a_skill_that_follows_the_objects_in_words():
     )
     assert lines[1].startswith("Carrying the cup to the bottom cup (relative to the bottom cup): within 3 cm")
     assert "fair" in lines[1] and "poor" in lines[2] and "relative to the robot" in lines[2]
+
+
+def test_the_goal_in_words():
+    from studio.world import START, TABLE, Placement
+
+    kinds = {"block": "block", "pad": "pad", "cup": "cup", "bottom cup": "cup"}
+    assert W.goal_words((Placement("block", "pad"),), kinds) == "Put the block on the pad."
+    assert W.goal_words((Placement("cup", "bottom cup"),), kinds) == "Put the cup into the bottom cup."
+    there_and_back = (Placement("block", "pad"), Placement("block", START))
+    assert W.goal_words(there_and_back, kinds) == "Put the block on the pad, then back where it started."
+    assert W.goal_words((Placement("block", TABLE),), kinds) == "Put the block on the table where you put it."
+    assert W.goal_words((), kinds) == ""
+
+
+def test_how_the_frames_were_chosen_in_words():
+    from studio.core.segments import FrameChoice
+
+    one_place = (
+        FrameChoice("grasp", "block", "object:block", "object:block", told=False),
+        FrameChoice("release", "block", "object:pad", "object:pad", told=False),
+    )
+    assert W.frame_lines(one_place) == (
+        "Every demonstration had the block in the same place: I will follow the block for the grasp and the pad for "
+        "the release. Show me one more with the block somewhere else to be sure.",
+    )
+    against = (
+        FrameChoice("grasp", "block", "object:block", "object:block"),
+        FrameChoice("release", "block", "start:block", "object:pad", told=True, against=True),
+    )
+    assert W.frame_lines(against) == (
+        "Your demonstrations put the block down relative to where the block stood, not the pad: I follow your "
+        "demonstrations.",
+    )
+    agreed = (FrameChoice("grasp", "block", "object:block", "object:block"),)
+    assert W.frame_lines(agreed) == ()  # the demonstrations show what the meaning says: nothing to tell

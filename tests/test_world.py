@@ -3,7 +3,9 @@ plain words, from real runs of the scripted teacher (studio/teacher.py) through 
 
 from __future__ import annotations
 
+import itertools
 import json
+import re
 
 import numpy as np
 import pytest
@@ -15,18 +17,25 @@ from studio.core.types import ARMS
 from studio.robot_backend.simulated import SimulatedBaxter
 from studio.teacher import TASKS, recording_from_plan, teach
 from studio.world import (
+    CUP_GRASP_HEIGHT,
     DEFAULT_SIZE,
+    FLOOR_Z,
     NEST_STEP,
     PRESETS,
+    START,
+    TABLE_CENTER,
+    TABLE_SIZE,
     TABLE_TOP_Z,
+    Placement,
     Scene,
     World,
     WorldEvent,
     events_from_dict,
     events_to_dict,
     preset,
+    read_goal,
+    session_goal,
     simulate,
-    task_goal,
     task_result,
 )
 
@@ -52,8 +61,10 @@ def teacher_variant(monkeypatch: pytest.MonkeyPatch):
 
 
 def goal_of(task: str, arm: str = "left", seeds=(0, 1, 2)):
+    """The goal of the task set-up, matched to demonstrations of the scripted teacher, and its scene."""
     scene = preset(task, ("left", "right") if arm == "both" else (arm,))
-    return task_goal([run_plan(teach(task, s, arm=arm), scene).events for s in seeds]), scene
+    events = [run_plan(teach(task, s, arm=arm), scene).events for s in seeds]
+    return session_goal(scene.preset, scene.goal, scene.names(), events), scene
 
 
 # -- the scene -------------------------------------------------------------------------------------------------
@@ -291,20 +302,26 @@ def test_bad_streams_are_refused_or_skipped() -> None:
 @pytest.mark.parametrize("task", TASKS)
 def test_result_a_good_run_works(task: str) -> None:
     goal, scene = goal_of(task)
-    assert goal.demos == 3 and len(goal.objects) == 1
+    assert goal.source == "set-up" and goal.objects == (["cup"] if task == "stack-cup" else ["block"])
     res = task_result(run_plan(teach(task, 7), scene), goal)
     assert res.ok, res.text
-    name = "cup" if task == "stack-cup" else "block"
-    assert res.text.startswith(f"The {name} ended ") and res.text.endswith("from where you put it — the skill works.")
+    if task == "stack-cup":
+        assert re.fullmatch(r"The cup ended in the bottom cup, [\d.]+ cm from its centre\.", res.text), res.text
+    else:  # the scripted teacher brings the block back: the goal's pad, then where it started
+        assert re.fullmatch(
+            r"The block went onto the pad \([\d.]+ cm from its centre\), then ended back where it started, "
+            r"([\d.]+ cm|less than 1 mm) from it\.",
+            res.text,
+        ), res.text
     assert res.objects[0].distance is not None and res.objects[0].distance < 0.02
 
 
 def test_result_both_arms() -> None:
     goal, scene = goal_of("stack-cup", "both", seeds=(0, 1))
-    assert sorted(g.name for g in goal.objects) == ["cup (left)", "cup (right)"]
-    assert {g.arm for g in goal.objects} == {"left", "right"}
+    assert sorted(goal.objects) == ["cup (left)", "cup (right)"]
+    assert {goal.arm(n) for n in goal.objects} == {"left", "right"}
     res = task_result(run_plan(teach("stack-cup", 5, arm="both"), scene), goal)
-    assert res.ok and res.text.count("the skill works") == 2
+    assert res.ok and res.text.count("ended in the bottom cup") == 2, res.text
 
 
 def test_result_never_picked_up_the_gripper_closed_above_it(teacher_variant) -> None:
@@ -367,8 +384,10 @@ def test_result_dropped_early() -> None:
     g[rec.t >= early, 0] = teacher.OPEN_WIDTH["stack-cup"]
     res = task_result(simulate(rec.t, rec.q, g, scene), goal)
     assert res.objects[0].verdict == "dropped early", res.text
-    assert res.text.startswith("The cup was dropped early: it landed ")
-    assert res.text.endswith("from where you put it, because the gripper opened before it got there.")
+    assert res.text.startswith("The cup was dropped early: it landed beside the bottom cup, ")
+    assert res.text.endswith(
+        "from its centre, because the gripper opened before it got there — the skill did not do the task."
+    ), res.text
     assert res.objects[0].distance is not None and res.objects[0].distance > 0.05
 
 
@@ -378,8 +397,10 @@ def test_result_released_in_the_wrong_place(teacher_variant) -> None:
     teacher_variant(PICK_PLACE_B=(b[0], b[1] + 0.07, b[2]))  # puts the block down 7 cm to the robot's left
     res = task_result(run_plan(teach("pick-place", 7), scene), goal)
     assert res.objects[0].verdict == "wrong place"
-    assert res.text.startswith(
-        "The block was released in the wrong place the first time: 7 cm to the robot's left of where you put it"
+    assert re.fullmatch(
+        r"The block was released in the wrong place the first time: it landed beside the pad, \d cm from its "
+        r"centre — the skill did not do the task\.",
+        res.text,
     ), res.text
 
 
@@ -389,12 +410,11 @@ def test_result_ended_elsewhere_and_nothing_to_check() -> None:
     moved = scene.move("bottom cup", (0.60, -0.20, 0.0))
     res = task_result(run_plan(teach("stack-cup", 7), moved), goal)
     assert res.objects[0].verdict == "wrong place"
-    assert res.text == (
-        "The cup was released in the wrong place: 2 cm below where you put it "
-        "(it landed on the table, not on the bottom cup)."
+    assert re.fullmatch(
+        r"The cup ended beside the bottom cup, \d+ cm from its centre — the skill did not do the task\.", res.text
     ), res.text
-    empty = task_goal([run_plan(teach("stack-cup", 0), preset("empty table")).events, []])
-    assert empty.objects == ()
+    empty = read_goal([run_plan(teach("stack-cup", 0), preset("empty table")).events, []])
+    assert empty.placements == () and empty.source == ""
     res = task_result(run_plan(teach("stack-cup", 7), scene), empty)
     assert not res.ok and res.text.startswith("There is nothing to check")
 
@@ -407,9 +427,9 @@ def test_demos_that_disagree_are_left_out_with_a_note() -> None:
     g[rec.t >= plan.event_poses("close")[1].time - 0.2, 0] = 88.0  # this demo picks the block up only once
     events = [run_plan(teach("pick-place", s), scene).events for s in (0, 1)]
     events.append(simulate(rec.t, rec.q, g, scene).events)
-    goal = task_goal(events)
-    assert goal.objects[0].demos == 2 and len(goal.objects[0].releases) == 2
-    assert goal.notes == ("2 of 3 demonstrations pick up the block twice; the others are left out of the check.",)
+    goal = read_goal(events)
+    assert [p.onto for p in goal.of("block")] == ["pad", START]
+    assert goal.notes == ("2 of 3 demonstrations put the block down twice; the others are left out of the goal.",)
 
 
 def test_a_replay_starts_from_the_recorded_poses_even_mid_grasp() -> None:
@@ -431,7 +451,7 @@ def test_a_replay_starts_from_the_recorded_poses_even_mid_grasp() -> None:
         # (the grip is taken again from the first replayed sample: encoder noise moves it by < 2 mm)
         assert p.name == r.name and np.linalg.norm(np.subtract(p.position, r.position)) < 2e-3
     # The live world with a recorded path judges a run as simulate() does.
-    goal = task_goal(
+    goal = read_goal(
         [
             simulate(r.t, r.q, r.gripper, scene).events
             for r in (recording_from_plan(teach("pick-place", s)) for s in (0, 2))
@@ -457,13 +477,16 @@ def test_result_moved_again_after_it_was_put_down() -> None:
         rec = recording_from_plan(plan)
         n = int(np.searchsorted(rec.t, plan.event_poses("open")[0].time + 2.0))
         demos.append(simulate(rec.t[:n], rec.q[:n], rec.gripper[:n], scene).events)
-    goal = task_goal(demos)
-    assert len(goal.objects[0].releases) == 1
+    goal = session_goal(scene.preset, scene.goal, scene.names(), demos)
+    assert goal.placements == (Placement("block", "pad", goal.placements[0].spot),)
     # ... and a run that does the whole task: put on the pad, then picked up again and taken back to A.
     res = task_result(run_plan(teach("pick-place", 7), scene), goal)
     assert res.objects[0].verdict == "moved"
-    assert res.text.startswith("The block ended ") and "to the robot's left of where you put it" in res.text
-    assert res.text.endswith(": it was picked up again afterwards."), res.text
+    assert re.fullmatch(
+        r"The block ended beside the pad, \d+ cm from its centre: it was picked up again afterwards — the skill did "
+        r"not do the task\.",
+        res.text,
+    ), res.text
 
 
 def test_distances_in_plain_words() -> None:
@@ -476,3 +499,83 @@ def test_distances_in_plain_words() -> None:
         "25 cm",
         "1.2 m",
     ]
+
+
+# -- the world's own claims (issue 27) ---------------------------------------------------------------------------
+DOWN = np.array([0.0, 0.0, 1.0, 0.0])  # gripper pointing down (as the teacher holds it)
+
+
+def stream_through(points, closes: int, opens: int, step_m: float = 0.01):
+    """A joint stream (t, q, gripper) whose left gripper goes straight through ``points`` (IK every ``step_m``
+    along each straight stretch, 20 ms apart), closing on arriving at point ``closes`` and opening at ``opens``."""
+    b = Baxter.load()
+    rng = np.random.default_rng(1)
+    q_prev = b.neutral("left")
+    qs, gs = [], []
+    closed = False
+    for i, (a, c) in enumerate(itertools.pairwise(points)):
+        a, c = np.asarray(a, dtype=float), np.asarray(c, dtype=float)
+        n = max(1, int(np.ceil(np.linalg.norm(c - a) / step_m)))
+        for u in np.linspace(0.0, 1.0, n + 1)[(1 if i else 0) :]:
+            for seed in [q_prev, b.neutral("left"), *b.random_configuration("left", rng, 20)]:
+                res = b.ik("left", a + u * (c - a), DOWN, seed, max_iterations=200)
+                if res.converged:
+                    break
+            assert res.converged, f"cannot reach {a + u * (c - a)}"
+            q_prev = res.q
+            qs.append(np.concatenate([res.q, b.neutral("right")]))
+            gs.append([0.0 if closed else 100.0, 100.0])
+        if i + 1 == closes:
+            closed = True
+        if i + 1 == opens:
+            closed = False
+        for _ in range(10):  # a pause at each point: the gripper closes or opens there
+            qs.append(qs[-1])
+            gs.append([0.0 if closed else 100.0, 100.0])
+    q = np.array(qs)
+    return np.arange(len(q)) * 0.02, q, np.array(gs, dtype=float)
+
+
+def test_a_cup_goes_into_another_only_through_its_opening() -> None:
+    """A cup has walls: lowered from above it goes in; slid in sideways below the other cup's rim, it meets the
+    wall, and it ends beside that cup, not in it."""
+    scene = preset("empty table").add("cup", (0.75, 0.30, 0.0), name="bottom cup").add("cup", (0.60, 0.30, 0.0))
+    grip_z = TABLE_TOP_Z + CUP_GRASP_HEIGHT
+    nest_z = TABLE_TOP_Z + NEST_STEP + CUP_GRASP_HEIGHT + 0.005
+    from_above = [
+        (0.60, 0.30, 0.15),
+        (0.60, 0.30, grip_z),
+        (0.60, 0.30, 0.15),
+        (0.75, 0.30, 0.15),
+        (0.75, 0.30, nest_z),
+    ]
+    t, q, g = stream_through([*from_above, (0.75, 0.30, 0.15)], closes=1, opens=4)
+    nested = next(p for p in simulate(t, q, g, scene).final if p.name == "cup")
+    assert nested.on == "bottom cup" and nested.position[2] == pytest.approx(TABLE_TOP_Z + NEST_STEP)
+    low = TABLE_TOP_Z + 0.03 + CUP_GRASP_HEIGHT  # the carried cup's bottom 3 cm above the table: below the rim
+    sideways = [(0.60, 0.30, 0.15), (0.60, 0.30, grip_z), (0.60, 0.30, low), (0.75, 0.30, low), (0.75, 0.30, 0.15)]
+    t, q, g = stream_through(sideways, closes=1, opens=3)
+    release = next(e for e in simulate(t, q, g, scene).events if e.kind == "release")
+    cup = release.pose("cup")
+    assert cup is not None and cup.on == "table", cup
+    bottom = scene.object("bottom cup").position
+    assert np.hypot(cup.position[0] - bottom[0], cup.position[1] - bottom[1]) >= 0.07 - 1e-9  # beside it
+
+
+def test_an_object_whose_centre_is_beyond_the_tables_edge_falls() -> None:
+    """Nothing standing on the table holds up what is beyond its edge; an object left in the air comes down."""
+    edge = TABLE_CENTER[0] + TABLE_SIZE[0] / 2
+    scene = preset("empty table").add("pad", (edge - 0.02, 0.0, 0.0))  # the pad sticks out 4 cm
+    on_pad = scene.add("block", (edge - 0.03, 0.0, 0.1))  # centre over the pad, on the table side: on the pad
+    assert on_pad.object("block").position[2] == pytest.approx(TABLE_TOP_Z + 0.004)
+    beyond = scene.add("block", (edge + 0.02, 0.0, 0.1))  # centre over the pad's overhang: falls
+    assert beyond.object("block").position[2] == pytest.approx(FLOOR_Z)
+    # The pad moved away from under the block: the block comes down onto the table.
+    moved = on_pad.move("pad", (0.6, 0.4, 0.0))
+    assert moved.object("block").position[2] == pytest.approx(TABLE_TOP_Z)
+    # A saved scene whose block stands half over the edge (as an older studio could leave it): the world drops it.
+    raw = preset("empty table").add("block", (0.7, 0.0, 0.0)).to_dict()
+    raw["objects"][0]["position"] = [edge + 0.01, 0.0, TABLE_TOP_Z]
+    world = World(Scene.from_dict(raw))
+    (block,) = world.poses()
+    assert block.on == "floor" and block.position[2] == pytest.approx(FLOOR_Z)

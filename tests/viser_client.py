@@ -66,6 +66,8 @@ class ViserClient:
             open_timeout=20,
         )
         self.messages: list[dict[str, Any]] = []
+        #: called on the reading thread with each frame's messages as they arrive (benches time arrivals here)
+        self.watchers: list[Callable[[list[dict[str, Any]]], None]] = []
         self.closed = threading.Event()
         self._lock = threading.Lock()
         self._thread = threading.Thread(target=self._read, daemon=True)
@@ -99,6 +101,8 @@ class ViserClient:
                     msgs = decode_frame(data)
                     with self._lock:
                         self.messages.extend(msgs)
+                    for watch in list(self.watchers):
+                        watch(msgs)
         except Exception:
             self.closed.set()
 

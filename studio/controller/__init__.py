@@ -29,11 +29,12 @@ from studio.controller.suggest import Suggesting, SuggestState
 from studio.controller.teaching import Reach, Teaching
 from studio.controller.training import FRAME_WORDS, MODE_WORDS, SkillVerdict, Training, UsedDemo
 from studio.controller.undo import Undo
+from studio.controller.unsaved import UnsavedTakes
 from studio.controller.view import Layer, Step, View
 from studio.core.kinematics import Baxter
 from studio.robot_backend.base import RobotBackend
 from studio.storage import Session, SessionStore
-from studio.world import FLOOR_Z, GraspNote, ObjectPose, Scene, TaskResult, WorldEvent, WorldObject
+from studio.world import FLOOR_Z, Goal, GraspNote, ObjectPose, Placement, Scene, TaskResult, WorldEvent, WorldObject
 from studio.world import PRESETS as SCENE_PRESETS
 
 log = logging.getLogger(__name__)
@@ -70,9 +71,15 @@ class Controller:
         # bound: a part is asked only once all exist); it subscribes to the events it follows itself.
         self.view = View(ctx.events)
         self.undo = Undo(ctx)  # a discarded take or a deleted demonstration, for a while
+        self.unsaved = UnsavedTakes(ctx)  # takes a full disk did not take yet, saved when it has space
         self.demos = Demos(ctx, keep=self.undo.keep)
         self.placed = PlacedSkills(ctx)  # the skills where the objects are now: what preview and runs play
-        self.playback = Player(ctx, guard=lambda: self.execution.check_not_running(), skills=self.placed.get)
+        self.playback = Player(
+            ctx,
+            guard=lambda: self.execution.check_not_running(),
+            skills=self.placed.get,
+            step=lambda: self.view.step.value,
+        )
         self.scene = SceneActions(ctx, backend, player=self.playback)
         self.teaching = Teaching(
             ctx,
@@ -80,6 +87,8 @@ class Controller:
             takes=self.scene,
             motion_guard=lambda d: self.execution.check_free(d),
             keep=lambda recording, events: self.undo.keep(recording, events),
+            unsaved=self.unsaved.keep,
+            contacts=self.scene.first_contact,
         )
         self.guide = Guiding(ctx, self.teaching, objects=lambda: self.scene.live.poses())
         self.keypoints = KeypointTuning(ctx, self.demos)
@@ -101,6 +110,7 @@ class Controller:
             unload_playback=self.playback.unload,
             skills=self.placed.get,
             warnings=self.placed.warnings,
+            contacts=self.scene.contact_reason,
         )
         self.sessions = SessionActions(ctx, persist=self.keypoints.persist)
 
@@ -160,6 +170,7 @@ class Controller:
     def close(self) -> None:
         """Keep a running take and unsaved thresholds (failures are logged), and stop the key-point thread."""
         self.teaching.save_running_recording()
+        self.unsaved.close()  # what waits for disk space: a last try, else a spill folder (the next open adds it)
         try:
             self.keypoints.persist()
         except Exception:
@@ -191,6 +202,7 @@ __all__ = [
     "Display",
     "Events",
     "ExecutionActions",
+    "Goal",
     "GraspNote",
     "Guiding",
     "KeypointItem",
@@ -202,6 +214,7 @@ __all__ = [
     "LogNotifier",
     "Notifier",
     "ObjectPose",
+    "Placement",
     "Playback",
     "PlaybackKind",
     "Player",
@@ -221,6 +234,7 @@ __all__ = [
     "Topic",
     "Training",
     "Undo",
+    "UnsavedTakes",
     "UsedDemo",
     "View",
     "WorldEvent",

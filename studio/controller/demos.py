@@ -72,6 +72,8 @@ class Demos:
         self.keep: Keep = keep or _forget
         self._cache: dict[tuple[int, str], tuple[Recording, Demo, int]] = {}
         self._told_stride = 1
+        #: names given in this session, old → new: what became of a name a press in another tab still shows
+        self._renamed: dict[str, str] = {}
         ctx.events.on(Topic.DEMOS, self._prune)
         ctx.events.on(Topic.SESSION, self.clear)
 
@@ -182,7 +184,10 @@ class Demos:
         if name in names and names[i] != name:
             raise StudioError(f'There is already a demonstration called "{name}"; choose another name.')
         with self.ctx.lock:
+            old = self.ctx.session.recordings[i].name if 0 <= i < len(self.ctx.session.recordings) else None
             self.ctx.session.rename_demo(i, name)  # a hidden demo stays hidden under its new name
+            if old is not None and old != name:
+                self._renamed[old] = name
         self.changed()
 
     def trim(self, i: int, t0: float, t1: float) -> None:
@@ -201,15 +206,37 @@ class Demos:
             session.trim_demo(i, t0, t1, events=events)
         self.changed()
 
+    def renamed_to(self, name: str) -> str | None:
+        """The name the demonstration called ``name`` has now, when it was renamed since (None otherwise)."""
+        seen, new = {name}, self._renamed.get(name)
+        while new is not None and new in self._renamed and new not in seen:
+            seen.add(new)
+            new = self._renamed[new]
+        return new if new is not None and new in self.names() else None
+
+    def gone(self, name: str) -> str:
+        """What became of the demonstration called ``name``, which is no longer listed, in words."""
+        new = self.renamed_to(name)
+        if new is not None:
+            return f"{shown(name)} was renamed to {shown(new)}"
+        return f"{shown(name)} was deleted"
+
     def delete(self, i: int, *, name: str | None = None) -> None:
         """Delete demonstration ``i``; it is kept in memory a while for Undo (:mod:`studio.controller.undo`).
-        ``name``: the one the teacher chose; when ``i`` is another by now (another tab deleted one first), nothing
-        is deleted and the teacher is told."""
+        ``name``: the one the teacher chose, deleted wherever it is in the list by now; when there is none of that
+        name any more (another tab deleted or renamed it first), nothing is deleted and the teacher is told."""
         with self.ctx.lock:
             session = self.ctx.session
+            names = [r.name for r in session.recordings]
+            if name is not None:
+                if name not in names:
+                    new = self.renamed_to(name)
+                    again = f" To delete it, choose {shown(new)} and press Delete again." if new else ""
+                    raise StudioError(
+                        f"{self.gone(name)} (in another tab?) before your press arrived; nothing was deleted.{again}"
+                    )
+                i = names.index(name)
             rec = session.recordings[i] if 0 <= i < len(session.recordings) else None
-            if name is not None and (rec is None or rec.name != name):
-                raise StudioError(f"{shown(name)} was deleted already (in another tab?); nothing else was deleted.")
             events = session.objects.events(session.demo_files[i]) if rec is not None else ()
             hidden = rec is not None and rec.name in session.hidden_demos
             session.delete_demo(i)
@@ -234,3 +261,4 @@ class Demos:
         """Forget everything cached (another session was opened)."""
         self._cache = {}
         self._told_stride = 1
+        self._renamed = {}

@@ -37,6 +37,7 @@ from studio.controller.run import (
     wait_confirmed,
 )
 from studio.core import sampling
+from studio.core.collision import Touch
 from studio.core.errors import StudioError
 from studio.core.execution import (
     ExecutionPlan,
@@ -48,6 +49,7 @@ from studio.core.execution import (
 from studio.core.ik_path import Feasibility
 from studio.core.types import Arm, Recording, Skill
 from studio.robot_backend.base import ExecutionProgress, RobotBackend, RobotHealth
+from studio.words import contact_advice, touch_words
 from studio.world import TaskResult
 
 log = logging.getLogger(__name__)
@@ -73,7 +75,7 @@ class ExecutionActions:
         objects: the objects on the table during a run; hands: whether a take is recorded, and forgetting the
             hand-moved targets once the robot moved by itself; training_busy, unload_playback: what a run
             checks and does first; skills: what a run plays (default: the session's, as learned); warnings:
-            objects where no demonstration put them, in words.
+            objects where no demonstration put them, in words; contacts: what the skills would touch, in words.
     """
 
     def __init__(
@@ -87,6 +89,7 @@ class ExecutionActions:
         unload_playback: Callable[[], None],
         skills: Callable[[], Mapping[Arm, Skill]] | None = None,
         warnings: Callable[[], list[str]] = list,
+        contacts: Callable[[], str] = str,
     ) -> None:
         self.ctx = ctx
         self.backend = backend
@@ -109,6 +112,8 @@ class ExecutionActions:
         self.robot = RobotActions(ctx, backend)
         #: Objects where no demonstration put them, in words (told when a run starts).
         self.warnings = warnings
+        #: What the skills touch that they must not, in words ("" when nothing; decision 087).
+        self.contacts = contacts
         #: The skills a run plays (the controller's: placed where the objects are now).
         self.skills: Callable[[], Mapping[Arm, Skill]] = skills or (lambda: ctx.session.skills)
         ctx.on_leave(self._check_leave)
@@ -160,6 +165,9 @@ class ExecutionActions:
         bad = [f.message for f in self.feasibility().values() if not f.ok]
         if bad:
             return " ".join(bad) + " The robot does not run a skill it cannot follow."
+        touching = self.contacts()
+        if touching:
+            return f"{touching} The robot does not run a skill that would hit something."
         return ""
 
     def check_free(self, doing: str) -> None:
@@ -199,7 +207,8 @@ class ExecutionActions:
             hold_still(self.backend)
             st = self.backend.state()
             plan = plan_execution(jts, st.q, st.gripper, self.ctx.baxter, rate_hz=self.backend.rate_hz)
-            run = Run.start(plan, self.backend, self.scene, self.ctx.baxter)
+            self._check_approach(plan, st.q)
+            run = Run.start(plan, self.backend, self.scene, self.ctx.baxter, on_touch=self._stop_at_contact)
             with self._lock:
                 self._run = self._last = run
                 self.plan, self.recording, self.report, self.task, self.verdict = plan, None, None, None, None
@@ -210,6 +219,32 @@ class ExecutionActions:
         self.ctx.emit(Topic.EXECUTION)
         if said:
             self.ctx.notify("The objects are somewhere new", " ".join(said), kind="warning")
+
+    def _check_approach(self, plan: ExecutionPlan, q_now: np.ndarray) -> None:
+        """Refuse, in words, a run whose way to the skill's start would touch something (the skill itself is
+        checked with the preview: :attr:`contacts`)."""
+        n = round(plan.skill_start * plan.rate_hz)
+        if n < 2:
+            return
+        step = max(1, int(plan.rate_hz / 100.0))
+        found = self.scene.touches_at(plan.q[:n:step], plan.gripper[:n:step], q_now)
+        if found:
+            raise StudioError(
+                f"On the way to the skill's start, {touch_words(found[0])}. Move the arm near the skill's start by "
+                "hand first (clear of the table and the objects), then press Run on robot again."
+            )
+
+    def _stop_at_contact(self, touch: Touch) -> None:
+        """The robot touches something during a run: the emergency stop, and why in words; an object it ran into
+        is pushed or knocked over in the scene."""
+        self.emergency_stop()
+        t = self.backend.progress().t
+        self.scene.hit(touch, self.backend.state().q)
+        with self._lock:
+            msg = stopped_words(touch, t)
+            self._status = dataclasses.replace(self._status, estop=True, message=msg)
+        self.ctx.emit(Topic.EXECUTION)
+        self.ctx.notify("The robot touched something", msg, kind="warning")
 
     def stop(self) -> None:
         """Controlled stop: the robot slows down along the skill's path to rest."""
@@ -296,6 +331,8 @@ class ExecutionActions:
                 self.recording, self.report, self.task = judged.recording, judged.report, judged.task
                 self.verdict = verdict
                 result, ok = judgement(p, verdict, judged.task), p.state == "done" and verdict.works
+                if run.touch is not None:
+                    result, ok = f"The robot {touch_words(run.touch, 'did')}, and was stopped. {result}", False
         except Exception as exc:
             log.exception("judging the run on the robot")
             result, ok = f"The run could not be compared with its plan ({exc}).", False
@@ -305,7 +342,8 @@ class ExecutionActions:
         with self._lock:
             st = self._status
             duration = p.duration or run.plan.duration
-            self._status = RunStatus(p.state, p.t, duration, ended(p, st.estop), result, ok, st.estop)
+            said = stopped_words(run.touch, p.t) if run.touch is not None and st.estop else ended(p, st.estop)
+            self._status = RunStatus(p.state, p.t, duration, said, result, ok, st.estop)
             if self._run is run:
                 self._run = None
         self.ctx.emit(Topic.EXECUTION)
@@ -350,6 +388,15 @@ class ExecutionActions:
         if run is None:
             return
         abandon(run, self.backend)
+
+
+def stopped_words(touch: Touch, t: float) -> str:
+    """A run stopped at a contact, in words: "The robot was stopped at 7.3 s: the left fingers touched the table.
+    When it is safe, press Release emergency stop, then lift the gripper first."."""
+    return (
+        f"The robot was stopped at {t:.1f} s: {touch_words(touch, 'did')}. When it is safe, press Release emergency "
+        f"stop, then {contact_advice(touch)}."
+    )
 
 
 class RobotActions:

@@ -1,12 +1,11 @@
-"""Guiding the taught gripper in the room's axes: the handle, steps (keys and buttons; a held key goes faster),
+"""Guiding the taught gripper in the room's axes: the handle, steps (keys and buttons, 1 cm or 5 cm),
 a typed position, "Go above" an object, and the home posture. Every move goes through the teaching IK, which
-keeps the arm off its joint limits (docs/decisions/070); the keys: docs/decisions/071."""
+keeps the arm off its joint limits (docs/decisions/070); the keys: docs/decisions/071, 092."""
 
 from __future__ import annotations
 
 import math
 import threading
-import time
 from collections.abc import Callable, Sequence
 from typing import Protocol
 
@@ -20,13 +19,10 @@ from studio.core.rotations import matrix_from_quat_wxyz, quat_wxyz_from_matrix
 from studio.core.types import Arm, check_arm
 from studio.world import ObjectPose
 
-#: One step of a key or an arrow button, m.
+#: One step of a key or an arrow button, m; with Shift (and a key held a while: :mod:`studio.panels._keys`),
+#: :data:`BIG_STEP_M`.
 STEP_M = 0.01
-#: Presses of the same key closer together than this (s) are a held key: the step grows.
-HELD_S = 0.2
-#: A held key's step doubles after this many presses, up to :data:`MAX_STEP_M`.
-PRESSES_PER_DOUBLING = 6
-MAX_STEP_M = 0.04
+BIG_STEP_M = 0.05
 #: "Go above": the gripper point (or the bottom of what it carries) this far above the object's top, m.
 ABOVE_M = 0.03
 #: The room's axes by name: x away from the robot, y to its left, z up.
@@ -58,7 +54,6 @@ class Guiding:
         self._lock = threading.Lock()
         self._moving = threading.RLock()  # a step reads where the gripper is going, then moves it: one at a time
         self._asked: dict[Arm, tuple[np.ndarray, np.ndarray]] = {}  # arm: (orientation asked, joints it gave)
-        self._held: tuple[Arm, int, int, float, int] | None = None  # arm, axis, sign, last press, presses
         self._chosen: str | None = None
         self._key_arm: Arm | None = None
         self._turning = False
@@ -132,26 +127,21 @@ class Guiding:
             p[AXES[axis]] = value_m
             return self.move(arm, p)
 
-    def step(self, axis: str, sign: int, arm: Arm | None = None, *, now: float | None = None) -> IkResult:
-        """One step of the gripper along a room axis (``sign`` +1 or -1); presses of the same key within
-        :data:`HELD_S` of each other take longer steps (a held key)."""
+    def step(self, axis: str, sign: int, arm: Arm | None = None, *, big: bool = False) -> IkResult:
+        """One step of the gripper along a room axis (``sign`` +1 or -1): :data:`STEP_M`, or :data:`BIG_STEP_M`
+        with ``big``."""
         if axis not in AXES or sign not in (1, -1):
             raise InvalidInput("A step goes along x, y or z, forwards (+1) or back (-1).")
         arm = self.key_arm if arm is None else check_arm(arm)
-        now = time.monotonic() if now is None else now
-        with self._lock:
-            h = self._held
-            presses = h[4] + 1 if h is not None and h[:3] == (arm, AXES[axis], sign) and now - h[3] < HELD_S else 0
-            self._held = (arm, AXES[axis], sign, now, presses)
-        size = min(STEP_M * 2.0 ** (presses // PRESSES_PER_DOUBLING), MAX_STEP_M)
         with self._moving:
             p = self.pose(arm)[0]
-            p[AXES[axis]] += sign * size
+            p[AXES[axis]] += sign * (BIG_STEP_M if big else STEP_M)
             return self.move(arm, p)
 
     def above(self, name: str | None = None, arm: Arm | None = None) -> IkResult:
         """Send the gripper above an object (default: the chosen one), pointing down, its heading kept; what
-        it carries ends :data:`ABOVE_M` above the object's top (the gripper point itself when empty)."""
+        it carries ends :data:`ABOVE_M` above the object's top (the gripper point itself when empty). It goes over,
+        never through: up to that height first, or across first when it is lower."""
         name = self._chosen if name is None else name
         arm = self.key_arm if arm is None else check_arm(arm)
         poses = {o.name: o for o in self.objects()}
@@ -165,14 +155,20 @@ class Guiding:
         hang = max((p_now[2] - o.position[2] for o in carried), default=0.0)
         top = obj.position[2] + obj.size[2]
         target = np.array([obj.position[0], obj.position[1], top + ABOVE_M + max(hang, 0.0)])
-        return self.move(arm, target, pointing_down(w_now))
+        down = pointing_down(w_now)
+        # over, never through: up to the height first when it is higher, across first when it is lower
+        via = np.array([*(p_now[:2] if target[2] > p_now[2] else target[:2]), max(target[2], p_now[2])])
+        if float(np.linalg.norm(via - target)) > 1e-3 and float(np.linalg.norm(via - p_now)) > 1e-3:
+            first = self.move(arm, via, down)
+            if not first.converged:
+                return first
+        return self.move(arm, target, down)
 
     def home(self) -> None:
         """Send the taught arms back to their home posture."""
         self.hands.home()
         with self._lock:
             self._asked.clear()
-            self._held = None
 
 
 def pointing_down(wxyz: np.ndarray) -> np.ndarray:

@@ -268,7 +268,7 @@ class KeypointTuning:
         """The shown demos of ``arm`` as a skill that follows the objects learns them (each stretch in its
         object's frame, placed where the objects are now), or None when the session's skills keep fixed places
         or these demos cannot follow the objects."""
-        from studio.controller.placed import demo_objects_of
+        from studio.controller.placed import demo_objects_of, rules_of
         from studio.core.segment_view import demos_in_frames
         from studio.world.relative import objects_now
 
@@ -280,8 +280,12 @@ class KeypointTuning:
         hit = self._framed.get(arm)
         if hit is not None and hit[0] is session and hit[1] is scene and hit[2] == sig:  # same objects, not equal
             return hit[3]
-        objs = demo_objects_of(session, arm, [i for i, _ in demos])
-        moved = None if isinstance(objs, str) else demos_in_frames([d for _, d in demos], objs, objects_now(scene))
+        indices = [i for i, _ in demos]
+        objs = demo_objects_of(session, arm, indices)
+        moved = None
+        if not isinstance(objs, str):
+            rules = rules_of(session, objs, indices)
+            moved = demos_in_frames([d for _, d in demos], objs, objects_now(scene), rules=rules)
         self._framed[arm] = (session, scene, sig, moved)
         return moved
 

@@ -18,10 +18,12 @@ from studio.core.frames import DemoObjects
 from studio.core.types import Arm, Skill
 from studio.storage import Session
 from studio.words import moved_words
+from studio.world import Scene
 from studio.world.events import ObjectPose
+from studio.world.goal import Goal, session_goal
 from studio.world.moved import moved_objects
 from studio.world.reach import one_place, outside, suggestion
-from studio.world.relative import demo_objects, objects_now
+from studio.world.relative import demo_objects, objects_now, release_rules
 
 
 def demo_objects_of(session: Session, arm: Arm, indices: Sequence[int]) -> list[DemoObjects] | str:
@@ -38,6 +40,21 @@ def demo_objects_of(session: Session, arm: Arm, indices: Sequence[int]) -> list[
         out.append(objs)
     _, why = plan(out)
     return why or out
+
+
+def goal_of(session: Session, indices: Sequence[int] | None = None) -> Goal:
+    """The task's goal (:func:`studio.world.session_goal`): the scene's own, or the teacher's, matched to the
+    releases of the demonstrations ``indices`` (default: the shown ones); else read from them."""
+    if indices is None:
+        indices = [i for i, r in enumerate(session.recordings) if r.name not in session.hidden_demos]
+    events = [session.objects.events(session.demo_files[i]) for i in indices if i < len(session.demo_files)]
+    scene = session.objects.scene
+    return session_goal(scene.preset, scene.goal, scene.names(), events)
+
+
+def rules_of(session: Session, objects: Sequence[DemoObjects], indices: Sequence[int]) -> dict[int, str]:
+    """The frame each release of the demonstrations ``indices`` (their ``objects``) follows by the task's goal."""
+    return release_rules(goal_of(session, indices), objects[0]) if objects else {}
 
 
 class PlacedSkills:
@@ -58,10 +75,8 @@ class PlacedSkills:
         scene = session.objects.scene
         speed = self.speed
         out: dict[Arm, Skill] = {}
-        for arm, skill in dict(session.skills).items():
-            if skill.frames is None and speed == 1.0:
-                out[arm] = skill
-                continue
+        skills = dict(session.skills)
+        for arm, skill in skills.items():
             with self._lock:
                 hit = self._cache.get(arm)
             if hit is not None and hit[0] is skill and hit[1] == (scene, speed):
@@ -70,11 +85,31 @@ class PlacedSkills:
             placed = skill
             if skill.frames is not None:
                 placed = place_skill(skill, objects_now(scene), arm=arm, baxter=self.ctx.baxter)
+            placed = self._kept_clear(placed, arm, scene, other_free=len(skills) == 1)
             placed = self._at_speed(placed, arm, speed)
             with self._lock:
                 self._cache[arm] = (skill, (scene, speed), placed)
             out[arm] = placed
         return out
+
+    def _kept_clear(self, skill: Skill, arm: Arm, scene: Scene, *, other_free: bool) -> Skill:
+        """The skill with its arm's posture moved (the self-motion) where its shoulder, elbow or forearm would touch
+        the table, an object, the robot's body or the other arm at rest (decision 087); as it is when clear."""
+        from studio.core.execution import joint_trajectory
+        from studio.world.contacts import arm_clearance
+
+        jt = skill.joint_trajectory
+        if jt is None or len(jt.t) < 2:
+            return skill
+        other = None
+        if other_free:
+            live = self.ctx.display.live.get()[2]
+            other = live[7:] if arm == "left" else live[:7]
+        touching = arm_clearance(scene, arm, other)
+        if not touching(jt.q[:: max(1, len(jt.q) // 300)]).any():
+            return skill
+        clear = joint_trajectory(skill.trajectory, arm, jt.q[0], self.ctx.baxter, avoid=touching)
+        return replace(skill, joint_trajectory=clear)
 
     def _at_speed(self, skill: Skill, arm: Arm, speed: float) -> Skill:
         from studio.core.pace import at_speed

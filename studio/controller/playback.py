@@ -31,6 +31,8 @@ class PlaybackKind(StrEnum):
 
 PREVIEW = PlaybackKind.PREVIEW
 REPLAY = PlaybackKind.REPLAY
+#: The step each playback is shown in (elsewhere the scene shows the live robot and the objects as placed).
+SHOWN_IN = {PREVIEW: "Preview", REPLAY: "Sessions"}
 #: Samples per second of the preview recording.
 PREVIEW_RATE_HZ = 100.0
 
@@ -58,7 +60,8 @@ class Playback:
 
     @property
     def playing(self) -> bool:
-        return self.backend.running
+        """Playing now (not paused, not at its end)."""
+        return self.backend.running and not self.backend.finished
 
     @property
     def finished(self) -> bool:
@@ -87,12 +90,15 @@ class Player:
     """Loads, plays, pauses, seeks and unloads the one playback; every action names the kind it is for.
 
     A new skill unloads the preview of the old one (:attr:`Topic.SKILL`); another session unloads any
-    playback and shows the live robot (:attr:`Topic.SESSION`).
+    playback and shows the live robot (:attr:`Topic.SESSION`). A playback stays in its step (:data:`SHOWN_IN`):
+    on another step it pauses and the scene shows the live robot; back in its step, the scene shows it again.
 
     Args:
         guard: refuses (raises, in plain words) to show a playback while the robot runs a skill: the scene
             shows the real robot then.
         skills: the skills the preview plays (default: the session's, as learned).
+        step: the step the teacher is at (its name; :class:`~studio.controller.view.View`), read on
+            :attr:`Topic.VIEW`.
     """
 
     def __init__(
@@ -100,10 +106,12 @@ class Player:
         ctx: Context,
         guard: Callable[[], None] = lambda: None,
         skills: Callable[[], Mapping[Arm, Skill]] | None = None,
+        step: Callable[[], str] | None = None,
     ) -> None:
         self.ctx = ctx
         self.display = ctx.display
         self.guard = guard
+        self.step = step
         self._loaded: Playback | None = None
         #: The skills the preview plays (the controller's: placed where the objects are now).
         self.skills: Callable[[], Mapping[Arm, Skill]] = skills or (lambda: ctx.session.skills)
@@ -111,6 +119,7 @@ class Player:
         for topic in (Topic.SKILL, Topic.SCENE):
             ctx.events.on(topic, self.unload_preview)
         ctx.events.on(Topic.SESSION, self._on_session)
+        ctx.events.on(Topic.VIEW, self._on_view)
 
     # -- state -----------------------------------------------------------------------------------------------
     @property
@@ -128,9 +137,10 @@ class Player:
         return pb if pb is not None and pb.kind == kind else None
 
     def position(self, kind: PlaybackKind) -> float | None:
-        """Seconds into the ``kind`` playback while it plays (None when paused, finished or not loaded)."""
+        """Seconds into the ``kind`` playback while it plays or has just played to its end (None when paused or
+        not loaded)."""
         pb = self._get(kind)
-        return pb.position if pb is not None and pb.playing else None
+        return pb.position if pb is not None and pb.backend.running else None
 
     def label(self) -> str:
         """What the drawn robot shows, in plain words."""
@@ -138,7 +148,7 @@ class Player:
         if self.display.is_live or pb is None:
             return "Showing the robot live."
         what = "the learned skill (preview)" if pb.kind == PREVIEW else f'demonstration "{pb.recording.name}"'
-        state = "playing" if pb.playing else "paused"
+        state = "playing" if pb.playing else ("at its end" if pb.finished else "paused")
         return f"Showing {what}, {state}."
 
     # -- actions ---------------------------------------------------------------------------------------------
@@ -192,6 +202,24 @@ class Player:
         if self._get(PREVIEW) is not None:
             self.unload()
             self.display.show_live()
+
+    def _on_view(self) -> None:
+        """The teacher changed steps: the playback pauses and the live robot shows outside its step; back in its
+        step it shows again (paused where it was), unless the robot is running a skill."""
+        pb, step = self._loaded, self.step
+        if pb is None or step is None:
+            return
+        if step() == SHOWN_IN[pb.kind]:
+            try:
+                self.guard()
+            except StudioError:
+                return
+            self.display.show(pb.source)
+            pb.source.touch()
+        else:
+            pb.pause()
+            self.display.show_live()
+        self.ctx.emit(Topic.PLAYBACK)
 
     def _on_session(self) -> None:
         self.unload()

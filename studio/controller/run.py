@@ -21,6 +21,7 @@ from typing import Protocol
 
 import numpy as np
 
+from studio.core.collision import Touch
 from studio.core.errors import StudioError
 from studio.core.execution import ExecutionPlan, RunVerdict, TrackingReport, compare_execution, skill_feasibility
 from studio.core.ik_path import Feasibility
@@ -34,6 +35,8 @@ log = logging.getLogger(__name__)
 
 #: How often (s) the run's thread reads the robot's progress.
 POLL_S = 0.02
+#: How often (s of the robot's clock) a run checks whether the robot touches something (decision 087).
+GUARD_S = 0.01
 #: Samples per second of the drawn paths (planned and executed).
 PATH_RATE_HZ = 100.0
 #: Longest wait (s) for the run's last joint states to arrive once the robot reports the end.
@@ -111,9 +114,15 @@ class RunPaths:
 class Trace:
     """A backend listener during a run: keeps the joint states at about :data:`PATH_RATE_HZ` (to draw where the
     gripper went) and the newest sample's time, and calls ``begin`` with the samples from the skill's start
-    (stream time ``skill_at``, set once the robot says when the plan started); ``mark`` is what it returned."""
+    (stream time ``skill_at``, set once the robot says when the plan started); ``mark`` is what it returned;
+    ``guard`` sees every batch (whether the robot touches something)."""
 
-    def __init__(self, begin: Callable[[np.ndarray, np.ndarray, np.ndarray], int] | None = None) -> None:
+    def __init__(
+        self,
+        begin: Callable[[np.ndarray, np.ndarray, np.ndarray], int] | None = None,
+        guard: Callable[[JointStateBatch], None] | None = None,
+    ) -> None:
+        self._guard = guard
         self._lock = threading.Lock()
         self._q: list[np.ndarray] = []
         self._bucket = -np.inf
@@ -139,6 +148,8 @@ class Trace:
             k = int(np.searchsorted(t, at - 1e-9))
             begin, self._begin = self._begin, None
             self.mark = begin(t[k:], np.asarray(batch.q)[k:], np.asarray(batch.gripper)[k:])
+        if self._guard is not None and len(t):
+            self._guard(batch)
 
     def joints(self) -> np.ndarray:
         with self._lock:
@@ -161,28 +172,49 @@ class RunObjects(Protocol):
         self, t: np.ndarray | None = None, q: np.ndarray | None = None, gripper: np.ndarray | None = None
     ) -> int: ...
     def end_run(self, mark: int, recording: Recording, t0: float) -> TaskResult | None: ...
+    def touches_at(self, q: np.ndarray, gripper: np.ndarray, q_now: np.ndarray) -> list[Touch]: ...
+    def hit(self, touch: Touch, q_now: np.ndarray) -> None: ...
 
 
 class Run:
     """One plan executed by the robot (see the module docstring); :meth:`start` makes one."""
 
-    def __init__(self, plan: ExecutionPlan, backend: RobotBackend, scene: RunObjects, baxter: Baxter) -> None:
+    def __init__(
+        self,
+        plan: ExecutionPlan,
+        backend: RobotBackend,
+        scene: RunObjects,
+        baxter: Baxter,
+        on_touch: Callable[[Touch], None] | None = None,
+    ) -> None:
         self.plan = plan
         self.backend = backend
         self.scene = scene
         self.baxter = baxter
         self.folder = Path(tempfile.mkdtemp(prefix="teaching-studio-run-"))
         self.recorder = Recorder(backend, self.folder, plan.arms, name="run on the robot", baxter=baxter)
-        self.trace = Trace(scene.begin_run)
+        self._on_touch = on_touch
+        self._checked = -np.inf
+        self.trace = Trace(scene.begin_run, self._guard if on_touch is not None else None)
         self.mark = 0
         self.cancel = threading.Event()
         self.thread: threading.Thread | None = None
+        #: what the robot touched during the run (it was stopped then), or None
+        self.touch: Touch | None = None
         self._unsubscribe: Callable[[], None] | None = None
 
     @classmethod
-    def start(cls, plan: ExecutionPlan, backend: RobotBackend, scene: RunObjects, baxter: Baxter) -> Run:
-        """Objects to the set-up, the recorder on, the plan sent to the robot (all undone if the robot refuses)."""
-        run = cls(plan, backend, scene, baxter)
+    def start(
+        cls,
+        plan: ExecutionPlan,
+        backend: RobotBackend,
+        scene: RunObjects,
+        baxter: Baxter,
+        on_touch: Callable[[Touch], None] | None = None,
+    ) -> Run:
+        """Objects to the set-up, the recorder on, the plan sent to the robot (all undone if the robot refuses);
+        ``on_touch``: told (on a thread of its own) when the robot touches something, once it was stopped."""
+        run = cls(plan, backend, scene, baxter, on_touch)
         try:
             run.mark = scene.begin_run()
             run.recorder.start()
@@ -204,6 +236,24 @@ class Run:
             if not p.active:
                 return p
         return None
+
+    def _guard(self, batch: JointStateBatch) -> None:
+        """On the robot's stream: whether it touches something where it is now (every :data:`GUARD_S` of its
+        clock); at the first contact it is stopped at once, as by the emergency stop, then ``on_touch`` is told."""
+        t = float(batch.t[-1])
+        if self.touch is not None or t - self._checked < GUARD_S:
+            return
+        self._checked = t
+        q, g = np.asarray(batch.q[-1], dtype=np.float64), np.asarray(batch.gripper[-1], dtype=np.float64)
+        found = self.scene.touches_at(q[None, :], g[None, :], q)
+        if not found:
+            return
+        self.touch = found[0]
+        try:
+            self.backend.emergency_stop()  # first, from here, before anything else
+        finally:
+            if self._on_touch is not None:
+                threading.Thread(target=self._on_touch, args=(found[0],), name="studio-contact", daemon=True).start()
 
     def judge(self, p: ExecutionProgress) -> Judged:
         """The robot reports the end ``p``: the recording's tail, the comparison with the plan, the task result."""
@@ -336,7 +386,9 @@ def judgement(p: ExecutionProgress, verdict: RunVerdict, task: TaskResult | None
             f"The robot followed the plan within {tracking_words(verdict.tracking_error)} at every moment and ended "
             f"{tracking_words(verdict.final_error)} from its last pose"
         )
-        return f"{head}; {task.text[:1].lower()}{task.text[1:]}" if task is not None else head + " — the skill works."
+        if task is None:
+            return head + " — the skill works."
+        return f"{head}; {task.text[:1].lower()}{task.text[1:].rstrip('.')} — the skill works."
     failed = verdict.failures() or [f"the run ended before its end ({p.state})"]
     text = "The skill did not work: " + "; ".join(failed) + "."
     if task is not None and not task.ok:

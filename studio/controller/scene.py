@@ -18,17 +18,21 @@ import numpy as np
 
 from studio.controller.context import Context
 from studio.controller.events import Topic
+from studio.controller.placed import goal_of
 from studio.controller.playback import Playback, PlaybackKind
+from studio.core.collision import Touch
 from studio.core.errors import StudioError
-from studio.core.types import ARMS, Recording
+from studio.core.types import ARMS, Arm, Recording
 from studio.robot_backend.base import RobotBackend
+from studio.words import contact_sentence, hit_words, recorded_touch_words
 from studio.world import (
     KINDS,
     PRESETS,
+    Goal,
     GraspNote,
     ObjectPose,
+    Placement,
     Scene,
-    TaskGoal,
     TaskResult,
     World,
     WorldEvent,
@@ -38,10 +42,11 @@ from studio.world import (
     on_clock,
     preset,
     simulate,
-    task_goal,
     task_result,
 )
-from studio.world.relative import relative_goal
+from studio.world.contacts import first_contact, touches, touches_at
+from studio.world.goal import alternatives
+from studio.world.hits import Hit, simulate_hits, struck
 
 log = logging.getLogger(__name__)
 
@@ -79,6 +84,10 @@ class SceneActions:
         self._shown: tuple[tuple[int, ...], tuple[ObjectPose, ...]] | None = None  # shown()'s last answer
         self._result: TaskResult | None = None
         self._result_key: object = None
+        self._touches: tuple[Touch, ...] = ()  # what the learned skill touches, as the preview plays it
+        self._run_hits: list[Hit] = []  # objects the robot ran into during the current run
+        self._demo_said: dict[int, tuple[Recording, str]] = {}  # what each demonstration went through, in words
+        self._touch_rec: Recording | None = None
         ctx.events.on(Topic.SESSION, self._on_session)
         for topic in (Topic.SKILL, Topic.DEMOS, Topic.SESSION):
             ctx.events.on(topic, self._result_may_change)
@@ -113,6 +122,14 @@ class SceneActions:
         if name not in PRESETS:
             raise StudioError(f'Unknown scene "{name}": choose {", ".join(PRESETS)}.')
         self._set(preset(name, self.ctx.arms))
+
+    def put_back_layout(self) -> None:
+        """Every object back to the task's layout (the preset the set-up started from, for the taught arms): the
+        teacher's moves, additions and removals are undone."""
+        name = self.scene.preset
+        if name not in PRESETS or name == PRESETS[0]:
+            raise StudioError('This table has no task layout to go back to: choose one in "Task set-up".')
+        self.use_preset(name)
 
     def put_back(self) -> None:
         """Put every object back where the scene sets it up (what a gripper holds is let go)."""
@@ -158,7 +175,8 @@ class SceneActions:
             return ()
         self.live.snapshot("end")
         mark, t0 = take
-        return bounded(on_clock(self.live.events_since(mark), t0, float(recording.duration)))
+        kept = [e for e in self.live.events_since(mark) if e.kind != "push"]  # a session keeps no "push"
+        return bounded(on_clock(kept, t0, float(recording.duration)))
 
     def cancel_take(self) -> None:
         self._take = None
@@ -171,8 +189,13 @@ class SceneActions:
 
     def last_grip(self) -> tuple[WorldEvent, GraspNote] | None:
         """The live world's latest grasp or miss and what it did (None before any since the objects were last
-        put back); the same event object until the next one."""
-        ev = next((e for e in reversed(self.live.events) if e.kind in ("grasp", "miss")), None)
+        put back, and once the gripper that grasped let go: it holds nothing then); the same event object until
+        the next one."""
+        events = self.live.events
+        i = next((i for i in range(len(events) - 1, -1, -1) if events[i].kind in ("grasp", "miss")), -1)
+        ev = events[i] if i >= 0 else None
+        if ev is not None and ev.kind == "grasp" and any(e.kind == "release" and e.arm == ev.arm for e in events[i:]):
+            return None
         note = grasp_note(ev) if ev is not None else None
         return None if ev is None or note is None else (ev, note)
 
@@ -213,44 +236,130 @@ class SceneActions:
     # -- the task result -------------------------------------------------------------------------------
     def task_result(self) -> TaskResult | None:
         """What the learned skill does with the objects, in plain words (None before a skill is learned)."""
+        self._up_to_date()
         return self._result
+
+    def _up_to_date(self) -> None:
+        """The task result and the skill's contacts are of the skills and the scene now (a session opened with a
+        learned skill has had no event yet)."""
+        if self.ctx.session.skills and self._result_key is None:
+            self._result_may_change()
 
     def _result_may_change(self) -> None:
         try:
-            self._update_result()
+            with self._lock:
+                self._update_result()
         except Exception:
             log.exception("task result")
             self._result = None
             self.ctx.emit(Topic.TASK)
 
-    def _shown_events(self) -> list[tuple[WorldEvent, ...]]:
-        """The object events of every shown demonstration (what the task goal is read from)."""
-        session = self.ctx.session
-        shown = [i for i, r in enumerate(session.recordings) if r.name not in session.hidden_demos]
-        return [session.objects.events(session.demo_files[i]) for i in shown if i < len(session.demo_files)]
-
     def _update_result(self) -> None:
         session = self.ctx.session
+        found: tuple[Touch, ...] = ()
+        rec: Recording | None = None
         if not session.skills:
             result = None
             key: object = None
         else:
-            events = self._shown_events()
+            events = [session.objects.events(f) for f in session.demo_files]
             key = (id(session), tuple(id(s) for s in session.skills.values()), self.scene, tuple(map(id, events)))
+            key = (*key, tuple(session.hidden_demos))
             if key == self._result_key:
                 return
             rec = self.player.preview_recording()
-            run = simulate(rec.t, rec.q, rec.gripper, self.scene, baxter=self.ctx.baxter)
-            result = task_result(run, self._goal(events))
+            run, hits, touched = simulate_hits(
+                rec.t, rec.q, rec.gripper, self.scene, self.ctx.baxter, new=self._new(events)
+            )
+            found = tuple(touched)
+            result = with_contacts(task_result(run, self.goal()), found, hits)
         self._result, self._result_key = result, key
+        self._touches, self._touch_rec = found, rec
         self.ctx.emit(Topic.TASK)
 
-    def _goal(self, events: list[tuple[WorldEvent, ...]]) -> TaskGoal:
-        """What the demonstrations did with the objects; for a skill that follows them, relative to where the
-        objects are now."""
-        goal = task_goal(events)
-        frames = next((s.frames for s in self.ctx.session.skills.values() if s.frames is not None), None)
-        return goal if frames is None else relative_goal(goal, frames, self.scene)
+    # -- the task's goal -------------------------------------------------------------------------------
+    def goal(self) -> Goal:
+        """The task's goal the skill is judged by (:func:`studio.world.session_goal`): the set-up's, or the one
+        the teacher confirmed, matched to the shown demonstrations; else read from them."""
+        return goal_of(self.ctx.session)
+
+    def goal_choices(self) -> list[tuple[Placement, ...]]:
+        """Other goals the teacher may choose instead (another target for the last release of each object)."""
+        scene = self.scene
+        return alternatives(self.goal(), scene.names(), {o.name: o.kind for o in scene.objects})
+
+    def set_goal(self, placements: Sequence[Placement]) -> None:
+        """The teacher's goal for the task (kept with the scene; the skill follows it once trained again)."""
+        self._set(self.scene.with_goal(placements))
+
+    def confirm_goal(self) -> None:
+        """The teacher agrees with the goal as read from the demonstrations: keep it."""
+        goal = self.goal()
+        if not goal.placements:
+            raise StudioError("There is no goal to confirm yet: record a demonstration that moves an object.")
+        self.set_goal(goal.placements)
+
+    def _new(self, events: list[tuple[WorldEvent, ...]]) -> set[str]:
+        """The objects of the scene that no shown demonstration had at its start."""
+        had = {p.name for evs in events for e in evs if e.kind == "start" for p in e.poses}
+        return {o.name for o in self.scene.objects if o.name not in had} if had else set()
+
+    # -- what the robot touches --------------------------------------------------------------------------
+    def skill_touches(self) -> tuple[Touch, ...]:
+        """What the learned skill (as the preview plays it, the objects where they are now) touches that it must
+        not: the table, an object, the other arm, the robot's body (decision 087); () when nothing."""
+        self._up_to_date()
+        return self._touches
+
+    def contact_reason(self) -> str:
+        """Why the skill must not run because it touches something, in words ("" when it touches nothing)."""
+        return contact_sentence(self.skill_touches())
+
+    def contact_paths(self) -> dict[Arm, list[np.ndarray]]:
+        """arm -> the stretches (each (n, 3) m) of its gripper's path, as the preview plays it, where it touches
+        something (to draw in red)."""
+        self._up_to_date()
+        rec = self._touch_rec
+        out: dict[Arm, list[np.ndarray]] = {}
+        if rec is None:
+            return {}
+        for x in self._touches:
+            for arm in x.arms:
+                cols = slice(0, 7) if arm == "left" else slice(7, 14)
+                lo, hi = max(x.i_start - 1, 0), min(x.i_end + 2, len(rec))
+                out.setdefault(arm, []).append(self.ctx.baxter.fk_batch(arm, rec.q[lo:hi, cols])[0])
+        return out
+
+    def demo_contact(self, i: int) -> str:
+        """What demonstration ``i`` went through (imported, or recorded on a real robot by hand), in words with the
+        stretch ("" when nothing; computed once per demonstration)."""
+        session = self.ctx.session
+        if not 0 <= i < len(session.recordings):
+            return ""
+        rec = session.recordings[i]
+        with self._lock:
+            hit = self._demo_said.get(id(rec))
+        if hit is not None and hit[0] is rec:
+            return hit[1]
+        events = session.objects.events(session.demo_files[i]) if i < len(session.demo_files) else ()
+        step = max(1, round(len(rec) / max(rec.duration * 100.0, 1.0)))  # about 100 a second
+        t, q, g = rec.t[::step], rec.q[::step], rec.gripper[::step]
+        start = next((e.poses for e in events if e.kind == "start"), None)
+        run = simulate(t, q, g, self.scene, baxter=self.ctx.baxter, start=start)
+        said = recorded_touch_words(touches(t, q, g, self.scene, run, self.ctx.baxter))
+        with self._lock:
+            self._demo_said[id(rec)] = (rec, said)
+        return said
+
+    def touches_at(self, q: np.ndarray, gripper: np.ndarray, q_now: np.ndarray) -> list[Touch]:
+        """What the robot would touch at poses ``q`` (N, 14) with grippers (N, 2), the objects where they are now
+        (one held moves with its gripper from where the arms are now, ``q_now``)."""
+        return touches_at(q, gripper, self.live.poses(), self.scene, self.ctx.baxter, q_now=q_now)
+
+    def first_contact(self, q: np.ndarray, gripper: np.ndarray, q_now: np.ndarray) -> tuple[int, Touch] | None:
+        """Along poses ``q`` (N, 14) from where the arms are: the first that touches something (or deeper than at
+        ``q[0]``) and what; None when the way is free (:func:`studio.world.contacts.first_contact`)."""
+        return first_contact(q, gripper, self.live.poses(), self.scene, self.ctx.baxter, q_now=q_now)
 
     # -- a run on the robot (studio.controller.execution) ------------------------------------------------
     def begin_run(
@@ -266,6 +375,7 @@ class SceneActions:
         """
         t0 = float(t[0]) if t is not None and len(t) else self.live.last_time
         self.live.reset(self.scene)
+        self._run_hits = []
         mark = self.live.mark()
         self.live.snapshot("start", t0)
         if t is not None and q is not None and gripper is not None and len(t):
@@ -279,17 +389,43 @@ class SceneActions:
         gripper path the wording uses."""
         self.live.snapshot("end")
         events = tuple(self.live.events_since(mark))
-        goal = self._goal(self._shown_events())
-        if not goal.objects:
-            return None
+        goal = self.goal()
+        if not goal.placements:
+            return None if not self._run_hits else TaskResult(False, hit_words(self._run_hits), ())
         step = max(1, round(len(recording) / max(recording.duration * 100.0, 1.0)))  # ~100 Hz, as simulate()
         q = recording.q[::step]
         path = {arm: self.ctx.baxter.fk_batch(arm, q[:, :7] if arm == "left" else q[:, 7:])[0] for arm in ARMS}
         run = WorldRun(events, self.live.poses(), recording.t[::step] + t0, path)
-        return task_result(run, goal)
+        return with_contacts(task_result(run, goal), (), self._run_hits)
+
+    def hit(self, touch: Touch, q_now: np.ndarray) -> None:
+        """During a run the robot ran into ``touch.b`` (an object standing on its own): it is pushed along the arm's
+        way, or knocked over, in the live world; the run's task result says so."""
+        pose = next((p for p in self.live.poses() if p.name == touch.b.part and p.held_by is None), None)
+        if pose is None or touch.b.robot or touch.depth <= 0.0:
+            return
+        arm = touch.a.arm or "left"
+        grip = self.ctx.baxter.fk(arm, q_now[:7] if arm == "left" else q_now[7:])[0]
+        way = np.asarray(pose.center[:2]) - grip[:2]
+        way = way / max(float(np.linalg.norm(way)), 1e-9)
+        t = self.live.last_time or 0.0
+        moved, hit = struck(pose, touch, way, t)
+        self.live.push(moved, t, touch.a.arm)
+        self._run_hits.append(hit)
+        self.ctx.emit(Topic.SCENE)
 
     def close(self) -> None:
         self._unsubscribe()
+
+
+def with_contacts(result: TaskResult | None, found: Sequence[Touch], hits: Sequence[Hit] = ()) -> TaskResult | None:
+    """The task result of a skill that touches what it must not: never "works"; what it touches said first, then
+    the objects it pushed or knocked over."""
+    if result is None or not (found or hits):
+        return result
+    said = result.text.replace(" — the skill works", "")
+    words = " ".join(w for w in (contact_sentence(found), hit_words(hits), said) if w)
+    return TaskResult(False, words, result.objects)
 
 
 def _free_spot(scene: Scene) -> tuple[float, float]:

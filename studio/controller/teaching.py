@@ -4,11 +4,13 @@ the handle is within reach, and recording demonstrations into the open session."
 from __future__ import annotations
 
 import logging
+import math
 import threading
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
-from typing import Protocol
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
@@ -18,11 +20,15 @@ from studio.core.arms import arm_columns, arm_of_joint, gripper_column, normaliz
 from studio.core.errors import InvalidInput, StorageError, StudioError
 from studio.core.kinematics import IkResult
 from studio.core.posture_ik import reach_pose
-from studio.core.types import ARMS, Arm, Recording
+from studio.core.types import ARMS, Arm, Recording, readonly
 from studio.recorder import Recorder
 from studio.robot_backend.base import JointStateBatch, RobotBackend
 from studio.storage import ReadOnly, Session
+from studio.words import blocked_words
 from studio.world import WorldEvent
+
+if TYPE_CHECKING:
+    from studio.core.collision import Touch
 
 log = logging.getLogger(__name__)
 #: Seconds an out-of-reach handle target stays told (marker and words) once the drag ended: the handle is
@@ -32,14 +38,27 @@ REACH_HOLD_S = 4.0
 DISCARD_CONFIRM_S = 5.0
 
 
+#: Along a move by hand, the gripper moves at most this far (m) between two poses checked for contact.
+CHECK_STEP_M = 0.005
+#: ... and at most this many poses are checked.
+CHECK_POSES = 80
+
+
 @dataclass(frozen=True)
 class Reach:
-    """Whether an arm reached where its handle was dragged (``target``: the handle's position, m)."""
+    """Whether an arm reached where its handle was dragged (``target``: the handle's position, m); ``blocked``:
+    it stopped short because it would touch something, in words ("" otherwise)."""
 
     ok: bool
     target: tuple[float, float, float]
     #: When it was decided (``time.monotonic()``); not part of equality.
     at: float = field(default=0.0, compare=False)
+    blocked: str = ""
+
+
+#: Along poses (N, 14) from where the arms are, with the grippers (N or 1, 2) and the arms now (14,): the first
+#: pose that touches something, and what (None: the way is free).
+Contacts = Callable[[np.ndarray, np.ndarray, np.ndarray], "tuple[int, Touch] | None"]
 
 
 class Takes(Protocol):
@@ -59,6 +78,10 @@ class Teaching:
         motion_guard: refuses (raises, in plain words) moving by hand or recording ("before {doing}") during a
             run on the robot or an emergency stop.
         keep: keeps a discarded take (and its object events) for Undo.
+        unsaved: keeps trying to save a take its session refused for want of space (its recorder, the session
+            folder, the take, its object events).
+        contacts: where a move by hand would first touch something (the scene's
+            :meth:`~studio.controller.scene.SceneActions.first_contact`); the arm stops before it.
     """
 
     def __init__(
@@ -68,14 +91,18 @@ class Teaching:
         takes: Takes,
         motion_guard: Callable[[str], None] = lambda doing: None,
         keep: Callable[[Recording, Sequence[WorldEvent]], None] = lambda recording, events: None,
+        unsaved: Callable[[Recorder, Path, Recording, Sequence[WorldEvent]], None] | None = None,
+        contacts: Contacts = lambda q, gripper, q_now: None,
     ) -> None:
         self.ctx = ctx
+        self.contacts = contacts
         self.backend = backend
         self.display = ctx.display
         self.takes = takes
         self.motion_guard = motion_guard
         #: Keeps a discarded take for Undo.
         self.keep = keep
+        self.unsaved = unsaved
         self.reach: dict[Arm, Reach] = {}
         self._targets: dict[Arm, np.ndarray] = {}
         self._ik_lock = {arm: threading.Lock() for arm in ARMS}
@@ -160,10 +187,33 @@ class Teaching:
         with self._ik_lock[arm]:  # one solve per arm at a time (a drag sends many updates)
             found = reach_pose(self.ctx.baxter, arm, position, wxyz, self._target_arm(arm), rest=self.home_q(arm))
             res = found.result
-            self.command_arm(arm, np.asarray(res.q))
+            q, touch = self.free_way(arm, np.asarray(res.q))
+            self.command_arm(arm, q)
         p = np.asarray(position, dtype=float)
-        self._set_reach(arm, Reach(bool(res.converged), (float(p[0]), float(p[1]), float(p[2])), time.monotonic()))
-        return res
+        blocked = blocked_words(touch) if touch is not None else ""
+        ok = bool(res.converged) and touch is None
+        self._set_reach(arm, Reach(ok, (float(p[0]), float(p[1]), float(p[2])), time.monotonic(), blocked))
+        return res if touch is None else replace(res, q=readonly(q), converged=False)
+
+    def free_way(self, arm: Arm, q_to: np.ndarray) -> tuple[np.ndarray, Touch | None]:
+        """Where ``arm`` can go on its way from where it is going now to ``q_to`` (7,) without touching the table,
+        an object (its fingers may close around one) or the other arm: ``q_to`` itself and None, or the last pose
+        before the first contact and that contact. Poses are checked every :data:`CHECK_STEP_M` of the gripper's
+        way (decision 087)."""
+        start = np.concatenate([self._target_arm(a) for a in ARMS])
+        cols = arm_columns(arm)
+        end = start.copy()
+        end[cols] = q_to
+        b = self.ctx.baxter
+        way = float(np.linalg.norm(b.fk(arm, q_to)[0] - b.fk(arm, start[cols])[0]))
+        way = max(way, 0.5 * float(np.max(np.abs(end - start))))  # an elbow swings farther than the gripper
+        n = int(min(max(math.ceil(way / CHECK_STEP_M), 1), CHECK_POSES))
+        Q = start + np.linspace(0.0, 1.0, n + 1)[:, None] * (end - start)
+        hit = self.contacts(Q, self.robot_gripper()[None, :], self.robot_q())
+        if hit is None:
+            return np.asarray(q_to, dtype=np.float64), None
+        k, touch = hit
+        return Q[k - 1, cols].copy(), touch
 
     def _set_reach(self, arm: Arm, reach: Reach) -> None:
         old = self.reach.get(arm)
@@ -186,7 +236,12 @@ class Teaching:
         return r is not None and not r.ok
 
     def reach_message(self) -> str:
-        """Plain words about the last handle target an arm could not reach ("" when all were reached)."""
+        """Plain words about the last handle target an arm could not reach, or where it stopped because it would
+        touch something ("" when all were reached)."""
+        for arm in ARMS:
+            r = self.reach.get(arm)
+            if arm in self.selected_arms and r is not None and r.blocked:
+                return r.blocked
         for arm in ARMS:
             if arm in self.selected_arms and self.unreachable(arm):
                 return f"The {arm} gripper cannot reach the handle's position: the arm stops at the closest pose."
@@ -227,7 +282,13 @@ class Teaching:
         self.forget_reach((arm,))
         q = self._target_arm(arm)
         q[index % 7] = value
+        q, touch = self.free_way(arm, q)
         self.command_arm(arm, q)
+        if touch is not None:
+            p = self.ctx.baxter.fk(arm, q)[0]
+            self._set_reach(
+                arm, Reach(False, (float(p[0]), float(p[1]), float(p[2])), time.monotonic(), blocked_words(touch))
+            )
 
     def set_gripper(self, arm: Arm, width: float) -> None:
         """Gripper opening in percent (0 = closed, 100 = open)."""
@@ -274,7 +335,13 @@ class Teaching:
             if session.read_only:  # refused before the take, never after it
                 raise ReadOnly(session.name)
             self.display.show_live()
-            rec = Recorder(self.backend, session.recording_dir, self.selected_arms, name=self._next_demo_name())
+            rec = Recorder(
+                self.backend,
+                session.recording_dir,
+                self.selected_arms,
+                name=self._next_demo_name(),
+                on_full=lambda words: self.ctx.notify("The disk is full", words, kind="warning"),
+            )
             rec.start()
             self._recorder, self._session = rec, session  # the take is saved where it was started
             self._owner, self._discard_asked = _tab_id(by), None
@@ -306,9 +373,11 @@ class Teaching:
                 events = self.takes.end_take(recording)
                 try:
                     self._session.add_recording(recording, events=events)
-                except StorageError as exc:  # the take stays in the recorder's file: recovered at the next open
-                    kept = "The take itself is kept and is added when the session is next opened."
-                    raise StorageError(f"{exc} {kept}") from exc
+                except StorageError as exc:  # the take stays whole: in its file and (the rest) in memory
+                    if self.unsaved is None:
+                        raise StorageError(f"{exc} {_kept_words(recording, rec.unsaved, later=False)}") from exc
+                    self.unsaved(rec, self._session.path, recording, events)
+                    raise StorageError(f"{exc} {_kept_words(recording, rec.unsaved, later=True)}") from exc
                 except InvalidInput:
                     # One sample is not a demonstration: nothing to keep. Any other take the session refuses
                     # stays on disk; the next open sets it aside by name (crash recovery), never lost.
@@ -374,6 +443,20 @@ class Teaching:
             self.stop_recording()
         except Exception:
             log.exception("saving the running recording at shutdown")
+
+
+def _kept_words(recording: Recording, in_memory: int, *, later: bool) -> str:
+    """What became of a take its session could not save (disk full), with its length."""
+    where = (
+        f"{in_memory:,} of its samples wait in the studio's memory, the rest in its recording file"
+        if in_memory
+        else "it is whole in its recording file"
+    )
+    when = "as soon as the disk has space (free some space), or " if later else ""
+    return (
+        f'The take "{recording.name}" ({recording.duration:.1f} s, {len(recording):,} samples) is not saved yet: '
+        f"{where}. It is added to the session {when}the next time the session opens."
+    )
 
 
 def take_words(recording: Recording) -> str:

@@ -3,7 +3,6 @@ and how well each demonstration fits), and answer what the panels show about the
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Sequence
 from concurrent.futures import Future
 from dataclasses import dataclass, replace
@@ -14,13 +13,14 @@ import numpy as np
 from studio.controller.context import Context
 from studio.controller.events import Topic
 from studio.controller.learning import ShownDemos
-from studio.controller.placed import demo_objects_of
+from studio.controller.placed import demo_objects_of, rules_of
 from studio.core.errors import NotEnoughData, StudioError
 from studio.core.frames import DemoObjects
 from studio.core.keypoints import KeypointCache
 from studio.core.pace import remove_pauses, without_pauses
 from studio.core.quality import DemoFit, QualityReport, Verdict
 from studio.core.segment_view import SegmentFit
+from studio.core.segments import FrameChoice
 from studio.core.thresholds import ThresholdSettings
 from studio.core.types import FRAMES, Arm, Demo, Generalization, KeypointParams, Recording, Skill
 from studio.storage import ReadOnly
@@ -59,6 +59,8 @@ class SkillVerdict:
     message: str = ""
     #: a skill that follows the objects: how closely each stretch follows the demonstrations in its frame
     segments: tuple[SegmentFit, ...] = ()
+    #: ... and how the frame of each grasp and release was chosen (by the task's meaning, or the demonstrations)
+    choices: tuple[FrameChoice, ...] = ()
 
 
 class DemoSource(ShownDemos, Protocol):
@@ -188,6 +190,11 @@ class Training:
         baxter, cache = self.ctx.baxter, self.tuning.cache
 
         relative = {arm: self._objects(arm, demos) for arm, demos in per_arm.items()} if frames == "objects" else {}
+        rules = {
+            arm: rules_of(session, o, [i for i, _ in per_arm[arm]])
+            for arm, o in relative.items()
+            if not isinstance(o, str)
+        }
         if brisk:  # long rests shortened before learning; the grasps and releases keep their moments
             relative = {a: o if isinstance(o, str) else _brisk_objects(per_arm[a], o) for a, o in relative.items()}
             per_arm = {arm: [(i, remove_pauses(d)) for i, d in demos] for arm, demos in per_arm.items()}
@@ -203,7 +210,14 @@ class Training:
                 objs = relative.get(arm)
                 if objs is not None and not isinstance(objs, str):
                     out[arm] = learn_relative(
-                        [d for _, d in demos], objs, params[arm], now=now, arm=arm, baxter=baxter, generalization=mode
+                        [d for _, d in demos],
+                        objs,
+                        params[arm],
+                        now=now,
+                        arm=arm,
+                        baxter=baxter,
+                        generalization=mode,
+                        rules=rules.get(arm),
                     )
                     continue
                 if isinstance(objs, str):
@@ -320,36 +334,37 @@ class Training:
         if relative is None:
             report, verdict = judge_skill(skill, demos, fixed_k=fixed_k)
             return SkillVerdict(skill, verdict, demo_fits(report))
-        report, verdict, segments = relative
-        return SkillVerdict(skill, verdict, demo_fits(report), segments=segments)
+        report, verdict, segments, choices = relative
+        return SkillVerdict(skill, verdict, demo_fits(report), segments=segments, choices=choices)
 
     def _in_frames(
         self, arm: Arm, skill: Skill, used: list[UsedDemo], demos: list[Demo]
-    ) -> tuple[QualityReport, Verdict, tuple[SegmentFit, ...]] | None:
-        """A skill that follows the objects, judged where they are now: its path placed there against the
+    ) -> tuple[QualityReport, Verdict, tuple[SegmentFit, ...], tuple[FrameChoice, ...]] | None:
+        """A skill that follows the objects, judged where the demonstrations had them (the one nearest the
+        middle of their places, never where the objects stand now): its path placed there against the
         demonstrations moved there (each stretch with its object), held out with the skill learned the same way
-        without one demonstration, and each stretch measured in its own frame. None for any other skill."""
+        without one demonstration, and each stretch measured in its own frame; with how each border's frame was
+        chosen. None for any other skill."""
         from studio.core import quality
-        from studio.core.frames import adapt
-        from studio.core.segment_view import demos_in_frames, segment_fits
-        from studio.core.segments import learn_relative
+        from studio.core.segment_view import demos_in_frames, segment_fits, taught_placement
+        from studio.core.segments import choose_frames, learn_relative, place_skill
 
         if skill.frames is None:
             return None
-        objs = demo_objects_of(self.ctx.session, arm, [u.index for u in used if u.index is not None])
+        indices = [u.index for u in used if u.index is not None]
+        objs = demo_objects_of(self.ctx.session, arm, indices)
         if isinstance(objs, str):
             return None
-        now = objects_now(self.ctx.session.objects.scene)
+        rules = rules_of(self.ctx.session, objs, indices)
+        _, choices, _ = choose_frames(objs, rules)
+        now = taught_placement(objs)
         moved = demos_in_frames(demos, objs, now, skill.frames)
         if moved is None:
             return None
-        try:
-            path = adapt(skill.frames, now)
-        except StudioError:  # an object the skill needs is not on the table
+        try:  # where the demonstrations had the objects: the arm's reach is judged there too
+            placed = place_skill(skill, now, arm=arm, baxter=self.ctx.baxter)
+        except StudioError:  # an object the skill needs is missing from them, or the arm cannot follow it there
             return None
-        placed = dataclasses.replace(
-            skill, trajectory=Demo(path.t, path.position, path.orientation, path.gripper, name="learned skill")
-        )
 
         def learn(dd: list[Demo]) -> Demo:
             keep = [i for i, m in enumerate(moved) if any(m is d for d in dd)]
@@ -359,11 +374,12 @@ class Training:
                 skill.params,
                 now=now,
                 generalization=skill.generalization,
+                rules=rules,
             ).trajectory
 
         held = quality.held_out(moved, learn, folds=list(range(min(len(moved), 3))))
         report = quality.assess(placed, moved, held_out_result=held)
-        return report, quality.verdict(report), segment_fits(skill.frames, demos, objs)
+        return report, quality.verdict(report), segment_fits(skill.frames, demos, objs), choices
 
     def _on_session(self) -> None:
         with self.ctx.lock:

@@ -8,7 +8,7 @@ slow approach from where the arms are. :func:`compare_execution`: a recording of
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -67,6 +67,7 @@ def joint_trajectory(
     *,
     pace: float = 1.0,
     rate_hz: float | None = None,
+    avoid: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> JointTrajectory:
     """Joint angles that execute ``trajectory`` with ``arm``, timed within the joint limits.
 
@@ -77,6 +78,7 @@ def joint_trajectory(
             neutral pose when the demos carry no joint angles).
         pace: 1.0 = as taught (never faster); smaller = slower.
         rate_hz: output rate (default: the trajectory's own rate).
+        avoid: the arm's postures that touch something (see :func:`~studio.core.ik_path.solve_path`).
 
     Returns:
         A :class:`JointTrajectory` starting and ending at rest, within the URDF position and velocity limits
@@ -93,7 +95,7 @@ def joint_trajectory(
     t = trajectory.t
     if rate_hz is None:
         rate_hz = 1.0 / float(np.median(np.diff(t))) if n > 1 else 1000.0
-    sol = solve_path(t, trajectory.position, trajectory.orientation, arm, q_seed, b)
+    sol = solve_path(t, trajectory.position, trajectory.orientation, arm, q_seed, b, avoid=avoid)
     if sol.position_error[0] > START_POSITION_M or sol.orientation_error[0] > START_ORIENTATION_RAD:
         raise IkFailed(
             f"The {arm} arm cannot reach the learned skill's start pose "

@@ -27,6 +27,13 @@ REGION_MARGIN_RAD = math.radians(12.0)
 ONE_PLACE_M = 0.01
 #: Segments are joined by spreading what is left of a gap over this long (s) at the start of the next one.
 JOIN_S = 0.6
+#: A heading difference counts as this many metres per radian when spreads are compared.
+YAW_M_PER_RAD = 0.05
+#: Two frames whose places relative to each other differ by less than this (m) over the demonstrations cannot be
+#: told apart by them: the frame follows the task's meaning (the goal). Decision 085.
+DECIDE_M = 0.02
+#: The demonstrations overrule the meaning only when they agree this much (m) better in another frame.
+CONTRADICT_M = 0.01
 
 
 @dataclass(frozen=True)

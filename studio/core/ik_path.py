@@ -622,6 +622,79 @@ def _refine(
     return idx, Q, ok, pe, oe
 
 
+#: Steps (rad) along the arm's self-motion tried to keep a knot's arm clear, and how many each way.
+CLEAR_STEP_RAD = 0.12
+CLEAR_STEPS = 16
+
+
+def _self_motion(S: _PathSolver, q: np.ndarray) -> np.ndarray:
+    """(7,) unit joint direction that moves the arm without moving the gripper (the Jacobian's null space)."""
+    J = pin.computeFrameJacobian(S.model, S.data, q, S.fid, pin.LOCAL_WORLD_ALIGNED)
+    n = np.linalg.svd(J)[2][-1]
+    return n / np.linalg.norm(n)
+
+
+def _clear_posture(
+    S: _PathSolver, i: int, q: np.ndarray, avoid: Callable[[np.ndarray], np.ndarray], toward: np.ndarray | None = None
+) -> np.ndarray | None:
+    """The nearest posture along the arm's self-motion from ``q`` that reaches sample ``i`` and is clear (first on
+    the side of ``toward``, the knot before's posture)."""
+    first = 1.0 if toward is None or float((toward - q) @ _self_motion(S, q)) >= 0.0 else -1.0
+    for side in (first, -first):
+        cur, way = q.copy(), side * _self_motion(S, q)
+        for _ in range(CLEAR_STEPS):
+            n = _self_motion(S, cur)
+            way = n if float(n @ way) >= 0.0 else -n  # the null space's direction has no sign: keep going one way
+            cur, pe, oe = S.solve(i, cur + CLEAR_STEP_RAD * way, 12, pull="none")
+            if not S.ok(pe, oe, 5.0):
+                break
+            if not bool(avoid(cur[None, :])[0]):
+                return cur
+    return None
+
+
+def _keep_clear(
+    S: _PathSolver, idx: np.ndarray, Q: np.ndarray, ok: np.ndarray, avoid: Callable[[np.ndarray], np.ndarray]
+) -> np.ndarray:
+    """Knots whose arm touches something, moved along the self-motion until clear: each run of them from its
+    first knot's clear posture onwards until the path meets its old posture again, and a few knots before it
+    eased into that posture."""
+    Q = Q.copy()
+    bad = np.asarray(avoid(Q), dtype=bool) & np.asarray(ok, dtype=bool)
+    j = 0
+    while j < Q.shape[0]:
+        if not bad[j]:
+            j += 1
+            continue
+        q = _clear_posture(S, int(idx[j]), Q[j], avoid)
+        if q is None:  # no posture helps there: the run stays (said in words, drawn red: studio.world.contacts)
+            while j < Q.shape[0] and bad[j]:
+                j += 1
+            continue
+        Q[j] = q
+        for b in range(j - 1, max(j - 4, -1), -1):  # ease the knots before into it
+            qb, _, _, good = S.advance(Q[b + 1], int(idx[b + 1]), int(idx[b]))
+            if not good or avoid(qb[None, :])[0]:
+                break
+            Q[b] = qb
+        k = j + 1
+        while k < Q.shape[0]:  # on in the clear posture, until it meets the old path again
+            qk, _, _, good = S.advance(Q[k - 1], int(idx[k - 1]), int(idx[k]))
+            if not good:
+                break
+            if avoid(qk[None, :])[0]:
+                again = _clear_posture(S, int(idx[k]), qk, avoid, Q[k - 1])
+                if again is None:
+                    break
+                qk = again
+            if not bad[k] and float(np.max(np.abs(qk - Q[k]))) < BREAK_RAD:
+                break
+            Q[k] = qk
+            k += 1
+        j = k
+    return Q
+
+
 def _breaks(Q: np.ndarray, arc: np.ndarray) -> int:
     """How many knot-to-knot joint changes are posture changes (as :attr:`PathSolution.breaks` counts them)."""
     if Q.shape[0] < 2:
@@ -646,6 +719,7 @@ def solve_path(
     baxter: Baxter | None = None,
     *,
     max_starts: int = 3,
+    avoid: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> PathSolution:
     """Joint knots that follow a Cartesian gripper path (the method: docs/decisions/008).
 
@@ -657,6 +731,9 @@ def solve_path(
         q_seed: (7,) joint angles near the path's start (the reference demo's first joints, or the neutral pose).
         baxter: the robot model (default :meth:`Baxter.load`).
         max_starts: start postures to try when the first one needs recoveries.
+        avoid: joints (K, 7) -> (K,) True where the arm (its upper arm, elbow or forearm: not the gripper, which
+            the path decides) touches something; those knots are moved along the arm's self-motion (the posture
+            null space) until clear, where one is near (decision 087).
 
     Returns:
         A :class:`PathSolution`; never raises for unreachable poses (they are marked, see :func:`feasibility`).
@@ -711,7 +788,12 @@ def solve_path(
         best = (None, Q, ok, pe, oe, solver.recoveries, solver.jumps, k + 1)
     assert best is not None
     _, Q, ok, pe, oe, recoveries, jumps, tried = best
+    if avoid is not None:
+        Q = _keep_clear(solver, idx, Q, ok, avoid)
     idx2, Q, ok, pe, oe = _refine(solver, idx, Q, ok, pe, oe)
+    if avoid is not None and avoid(Q).any():  # knots added between cleared ones may touch again: once more
+        Q = _keep_clear(solver, idx2, Q, ok, avoid)
+        idx2, Q, ok, pe, oe = _refine(solver, idx2, Q, ok, pe, oe)
     return PathSolution(
         s=readonly(t[idx2]),
         index=readonly(idx2, dtype=np.int64),

@@ -1,4 +1,4 @@
-"""Baxter kinematics: the model from example-robot-data's URDF (pinocchio), FK, IK and the paper's DH table.
+"""Baxter kinematics: the model from Baxter's URDF (pinocchio), FK, IK and the paper's DH table.
 
 The end-effector frame is ``<arm>_gripper``: the point between the fingertips, 0.1577 m past the hand.
 It is the frame the Baxter SDK reports as the endpoint pose and the one its IK service (which the paper
@@ -83,6 +83,18 @@ def package_share_dir() -> Path:
 
 def baxter_urdf_path() -> Path:
     return baxter_description_dir() / "urdf" / "baxter.urdf"
+
+
+#: The light Baxter the studio draws (scripts/decimate_meshes.py): example-robot-data's links and joints.
+LIGHT_URDF = Path(__file__).resolve().parents[2] / "urdf" / "baxter_light.urdf"
+#: example-robot-data's SRDF (the pairs of collision bodies that never meet), copied beside the light URDF.
+LIGHT_SRDF = LIGHT_URDF.parent / "baxter_manipulation.srdf"
+
+
+def model_urdf_path() -> Path:
+    """The URDF the kinematic model is built from: the light one in the repository (the same joints and links as
+    example-robot-data's, checked by tests/core/test_kinematics.py), else example-robot-data's."""
+    return LIGHT_URDF if LIGHT_URDF.is_file() else baxter_urdf_path()
 
 
 @dataclass(frozen=True)
@@ -262,8 +274,8 @@ class Baxter:
     @classmethod
     @functools.cache
     def load(cls) -> Baxter:
-        """The process-wide Baxter model built from example-robot-data's URDF."""
-        return cls(baxter_urdf_path())
+        """The process-wide Baxter model (:func:`model_urdf_path`)."""
+        return cls(model_urdf_path())
 
     # -- limits -------------------------------------------------------------------------------------------
     def lower_limits(self, arm: Arm) -> np.ndarray:
@@ -310,6 +322,13 @@ class Baxter:
         x, y, z, w = pin.Quaternion(M.rotation).coeffs()
         quat = np.array([w, x, y, z]) if w >= 0 else -np.array([w, x, y, z])
         return np.array(M.translation), quat / np.linalg.norm(quat)
+
+    def gripper_transform(self, arm: Arm, q: np.ndarray) -> np.ndarray:
+        """(4, 4) world transform of the gripper frame for one configuration ``q`` (7,) (no input checks)."""
+        model, fid = self._reduced[arm]
+        data = self._reduced_data(arm)
+        pin.forwardKinematics(model, data, np.asarray(q, dtype=np.float64))
+        return np.array(pin.updateFramePlacement(model, data, fid).homogeneous)
 
     def fk_batch(self, arm: Arm, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Gripper poses for N configurations, vectorised.
@@ -509,6 +528,7 @@ __all__ = [
     "dh_fk",
     "make_sign_continuous",
     "matrix_from_quat_wxyz",
+    "model_urdf_path",
     "package_share_dir",
     "quat_angle",
     "quat_wxyz_from_matrix",

@@ -7,7 +7,7 @@ own frame (:func:`segment_fits`, for the verdict per segment). GUI-free facts; t
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -25,6 +25,7 @@ def demos_in_frames(
     objects: Sequence[DemoObjects],
     now: Sequence[ObjectAt],
     frames: ObjectFrames | None = None,
+    rules: Mapping[int, str] | None = None,
 ) -> list[Demo] | None:
     """Each demonstration moved the way the skill moves its path when the objects are ``now``: every stretch
     between grasps and releases goes from its start's frame (where it begins) to its end's frame (where it
@@ -61,6 +62,20 @@ def demos_in_frames(
     except StudioError:
         return None
     return out
+
+
+def taught_placement(objects: Sequence[DemoObjects]) -> tuple[ObjectAt, ...]:
+    """The objects as one demonstration had them at its start: the one nearest the middle of all the
+    demonstrations' places (where a skill is judged against the demonstrations, whatever the scene is now)."""
+    if not objects:
+        return ()
+    names = list(dict.fromkeys(o.name for d in objects for o in d.start))
+    middle = {n: np.median([o.position for d in objects if (o := d.start_pose(n)) is not None], axis=0) for n in names}
+
+    def off(d: DemoObjects) -> float:
+        return sum(float(np.linalg.norm(np.asarray(o.position) - middle[o.name])) for o in d.start)
+
+    return min(objects, key=off).start
 
 
 def _end_weight(u: np.ndarray, k: int, roles: Sequence[str], frames: ObjectFrames | None) -> np.ndarray:
@@ -142,4 +157,4 @@ def segment_fits(frames: ObjectFrames, demos: Sequence[Demo], objects: Sequence[
     return tuple(out)
 
 
-__all__ = ["SegmentFit", "demos_in_frames", "segment_fits"]
+__all__ = ["SegmentFit", "demos_in_frames", "segment_fits", "taught_placement"]

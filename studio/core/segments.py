@@ -2,24 +2,29 @@
 the paper's pipeline in the frame of the object it acts on (:mod:`studio.core.frames`).
 
 :func:`plan` reads the frames from the demonstrations' contacts (a grasp in the grasped object's frame; a
-release in the frame where the demonstrations agree best on where the object landed). :func:`learn_relative`
-learns the segments and returns a :class:`Skill` placed where the objects are now; :func:`place_skill` moves
-it when they move (docs/decisions/080)."""
+release in its target's frame unless the demonstrations clearly agree better in another: decision 085).
+:func:`learn_relative` learns the segments and returns a :class:`Skill` placed where the objects are now;
+:func:`place_skill` moves it when they move (docs/decisions/080)."""
 
 from __future__ import annotations
 
 import dataclasses
 import itertools
 import math
-from collections.abc import Sequence
+from collections import Counter
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
 from studio.core import alignment
 from studio.core.errors import InvalidInput, NotEnoughData
 from studio.core.frames import (
+    CONTRADICT_M,
+    DECIDE_M,
     ROBOT,
     ROUND_KINDS,
+    YAW_M_PER_RAD,
     Border,
     DemoObjects,
     ObjectAt,
@@ -38,8 +43,6 @@ from studio.core.types import DEFAULT_GENERALIZATION, Arm, Demo, Generalization,
 
 #: Frames whose landing spreads differ by less than this (m) are equally good: the more specific one is kept.
 TIE_M = 0.005
-#: A heading difference counts as this many metres per radian when spreads are compared.
-YAW_M_PER_RAD = 0.05
 #: The demonstrations' spread below this (m) is noise (it keeps the weights from trusting 3 demos too much).
 SIGMA_FLOOR_M = 0.01
 #: Samples per second of a segment's path.
@@ -53,54 +56,134 @@ def minjerk(u: np.ndarray) -> np.ndarray:
     return u**3 * (10 - 15 * u + 6 * u * u)
 
 
-def plan(objects: Sequence[DemoObjects]) -> tuple[tuple[Border, ...], str]:
-    """The borders (grasps and releases with their frames) the demonstrations share, or () and why not."""
+@dataclass(frozen=True)
+class FrameChoice:
+    """How the frame of one border was chosen (facts for the Train step's words).
+
+    Attributes:
+        kind, object: the border ("grasp" or "release" of ``object``).
+        role: the frame it follows ("object:<name>", "start:<name>" or "robot").
+        rule: the frame its meaning gives (the grasped object; for a release, the goal's target), "" without one.
+        told: the demonstrations could tell the frames apart (the objects stood in different places relative to
+            each other); when not, ``role`` is ``rule``.
+        against: they agree clearly better in another frame than in ``rule``: ``role`` follows them.
+    """
+
+    kind: str
+    object: str
+    role: str
+    rule: str = ""
+    told: bool = True
+    against: bool = False
+
+
+def plan(objects: Sequence[DemoObjects], rules: Mapping[int, str] | None = None) -> tuple[tuple[Border, ...], str]:
+    """The borders (grasps and releases with their frames) the demonstrations share, or () and why not.
+
+    ``rules``: contact index -> the frame a release follows by its meaning (the goal's target:
+    "object:<name>", "start:<name>" or "robot"); without one, the object most demonstrations put it on.
+    """
+    borders, _, why = choose_frames(objects, rules)
+    return borders, why
+
+
+def choose_frames(
+    objects: Sequence[DemoObjects], rules: Mapping[int, str] | None = None
+) -> tuple[tuple[Border, ...], tuple[FrameChoice, ...], str]:
+    """:func:`plan` with how each border's frame was chosen (:class:`FrameChoice`)."""
     if not objects:
-        return (), "There are no demonstrations with objects."
+        return (), (), "There are no demonstrations with objects."
     seqs = [tuple((c.kind, c.object) for c in o.contacts) for o in objects]
     if not seqs[0]:
-        return (), "Your demonstrations do not pick up any object, so the skill follows fixed places."
+        return (), (), "Your demonstrations do not pick up any object, so the skill follows fixed places."
     if any(s != seqs[0] for s in seqs):
-        return (), (
-            "Your demonstrations do not all pick up and put down the same objects in the same order, "
-            "so the skill follows fixed places."
+        return (
+            (),
+            (),
+            (
+                "Your demonstrations do not all pick up and put down the same objects in the same order, "
+                "so the skill follows fixed places."
+            ),
         )
-    borders = []
+    borders, choices = [], []
     for k, (kind, name) in enumerate(seqs[0]):
         if kind == "grasp":
-            borders.append(Border("grasp", name, f"object:{name}"))
+            role = f"object:{name}"
+            borders.append(Border("grasp", name, role))
+            choices.append(FrameChoice("grasp", name, role, role, _moved(objects, k, f"start:{name}", ROBOT)))
         else:
-            borders.append(_release(objects, k, name))
-    return tuple(borders), ""
+            border, choice = _release(objects, k, name, (rules or {}).get(k))
+            borders.append(border)
+            choices.append(choice)
+    return tuple(borders), tuple(choices), ""
 
 
-def _release(objects: Sequence[DemoObjects], k: int, name: str) -> Border:
-    """A release's frame: among the object it landed on, where it came from, and the robot, the one in which
-    the demonstrations agree best on where it landed (ties go to the more specific frame, in that order)."""
+def _release(objects: Sequence[DemoObjects], k: int, name: str, rule: str | None) -> tuple[Border, FrameChoice]:
+    """A release's frame. Its meaning (``rule``, by default the object most demonstrations put it on) decides
+    unless the demonstrations can tell the frames apart and clearly agree better in another one (the object
+    it landed on, where it came from, or the robot); without a meaning, where they agree best (ties to the more
+    specific frame). Where it lands is measured over the demonstrations that put it onto the frame's object."""
     landed = [o.contacts[k].pose(name) for o in objects]
     if any(p is None for p in landed):
-        return Border("release", name, ROBOT, on=None)
+        return Border("release", name, ROBOT, on=None), FrameChoice("release", name, ROBOT, rule or "")
     poses = [p for p in landed if p is not None]
-    on = poses[0].on
-    candidates = []
-    if on is not None and on not in ("table", "floor", "hand") and all(p.on == on for p in poses):
-        candidates.append(f"object:{on}")
-    candidates += [f"start:{name}", ROBOT]
-    spreads = {}
-    for role in candidates:
-        local = _landed_in(objects, k, name, role)
-        if local is None:
-            continue
-        d = np.linalg.norm(local[:, :3] - local[:, :3].mean(axis=0), axis=1)
-        yaw = 0.0 if poses[0].kind in ROUND_KINDS else float(np.max(np.abs(_yaw_dev(local[:, 3]))))
-        spreads[role] = float(d.max()) + YAW_M_PER_RAD * yaw
-    best = min(spreads.values())
-    role = next(r for r in candidates if r in spreads and spreads[r] <= best + TIE_M)
+    on_objects = [p.on for p in poses if p.on is not None and p.on not in ("table", "floor", "hand")]
+    if rule is None and on_objects:
+        top, n = Counter(on_objects).most_common(1)[0]
+        rule = f"object:{top}" if 2 * n > len(poses) else None
+    candidates = [f"object:{o}" for o in dict.fromkeys(on_objects)] + [f"start:{name}", ROBOT]
+    if rule is not None and rule not in candidates:
+        candidates.insert(0, rule)
+    spreads = {r: s for r in candidates if (s := _spread(objects, k, name, r, poses[0].kind)) is not None}
+    if rule is None or rule not in spreads:
+        plain = [r for r in candidates if r in spreads and (not r.startswith("object:") or _all_on(poses, r))]
+        best = min(spreads[r] for r in plain)
+        role = next(r for r in plain if spreads[r] <= best + TIE_M)
+        choice = FrameChoice("release", name, role, rule or "")
+    else:
+        told = [r for r in spreads if r != rule and _moved(objects, k, rule, r)]
+        better = [r for r in told if spreads[r] + CONTRADICT_M < spreads[rule]]
+        role = min(better, key=lambda r: spreads[r]) if better else rule
+        choice = FrameChoice("release", name, role, rule, bool(told), bool(better))
     local = _landed_in(objects, k, name, role)
     assert local is not None
-    mean = local.mean(axis=0)
-    mean[3] = float(np.angle(np.mean(np.exp(1j * local[:, 3]))))
-    return Border("release", name, role, (float(mean[0]), float(mean[1]), float(mean[2]), float(mean[3])), on)
+    target = role.partition(":")[2] if role.startswith("object:") else None
+    on_it = [i for i, p in enumerate(poses) if target is not None and p.on == target]
+    rows = local[on_it] if on_it else local
+    mean = rows.mean(axis=0)
+    mean[3] = float(np.angle(np.mean(np.exp(1j * rows[:, 3]))))
+    on = target if target is not None else poses[0].on
+    landed_at = (float(mean[0]), float(mean[1]), float(mean[2]), float(mean[3]))
+    return Border("release", name, role, landed_at, on), choice
+
+
+def _all_on(poses: Sequence[ObjectAt], role: str) -> bool:
+    return all(p.on == role.partition(":")[2] for p in poses)
+
+
+def _spread(objects: Sequence[DemoObjects], k: int, name: str, role: str, kind: str) -> float | None:
+    """How far apart the demonstrations left object ``name`` at contact ``k`` in frame ``role`` (m, headings
+    counted as :data:`YAW_M_PER_RAD`; None when a demonstration lacks that frame)."""
+    local = _landed_in(objects, k, name, role)
+    if local is None:
+        return None
+    d = np.linalg.norm(local[:, :3] - local[:, :3].mean(axis=0), axis=1)
+    yaw = 0.0 if kind in ROUND_KINDS else float(np.max(np.abs(_yaw_dev(local[:, 3]))))
+    return float(d.max()) + YAW_M_PER_RAD * yaw
+
+
+def _moved(objects: Sequence[DemoObjects], k: int, a: str, b: str) -> bool:
+    """Whether frames ``a`` and ``b`` at contact ``k`` stood in places relative to each other that differ by at
+    least :data:`DECIDE_M` over the demonstrations (then the demonstrations can tell them apart)."""
+    rows = []
+    for o in objects:
+        fa, fb = frame_at_contact(o, k, a), frame_at_contact(o, k, b)
+        if fa is None or fb is None:
+            return False
+        rows.append([*to_local(fa, fb[:3]), fb[3] - fa[3]])
+    r = np.array(rows)
+    d = np.linalg.norm(r[:, :3] - r[:, :3].mean(axis=0), axis=1)
+    return float(d.max()) + YAW_M_PER_RAD * float(np.max(np.abs(_yaw_dev(r[:, 3])))) >= DECIDE_M
 
 
 def _yaw_dev(y: np.ndarray) -> np.ndarray:
@@ -279,6 +362,7 @@ def learn_relative(
     arm: Arm | None = None,
     baxter: Baxter | None = None,
     generalization: str = DEFAULT_GENERALIZATION,
+    rules: Mapping[int, str] | None = None,
 ) -> Skill:
     """Learn a skill that follows the objects (module docstring).
 
@@ -287,6 +371,7 @@ def learn_relative(
         params: key-point thresholds (default automatic; a segment they find too few key-points in gets its own).
         now: where the objects are now (default: as at the first demonstration's start).
         arm: when given, the path placed ``now`` gets its joint trajectory (whole-path IK).
+        rules: the frame each release follows by its meaning (:func:`plan`).
 
     Raises:
         InvalidInput: the demonstrations share no grasps and releases (the message says why).
@@ -296,7 +381,7 @@ def learn_relative(
     demos, objects = list(demos), list(objects)
     if len(demos) != len(objects) or not demos:
         raise InvalidInput("Give the objects of every demonstration.")
-    borders, why = plan(objects)
+    borders, why = plan(objects, rules)
     if not borders:
         raise InvalidInput(why)
     params = params or auto_params(demos)

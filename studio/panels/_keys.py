@@ -1,5 +1,6 @@
 """Keyboard teaching: a script every tab runs that turns a key press into a click on the on-screen button that
-shows that key, so a key does exactly what its button does (docs/decisions/071).
+shows that key, so a key does exactly what its button does (docs/decisions/071); Shift, or a key held a second,
+clicks its 5 cm button (docs/decisions/092).
 
 A key counts only while its button is on screen (the Teach step), never while typing in a box, and then does not
 also move viser's camera (which uses some of the same letters)."""
@@ -14,11 +15,17 @@ import viser
 
 log = logging.getLogger(__name__)
 
+#: A held key: its button at most every :data:`TAP_EVERY_S` for the first :data:`FAST_AFTER_S`, then its big
+#: step's button (Shift's) at most every :data:`BIG_EVERY_S`; with Shift, the big step's from the start.
+FAST_AFTER_S = 1.0
+TAP_EVERY_S = 0.09
+BIG_EVERY_S = 0.25
+
 _KEYS_JS = """
 (() => {
-  const keys = %s;
-  if (window.__studioKeys) { window.__studioKeys.keys = keys; return; }
-  const st = window.__studioKeys = {keys, last: 0};
+  const cfg = %s;
+  if (window.__studioKeys) { Object.assign(window.__studioKeys, cfg); return; }
+  const st = window.__studioKeys = Object.assign({last: 0, down: {}}, cfg);
   const typing = (t) => t && (t.tagName === 'INPUT' || t.tagName === 'TEXTAREA' || t.tagName === 'SELECT' ||
     t.isContentEditable);
   const button = (label) => {
@@ -29,29 +36,41 @@ _KEYS_JS = """
   };
   window.addEventListener('keydown', (e) => {
     if (e.ctrlKey || e.metaKey || e.altKey || typing(e.target)) return;
-    const label = st.keys[e.code];
-    if (!label) return;
-    const b = button(label);
+    const plain = st.keys[e.code], big = st.keys['Shift+' + e.code];
+    if (!plain && !big) return;
+    const now = performance.now();
+    if (!e.repeat || !(e.code in st.down)) st.down[e.code] = now;
+    // the page knows how long the key is held, whatever the rate its repeats arrive at
+    const useBig = big && (e.shiftKey || (e.repeat && now - st.down[e.code] >= st.fastAfterMs));
+    const b = button(useBig ? big : (plain || big));
     if (!b) return;
     e.preventDefault();
     e.stopPropagation();
-    const now = performance.now();
-    if (e.repeat && now - st.last < 90) return;
+    if (e.repeat && now - st.last < (useBig ? st.bigEveryMs : st.tapEveryMs)) return;
     st.last = now;
     b.click();
   }, true);
+  window.addEventListener('keyup', (e) => { delete st.down[e.code]; }, true);
+  window.addEventListener('blur', () => { st.down = {}; });
 })();
 """
 
 
 def install_keys(server: viser.ViserServer, keys: Mapping[str, str]) -> None:
-    """Send the key script to every tab, now and later. ``keys``: a key's ``KeyboardEvent.code`` (e.g. "KeyW")
-    → the exact label of the button it presses. Uses viser's message queue (an internal): if a viser upgrade
-    moved it, the buttons still work and the studio's log says the keys do not."""
+    """Send the key script to every tab, now and later. ``keys``: a key's ``KeyboardEvent.code`` (e.g. "KeyW"),
+    or "Shift+" and the code, → the exact label of the button it presses (Shift falls back to the plain key's).
+    Uses viser's message queue (an internal): if a viser upgrade moved it, the buttons still work and the
+    studio's log says the keys do not."""
     try:
         from viser import _messages
 
-        source = _KEYS_JS % json.dumps(dict(keys), ensure_ascii=False)
+        cfg = {
+            "keys": dict(keys),
+            "fastAfterMs": FAST_AFTER_S * 1000,
+            "tapEveryMs": TAP_EVERY_S * 1000,
+            "bigEveryMs": BIG_EVERY_S * 1000,
+        }
+        source = _KEYS_JS % json.dumps(cfg, ensure_ascii=False)
         server.gui._websock_interface.queue_message(_messages.RunJavascriptMessage(source=source))
     except (AttributeError, ImportError, TypeError):
         log.warning("viser changed: the teaching keys are off (the buttons on screen still work)")

@@ -1,8 +1,8 @@
 """Page behaviour the GUI library does not offer, installed once per server as a small script every tab runs.
 
 Arrow keys stay in the control that has the focus (viser's camera would also orbit on them; why:
-docs/decisions/018), every control's hint is also the ``title`` of its label, the tab is called "Teaching
-Studio" and viser's developer settings button is hidden. The script is sent as
+docs/decisions/018), every control's hint is also the ``title`` of its label and closes when its control is
+pressed, the tab is called "Teaching Studio" and viser's developer settings button is hidden. The script is sent as
 viser's ``RunJavascriptMessage``, which viser replays to every tab that connects later."""
 
 from __future__ import annotations
@@ -28,8 +28,23 @@ _GUARD_JS = """
     title();
     new MutationObserver(title).observe(document.head, {subtree: true, childList: true, characterData: true});
     const css = document.createElement('style');
-    css.textContent = '[data-dock-header] button:has(.tabler-icon-adjustments) { display: none !important; }';
+    css.textContent = '[data-dock-header] button:has(.tabler-icon-adjustments) { display: none !important; }' +
+      ' [role=tooltip] { pointer-events: none; }' +
+      ' body.studio-pressed [role=tooltip] { display: none !important; }';
     document.head.appendChild(css);
+    // A hint closes when its control is pressed and stays closed until the pointer goes to another control.
+    let pressed = null;
+    const row = (t) => (t && t.closest && t.closest('.mantine-Flex-root')) || (t && t.parentElement) || t;
+    document.addEventListener('pointerdown', (e) => {
+      pressed = row(e.target);
+      document.body.classList.add('studio-pressed');
+    }, true);
+    document.addEventListener('pointerover', (e) => {
+      if (pressed && !pressed.contains(e.target)) {
+        pressed = null;
+        document.body.classList.remove('studio-pressed');
+      }
+    }, true);
     document.body.addEventListener('keydown', stop);
     document.body.addEventListener('keyup', stop);
     const label = () => {

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import html
 import threading
+import time
 from typing import Literal
 
 import numpy as np
@@ -19,6 +20,9 @@ from studio.panels._choice import kept_choice
 CLOSE_COLOR = (25, 25, 25)
 OPEN_COLOR = (160, 160, 160)
 Shape = Literal["diamond", "circle"]
+#: Seconds a choice the studio made (the list moved on after a delete) or another tab made must stand before a
+#: press of Rename, Trim or Delete acts on it without being pressed again.
+CHOICE_SETTLE_S = 5.0
 
 
 class DemosPanel:
@@ -33,6 +37,12 @@ class DemosPanel:
         self._marks: dict[str, viser.SceneNodeHandle] = {}
         self._lock = threading.RLock()  # redrawing and the view's show/hide, one at a time
         self._listed: list[str] = []  # the names the picker offered before its last redraw
+        # Who made the choice the picker shows (a tab's client id; None: the studio, after a delete), when (viser's
+        # clock), the name it moved on from, and the tabs told of that choice since (their next press acts).
+        self._chooser: int | None = None
+        self._chosen_at = 0.0
+        self._moved_from = ""
+        self._told: set[int] = set()
         with gui.add_folder("Demonstrations", order=3):
             self.demo_list = gui.add_html(self._demo_list_html())
             self.demo_pick = gui.add_dropdown("Demo", options=["(none)"], initial_value="(none)")
@@ -61,6 +71,12 @@ class DemosPanel:
                 f"<span>{d.duration:.1f} s · {d.samples:,} samples · {'/'.join(d.arms)}"
                 f"{'' if d.visible else ' · hidden'}</span></div>"
             )
+            through = self.ctl.scene.demo_contact(d.index)  # recorded through something (imported, a real robot)
+            if through:
+                rows.append(
+                    f'<div class="demo-contact" data-demo="{d.index}" style="font-size:0.8em;color:#b91c1c;'
+                    f'margin:0 0 2px 18px">{html.escape(through)}</div>'
+                )
         if not rows:
             return '<div class="demo-row-empty" style="font-size:0.85em">No demonstrations yet: press Record.</div>'
         legend = (
@@ -121,6 +137,7 @@ class DemosPanel:
         """Another session is open: its last demonstration is chosen (none of the old names carries over)."""
         self._listed = []
         self.refresh_demos()
+        self._chosen_at = 0.0  # the new session's choice stands at once (nothing was deleted under a press)
 
     def refresh_demos(self) -> None:
         try:
@@ -134,7 +151,12 @@ class DemosPanel:
             current = self.demo_pick.value
             self.demo_pick.options = opts
             if current not in opts:  # a renamed demonstration stays chosen; after a delete, the last one is
-                self.demo_pick.value = kept_choice(self._listed, current, opts, -1)
+                renamed = self.ctl.demos.renamed_to(current)
+                self.demo_pick.value = renamed if renamed in opts else kept_choice(self._listed, current, opts, -1)
+                if renamed not in opts and current in self._listed and current != "(none)":
+                    # A listed one vanished and the studio chose: a press acts on it once it stood, or again.
+                    self._chooser, self._chosen_at, self._moved_from = None, time.time(), current
+                    self._told = set()
             self._listed = list(opts)
         self._on_pick(None)
 
@@ -144,6 +166,8 @@ class DemosPanel:
         return names.index(v) if v in names else None
 
     def _on_pick(self, event: viser.GuiEvent | None) -> None:
+        if event is not None and event.client_id is not None:  # a tab chose (the studio's own moves: refresh)
+            self._chooser, self._chosen_at, self._told = event.client_id, time.time(), set()
         i = self._selected()
         for h in (self.demo_show, self.demo_name, self.demo_trim):
             h.disabled = i is None
@@ -168,15 +192,32 @@ class DemosPanel:
         action, name = event.target.value, str(self.demo_pick.value)
         if i is None and name == "(none)":
             raise InvalidInput("Choose a demonstration in the list first.")
+        demos = self.ctl.demos
+        pressed = event.target.update_timestamp
         # i is None here when another tab deleted or renamed the chosen one and the list is not redrawn yet.
-        if i is None or self.demo_pick.update_timestamp > event.target.update_timestamp:
+        if i is None or self.demo_pick.update_timestamp > pressed:
             # Another tab's action changed the chosen demonstration after this press was sent (two tabs pressing
             # Delete at once would otherwise delete two demonstrations): nothing is done to the one chosen now.
+            what = f"{demos.gone(name)} in another tab" if i is None else "another tab deleted or chose one"
             raise InvalidInput(
-                "The chosen demonstration changed before your press arrived (another tab deleted or chose one), "
-                f'so nothing was done to "{name}". Check the choice and press again.'
+                f"The chosen demonstration changed before your press arrived ({what}), so nothing was done. "
+                "Check the choice and press again."
             )
-        demos = self.ctl.demos
+        tab = event.client_id
+        if self._chooser != tab and tab not in self._told and pressed - self._chosen_at < CHOICE_SETTLE_S:
+            # The choice is the studio's (the list moved on after a delete) or another tab's, made a moment ago:
+            # this press was meant for the one the tab showed before (decision 052).
+            if tab is not None:
+                self._told.add(tab)
+            how = (
+                f'the list moved on by itself after "{self._moved_from}" was deleted'
+                if self._chooser is None
+                else "another tab chose it"
+            )
+            raise InvalidInput(
+                f"The chosen demonstration changed {max(pressed - self._chosen_at, 0.0):.1f} s before your press "
+                f'({how}), so nothing was done. The list now shows "{name}": press {action} again to act on it.'
+            )
         if action == "Rename":
             demos.rename(i, self.demo_name.value)
         elif action == "Trim":

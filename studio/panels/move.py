@@ -1,5 +1,5 @@
-"""Move panel (Teach step): move the gripper in the room's axes with keys or their buttons (a held key goes
-faster), type its position in centimetres, send it above an object or back to the home posture.
+"""Move panel (Teach step): move the gripper in the room's axes with keys or their buttons (Shift, or a key held
+a second: 5 cm steps), type its position in centimetres, send it above an object or back to the home posture.
 Each key is shown on its button, and the keys in plain words above them."""
 
 from __future__ import annotations
@@ -20,13 +20,22 @@ STEPS: tuple[tuple[str, tuple[tuple[str, str, tuple[str, int]], ...]], ...] = (
     ("Right / left (y)", (("A robot's right", "KeyA", ("y", -1)), ("D robot's left", "KeyD", ("y", 1)))),
     ("Down / up (z)", (("Q down", "KeyQ", ("z", -1)), ("E up", "KeyE", ("z", 1)))),
 )
+#: The big steps (Shift + a key): (button text, key code, what it does).
+BIG_STEPS: tuple[tuple[str, str, tuple[str, int]], ...] = tuple(
+    (f"⇧{text[0]}", f"Shift+{code}", what) for _, row in STEPS for text, code, what in row
+)
+BIG_ROW = "Big steps (Shift)"
 CLOSE, OPEN, HOME = "C close", "O open", "H home pose"
 NO_OBJECTS = "(no objects)"
-KEYS = {code: text for _, row in STEPS for text, code, _ in row} | {"KeyC": CLOSE, "KeyO": OPEN, "KeyH": HOME}
+KEYS = (
+    {code: text for _, row in STEPS for text, code, _ in row}
+    | {code: text for text, code, _ in BIG_STEPS}
+    | {"KeyC": CLOSE, "KeyO": OPEN, "KeyH": HOME}
+)
 KEY_WORDS = (
     "**Keys** (when you are not typing in a box): **W** / **S** toward / away from the robot, **A** / **D** to "
-    "its right / left, **Q** / **E** down / up, **C** close and **O** open the gripper, **H** home pose. Hold a "
-    "key to go faster."
+    "its right / left, **Q** / **E** down / up, **C** close and **O** open the gripper, **H** home pose. A key "
+    "moves 1 cm, with **Shift** 5 cm; held for a second, it goes on in 5 cm steps."
 )
 #: Seconds after a teacher typed into a position box during which the robot's motion does not overwrite it.
 TYPED_HOLD_S = 2.0
@@ -55,6 +64,12 @@ class MovePanel:
                 grp = gui.add_button_group(label, options=tuple(text for text, _, _ in row))
                 grp.on_click(guarded(self._make_step({text: what for text, _, what in row})))
                 self.rows[label] = grp
+            self.rows[BIG_ROW] = gui.add_button_group(
+                BIG_ROW,
+                options=tuple(text for text, _, _ in BIG_STEPS),
+                hint="5 cm steps: Shift with W, S, A, D, Q or E, or these buttons.",
+            )
+            self.rows[BIG_ROW].on_click(guarded(self._make_step({text: what for text, _, what in BIG_STEPS}, big=True)))
             self.grip = gui.add_button_group("Gripper", options=(CLOSE, OPEN))
             self.home = gui.add_button(HOME, hint="Put the arm back in the posture it started in.")
             self.above = gui.add_button_group(
@@ -98,10 +113,10 @@ class MovePanel:
         install_keys(server, KEYS)
 
     # -- callbacks -------------------------------------------------------------------------------------------
-    def _make_step(self, what: dict[str, tuple[str, int]]) -> Callable[[viser.GuiEvent], None]:
+    def _make_step(self, what: dict[str, tuple[str, int]], big: bool = False) -> Callable[[viser.GuiEvent], None]:
         def cb(event: viser.GuiEvent) -> None:
             axis, sign = what[event.target.value]
-            self.ctl.guide.step(axis, sign)
+            self.ctl.guide.step(axis, sign, big=big)
 
         return cb
 

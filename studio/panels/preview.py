@@ -11,7 +11,7 @@ import viser
 
 from studio.controller import PREVIEW, Controller, Layer, Topic
 from studio.core.ik_path import Feasibility
-from studio.core.types import ARMS, Arm
+from studio.core.types import ARMS, Arm, Skill
 from studio.panels._charts import APPROACH_COLOR, EXECUTED_COLOR, downsample_path, segments
 
 CYAN = (0, 200, 230)
@@ -20,6 +20,14 @@ NOT_TRAINED = "Train first: the learned path appears here in cyan."
 SPEEDS = {"¼×": 0.25, "½×": 0.5, "1×": 1.0, "2×": 2.0, "4×": 4.0}
 SKILL_SPEEDS = {"½× (slower)": 0.5, "1× (as taught)": 1.0, "1½×": 1.5, "2×": 2.0, "3×": 3.0}
 STALE_RUN = "this run was before you changed the objects or the demonstrations; press Run on robot to try again."
+CANNOT_RUN = (
+    "In the preview the skill does the task, but the robot cannot follow all of its path (in red), so it will not "
+    "run it."
+)
+NEVER_SHOWN = (
+    "In the preview the skill does the task here, but you never showed me the objects here (see above): show one "
+    "more demonstration here to be sure."
+)
 MISSES_NOW = (
     "The preview shows the skill missing the task with the objects where they are now: the robot would do the "
     "same. Train again, or put the objects back where you taught."
@@ -70,8 +78,8 @@ class PreviewPanel:
         self.skill_speed.on_update(ctl.guarded("Could not change the skill's speed")(self._on_skill_speed))
         self.show_path.on_update(ctl.guarded()(self._on_show))
         self.run_btn.on_click(ctl.guarded("Could not run the skill on the robot")(self._on_run))
-        ctl.events.on(Topic.SKILL, self.refresh)
-        ctl.events.on(Topic.SESSION, self.refresh)
+        for topic in (Topic.SKILL, Topic.SESSION, Topic.SCENE):  # the objects moved: the path drawn follows
+            ctl.events.on(topic, self.refresh)
         ctl.events.on(Topic.TASK, self._on_task)
         ctl.events.on(Topic.VIEW, self._apply_view)
         for topic in (Topic.EXECUTION, Topic.RECORDING, Topic.TRAINING):
@@ -80,6 +88,7 @@ class PreviewPanel:
 
     def refresh(self) -> None:
         skills = self.ctl.training.skills()
+        played = self.ctl.placed.get() if skills else {}  # what Play plays: placed where the objects are now
         with self.server.atomic():
             for n in self._nodes.values():
                 n.remove()
@@ -87,10 +96,10 @@ class PreviewPanel:
             feasibility = self.ctl.execution.feasibility()
             unreachable = self.ctl.execution.unreachable_paths()
             for arm in ARMS:
-                skill = skills.get(arm)
+                skill = played.get(arm)
                 if skill is None:
                     continue
-                pts = downsample_path(np.asarray(skill.trajectory.position))
+                pts = downsample_path(self._executed(arm, skill))
                 self._nodes[f"path_{arm}"] = self.scene.add_line_segments(
                     f"/preview/{arm}/path",
                     segments(pts),
@@ -99,24 +108,49 @@ class PreviewPanel:
                     thickness_units="screen",
                     visible=self.ctl.view.shown(Layer.LEARNED_PATH),
                 )
-                spans = [segments(downsample_path(p, 200)) for p in unreachable.get(arm, []) if len(p) > 1]
-                if spans:  # the feasibility check's stretches the arm cannot follow, red over the cyan
-                    self._nodes[f"fail_{arm}"] = self.scene.add_line_segments(
-                        f"/preview/{arm}/unreachable",
-                        np.concatenate(spans),
-                        colors=IK_FAIL,
-                        thickness=10.0,
-                        thickness_units="screen",
-                        visible=self.ctl.view.shown(Layer.LEARNED_PATH),
-                    )
+                # the feasibility check's stretches the arm cannot follow, red over the cyan
+                self._red(f"fail_{arm}", f"/preview/{arm}/unreachable", unreachable.get(arm, []))
+            self._draw_contacts()
             duration = self.ctl.playback.preview_duration()
             self.time.max = round(max(duration, 0.01), 2)
             self.time.value = 0.0
             for h in (self.speed, self.time, self.skill_speed):
                 h.disabled = not skills
             self.skill_speed.value = _speed_label(self.ctl.placed.speed)
-            self.info.content = _info(duration, feasibility) if skills else NOT_TRAINED
+            self.info.content = _info(duration, feasibility, self.ctl.scene.contact_reason()) if skills else NOT_TRAINED
         self._on_run_state()
+
+    def _executed(self, arm: Arm, skill: Skill) -> np.ndarray:
+        """(n, 3) where the gripper goes when the joints Play plays are followed (forward kinematics), else the
+        learned path."""
+        jt = skill.joint_trajectory
+        if jt is None or len(jt.q) == 0:
+            return np.asarray(skill.trajectory.position)
+        return self.ctl.baxter.fk_batch(arm, np.asarray(jt.q))[0]
+
+    def _draw_contacts(self) -> None:
+        """Where the skill touches what it must not (the table, an object, the other arm): red over the path."""
+        for arm in ARMS:
+            old = self._nodes.pop(f"contact_{arm}", None)
+            if old is not None:
+                old.remove()
+        if not self.ctl.training.skills():
+            return
+        for arm, stretches in self.ctl.scene.contact_paths().items():
+            self._red(f"contact_{arm}", f"/preview/{arm}/contact", stretches)
+
+    def _red(self, key: str, node: str, stretches: list[np.ndarray]) -> None:
+        """Stretches (each (n, 3) m) of the learned path drawn red over the cyan, as scene node ``node``."""
+        spans = [segments(downsample_path(p, 200)) for p in stretches if len(p) > 1]
+        if spans:
+            self._nodes[key] = self.scene.add_line_segments(
+                node,
+                np.concatenate(spans),
+                colors=IK_FAIL,
+                thickness=10.0,
+                thickness_units="screen",
+                visible=self.ctl.view.shown(Layer.LEARNED_PATH),
+            )
 
     # -- Run on robot ------------------------------------------------------------------------------------------
     def _on_run(self, event: viser.GuiEvent) -> None:
@@ -129,6 +163,8 @@ class PreviewPanel:
         running = execution.running
         if any(not f.ok for f in execution.feasibility().values()):  # its words are above, with the red path
             reason = "The robot does not run a skill it cannot follow: see what is red on the learned path."
+        elif self.ctl.scene.contact_reason():
+            reason = "The robot does not run a skill that would hit something: see what is red on the learned path."
         quiet = running or reason.startswith("The emergency stop")  # the run's status says so, on every step
         disabled = bool(reason)
         task = self.ctl.scene.task_result()
@@ -208,6 +244,10 @@ class PreviewPanel:
         with self.server.atomic():
             self.reach.content = self._reach_html()
             self.task.content = self._task_html()
+            self._draw_contacts()
+            if self.ctl.training.skills():
+                duration = self.ctl.playback.preview_duration()
+                self.info.content = _info(duration, self.ctl.execution.feasibility(), self.ctl.scene.contact_reason())
         self._on_run_state()
 
     def _reach_html(self) -> str:
@@ -223,15 +263,24 @@ class PreviewPanel:
         )
 
     def _task_html(self) -> str:
+        """The task result under one claim that agrees with the words around it: "does the task" only where the
+        objects stand where the demonstrations had them and the robot can follow the whole path."""
         result = self.ctl.scene.task_result()
         if result is None:
             return ""
-        nothing = not result.objects
-        color = "#15803d" if result.ok else ("#92400e" if nothing else "#b91c1c")
-        head = "Task result" if nothing else ("The skill does the task" if result.ok else "The skill misses the task")
+        claim, head = "misses", "The skill misses the task."
+        if not result.objects:
+            claim, head = "nothing", "Task result."
+        elif result.ok and any(not f.ok for f in self.ctl.execution.feasibility().values()):
+            claim, head = "cannot-run", CANNOT_RUN
+        elif result.ok and self.ctl.placed.warnings():
+            claim, head = "guess", NEVER_SHOWN
+        elif result.ok:
+            claim, head = "works", "The skill does the task."
+        color = {"works": "#15803d", "misses": "#b91c1c"}.get(claim, "#92400e")
         return (
-            f'<div class="task-result" data-ok="{str(result.ok).lower()}" style="font-size:0.9em;'
-            f'border-left:4px solid {color};padding:2px 8px;margin:4px 0"><b style="color:{color}">{head}.</b> '
+            f'<div class="task-result" data-ok="{str(result.ok).lower()}" data-claim="{claim}" style="font-size:0.9em;'
+            f'border-left:4px solid {color};padding:2px 8px;margin:4px 0"><b style="color:{color}">{head}</b> '
             f"{html.escape(result.text)}</div>"
         )
 
@@ -242,8 +291,8 @@ class PreviewPanel:
             self.time.value = round(min(pos, self.time.max), 2)
 
 
-def _info(duration: float, feasibility: dict[Arm, Feasibility]) -> str:
-    bad = [f.message for f in feasibility.values() if not f.ok]
+def _info(duration: float, feasibility: dict[Arm, Feasibility], contacts: str = "") -> str:
+    bad = [f.message for f in feasibility.values() if not f.ok] + ([contacts] if contacts else [])
     if bad:
         return f"Learned path ({duration:.1f} s) in cyan. In red: {' '.join(bad)} Press **Play** to watch it."
     return (

@@ -19,6 +19,8 @@ from studio.core.types import ALL_ARM_JOINTS
 FINGER_TRAVEL = 0.020833
 GRIPPER_JOINTS = {"l_gripper_l_finger_joint": 0, "r_gripper_l_finger_joint": 1}
 ARM_CHOICES = {"Left arm": ("left",), "Right arm": ("right",), "Both arms": ("left", "right")}
+#: The out-of-reach words keep room for two lines: the controls below do not move when they come and go.
+MESSAGE_SLOT = "min-height:3.2em"
 
 
 def arms_label(arms: tuple[str, ...]) -> str:
@@ -117,7 +119,7 @@ class RobotPanel:
         src = ctl.playback.label()
         text = (
             f'<div style="font-size:0.85em"><div class="robot-source">{src}</div>{"".join(lines)}'
-            f'<div class="robot-message">{html.escape(ctl.teaching.reach_message())}</div></div>'
+            f'<div class="robot-message" style="{MESSAGE_SLOT}">{html.escape(ctl.teaching.reach_message())}</div></div>'
         )
         if text != self._status_html:
             self._status_html = text

@@ -137,6 +137,7 @@ class RunPanel:
     async def _urgent(self, action: Callable[[], None], event: viser.GuiEvent) -> None:
         try:
             await asyncio.get_running_loop().run_in_executor(self._estop_path, action)
+            self.server.flush()  # the status goes to every tab now, not at the next window
         except Exception as exc:
             self.ctl.ctx.report(exc, title="Could not stop the robot", client=event.client)
 

@@ -1,5 +1,6 @@
 """Scene panel: the table and the task's objects drawn in the scene, following the world at the pose pump, and
-the controls to set them up (add a cup, a block or a pad; move one with a handle; remove; a preset; put back)."""
+the controls to set them up (add a cup, a block or a pad; move one with its handle in the room's axes or its x/y
+boxes; remove; put back, or back to the task's layout; a preset). The handle: docs/decisions/072, 092."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import math
 import threading
 import time
 import zlib
+from collections.abc import Callable
 
 import numpy as np
 import viser
@@ -24,6 +26,15 @@ LEG_COLOR = (150, 140, 125)
 TABLE_THICKNESS = 0.03
 NONE = "(none)"
 ADD = {"Cup": "cup", "Block": "block", "Pad": "pad"}
+TURN = "Turn with the handle"
+NO_CHOICE = (
+    '<div class="object-where" data-name="" style="font-size:0.85em;color:#6b7280">Choose an object to move it with '
+    "its handle or its x and y.</div>"
+)
+PUT_BACK = "Put all back"
+LAYOUT = "Put back to the task's layout"
+#: The objects' handle stays in the room's axes (x away from the robot, y to its left), never turned with the object.
+ROOM_AXES = (1.0, 0.0, 0.0, 0.0)
 
 
 class ScenePanel:
@@ -51,8 +62,25 @@ class ScenePanel:
             self.pick = gui.add_dropdown(
                 "Object", options=[NONE], initial_value=NONE, hint="Choose an object to move it with its handle."
             )
-            self.where = gui.add_html("")  # where the chosen object is, x/y/z (see where_html)
-            self.actions = gui.add_button_group("Object action", options=("Remove", "Put all back"))
+            self.boxes = {
+                axis: gui.add_number(f"Object {axis} (cm)", initial_value=0.0, step=0.5, hint=hint, disabled=True)
+                for axis, hint in (
+                    ("x", "Away from the robot (its front), in centimetres: type a number and press Enter."),
+                    ("y", "To the robot's left, in centimetres: type a number and press Enter."),
+                )
+            }
+            self.where = gui.add_html(NO_CHOICE)  # where the chosen object is, x/y/z (see where_html)
+            self.turn = gui.add_checkbox(
+                TURN,
+                initial_value=ctl.guide.turning,
+                hint="On: the handle shows a ring that turns the object (or the gripper). Off: arrows that move it.",
+            )
+            self.actions = gui.add_button_group(
+                "Object action",
+                options=("Remove", PUT_BACK),
+                hint="Put all back: every object back where you set it up (what a gripper holds is let go).",
+            )
+            self.layout = gui.add_button(LAYOUT, hint=self._layout_hint())
             self.preset = gui.add_dropdown(
                 "Task set-up",
                 options=SCENE_PRESETS,
@@ -62,17 +90,29 @@ class ScenePanel:
                 "Use this set-up", hint="Replace the objects on the table by the chosen task's objects."
             )
         self.handle = self.scene.add_transform_controls(
-            "/objects_handle", scale=0.16, line_width=2.0, depth_test=False, disable_sliders=True, visible=False
+            "/objects_handle",
+            line_width=2.5,
+            active_axes=(True, True, False),  # on the table: x and y only (and the turn about z)
+            depth_test=False,
+            disable_sliders=True,
+            visible=False,
         )
+        self._apply_mode()
+        self._turn_from = 0.0  # the object's heading when a turn started
         self.add.on_click(ctl.guarded("Could not add the object")(self._on_add))
         self.pick.on_update(ctl.guarded()(self._on_pick))
         self.actions.on_click(ctl.guarded("Could not change the objects")(self._on_action))
+        self.layout.on_click(ctl.guarded("Could not put the objects back")(lambda _: ctl.scene.put_back_layout()))
         self.use_preset.on_click(ctl.guarded("Could not set up the task")(self._on_preset))
         self.handle.on_update(ctl.guarded("Could not move the object")(self._on_handle))
+        self.turn.on_update(ctl.guarded()(self._on_turn))
+        for axis, box in self.boxes.items():
+            box.on_update(ctl.guarded("Could not move the object")(self._make_box(axis)))
         for topic in (Topic.SCENE, Topic.SESSION):
             ctl.events.on(topic, self.refresh)
         ctl.events.on(Topic.VIEW, self._apply_view)
         ctl.events.on(Topic.PLAYBACK, self._apply_view)
+        ctl.events.on(Topic.GUIDE, self._on_guide)
         self.refresh()
 
     # -- the set-up controls -------------------------------------------------------------------------------
@@ -97,6 +137,41 @@ class ScenePanel:
     def _on_preset(self, event: viser.GuiEvent) -> None:
         self.ctl.scene.use_preset(self.preset.value)
 
+    def _on_turn(self, event: viser.GuiEvent) -> None:
+        if event.client is not None:
+            self.ctl.guide.set_turning(bool(self.turn.value))
+
+    def _on_guide(self) -> None:
+        """The handle's mode changed (here or in the Move panel): arrows or the ring."""
+        self.turn.value = self.ctl.guide.turning
+        self._apply_mode()
+
+    def _apply_mode(self) -> None:
+        turning = self.ctl.guide.turning
+        for key, value in (("disable_axes", turning), ("disable_rotations", not turning)):
+            if getattr(self.handle, key) != value:
+                setattr(self.handle, key, value)
+        scale = 0.15 if turning else 0.2
+        if self.handle.scale != scale:
+            self.handle.scale = scale
+
+    def _make_box(self, axis: str) -> Callable[[viser.GuiEvent], None]:
+        def cb(event: viser.GuiEvent) -> None:
+            name = self.pick.value
+            if event.client is None or name == NONE or name not in self.ctl.scene.scene.names():
+                return
+            p = list(self.ctl.scene.scene.object(name).position)
+            p["xy".index(axis)] = float(self.boxes[axis].value) / 100.0
+            self.ctl.scene.move(name, tuple(p))  # SCENE redraws, the handle goes with it
+
+        return cb
+
+    def _layout_hint(self) -> str:
+        preset = self.ctl.scene.scene.preset
+        if preset not in SCENE_PRESETS or preset == SCENE_PRESETS[0]:
+            return "This table has no task layout: choose a task set-up below."
+        return f'Every object back where the task "{preset}" starts (your moves of them are undone).'
+
     def _on_handle(self, event: viser.TransformControlsEvent) -> None:
         name = self.pick.value
         if name == NONE or name not in self.ctl.scene.scene.names():
@@ -104,20 +179,24 @@ class ScenePanel:
         phase = getattr(event, "phase", "update")
         h = self.handle
         obj = self.ctl.scene.scene.object(name)
-        R = matrix_from_quat_wxyz(np.asarray(h.wxyz))
-        bottom = np.asarray(h.position) - R[:, 2] * obj.size[2]  # the handle sits on the object's top
+        if phase == "start" or not self._dragging:
+            self._turn_from = obj.yaw
+        R = matrix_from_quat_wxyz(np.asarray(h.wxyz))  # the handle's turn from the room's axes (its ring only)
+        yaw = self._turn_from + (math.atan2(R[1, 0], R[0, 0]) if self.ctl.guide.turning else 0.0)
+        # The handle sits on the object's top and moves in x and y only: the object keeps its height.
+        bottom = (float(h.position[0]), float(h.position[1]), obj.position[2])
         if phase == "end":
             self._dragging = False
             self._drag_end = time.monotonic()
-            yaw = math.atan2(R[1, 0], R[0, 0])
-            self.ctl.scene.move(name, tuple(float(v) for v in bottom), yaw)  # settles; SCENE redraws
+            h.wxyz = ROOM_AXES
+            self.ctl.scene.move(name, bottom, yaw)  # settles; SCENE redraws
             self._place_handle()
             return
         self._dragging = True
         node = self._nodes.get(name)
         if node is not None:  # the object follows the handle while it is dragged
-            node.position = tuple(bottom)
-            node.wxyz = tuple(h.wxyz)
+            node.position = bottom
+            node.wxyz = (math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2))
 
     # -- drawing ---------------------------------------------------------------------------------------------
     def refresh(self) -> None:
@@ -144,6 +223,7 @@ class ScenePanel:
                 self.pick.value = NONE
                 self.ctl.guide.choose(None)
             self.preset.value = scene.preset if scene.preset in self.preset.options else self.preset.options[0]
+            self.layout.hint = self._layout_hint()
         self._place_handle()
         self._apply_view()
         self.tick(time.perf_counter())
@@ -220,16 +300,22 @@ class ScenePanel:
                         self.where.content = where_html(p.name, p.position)
 
     def _place_handle(self) -> None:
+        """The handle on the chosen object's top, in the room's axes; its x/y boxes show where it stands."""
         name = self.pick.value
         scene = self.ctl.scene.scene
-        if name == NONE or name not in scene.names():
-            self.where.content = ""
-            return
-        o = scene.object(name)
-        self.where.content = where_html(name, o.position)
-        c, s = math.cos(o.yaw / 2), math.sin(o.yaw / 2)
-        self.handle.position = (o.position[0], o.position[1], o.position[2] + o.size[2])
-        self.handle.wxyz = (c, 0.0, 0.0, s)
+        chosen = name != NONE and name in scene.names()
+        with self.server.atomic():
+            for box in self.boxes.values():
+                box.disabled = not chosen  # a fixed slot: the boxes stay where they are
+            if not chosen:
+                self.where.content = NO_CHOICE
+                return
+            o = scene.object(name)
+            self.where.content = where_html(name, o.position)
+            for axis, box in self.boxes.items():
+                box.value = round(100.0 * o.position["xy".index(axis)], 1)
+            self.handle.position = (o.position[0], o.position[1], o.position[2] + o.size[2])
+            self.handle.wxyz = ROOM_AXES
 
     def _apply_view(self) -> None:
         """Objects follow the "Objects" toggle; their handle shows in the Teach step on the live robot only."""
@@ -239,7 +325,7 @@ class ScenePanel:
             for node in self._nodes.values():
                 node.visible = shown
             self.handle.visible = (
-                shown and ctl.view.step == Step.TEACH and self.pick.value != NONE and ctl.playback.kind is None
+                shown and ctl.view.step == Step.TEACH and self.pick.value != NONE and ctl.display.is_live
             )
 
 

@@ -16,6 +16,7 @@ from studio.controller.teaching import REACH_HOLD_S
 from studio.core.arms import arm_columns
 from studio.core.rotations import matrix_from_quat_wxyz, quat_wxyz_from_matrix
 from studio.core.types import ALL_ARM_JOINTS, ARMS, Arm
+from studio.words import length_words
 
 JOINT_WORDS = {
     "s0": "shoulder turn",
@@ -47,6 +48,23 @@ class HandleMode(NamedTuple):
 
 def handle_mode(turning: bool) -> HandleMode:
     return HandleMode(True, False, 0.15, 2.0) if turning else HandleMode(False, True, 0.22, 2.5)
+
+
+def out_of_reach_words(arm: Arm, handle: np.ndarray, reached: np.ndarray) -> str:
+    """What an out-of-reach drag did, in the room's terms: how far short of the handle the gripper stopped, and
+    its height when that changed (a later key moves from there)."""
+    short = float(np.hypot(*(handle[:2] - reached[:2])))
+    up = float(reached[2] - handle[2])
+    said = [f"{length_words(short)} short of it"] if short >= 0.005 else []
+    if abs(up) >= 0.005:
+        said.append(f"{length_words(up)} {'higher' if up > 0 else 'lower'} than the handle")
+    where = f": {' and '.join(said)}" if said else ""
+    height = f" The gripper is now {reached[2] * 100:.1f} cm high (z), the handle was at {handle[2] * 100:.1f} cm."
+    return (
+        f"The {arm} arm cannot put its gripper where you left the handle; it stopped at the closest pose it can "
+        f"reach{where}.{height if abs(up) >= 0.005 else ''} Drag the handle closer to the robot, or press H for the "
+        "home pose."
+    )
 
 
 def joint_label(name: str) -> str:
@@ -183,11 +201,13 @@ class TeachPanel:
                 h.wxyz = ROOM_AXES
                 self._dragging[arm] = False
                 self._drag_end[arm] = self._drag_end_any = time.monotonic()
-                if self.ctl.teaching.unreachable(arm):
+                r = self.ctl.teaching.reach.get(arm)
+                if r is not None and r.blocked:
+                    self.ctl.notify("Stopped before touching", r.blocked, kind="warning", client=event.client)
+                elif self.ctl.teaching.unreachable(arm):
                     self.ctl.notify(
                         "Out of reach",
-                        f"The {arm} arm cannot put its gripper where you left the handle; it stopped at the "
-                        "closest pose it can reach. Drag the handle closer to the robot, or press H for the home pose.",
+                        out_of_reach_words(arm, np.asarray(h.position), guide.pose(arm)[0]),
                         kind="warning",
                         client=event.client,
                     )
@@ -203,6 +223,9 @@ class TeachPanel:
                 off = r is None or r.ok or arm not in teaching.selected_arms or self.ctl.view.step != Step.TEACH
                 if r is not None:
                     self.miss_markers[arm].position = r.target
+                    label = "Would touch" if r.blocked else "Out of reach"
+                    if self.miss_labels[arm].text != label:
+                        self.miss_labels[arm].text = label
                 self.miss_markers[arm].visible = not off
                 self.miss_labels[arm].visible = not off
 

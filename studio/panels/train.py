@@ -12,7 +12,15 @@ from studio.controller import FRAME_WORDS, MODE_WORDS, Controller, SkillVerdict,
 from studio.core.quality import Remedy
 from studio.core.types import DEFAULT_FRAMES, DEFAULT_GENERALIZATION, Arm, Skill
 from studio.panels._charts import heatmap_svg, position_plot_svg
-from studio.words import SHARED_REMEDIES, Remedies, fit_note, route_label, segment_lines, verdict_lines
+from studio.words import (
+    SHARED_REMEDIES,
+    Remedies,
+    fit_note,
+    frame_lines,
+    route_label,
+    segment_lines,
+    verdict_lines,
+)
 
 _LEVEL_COLOR = {"good": "#15803d", "fair": "#b45309", "poor": "#b91c1c"}
 #: The knob that would help, said with the studio's own controls.
@@ -217,6 +225,7 @@ class TrainPanel:
             color = _LEVEL_COLOR.get(v.verdict.level, "#333")
             bullets = "".join(f"<li>{html.escape(n)}</li>" for n in notes)
             bullets += "".join(f'<li class="verdict-segment">{html.escape(n)}</li>' for n in segment_lines(v.segments))
+            bullets += "".join(f'<li class="verdict-frames">{html.escape(n)}</li>' for n in frame_lines(v.choices))
             blocks.append(
                 f'<div class="verdict" data-arm="{arm}" data-level="{v.verdict.level}" '
                 f'style="font-size:0.9em;border-left:4px solid {color};padding:4px 8px;margin:4px 0">'

@@ -14,9 +14,11 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import hashlib
 import json
 import os
 import struct
+import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,11 +27,13 @@ from typing import IO, Any
 import numpy as np
 
 from studio.core.errors import RecordingError, StorageError, StudioError
-from studio.core.types import ALL_ARM_JOINTS, ARMS, Recording
+from studio.core.types import ALL_ARM_JOINTS, ARMS, Arm, Recording
 
 MAGIC = b"TSREC\n"
 FORMAT_VERSION = 1
 SUFFIX = ".rec"
+#: The ending of a take that was stopped, whole, but waited for disk space (not one a crash interrupted).
+FINISHED = ".stopped" + SUFFIX
 
 
 def columns(arms: tuple[str, ...]) -> list[str]:
@@ -144,18 +148,53 @@ def read_recording_file(
         prev = float(block[-1, 0])
     if n_ok == 0:
         return None
-    data = data[:n_ok]
-    t = np.asarray(data[:, 0]) - float(data[0, 0])
-    rec = Recording(
-        t=t,
-        q=data[:, 1:15],
-        gripper=np.clip(data[:, 15:17], 0.0, 100.0),
-        arms=arms,
-        name=name or str(header.get("name") or "demo"),
-    )
-    out_poses = {a: np.array(data[:, 17 + 7 * i : 24 + 7 * i]) for i, a in enumerate(arms)} if poses else {}
+    demo = demo_from_rows(data[:n_ok], arms, name or str(header.get("name") or "demo"), path, poses=poses)
     del data
+    return demo
+
+
+def demo_from_rows(
+    data: np.ndarray, arms: tuple[Arm, ...], name: str, path: Path, *, poses: bool = True
+) -> RecordedDemo:
+    """A take from its file rows ``data`` (n, columns(arms)), times made to start at 0."""
+    t = np.asarray(data[:, 0]) - float(data[0, 0])
+    rec = Recording(t=t, q=data[:, 1:15], gripper=np.clip(data[:, 15:17], 0.0, 100.0), arms=arms, name=name)
+    out_poses: dict[str, np.ndarray] = (
+        {a: np.array(data[:, 17 + 7 * i : 24 + 7 * i]) for i, a in enumerate(arms)} if poses else {}
+    )
     return RecordedDemo(recording=rec, poses=out_poses, path=path)
+
+
+def spill_dirs(directory: str | os.PathLike[str]) -> list[Path]:
+    """Where a take goes whose own disk is still full when the studio stops (the user's state folder, else the
+    temporary one), one folder per recording folder: the next open of its session adds it from there."""
+    key = hashlib.sha1(str(Path(directory).resolve()).encode()).hexdigest()[:16]
+    state = Path(os.environ.get("XDG_STATE_HOME") or Path.home() / ".local" / "state")
+    return [state / "teaching-studio" / "takes" / key, Path(tempfile.gettempdir()) / "teaching-studio-takes" / key]
+
+
+def write_spill(
+    directory: str | os.PathLike[str], name: str, header: dict[str, object], parts: list[np.ndarray]
+) -> Path | None:
+    """Write a whole take (``header`` and the rows of ``parts``) to the first of :func:`spill_dirs` that takes it;
+    its path, or None when none could."""
+    for folder in spill_dirs(directory):
+        part = folder / f"{name}.part"
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            with open(part, "xb") as f:
+                write_header(f, header)
+                for rows in parts:
+                    f.write(np.ascontiguousarray(rows, dtype="<f8").data.cast("B"))
+                f.flush()
+                os.fsync(f.fileno())
+            final = folder / name
+            os.rename(part, final)
+            return final
+        except OSError:
+            with contextlib.suppress(OSError):
+                part.unlink()
+    return None
 
 
 def _is_locked(path: Path) -> bool:
@@ -172,11 +211,13 @@ def _is_locked(path: Path) -> bool:
 
 
 def pending_recordings(directory: str | os.PathLike[str]) -> list[Path]:
-    """Recording files left in ``directory`` by a process that is no longer writing them."""
-    d = Path(directory)
-    if not d.is_dir():
-        return []
-    return sorted(p for p in d.glob(f"*{SUFFIX}") if p.is_file() and not p.is_symlink() and not _is_locked(p))
+    """Recording files left in ``directory`` (or, for it, in :func:`spill_dirs`) by a process that is no longer
+    writing them."""
+    found: list[Path] = []
+    for d in [Path(directory), *spill_dirs(directory)]:
+        if d.is_dir() and not d.is_symlink():
+            found += sorted(p for p in d.glob(f"*{SUFFIX}") if p.is_file() and not p.is_symlink() and not _is_locked(p))
+    return found
 
 
 def recover_recordings(
@@ -199,6 +240,7 @@ def recover_recordings(
     """
     recs: list[Recording] = []
     notes: list[str] = []
+    waited: list[str] = []
     damaged: list[str] = []
     kept: list[str] = []
     for p in pending_recordings(directory):
@@ -220,7 +262,8 @@ def recover_recordings(
                 f'The recording file "{p.name}" held a single sample, which is not a demonstration; it was removed.'
             )
             continue
-        suffix = " (recovered)"
+        finished = p.name.endswith(FINISHED)  # stopped whole; it only waited for disk space
+        suffix = "" if finished else " (recovered)"
         rec = Recording(
             t=rec.t, q=rec.q, gripper=rec.gripper, arms=rec.arms, name=f"{rec.name[: 100 - len(suffix)]}{suffix}"
         )
@@ -247,14 +290,19 @@ def recover_recordings(
             with contextlib.suppress(OSError):
                 p.unlink()
         recs.append(rec)
-        notes.append(f'"{rec.name}" ({rec.duration:.1f} s, {len(rec)} samples)')
+        (waited if finished else notes).append(f'"{rec.name}" ({rec.duration:.1f} s, {len(rec):,} samples)')
     msg = ""
-    if recs:
+    if notes:
         where = " and added to the session" if add is not None else ""
         msg = (
-            f"The studio stopped while recording last time. {len(recs)} demonstration"
-            f"{'s were' if len(recs) > 1 else ' was'} recovered{where}, up to the last second before it "
+            f"The studio stopped while recording last time. {len(notes)} demonstration"
+            f"{'s were' if len(notes) > 1 else ' was'} recovered{where}, up to the last second before it "
             f"stopped: {', '.join(notes)}."
+        )
+    if waited:
+        msg = (msg + " " if msg else "") + (
+            f"{'These takes' if len(waited) > 1 else 'This take'} could not be saved when recorded (the disk was "
+            f"full) and {'were' if len(waited) > 1 else 'was'} added now, whole: {', '.join(waited)}."
         )
     if damaged:
         msg = (msg + " " if msg else "") + "Some recording files could not be recovered: " + " ".join(damaged)
@@ -274,15 +322,19 @@ def discard_pending(directory: str | os.PathLike[str]) -> int:
 
 
 __all__ = [
+    "FINISHED",
     "FORMAT_VERSION",
     "MAGIC",
     "SUFFIX",
     "RecordedDemo",
     "columns",
+    "demo_from_rows",
     "discard_pending",
     "open_locked",
     "pending_recordings",
     "read_recording_file",
     "recover_recordings",
+    "spill_dirs",
     "write_header",
+    "write_spill",
 ]

@@ -1,10 +1,10 @@
 """Records the robot's joint-state stream into a demonstration, crash-safe.
 
-Every streamed sample's time, 14 joint angles, both gripper openings and the FK pose of each taught arm
-(paper § Data Collection) go to an append-only file as they arrive (:mod:`studio.recorder.files`; a writer
-thread drains, appends and flushes, and fsyncs about once a second), so whatever survives a crash is
-readable and memory stays bounded (docs/decisions/025). Use: ``rec = Recorder(backend, folder, arms=...);
-rec.start(); recording = rec.stop(); session.add_recording(recording); rec.discard()``."""
+Every sample's time, joints, grippers and the FK pose of each taught arm go to an append-only file as they arrive
+(:mod:`studio.recorder.files`; a writer thread appends and fsyncs about once a second), so what survives a crash
+is readable (docs/decisions/025). When the disk is full, rows wait in memory (bounded) and are written when space
+returns (docs/decisions/090). Use: ``rec = Recorder(backend, folder, arms=...); rec.start(); recording =
+rec.stop(); session.add_recording(recording); rec.discard()``."""
 
 from __future__ import annotations
 
@@ -25,7 +25,17 @@ import numpy as np
 from studio.core.arms import arm_columns, normalize_arms
 from studio.core.errors import RecordingError
 from studio.core.types import Arm, Recording
-from studio.recorder.files import FORMAT_VERSION, SUFFIX, RecordedDemo, columns, open_locked, read_recording_file
+from studio.recorder.files import (
+    FINISHED,
+    FORMAT_VERSION,
+    SUFFIX,
+    RecordedDemo,
+    columns,
+    demo_from_rows,
+    open_locked,
+    read_recording_file,
+    write_spill,
+)
 from studio.robot_backend.base import JointStateBatch, RobotBackend
 
 if TYPE_CHECKING:
@@ -40,6 +50,8 @@ MAX_SECONDS = 3600.0
 DRAIN_CHUNK = 32_768
 #: Samples allowed to wait for the writer before the producer is made to wait (100 s of the stream at 1 kHz).
 MAX_PENDING = 100_000
+#: Bytes of rows a take may hold in memory while the disk takes none (docs/decisions/090 says how long that lasts).
+MAX_UNSAVED_BYTES = 256 * 1024**2
 
 
 class DemoSink(Protocol):
@@ -59,6 +71,7 @@ class Recorder:
         flush_interval: seconds between writes to disk (≤ 1 s).
         max_seconds: stop by itself after this much recorded time.
         baxter: kinematics model (default: the shared :meth:`Baxter.load`).
+        on_full: told (in words, from the writer thread) when the disk first takes no more rows.
     """
 
     def __init__(
@@ -71,6 +84,7 @@ class Recorder:
         flush_interval: float = 0.25,
         max_seconds: float = MAX_SECONDS,
         baxter: Baxter | None = None,
+        on_full: Callable[[str], None] | None = None,
     ) -> None:
         arms = normalize_arms(arms)
         self.backend = backend
@@ -90,6 +104,13 @@ class Recorder:
         self._writer: threading.Thread | None = None
         self._unsubscribe: Callable[[], None] | None = None
         self._file: IO[bytes] | None = None
+        self._header: dict[str, object] = {}
+        self._offset = 0  # where the rows start in the file (after its header)
+        self._end = 0  # bytes of the file that hold whole rows (the header and every row written)
+        #: rows not on disk yet (the disk took no more), oldest first, and how many bytes they hold
+        self._unsaved: list[np.ndarray] = []
+        self._unsaved_bytes = 0
+        self._on_full = on_full
         self.path: Path | None = None
         self._first_seen: float | None = None
         self._n = 0
@@ -127,9 +148,18 @@ class Recorder:
         return self._rows.limit_reached
 
     @property
+    def unsaved(self) -> int:
+        """Samples recorded but not on disk yet (the disk is full): they wait in memory."""
+        with self._lock:
+            return sum(len(a) for a in self._unsaved)
+
+    @property
     def messages(self) -> list[str]:
         """Plain-words notes about the recording (skipped samples, limits, disk problems)."""
-        return self._rows.messages() + ([self.error] if self.error else [])
+        error = self.error
+        if error and error.startswith(_FULL) and self.state != "recording":
+            error = None  # after the take the studio tells whether it is saved (the rows wait in memory)
+        return self._rows.messages() + ([error] if error else [])
 
     def start(self) -> None:
         """Open the append-only file and start recording the stream."""
@@ -150,6 +180,8 @@ class Recorder:
                 "pid": os.getpid(),
             }
             self._file = open_locked(self.path, header)
+            self._header = header
+            self._offset = self._end = self._file.tell()
         except OSError as exc:
             raise RecordingError(
                 f"Recording could not start: the folder {self.directory} cannot be written ({exc.strerror})."
@@ -176,6 +208,12 @@ class Recorder:
             self._finish()
         assert self.path is not None
         demo = read_recording_file(self.path, name=self.name, poses=poses)
+        with self._lock:
+            unsaved = list(self._unsaved)
+        if unsaved:  # what the disk did not take yet belongs to the take as much as what it did
+            on_disk = demo.recording if demo is not None else None
+            head = [] if on_disk is None else [self._file_rows()]
+            demo = demo_from_rows(np.concatenate([*head, *unsaved]), self.arms, self.name, self.path, poses=poses)
         if demo is None or len(demo.recording) == 0:
             raise RecordingError(
                 "The recording is empty: the robot sent no joint states while recording. "
@@ -183,10 +221,54 @@ class Recorder:
             )
         return demo
 
+    def save_pending(self) -> bool:
+        """Try again to write the rows the disk did not take; True once the whole take is in its file (which is
+        then closed and unlocked: a session opening recovers it from there)."""
+        self._drain(sync=True)
+        with self._write_lock:
+            if self._unsaved:
+                return False
+            if self.state != "recording":
+                self._close_file()
+        return True
+
+    def spill(self) -> Path | None:
+        """The studio stops with rows the disk did not take: write the whole take to a spill folder
+        (:func:`~studio.recorder.files.write_spill`, recovered with its session) and remove the partial file;
+        the spilled file, or None when nothing needed it or no folder took it."""
+        if self.save_pending() or self.path is None:
+            return None
+        with self._write_lock, self._lock:
+            parts = [self._file_rows(), *self._unsaved]
+        spilled = write_spill(self.path.parent, self.path.name[: -len(SUFFIX)] + FINISHED, self._header, parts)
+        if spilled is not None:
+            with self._write_lock:
+                self._unsaved, self._unsaved_bytes = [], 0
+                self._close_file()
+            with contextlib.suppress(OSError):
+                self.path.unlink()
+        return spilled
+
+    def release(self) -> Path | None:
+        """Leave a stopped take that is whole in its file for its session's next open: closed, unlocked and
+        named as a finished take (:data:`~studio.recorder.files.FINISHED`); its path (None while rows wait)."""
+        if self.state == "recording" or not self.save_pending() or self.path is None or not self.path.exists():
+            return None
+        finished = self.path.with_name(self.path.name[: -len(SUFFIX)] + FINISHED)
+        try:
+            os.rename(self.path, finished)
+        except OSError:
+            return self.path  # recovered all the same, as a take the studio stopped during
+        self.path = finished
+        return finished
+
     def discard(self) -> None:
         """Stop (if needed) and delete the recording file (after saving it, or to throw the take away)."""
         if self.state == "recording":
             self._finish()
+        with self._write_lock:
+            self._unsaved, self._unsaved_bytes = [], 0
+            self._close_file()
         if self.path is not None:
             with contextlib.suppress(FileNotFoundError):
                 self.path.unlink()
@@ -213,12 +295,27 @@ class Recorder:
             self._writer.join(timeout=30.0)
         self._drain(sync=True)
         # Under the write lock: a back-pressure drain already under way on the backend thread (it passed the
-        # state check before the unsubscribe) then finds no file instead of writing into a closed one.
+        # state check before the unsubscribe) then finds no file instead of writing into a closed one. A take with
+        # rows the disk did not take keeps its file open and locked (:meth:`save_pending`).
         with self._write_lock:
-            if self._file is not None:
-                why, self._file = _close(self._file), None  # closed first: `or` would skip it after an error
-                self.error = self.error or why
-        self.state = "stopped"
+            self.state = "stopped"
+            if not self._unsaved:
+                self._close_file()
+
+    def _close_file(self) -> None:
+        """Close and unlock the recording file (under the write lock)."""
+        if self._file is not None:
+            why, self._file = _close(self._file), None  # closed first: `or` would skip it after an error
+            self.error = self.error or why
+
+    def _file_rows(self) -> np.ndarray:
+        """The whole rows written to the file so far (read back from it)."""
+        assert self.path is not None
+        ncols = len(columns(self.arms))
+        n = (self._end - self._offset) // (8 * ncols)
+        if n <= 0:
+            return np.empty((0, ncols))
+        return np.array(np.memmap(self.path, dtype="<f8", mode="r", offset=self._offset, shape=(n, ncols)))
 
     def _on_batch(self, batch: JointStateBatch) -> None:
         # Runs on the backend's streaming thread: only queue the batch, the writer does the work.
@@ -253,7 +350,9 @@ class Recorder:
         try:
             # Bounded chunks: FK temporaries stay small however far the writer fell behind; a group that
             # halts the recording (limit, disk error) ends the drain.
-            if self._file is not None and all(self._write_group(g) for g in _chunks(batches)) and sync:
+            ok = self._file is not None and all(self._write_group(g) for g in _chunks(batches))
+            self._write_unsaved()  # rows the disk did not take before: tried again each drain
+            if ok and sync:
                 self._sync()
         finally:
             with self._lock:
@@ -266,25 +365,71 @@ class Recorder:
         q = np.concatenate([b.q for b in batches]).astype(np.float64, copy=False)
         g = np.concatenate([b.gripper for b in batches]).astype(np.float64, copy=False)
         rows = self._rows(t, q, g)
-        f = self._file
-        if rows is not None and f is not None:
-            try:
-                f.write(rows.tobytes())
-                f.flush()
-                if time.monotonic() - self._last_sync >= 0.9:
-                    self._sync()
-            except OSError as exc:
-                self.error = _disk_full(exc)
-                log.error("recorder write failed: %s", exc)
-                self._halt()
-                return False
+        if rows is not None and self._file is not None:
+            with self._lock:
+                self._unsaved.append(rows)
+                self._unsaved_bytes += rows.nbytes
+        self._write_unsaved()
         with self._lock:
             self._n += 0 if rows is None else rows.shape[0]
             self._in_flight -= n_in
+        if self._unsaved_bytes > MAX_UNSAVED_BYTES:
+            self.error = (
+                f"Recording stopped at {self.elapsed:.1f} s: the disk is full, and the studio holds at most "
+                f"{MAX_UNSAVED_BYTES // 1024**2} MB of a take in memory. Everything recorded until then is kept."
+            )
+            self._halt()
+            return False
         if self.limit_reached:
             self._halt()
             return False
         return True
+
+    def _write_unsaved(self) -> None:
+        """Append the rows waiting in memory to the file, as many as the disk takes; a row the disk cut is cut
+        from the file again, so it always holds whole rows (the rest waits for the next try)."""
+        f = self._file
+        if f is None or not self._unsaved:
+            return
+        fd = f.fileno()
+        while self._unsaved:
+            rows = self._unsaved[0]
+            data = rows.data.cast("B")
+            done, why = 0, None
+            try:
+                while done < len(data):
+                    done += os.write(fd, data[done:])
+            except OSError as exc:
+                why = exc
+            whole = done // (rows.shape[1] * 8)
+            self._end += whole * rows.shape[1] * 8
+            with self._lock:
+                if whole == len(rows):
+                    self._unsaved.pop(0)
+                else:
+                    self._unsaved[0] = rows[whole:]
+                self._unsaved_bytes -= whole * rows.shape[1] * 8
+            if why is not None or whole < len(rows):
+                self._full(why)
+                return
+        if self.error and self.error.startswith(_FULL):
+            self.error = None  # the disk took everything again
+        if time.monotonic() - self._last_sync >= 0.9:
+            self._sync()
+
+    def _full(self, exc: OSError | None) -> None:
+        """The disk took no more: the file is cut back to whole rows; the take goes on in memory."""
+        f = self._file
+        if f is not None:
+            with contextlib.suppress(OSError):
+                os.ftruncate(f.fileno(), self._end)
+                os.lseek(f.fileno(), self._end, os.SEEK_SET)
+        first = not (self.error and self.error.startswith(_FULL))
+        self.error = _FULL + (f" ({exc.strerror})." if exc is not None and exc.strerror else ".") + _KEPT
+        if first:
+            log.error("recorder: the disk takes no more rows (%s); they wait in memory", exc)
+            if self._on_full is not None:
+                self._on_full(self.error)
 
     def _sync(self) -> None:
         f = self._file
@@ -298,6 +443,13 @@ class Recorder:
         unsub, self._unsubscribe = self._unsubscribe, None
         if unsub is not None:
             unsub()
+
+
+_FULL = "The disk is full"
+_KEPT = (
+    " The take goes on: what the disk cannot take waits in the studio's memory and is written as soon as there "
+    "is space. Free some space on the disk."
+)
 
 
 def _disk_full(exc: OSError) -> str:

@@ -8,11 +8,13 @@ emergency stop is a hold plus the robot's own stop. Topics: :mod:`.rosbridge_lin
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -48,6 +50,7 @@ from studio.robot_backend.rosbridge_run import PlanClock, calibrate, enable_robo
 from studio.robot_backend.rosbridge_state import RobotWatch, gripper_words
 
 if TYPE_CHECKING:  # pragma: no cover
+    from studio.core.collision import CollisionModel
     from studio.core.execution import ExecutionPlan
 
 log = logging.getLogger(__name__)
@@ -60,6 +63,19 @@ COMMAND_HOLD_S = 1.0
 STALE_S = 0.2
 #: Baxter's default position-mode speed ratio (limb.py), restored after a run; a run uses :data:`RUN_RATIO`.
 DEFAULT_RATIO, RUN_RATIO = 0.3, 1.0
+#: What the robot's health says after the link came back, until a person presses Enable robot.
+OUTAGE_WORDS = (
+    "The connection to the robot came back after it was lost; the studio sends it nothing until you press Enable "
+    "robot (when it is safe)."
+)
+
+
+@functools.cache
+def _robot_model() -> CollisionModel:
+    """Baxter's own collision model (arms and body, no scene), loaded on first use."""
+    from studio.core.collision import CollisionModel
+
+    return CollisionModel()
 
 
 def _cols(arm: Arm) -> slice:
@@ -110,6 +126,15 @@ class RosbridgeBaxter(RobotBackend):
         self._thread: threading.Thread | None = None
         self._stop_evt = threading.Event()
         self.commands_sent = 0
+        #: Targets never sent: outside the joint limits, or running an arm into the robot (decision 088).
+        self.commands_refused = 0
+        self._link_was_up: bool | None = None  # None: never connected yet
+        self._after_outage = False  # the link came back: nothing is sent until a person presses Enable
+        self._lost_busy = False  # the link was lost while the robot moved under the studio's commands, or closed
+        from studio.core.kinematics import Baxter
+
+        b = Baxter.load()
+        self._limits = {arm: (b.lower_limits(arm), b.upper_limits(arm)) for arm in ARMS}
 
     # -- connection -------------------------------------------------------------------------------------------
     @property
@@ -156,14 +181,19 @@ class RosbridgeBaxter(RobotBackend):
 
     # -- the robot's health -----------------------------------------------------------------------------------
     def health(self) -> RobotHealth:
-        return self._watch.health(self._link.connected, self._estopped)
+        h = self._watch.health(self._link.connected, self._estopped)
+        if self._after_outage and h.connected and not h.message:
+            return replace(h, message=OUTAGE_WORDS)
+        return h
 
     def grippers(self) -> dict[str, str]:
         return self._watch.gripper_words()
 
     def enable(self) -> None:
-        """As ``robot_enable.py``: wait for the robot's state, reset it when stopped, enable it (plain errors)."""
+        """As ``robot_enable.py``: wait for the robot's state, reset it when stopped, enable it (plain errors).
+        After a lost connection, this is what lets the studio command the robot again."""
         enable_robot(self._link, lambda: self._watch.robot)
+        self._after_outage = False
 
     def calibrate_grippers(self, arms: tuple[str, ...] = ARMS) -> None:
         """Calibrate each electric gripper of ``arms`` that needs it (it opens and closes once); plain errors."""
@@ -171,8 +201,24 @@ class RosbridgeBaxter(RobotBackend):
 
     # -- commands ---------------------------------------------------------------------------------------------
     def _joint_command(self, arm: Arm, q: np.ndarray) -> None:
-        if self._link.publish(JOINT_COMMAND.format(arm=arm), JOINT_COMMAND_TYPE, joint_command(arm, q)):
+        """Send one target (the newest waits for the connection; a late one is dropped); never one outside the
+        joint limits."""
+        if not self._within_limits(arm, q):
+            self.commands_refused += 1
+            log.warning("a %s arm target outside the joint limits was not sent: %s", arm, np.round(q, 3))
+            return
+        if self._link.publish(JOINT_COMMAND.format(arm=arm), JOINT_COMMAND_TYPE, joint_command(arm, q), newest=True):
             self.commands_sent += 1
+
+    def _within_limits(self, arm: Arm, q: np.ndarray) -> bool:
+        lo, hi = self._limits[arm]
+        q = np.asarray(q, dtype=np.float64)
+        return bool(np.all(np.isfinite(q)) and np.all(q >= lo - 1e-9) and np.all(q <= hi + 1e-9))
+
+    def _collides(self, q14: np.ndarray) -> bool:
+        """The arms at ``q14`` run into each other or the robot's body (its own collision model, no scene)."""
+        near = _robot_model().near(q14[None, :], np.full((1, 2), 100.0))
+        return bool((near.distance < 0.0).any())
 
     def _gripper_send(self, i: int, width: float | None, command: str = "go") -> None:
         self._seq += 1
@@ -198,8 +244,17 @@ class RosbridgeBaxter(RobotBackend):
         qa = np.asarray(q, dtype=np.float64)
         if qa.shape != (7,) or not np.all(np.isfinite(qa)):
             raise InvalidInput(f"The {arm} arm joint angles must be 7 finite numbers.")
+        if not self._within_limits(arm, qa):
+            raise InvalidInput(f"The {arm} arm's target is outside the range its joints can move in; nothing was sent.")
         with self._lock:
             self._require_ready("moving the robot")
+            both = self._watch.reader.measured()[1]
+            for a, t in self._target.items():
+                both[_cols(a)] = t
+            both[_cols(arm)] = qa
+            if np.all(np.isfinite(both)) and self._collides(both):
+                self.commands_refused += 1
+                raise StudioError(f"The {arm} arm would run into the robot itself there; nothing was sent.")
             self._target[arm] = qa.copy()
             self._target_until[arm] = time.monotonic() + COMMAND_HOLD_S
             self._joint_command(arm, qa)
@@ -246,7 +301,9 @@ class RosbridgeBaxter(RobotBackend):
             self._exec = self._run.progress
 
     def emergency_stop(self) -> str:
-        """A hold at the measured joints and the robot's own stop, sent now from this thread (never queued)."""
+        """The robot's own stop first, sent now from this thread (never queued); then a hold at the measured joints,
+        only when they are a pose the arms may hold (within the joint limits, clear of each other and the body): a
+        faulty reading never becomes a target (decision 088)."""
         with self._lock:
             self._estopped = True
             run, self._run = self._run, None
@@ -256,12 +313,16 @@ class RosbridgeBaxter(RobotBackend):
                 self._exec = run.end("emergency-stopped", why)
             if not self._link.connected:
                 return "undelivered"
+            sent = self._link.publish(STOP, EMPTY_TYPE, {})  # safe whenever it arrives
             fresh = self.health().connected
             q = self._watch.reader.measured()[1]
-            if fresh and not np.any(np.isnan(q)):  # a hold at a stale pose, arriving late, would move the arm
+            # a hold at a stale pose, arriving late, would move the arm; one outside the limits is a faulty reading
+            holdable = fresh and all(self._within_limits(a, q[_cols(a)]) for a in ARMS) and not self._collides(q)
+            if holdable:
                 for arm in ARMS:
                     self._joint_command(arm, q[_cols(arm)])
-            sent = self._link.publish(STOP, EMPTY_TYPE, {})  # safe whenever it arrives
+            elif fresh:
+                self.commands_refused += 1
         return "sent" if sent and fresh else "undelivered"
 
     def clear_emergency_stop(self) -> None:
@@ -288,6 +349,15 @@ class RosbridgeBaxter(RobotBackend):
         now = time.monotonic()
         with self._lock:
             h = self.health()
+            if h.connected and self._link_was_up is False:  # the socket, or the robot's stream, is back
+                self._came_back()
+                h = self.health()
+            if not h.connected and self._link_was_up:  # lost now: while moving the robot, or the socket closed?
+                self._lost_busy = self._run is not None or bool(self._target)
+            if not self._link.connected and self._link_was_up is not None:
+                self._lost_busy = True
+            if h.connected or self._link_was_up is not None:  # None until first connected
+                self._link_was_up = h.connected
             run = self._run
             if run is not None:
                 why = why_ended(h, self._watch.robot, run.progress, self._estopped)
@@ -311,6 +381,15 @@ class RosbridgeBaxter(RobotBackend):
                     self._hold_tick(now)
                 return
             self._run_tick(run, now)
+
+    def _came_back(self) -> None:
+        """The link is back after an outage: the SDK's default speed ratio again (a run may have left it at 1); after
+        a closed socket, or an outage while the robot moved under the studio's commands, nothing else until a
+        person presses Enable robot (:data:`OUTAGE_WORDS`). A stream that only paused while idle needs no Enable."""
+        self._target.clear()
+        self._ratio(ARMS, DEFAULT_RATIO)
+        self._after_outage = self._after_outage or self._lost_busy
+        self._lost_busy = False
 
     def _run_tick(self, run: PlanClock, now: float) -> None:
         q, g = run.advance(now)

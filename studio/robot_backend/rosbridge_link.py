@@ -3,12 +3,15 @@
 Topics as in the Baxter SDK (:data:`JOINT_STATES` and the others below): joint, robot and gripper states come
 from the robot; joint commands (position mode, one arm by name), speed ratios, gripper commands (by hardware
 id), enable, reset, stop and the joint-state rate go to it. :meth:`RosLink.publish` drops a message while the
-socket is down (roslibpy would queue it and send it on reconnecting). Used by :mod:`.rosbridge`."""
+socket is down (roslibpy would queue it and send it on reconnecting), and a late target after a stall. Used by
+:mod:`.rosbridge`."""
 
 from __future__ import annotations
 
 import json
 import logging
+import threading
+import time
 from collections.abc import Callable
 from typing import Any
 from urllib.parse import urlparse
@@ -19,6 +22,9 @@ from studio.core.errors import InvalidInput, StudioError
 from studio.core.types import ARM_JOINTS, Arm
 
 log = logging.getLogger(__name__)
+
+#: A command still waiting on the connection's loop after this long (s) is late: it is dropped, never sent.
+LATE_S = 0.05
 
 JOINT_STATES = "/robot/joint_states"
 JOINT_STATE_TYPE = "sensor_msgs/JointState"
@@ -115,6 +121,10 @@ class RosLink:
         self._factory = ros_factory
         self._ros: Any = None
         self._topics: dict[str, Any] = {}
+        self._pending: dict[str, tuple[float, str, dict[str, Any]]] = {}  # topic -> its newest command, unsent
+        self._pending_lock = threading.Lock()
+        #: Commands overtaken by a newer one on their topic, or late, while the loop was busy: never sent.
+        self.skipped = 0
 
     @property
     def open(self) -> bool:
@@ -129,8 +139,8 @@ class RosLink:
 
     def call_soon(self, fn: Callable[[], None]) -> None:
         """Run ``fn`` on roslibpy's event loop (the one that reads the robot's messages); at once without one."""
-        loop = getattr(getattr(getattr(self._ros, "factory", None), "manager", None), "loop", None)
-        if loop is None or loop.is_closed():
+        loop = self._loop()
+        if loop is None:
             fn()
         else:
             loop.call_soon_threadsafe(fn)
@@ -175,14 +185,45 @@ class RosLink:
             t = self._topics[name] = roslibpy.Topic(self._ros, name, msg_type, queue_size=1)
         return t
 
-    def publish(self, name: str, msg_type: str, msg: dict[str, Any]) -> bool:
-        """Send ``msg`` now, or drop it when the connection is down (never queued); True when sent."""
+    def publish(self, name: str, msg_type: str, msg: dict[str, Any], *, newest: bool = False) -> bool:
+        """Send ``msg`` now, or drop it when the connection is down (never queued); True when sent.
+
+        ``newest``: a stream of targets (joint commands): only the newest waits for the connection's loop, and one
+        that waited more than :data:`LATE_S` is dropped, so a stall never replays old targets in a burst (the SDK's
+        own joint command publisher keeps one message, ``queue_size=1``)."""
         import roslibpy
 
         if not self.connected:
             return False
-        self.topic(name, msg_type).publish(roslibpy.Message(msg))
+        if not newest or self._loop() is None:
+            self.topic(name, msg_type).publish(roslibpy.Message(msg))
+            return True
+        with self._pending_lock:
+            waiting = name in self._pending
+            if waiting:
+                self.skipped += 1
+            self._pending[name] = (time.monotonic(), msg_type, msg)
+        if not waiting:
+            self.call_soon(lambda: self._flush(name))
         return True
+
+    def _flush(self, name: str) -> None:
+        """On the connection's loop: send the newest target waiting for ``name``, unless it is late."""
+        import roslibpy
+
+        with self._pending_lock:
+            item = self._pending.pop(name, None)
+        if item is None:
+            return
+        made, msg_type, msg = item
+        if time.monotonic() - made > LATE_S or not self.connected:
+            self.skipped += 1
+            return
+        self.topic(name, msg_type).publish(roslibpy.Message(msg))
+
+    def _loop(self) -> Any:
+        loop = getattr(getattr(getattr(self._ros, "factory", None), "manager", None), "loop", None)
+        return None if loop is None or loop.is_closed() else loop
 
     def detach(self) -> Any:
         """Unsubscribe and unadvertise every topic, forget the connection and return it (for :meth:`disconnect`,

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal
 
 from studio.core.errors import StudioError
+from studio.security import wire
 from studio.security.addresses import (
     KEY_PARAM,
     KEY_RE,
@@ -28,6 +29,7 @@ from studio.security.addresses import (
     read_target,
     split_host,
 )
+from studio.security.heads import MAX_LINE_BYTES, TOO_MANY_COOKIES_TEXT, connection_class
 from studio.security.page import PageScripts, policy, read_page_scripts
 from studio.security.presses import Presses
 from studio.security.uploads import MAX_MESSAGE_BYTES, UploadLimit
@@ -206,15 +208,24 @@ class Access:
         async def process_request(connection: ServerConnection, request: Request) -> Response | None:
             local_port = int(connection.local_address[1])
             verdict = self.decide(request.path, request.headers, local_port)
+            cookie_bytes = int(getattr(connection, "cookie_bytes", 0))
+            if cookie_bytes > MAX_LINE_BYTES:
+                self._log_cookies(cookie_bytes)
             if verdict.action == "refuse":
                 self._log_refusal(verdict.reason, request)
                 page = not any("websocket" in v.lower() for v in request.headers.get_all("Upgrade"))
-                text = REFUSED_TEXT
-                if page and verdict.reason in _NEEDS_KEY:
+                text, status = REFUSED_TEXT, http.HTTPStatus.FORBIDDEN
+                if page and cookie_bytes > MAX_LINE_BYTES:  # the cookies another page set: say so, and how to clear
+                    hosts = request.headers.get_all("Host")
+                    named = split_host(hosts[0]) if len(hosts) == 1 else None
+                    host = named[0] if named else "127.0.0.1"
+                    text = TOO_MANY_COOKIES_TEXT.format(kb=round(cookie_bytes / 1000), host=host, port=local_port)
+                    status = http.HTTPStatus.REQUEST_HEADER_FIELDS_TOO_LARGE
+                elif page and verdict.reason in _NEEDS_KEY:
                     text = NEEDS_KEY_TEXT
                 elif page and verdict.reason in (_ODD, "the address asks the page to use another server"):
                     text = ODD_ADDRESS_TEXT
-                response = connection.respond(http.HTTPStatus.FORBIDDEN, text.format(port=local_port))
+                response = connection.respond(status, text.format(port=local_port))
                 _protect(response.headers)
                 return response
             if verdict.action == "redirect":
@@ -240,13 +251,20 @@ class Access:
 
         return process_request
 
+    def _log_cookies(self, n: int) -> None:
+        now = time.monotonic()
+        if now - self._last_log.get("cookies", -1e9) >= 10.0:
+            self._last_log["cookies"] = now
+            log.warning("a request carried %d bytes of cookies (another page's?); only the studio's own was read", n)
+
     def _log_refusal(self, reason: str, request: Request) -> None:
         now = time.monotonic()
         if now - self._last_log.get(reason, -1e9) < 10.0:
             return
         self._last_log[reason] = now
-        origin = request.headers.get("Origin")
-        where = f", from a page at {origin}" if origin and "origin" not in reason else ""
+        origins = request.headers.get_all("Origin")  # two of them: .get would raise
+        origin = origins[0] if len(origins) == 1 else None
+        where = f", from a page at {origin}" if origin and "origin" not in reason.lower() else ""
         log.warning("refused a connection to the studio (%s%s)", reason, where)
 
     # -- hooking into viser ------------------------------------------------------------------------------
@@ -268,6 +286,8 @@ class Access:
             def guarded_serve(handler: Any, *args: Any, process_request: Any = None, **kw: Any) -> Any:
                 access.hooked = getattr(process_request, "__qualname__", repr(process_request))
                 kw["max_size"] = MAX_MESSAGE_BYTES
+                kw["create_connection"] = connection_class(lambda: access.cookie_name)  # a cookie bomb is read
+                handler = wire.serving(handler, lambda: access.presses)  # its reader and sender find the gate
                 return real_serve(handler, *args, process_request=access.check(process_request), **kw)
 
             setattr(wss, "serve", guarded_serve)  # noqa: B010 (mypy: `serve` is a class)
@@ -287,6 +307,7 @@ class Access:
         try:
             if self.hooked is None:
                 raise StudioError("its web server no longer starts where the studio checks who connects")
+            wire.install()  # each tab's messages reach the gate as they are read; a frame that fails is mended
             self.uploads = UploadLimit(server)
             self.presses = Presses(server)  # sees each message first, then hands it to the upload limit
             self.scripts = read_page_scripts(getattr(server._websock_server, "_http_server_root", None))

@@ -1,9 +1,11 @@
-"""Every message a browser tab sends to a GUI control passes :class:`Presses` first: the Share relay is never
-asked; values are checked against their control (:mod:`.values`); presses are limited per tab; and each tab's
-callbacks run one at a time, a repeated press or value joining the one still waiting (docs/decisions/052)."""
+"""Every message a browser tab sends passes :class:`Presses` as it is read from the socket (:mod:`.wire`): the
+Share relay is never asked; values are checked against their control (:mod:`.values`), a control's newer value
+joining the one not yet handled; presses are limited per tab; and each tab's callbacks run one at a time, a
+repeated press or value joining the one still waiting (docs/decisions/052, 089)."""
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import threading
 import time
@@ -14,6 +16,8 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from studio.core.errors import StudioError
+from studio.security.addresses import split_host
+from studio.security.heads import MAX_LINE_BYTES, TOO_MANY_COOKIES_NOTE
 from studio.security.values import refusal, value_refusal
 
 if TYPE_CHECKING:
@@ -28,6 +32,8 @@ PRESS_RATE = 10.0
 MAX_WAITING = 64
 #: Seconds between two "too many presses" notices to the same tab.
 TELL_EVERY_S = 10.0
+#: Malformed messages of one tab logged one line each within 10 s; beyond, they are counted in one line.
+MALFORMED_LINES = 10
 TOO_FAST = (
     "The studio ignored some presses: they came faster than it can act on them. What you pressed before is done "
     "or under way; wait a moment before pressing again."
@@ -59,6 +65,13 @@ class _Tab:
     #: buttons whose (coroutine) callback is being awaited
     pressing: set[str] = field(default_factory=set)
     gone: bool = False
+    #: values read from the socket and not yet handed to viser (control → the newest message), in order
+    held: dict[str, Any] = field(default_factory=dict)
+    #: what the tab is to be told once viser counts it as connected ("" when nothing)
+    note: str = ""
+    #: malformed messages: when the current 10 s began, and how many in them
+    malformed_since: float = -1e9
+    malformed: int = 0
 
 
 @dataclass
@@ -70,14 +83,16 @@ class Counts:
     too_fast: int = 0
     share: int = 0
     ran: int = 0
+    malformed: int = 0
 
 
 class Presses:
     """The gate between viser's websocket and the studio's GUI callbacks on one server.
 
-    Installed once at start (:meth:`Access.start_viser <studio.security.Access.start_viser>`): it wraps the
-    server's message handler (before viser stores a value) and stands in for the thread pool viser's GUI and
-    scene submit callbacks to (so no tab holds more than one of its threads).
+    Installed once at start (:meth:`Access.start_viser <studio.security.Access.start_viser>`): the socket reader
+    of each tab hands it every message as it is read (:meth:`receive`, before viser queues any work for it); it
+    wraps the server's message handler and stands in for the thread pool viser's GUI and scene submit callbacks
+    to (so no tab holds more than one of its threads).
     """
 
     def __init__(self, server: viser.ViserServer) -> None:
@@ -90,6 +105,7 @@ class Presses:
         if not (
             isinstance(ws, WebsockServer)
             and callable(getattr(ws, "_handle_incoming_message", None))
+            and isinstance(getattr(ws, "_live_connections", None), dict)
             and isinstance(handles, dict)
             and all(hasattr(_messages, n) for n in ("GuiUpdateMessage", "ShareUrlRequest", "ShareUrlDisconnect"))
             and hasattr(gui, "_thread_executor")
@@ -100,6 +116,7 @@ class Presses:
         self._server = server
         self._handles: dict[str, Any] = handles
         self._pool = gui._thread_executor
+        self._ws = ws
         self._inner = ws._handle_incoming_message
         self._tabs: dict[int, _Tab] = {}
         self._lock = threading.Lock()
@@ -110,38 +127,121 @@ class Presses:
         gui._thread_executor = self  # type: ignore[assignment]
         scene._thread_executor = self  # type: ignore[assignment]
         ws.on_client_disconnect(self._on_disconnect)
+        server.on_client_connect(lambda client: self._told(client.client_id))
 
-    # -- messages, on viser's event loop -------------------------------------------------------------------
-    async def handle(self, client_id: Any, message: Any) -> None:
+    # -- messages as they are read from a tab's socket, on viser's event loop ------------------------------
+    def client_of(self, websocket: Any) -> int | None:
+        """The tab (viser's client id) whose connection is ``websocket``."""
+        return next((cid for cid, conn in list(self._ws._live_connections.items()) if conn is websocket), None)
+
+    def greet(self, client_id: Any, websocket: Any) -> None:
+        """A tab just connected: told when its browser sent a cookie bomb (:mod:`.heads`) with its request."""
+        n = int(getattr(websocket, "cookie_bytes", 0))
+        if n <= MAX_LINE_BYTES:
+            return
+        request = getattr(websocket, "request", None)
+        host = split_host(request.headers.get("Host", "")) if request is not None else None
+        text = TOO_MANY_COOKIES_NOTE.format(kb=round(n / 1000), host=host[0] if host else "this address")
+        with self._lock:
+            self._tabs.setdefault(client_id, _Tab()).note = text  # told once viser counts the tab as connected
+
+    def _told(self, client_id: Any) -> None:
+        tab = self._tabs.get(client_id)
+        if tab is not None and tab.note and client_id in self._server.get_clients():
+            note, tab.note = tab.note, ""
+            self._tell(client_id, "Too many cookies for this address", note, "yellow")
+
+    def receive(
+        self, client_id: Any, fields: dict[str, Any], message: Callable[[], Any], handle: Callable[[Any], None]
+    ) -> None:
+        """One message just read from tab ``client_id``'s socket (``fields`` unpacked; ``message()`` makes viser's
+        object of it): dropped (Share, a refused value, a press beyond the tab's rate), held (a value: a newer one
+        of the same control replaces it until the event loop gets to it), or handed to viser at once
+        (``handle``, after the values held before it)."""
         m = self._msgs
-        if isinstance(message, (m.ShareUrlRequest, m.ShareUrlDisconnect)):
+        kind = fields["type"]
+        if kind in (m.ShareUrlRequest.__name__, m.ShareUrlDisconnect.__name__):
             self.counts.share += 1
             self._log("share", "ignored a request for a public share link (the studio never shares itself)")
             return
-        if not isinstance(message, m.GuiUpdateMessage):
-            await self._inner(client_id, message)
-            return
-        handle = self._handles.get(message.uuid) if isinstance(message.uuid, str) else None
-        if handle is None:
-            return  # viser ignores it too
-        why = refusal(handle, message.updates)
-        if why is not None:
-            self.counts.refused += 1
-            label = str(getattr(handle, "label", "?"))[:60]
-            self._log(f"value {label}", f'ignored a value a tab sent to "{label}": {why}')
-            return
-        if not handle._impl.is_button:
-            await self._inner(client_id, message)
-            return
-        if not self._may_press(client_id, message.uuid):
-            return
+        if kind == m.GuiUpdateMessage.__name__:
+            uuid = fields.get("uuid")
+            if not isinstance(uuid, str):
+                self.malformed(client_id, "a value for no control")
+                return
+            control = self._handles.get(uuid)
+            if control is None:
+                return  # a control removed since (viser ignores it too)
+            why = refusal(control, fields.get("updates"))
+            if why is not None:
+                self.counts.refused += 1
+                label = str(getattr(control, "label", "?"))[:60]
+                self._log(f"value {label}", f'ignored a value a tab sent to "{label}": {why}')
+                return
+            if not control._impl.is_button:
+                self._hold(client_id, uuid, message, handle)
+                return
+            if not self._may_press(client_id, uuid):
+                return
+        self._release(client_id, handle)
+        self._pass(client_id, message, handle)
+
+    def _pass(self, client_id: Any, message: Callable[[], Any], handle: Callable[[Any], None]) -> None:
         try:
-            await self._inner(client_id, message)  # a coroutine callback (Stop, Emergency stop) is awaited here
+            made = message()
+        except Exception as exc:  # unpacked, but not a message of viser's protocol
+            self.malformed(client_id, f"{type(exc).__name__}: {str(exc)[:80]}")
+            return
+        handle(made)
+
+    def _hold(self, client_id: Any, uuid: str, message: Callable[[], Any], handle: Callable[[Any], None]) -> None:
+        with self._lock:
+            tab = self._tabs.setdefault(client_id, _Tab())
+        if uuid in tab.held:
+            self.counts.joined += 1
+        elif not tab.held:
+            asyncio.get_running_loop().call_soon(self._release, client_id, handle)
+        tab.held[uuid] = message
+
+    def _release(self, client_id: Any, handle: Callable[[Any], None]) -> None:
+        """Hand the values held for a tab to viser, in the order they first came."""
+        tab = self._tabs.get(client_id)
+        if tab is None or not tab.held:
+            return
+        held, tab.held = tab.held, {}
+        for message in held.values():
+            self._pass(client_id, message, handle)
+
+    def malformed(self, client_id: Any, why: str) -> None:
+        """A message of tab ``client_id`` that is not one of viser's: ignored, one log line (at most
+        :data:`MALFORMED_LINES` a tab in 10 s; the rest are counted in one line)."""
+        self.counts.malformed += 1
+        now = time.monotonic()
+        with self._lock:
+            tab = self._tabs.setdefault(client_id, _Tab())
+            if now - tab.malformed_since >= TELL_EVERY_S:
+                earlier, tab.malformed_since, tab.malformed = tab.malformed - MALFORMED_LINES, now, 0
+            else:
+                earlier = 0
+            tab.malformed += 1
+            n = tab.malformed
+        if earlier > 0:
+            log.warning("ignored %d more malformed messages from a tab, not logged one by one", earlier)
+        if n <= MALFORMED_LINES:
+            log.warning("ignored a malformed message from a tab (%s)", why)
+
+    async def handle(self, client_id: Any, message: Any) -> None:
+        """viser's message handler, wrapped: a button's coroutine callback (Stop, Emergency stop) is awaited
+        here; the same button of the same tab is joined until it ends (:meth:`_may_press`)."""
+        uuid = getattr(message, "uuid", None) if isinstance(message, self._msgs.GuiUpdateMessage) else None
+        try:
+            await self._inner(client_id, message)
         finally:
-            with self._lock:
-                tab = self._tabs.get(client_id)
-                if tab is not None:
-                    tab.pressing.discard(message.uuid)
+            if uuid is not None:
+                with self._lock:
+                    tab = self._tabs.get(client_id)
+                    if tab is not None:
+                        tab.pressing.discard(uuid)
 
     def _may_press(self, client_id: int, uuid: str) -> bool:
         """A press counts against its tab's rate; the same button again while its coroutine runs is joined."""
@@ -166,7 +266,7 @@ class Presses:
                 return True
         self._log("too fast", "ignored presses of a tab that came faster than the studio acts on them")
         if tell:
-            self._tell(client_id)
+            self._tell(client_id, "Too many presses", TOO_FAST, "yellow", 8.0)
         return False
 
     # -- callbacks: viser submits them here (it takes this for its thread pool) ----------------------------
@@ -266,11 +366,13 @@ class Presses:
         self._last_log[what] = now
         log.warning("%s", text)
 
-    def _tell(self, client_id: int) -> None:
+    def _tell(
+        self, client_id: int, title: str, body: str, color: Any = "yellow", close_after: float | None = None
+    ) -> None:
         client = self._server.get_clients().get(client_id)
         if client is None:
             return
         try:
-            client.add_notification("Too many presses", TOO_FAST, color="yellow", auto_close_seconds=8.0)
+            client.add_notification(title, body, color=color, auto_close_seconds=close_after)
         except Exception:  # a tab that just closed
             log.debug("notice to a closed tab", exc_info=True)

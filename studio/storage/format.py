@@ -18,6 +18,7 @@ import numpy as np
 
 from studio.core.errors import InvalidInput, SessionFormatError
 from studio.core.sampling import MAX_SECONDS
+from studio.core.text import first_unsendable
 
 FORMAT = "teaching-studio-session"
 #: Version of the manifest written today; see :mod:`studio.storage.manifest` for how it is extended.
@@ -262,7 +263,23 @@ def decode_manifest(raw: bytes, session: str) -> dict[str, Any]:
         raise damaged(session, MANIFEST, "is damaged (it holds an impossible number)") from exc
     if not isinstance(m, dict) or m.get("format") != FORMAT:
         raise damaged(session, MANIFEST, "is not a Teaching Studio session description")
+    bad = first_unsendable(m)
+    if bad is not None:  # a page could not show it (docs/decisions/090): refused here, never half shown
+        raise damaged(session, MANIFEST, f"has a character that cannot be shown in {field_words(bad[0])} ({bad[1]})")
     return m
+
+
+def field_words(path: tuple[str | int, ...]) -> str:
+    """Where in a manifest the JSON ``path`` (keys and indices) is, in words: "the name of demonstration 3"."""
+    if len(path) >= 3 and path[0] == "demos" and isinstance(path[1], int):
+        entry = f"demonstration {path[1] + 1}"
+        return f"the name of {entry}" if path[2:] == ("name",) else f"the entry {_dotted(path[2:])} of {entry}"
+    words: dict[tuple[str | int, ...], str] = {("notes",): "the session's notes", ("name",): "the session's name"}
+    return words.get(path, f"the entry {_dotted(path)}")
+
+
+def _dotted(path: tuple[str | int, ...]) -> str:
+    return shown("".join(f"[{k}]" if isinstance(k, int) else f".{k}" for k in path).lstrip("."))
 
 
 def finite_number(v: object) -> float | None:

@@ -8,6 +8,7 @@ naming the file and the problem (see :func:`studio.storage.format.damaged`).
 
 from __future__ import annotations
 
+import json
 import math
 import zipfile
 import zlib
@@ -17,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from studio.core.errors import InvalidInput, SessionFormatError
+from studio.core.text import first_unsendable
 from studio.core.types import Recording, Skill
 from studio.storage.format import (
     DEMO_BYTES_PER_SAMPLE,
@@ -219,9 +221,26 @@ def load_demo(path: Path, session: str, entry: DemoEntry) -> Recording:
         raise damaged(session, rel, f"is not a valid demonstration ({exc})") from exc
 
 
+def _check_texts(arrays: Mapping[str, np.ndarray], session: str, rel: str) -> None:
+    """Every text of a skill file (names, and the JSON some of them hold) can be shown on a page
+    (docs/decisions/090); else the file is refused, naming the array."""
+    for key, a in arrays.items():
+        if a.dtype.kind != "U":
+            continue
+        for text in (str(x) for x in a.reshape(-1)):
+            try:
+                decoded = json.loads(text) if text.lstrip()[:1] in ("{", "[") else text
+            except (ValueError, RecursionError):
+                decoded = text
+            bad = first_unsendable([text, decoded])
+            if bad is not None:
+                raise damaged(session, rel, f'has a character that cannot be shown in its "{key}" ({bad[1]})')
+
+
 def load_skill(path: Path, session: str, rel: str) -> Skill:
     """The learned skill saved in ``path`` (:meth:`Skill.to_arrays`), fully validated."""
     arrays = read_npz(path, session, rel, None, max_bytes=MAX_SKILL_BYTES)
+    _check_texts(arrays, session, rel)
     try:
         skill = Skill.from_arrays(arrays)
     except Exception as exc:  # any malformed content: the file is refused, never the studio

@@ -138,14 +138,21 @@ class _Segment:
 
 
 def _plan_arm(
-    task: str, arm: Arm, rng: np.random.Generator, baxter: Baxter, places: Places = USUAL, detour: float = 0.0
+    task: str,
+    arm: Arm,
+    rng: np.random.Generator,
+    baxter: Baxter,
+    places: Places = USUAL,
+    detour: float = 0.0,
+    once: bool = False,
+    dip: float = 0.0,
 ) -> tuple[list[tuple[str, float, object]], np.ndarray]:
     """Timeline of one arm: list of ("move", t0, _Segment) / ("hold", t0, duration) and the start q."""
     q_home = baxter.neutral(arm)
     home, home_ori = baxter.fk(arm, q_home)
-    keys = _task_keys(task, rng, _mirror(home) if arm == "right" else home, places, detour)
+    keys = _task_keys(task, rng, _mirror(home) if arm == "right" else home, places, detour, once, dip)
     if arm == "right":
-        keys = [_Key(_mirror(k.position), -k.yaw, k.hold, k.speed, k.grip, k.kind, bow=-k.bow) for k in keys]
+        keys = [_Key(_mirror(k.position), -k.yaw, k.hold, k.speed, k.grip, k.kind, bow=-k.bow, dip=k.dip) for k in keys]
         keys[0].position = home + (keys[0].position - _mirror(home))
         keys[-1].position = home + (keys[-1].position - _mirror(home))
     pace = rng.uniform(0.82, 1.3) * (1.25 if task == "pick-place" else 1.0)  # overall speed
@@ -168,7 +175,7 @@ def _plan_arm(
             if np.linalg.norm(side) < 1e-6:
                 side = np.array([1.0, 0.0, 0.0])
             side /= np.linalg.norm(side)
-            bow = side * (k.bow + rng.normal(0, 0.012) * min(1.0, d / 0.2))
+            bow = side * (k.bow + rng.normal(0, 0.012) * min(1.0, d / 0.2)) - np.array([0.0, 0.0, k.dip])
             seg = _Segment(t, dur, prev.position, k.position, oris[i - 1], oris[i], bow)
             items.append(("move", t, seg))
             t += dur
@@ -249,6 +256,8 @@ def teach(
     noise: bool = True,
     places: Places = USUAL,
     detour: float = 0.0,
+    once: bool = False,
+    dip: float = 0.0,
 ) -> TeacherPlan:
     """A human-like scripted demonstration of ``task`` (20–30 s, varied speed, pauses, jitter).
 
@@ -263,6 +272,8 @@ def teach(
             same ``places`` go to :func:`studio.world.preset` for the matching scene.
         detour: the first carry bows this far sideways at mid-way (m, ±20 % per demonstration; + is to the left
             of the carry's direction, mirrored for the right arm): a way around an obstacle.
+        once: pick-place puts the block on the pad and goes home, as a newcomer shows it (no way back).
+        dip: the first carry sags this far down at mid-way (m, ±10 % per demonstration): a careless carry.
 
     Returns:
         A :class:`TeacherPlan` (cached: the same arguments return the same read-only plan).
@@ -274,7 +285,7 @@ def teach(
         raise InvalidInput(f"The sampling rate must be a positive number of samples per second (got {rate_hz}).")
     baxter = Baxter.load()
     rng = np.random.default_rng([seed, TASKS.index(task)])
-    timelines = {a: _plan_arm(task, a, rng, baxter, places, detour) for a in arms}
+    timelines = {a: _plan_arm(task, a, rng, baxter, places, detour, once, dip) for a in arms}
     # Generous horizon; slowed segments only lengthen a plan by a little.
     horizon = max(sum(_item_len(it) for it in items) for items, _ in timelines.values())
     t = np.arange(math.ceil(horizon * 1.5 * rate_hz) + 1) / rate_hz

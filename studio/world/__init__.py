@@ -1,10 +1,10 @@
 """The task scene without a GUI: a table, the task's objects, and how they respond to Baxter's grippers.
 
-A :class:`Scene` is what the teacher sets up (presets "empty table", "stack-cup", "pick-place"). A
+A :class:`Scene` is what the teacher sets up (presets: "empty table", "stack-cup", "pick-place"); a
 :class:`World` plays a stream of robot poses against a scene, live (:meth:`World.on_batch`) or as a function
-(:func:`simulate`); grasp, carry and release are simple deterministic rules (:mod:`.rules`,
-docs/decisions/027). Events (:class:`WorldEvent`) record the objects at a take's start and end and at each
-grasp, release and miss; :func:`task_goal` and :func:`task_result` judge a run."""
+(:func:`simulate`); grasp, carry and release are deterministic rules (:mod:`.rules`,
+docs/decisions/027). Events (:class:`WorldEvent`) record the objects at a take's start, end, grasps,
+releases, misses; the task's goal is data (:mod:`.goal`), :func:`task_result` judges a run by it."""
 
 from studio.world.events import (
     ObjectPose,
@@ -40,15 +40,13 @@ from studio.world.geometry import (
     TABLE_TOP_Z,
     Table,
 )
+from studio.world.goal import START, TABLE, Goal, Placement, declared, read_goal, session_goal
 from studio.world.presets import preset
 from studio.world.result import (
-    ObjectGoal,
     ObjectResult,
-    TaskGoal,
     TaskResult,
     describe_offset,
     format_distance,
-    task_goal,
     task_result,
 )
 from studio.world.rules import Grip, gripper_actions
@@ -72,25 +70,28 @@ __all__ = [
     "PRESETS",
     "SCENE_VERSION",
     "SNAP_UP",
+    "START",
     "SUCCESS_TOL",
     "SWING",
+    "TABLE",
     "TABLE_CENTER",
     "TABLE_SIZE",
     "TABLE_TOP_Z",
+    "Goal",
     "GraspNote",
     "Grip",
-    "ObjectGoal",
     "ObjectPose",
     "ObjectResult",
+    "Placement",
     "Scene",
     "Table",
-    "TaskGoal",
     "TaskResult",
     "World",
     "WorldEvent",
     "WorldObject",
     "WorldRun",
     "bounded",
+    "declared",
     "describe_offset",
     "events_from_dict",
     "events_to_dict",
@@ -99,9 +100,10 @@ __all__ = [
     "gripper_actions",
     "on_clock",
     "preset",
+    "read_goal",
     "retime",
+    "session_goal",
     "simulate",
-    "task_goal",
     "task_result",
     "trimmed_events",
 ]

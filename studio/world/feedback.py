@@ -1,6 +1,6 @@
 """What a gripper closing just did, as facts for the teacher's feedback: which object it holds, or the object it
-missed, how far the gripper point was from it and how much closer it must go (the grasp tolerances of
-:mod:`studio.world.rules`)."""
+missed, how far the gripper point was from it and how much closer it must go, and which way in the room (the
+grasp tolerances of :mod:`studio.world.rules`)."""
 
 from __future__ import annotations
 
@@ -22,6 +22,8 @@ class GraspNote:
         closer: how much closer (m) it must go sideways to hold ``near`` (0: close enough sideways).
         height: how far (m) the gripper point is above (+) or below (−) the band where it holds ``near``
             (0: within it).
+        toward: the sideways move (m, room x away from the robot and y to its left) of length ``closer`` that
+            brings the gripper point to ``near``.
     """
 
     held: str | None
@@ -29,6 +31,7 @@ class GraspNote:
     distance: float = 0.0
     closer: float = 0.0
     height: float = 0.0
+    toward: tuple[float, float] = (0.0, 0.0)
 
 
 def grasp_note(event: WorldEvent) -> GraspNote | None:
@@ -51,7 +54,10 @@ def grasp_note(event: WorldEvent) -> GraspNote | None:
     d = math.hypot(p[0] - o.position[0], p[1] - o.position[1])
     low, high = o.position[2] - GRASP_BELOW_TOL, o.position[2] + o.size[2] + GRASP_ABOVE_TOL
     height = p[2] - high if p[2] > high else (p[2] - low if p[2] < low else 0.0)
-    return GraspNote(held=None, near=o.name, distance=d, closer=max(0.0, d - GRASP_XY_TOL), height=height)
+    closer = max(0.0, d - GRASP_XY_TOL)
+    k = closer / d if d > 0.0 else 0.0
+    toward = (k * (o.position[0] - p[0]), k * (o.position[1] - p[1]))
+    return GraspNote(held=None, near=o.name, distance=d, closer=closer, height=height, toward=toward)
 
 
 def _gap(p: tuple[float, float, float], o: ObjectPose) -> float:

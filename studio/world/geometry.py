@@ -175,13 +175,18 @@ def landing(
     table: Table | None,
     others: Iterable[tuple[Footprint, float]],
 ) -> tuple[float, str]:
-    """(height, what it rests on) for an object of ``kind`` let go with its bottom centre at (x, y, bottom)."""
-    if table is not None and table.contains(x, y):
+    """(height, what it rests on) for an object of ``kind`` let go with its bottom centre at (x, y, bottom).
+
+    An object whose centre is beyond the table's edge falls: nothing standing on the table holds it up there."""
+    off_table = table is not None and not table.contains(x, y)
+    if table is not None and not off_table:
         level, on = table.top_z, "table"
     else:
         level, on = FLOOR_Z, "floor"
     for o, yaw in others:
         if not _footprint_contains(o, x, y, yaw):
+            continue
+        if off_table and table is not None and o.position[2] >= table.top_z - 1e-6:
             continue
         z = _support_level(kind, o)
         if z <= bottom + SNAP_UP and z > level:

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 from studio.core.errors import InvalidInput
 from studio.core.types import ARMS, check_arm
 from studio.world.geometry import CUP_GRASP_HEIGHT, PRESETS, TABLE_TOP_Z
+from studio.world.goal import declared
 from studio.world.scene import Scene
 
 if TYPE_CHECKING:
@@ -27,6 +28,8 @@ def preset(name: str, arms: Sequence[str] = ("left",), places: Places | None = N
     * "stack-cup": the cup the teacher hands over, held out in the air, and the cup it is stacked on;
     * "pick-place": a block at A and the target pad at B (with both arms one pad in the middle: the two arms'
       B points are 4 cm apart).
+
+    Each states its goal (:func:`studio.world.goal.declared`): the block on the pad, the cup in the bottom cup.
 
     ``places`` (:class:`studio.teacher.Places`) moves and turns the objects as the scripted teacher's
     demonstrations with the same ``places`` expect them (one arm).
@@ -60,7 +63,7 @@ def preset(name: str, arms: Sequence[str] = ("left",), places: Places | None = N
                 scene = scene.add("pad", (bx, 0.0, TABLE_TOP_Z), 0.0, name="pad", size=(0.12, 0.16, 0.004))
             yaw_a = m * (teacher.PICK_PLACE_YAW_A + pk.dyaw)
             scene = scene.add("block", (ax, ay, TABLE_TOP_Z), yaw_a, name=f"block{tag}")
-    return scene
+    return scene.with_goal(declared(name, scene.names()))
 
 
 def _wrap(a: float) -> float:

@@ -70,7 +70,7 @@ def suggestion(frames: ObjectFrames | None, scene: Scene) -> str:
     """Where to put the objects for the next demonstration so that the skill covers more ("" when nothing to say)."""
     if frames is None or not frames.regions:
         return ""
-    r = min(frames.regions, key=_spread)
+    r = min(frames.regions, key=lambda x: round(_spread(x), 2))  # a tie (one place): the carried object, first
     p = r.places[:, :2]
     centre = p.mean(axis=0)
     m = 1.0 if centre[1] >= 0 else -1.0

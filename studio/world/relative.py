@@ -1,17 +1,15 @@
 """The scene as a skill that follows the objects sees it: each demonstration's objects and contacts
-(:func:`demo_objects`), the objects where they are now (:func:`objects_now`), and the task goal relative to
-the objects (:func:`relative_goal`): where each release put the object, in the frame the skill learned."""
+(:func:`demo_objects`), the objects where they are now (:func:`objects_now`), and the frame each release
+follows by the task's goal (:func:`release_rules`, decision 085)."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 
-import numpy as np
-
-from studio.core.frames import Contact, DemoObjects, ObjectAt, ObjectFrames, border_frames, to_world
+from studio.core.frames import ROBOT, Contact, DemoObjects, ObjectAt
 from studio.core.types import Arm
 from studio.world.events import ObjectPose, WorldEvent
-from studio.world.result import ObjectGoal, TaskGoal
+from studio.world.goal import START, TABLE, Goal, Placement
 from studio.world.scene import Scene
 
 
@@ -37,37 +35,27 @@ def objects_now(scene: Scene) -> list[ObjectAt]:
     return [ObjectAt(o.name, o.kind, o.position, o.yaw, "hand" if o.held_out else None) for o in scene.objects]
 
 
-def relative_goal(goal: TaskGoal, frames: ObjectFrames, scene: Scene) -> TaskGoal:
-    """``goal`` with each release of an object the skill puts down moved to where the skill's frames say it
-    lands with the objects where they are now (the goal of the other objects is kept)."""
-    F = border_frames(frames, objects_now(scene))
-    targets: dict[str, list[tuple[float, float, float]]] = {}
-    names: dict[str, list[str | None]] = {}
-    for k, b in enumerate(frames.borders):
-        if b.kind != "release":
+def rule_of(p: Placement) -> str:
+    """The frame a release onto ``p``'s target follows by its meaning: the object it is put onto, where the
+    object started, or the robot's (a spot on the table)."""
+    if p.onto == TABLE:
+        return ROBOT
+    if p.onto == START:
+        return f"start:{p.object}"
+    return f"object:{p.onto}"
+
+
+def release_rules(goal: Goal, objects: DemoObjects) -> dict[int, str]:
+    """Contact index -> the frame each release of a demonstration's arm follows by the goal (the n-th release of
+    an object, its n-th placement); releases the goal does not mention have none."""
+    out: dict[int, str] = {}
+    count: dict[str, int] = {}
+    for k, c in enumerate(objects.contacts):
+        if c.kind != "release":
             continue
-        p = to_world(F[k + 1], np.asarray(b.landed[:3]))
-        targets.setdefault(b.object, []).append((float(p[0]), float(p[1]), float(p[2])))
-        role_name = b.role.partition(":")[2]
-        names.setdefault(b.object, []).append(role_name if b.role.startswith("object:") else None)
-    out = []
-    for g in goal.objects:
-        rel = targets.get(g.name)
-        if not rel or len(rel) != len(g.releases):
-            out.append(g)
-            continue
-        out.append(
-            ObjectGoal(
-                g.name,
-                g.kind,
-                g.arm,
-                g.start,
-                tuple(rel),
-                rel[-1],
-                g.spread,
-                g.demos,
-                g.landed_on,
-                tuple(names[g.name]),
-            )
-        )
-    return TaskGoal(tuple(out), goal.demos, goal.notes)
+        n = count.get(c.object, 0)
+        count[c.object] = n + 1
+        mine = goal.of(c.object)
+        if n < len(mine):
+            out[k] = rule_of(mine[n])
+    return out

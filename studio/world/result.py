@@ -1,6 +1,7 @@
-"""The task result: what the demonstrations did with each object (:func:`task_goal`) and whether a run does
-the same, in plain words (:func:`task_result`): "The cup ended 0.6 cm from where you put it — the skill works",
-"The block was never picked up: the gripper closed 3 cm above it"."""
+"""The task result: whether a run did the task's goal (:mod:`studio.world.goal`), in plain words and by how much
+(:func:`task_result`): "The block ended on the pad, 0.4 cm from its centre.", "The block ended beside the pad,
+9 cm from its centre — the skill did not do the task.", "The block was never picked up: the gripper closed 3 cm
+above it."."""
 
 from __future__ import annotations
 
@@ -10,9 +11,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from studio.core.types import Arm
+from studio.core.frames import to_world
 from studio.world.events import ObjectPose, WorldEvent
 from studio.world.geometry import GRASP_XY_TOL, SUCCESS_TOL
+from studio.world.goal import START, SURFACES, TABLE, Goal, Placement
 from studio.world.simulation import WorldRun
 
 
@@ -49,107 +51,6 @@ def describe_offset(v: Sequence[float] | np.ndarray, ref: str = "it") -> str:
     return " and ".join(parts)
 
 
-@dataclass(frozen=True)
-class ObjectGoal:
-    """What the demonstrations did with one object.
-
-    Attributes:
-        name, kind: the object.
-        arm: the arm that grasped it.
-        start: where it was at the start (bottom centre, m).
-        releases: where it came to rest after each release, in order (mean over the demonstrations).
-        landed_on: what it landed on after each release ("table", "pad", ...; the first demonstration's).
-        final: where it ended (mean).
-        spread: largest distance of one demonstration's end position from ``final`` (m).
-        demos: how many demonstrations agree on this (the others grasped it a different number of times).
-        relative_to: for a skill that follows the objects, the object each release is measured from (None: a
-            spot on the table); then ``releases`` and ``final`` are where the objects are now.
-    """
-
-    name: str
-    kind: str
-    arm: Arm
-    start: tuple[float, float, float]
-    releases: tuple[tuple[float, float, float], ...]
-    final: tuple[float, float, float]
-    spread: float
-    demos: int
-    landed_on: tuple[str | None, ...] = ()
-    relative_to: tuple[str | None, ...] = ()
-
-    def where(self, k: int = -1) -> str:
-        """Where release ``k`` should put the object, in words: "where you put it (on the pad)"."""
-        on = self.relative_to[k] if self.relative_to else None
-        return f"where you put it on the {on}" if on else "where you put it"
-
-
-@dataclass(frozen=True)
-class TaskGoal:
-    """The objects the demonstrations moved (:class:`ObjectGoal`), from ``demos`` demonstrations with events."""
-
-    objects: tuple[ObjectGoal, ...]
-    demos: int
-    notes: tuple[str, ...] = ()
-
-
-def _vec(p: Sequence[float]) -> tuple[float, float, float]:
-    return (float(p[0]), float(p[1]), float(p[2]))
-
-
-def task_goal(demos: Sequence[Sequence[WorldEvent]]) -> TaskGoal:
-    """The task as the demonstrations show it: for each object they grasped, where each release left it and
-    where it ended. ``demos`` are the demonstrations' event lists (as the session stores them); a demonstration
-    without events (recorded before objects existed) is left out."""
-    demos = [list(d) for d in demos if d]
-    names: list[str] = []
-    for d in demos:
-        for e in d:
-            if e.kind == "grasp" and e.object is not None and e.object not in names:
-                names.append(e.object)
-    goals: list[ObjectGoal] = []
-    notes: list[str] = []
-    for name in names:
-        per_demo = []
-        for d in demos:
-            grasps = [e for e in d if e.kind == "grasp" and e.object == name]
-            releases = [e for e in d if e.kind == "release" and e.object == name]
-            first_pose = next((e.pose(name) for e in d if e.kind == "start" and e.pose(name) is not None), None)
-            last_pose = next((e.pose(name) for e in reversed(d) if e.pose(name) is not None), None)
-            rests = [e.pose(name) for e in releases]
-            per_demo.append((grasps, rests, first_pose, last_pose))
-        counts = [len(g) for g, _, _, _ in per_demo]
-        k = max(set(counts), key=lambda c: (counts.count(c), c))
-        if k == 0:
-            continue
-        agree = [p for p in per_demo if len(p[0]) == k]
-        if len(agree) < len(per_demo):
-            notes.append(
-                f"{len(agree)} of {len(per_demo)} demonstrations pick up the {name} {_times(k)}; "
-                "the others are left out of the check."
-            )
-        arms = [p[0][0].arm for p in agree if p[0][0].arm]
-        arm = max(set(arms), key=arms.count) if arms else "left"
-        n_rel = min(len(p[1]) for p in agree)
-        rel = tuple(
-            _vec(np.mean([p[1][i].position for p in agree], axis=0))  # type: ignore[union-attr]
-            for i in range(n_rel)
-        )
-        ends = np.array([p[3].position for p in agree if p[3] is not None])
-        final = _vec(ends.mean(axis=0)) if len(ends) else (rel[-1] if rel else (0.0, 0.0, 0.0))
-        spread = float(np.max(np.linalg.norm(ends - np.asarray(final), axis=1))) if len(ends) else 0.0
-        starts = [p[2] for p in agree if p[2] is not None]
-        start_at = _vec(starts[0].position) if starts else final
-        first = agree[0][0][0]
-        kind = next((pp.kind for pp in first.poses if pp.name == name), "block")
-        landed = tuple(r.on if r is not None else None for r in agree[0][1][:n_rel])
-        goals.append(ObjectGoal(name, kind, arm, start_at, rel, final, spread, len(agree), landed))
-    return TaskGoal(tuple(goals), len(demos), tuple(notes))
-
-
-def _times(k: int) -> str:
-    return {1: "once", 2: "twice"}.get(k, f"{k} times")
-
-
 def _ordinal(k: int) -> str:
     return ["first", "second", "third", "fourth", "fifth"][k] if k < 5 else f"{k + 1}th"
 
@@ -158,7 +59,7 @@ def _ordinal(k: int) -> str:
 class ObjectResult:
     """How one object fared: ``verdict`` is "works", "never picked up", "still held", "dropped early",
     "wrong place" or "moved"; ``text`` says it in plain words; ``distance`` is how far it ended (or landed)
-    from where the demonstrations put it (m), when it got that far."""
+    from the spot on its target (m), when it got that far."""
 
     name: str
     ok: bool
@@ -169,130 +70,213 @@ class ObjectResult:
 
 @dataclass(frozen=True)
 class TaskResult:
-    """The task result in plain words: ``text`` for the teacher, ``ok`` when every object ended where the
-    demonstrations put it, and one :class:`ObjectResult` per object."""
+    """The task result in plain words: ``text`` for the teacher, ``ok`` when the goal holds for every object,
+    and one :class:`ObjectResult` per object."""
 
     ok: bool
     text: str
     objects: tuple[ObjectResult, ...]
 
 
-def task_result(run: WorldRun, goal: TaskGoal) -> TaskResult:
-    """Judge a run (e.g. the skill preview played through the scene) against what the demonstrations did.
+#: What the task result says when there is no goal to judge.
+NOTHING = (
+    "There is nothing to check: your demonstrations did not pick up any object. "
+    "Put objects in the scene and record demonstrations that move them."
+)
+#: How a run that did not do the task ends its words.
+NOT_DONE = " — the skill did not do the task."
 
-    The first thing that went wrong with each object is reported: never picked up (and where the gripper closed
-    instead), still held at the end, dropped early (the gripper opened on the way and then went on to where
-    the demonstrations let go), released in the wrong place, or ended away from where the demonstrations
-    left it; otherwise how close it ended: "The cup ended 0.6 cm from where you put it — the skill works."
-    """
-    if not goal.objects:
-        text = (
-            "There is nothing to check: your demonstrations did not pick up any object. "
-            "Put objects in the scene and record demonstrations that move them."
-        )
-        return TaskResult(False, text, ())
-    results = [_object_result(run, g) for g in goal.objects]
+
+def task_result(run: WorldRun, goal: Goal) -> TaskResult:
+    """Judge a run (the skill's preview played through the scene, or the robot's run) against the task's goal
+    only (:class:`~studio.world.goal.Goal`): each object's n-th release must put it onto the n-th target the
+    goal gives it, and it must still be there at the end. The first thing that went wrong with an object is
+    said with how far off it was ("The block ended beside the pad, 9 cm from its centre — the skill did not do
+    the task."); otherwise where it ended ("The block ended on the pad, 0.4 cm from its centre."). How far from
+    where the demonstrations put it on the target is a detail of the words, never the criterion."""
+    if not goal.placements:
+        return TaskResult(False, NOTHING, ())
+    return _combined(tuple(_object_result(run, goal, name) for name in goal.objects))
+
+
+def _combined(results: tuple[ObjectResult, ...]) -> TaskResult:
+    """The objects' results as one (the one place where a further check of the run joins them)."""
     bad = [r for r in results if not r.ok]
-    text = " ".join(r.text for r in (bad or results))
-    return TaskResult(not bad, text, tuple(results))
+    return TaskResult(not bad, " ".join(r.text for r in (bad or results)), results)
 
 
-def _object_result(run: WorldRun, g: ObjectGoal) -> ObjectResult:
-    name = g.name
+@dataclass(frozen=True)
+class _Check:
+    """Whether a placement holds for an object's pose: ``distance`` (m) from the spot on the target (across
+    the table for an object target), ``target`` that spot in the room."""
+
+    ok: bool
+    distance: float
+    target: np.ndarray
+
+
+def _check(pl: Placement, pose: ObjectPose, poses: Sequence[ObjectPose], start: ObjectPose | None) -> _Check:
+    here = np.asarray(pose.position, dtype=np.float64)
+    if pl.onto in (START, TABLE):
+        if pl.onto == TABLE:
+            f = np.zeros(4)
+        elif start is not None:
+            f = np.array([*start.position, 0.0 if start.kind == "cup" else start.yaw])
+        else:
+            return _Check(False, math.inf, here)
+        if pl.spot is None and pl.onto == TABLE:  # any spot on the table
+            return _Check(pose.on == "table", 0.0, here)
+        target = to_world(f, np.asarray(pl.spot[:3])) if pl.spot is not None else np.asarray(start.position)  # type: ignore[union-attr]
+        d = float(np.linalg.norm(here - target))
+        return _Check(d <= SUCCESS_TOL, d, target)
+    t = next((p for p in poses if p.name == pl.onto), None)
+    if t is None:
+        return _Check(False, math.inf, here)
+    f = np.array([*t.position, 0.0 if t.kind == "cup" else t.yaw])
+    centre = _reference(pl) == "its centre"
+    spot = np.array([0.0, 0.0, t.size[2]]) if centre or pl.spot is None else np.asarray(pl.spot[:3])
+    target = to_world(f, spot)
+    return _Check(pose.on == pl.onto, float(math.hypot(*(here[:2] - target[:2]))), target)
+
+
+def _on(name: str, poses: Sequence[ObjectPose]) -> str:
+    """ "on" or "in" (a cup) the object ``name``."""
+    kind = next((p.kind for p in poses if p.name == name), "")
+    return "in" if kind == "cup" else "on"
+
+
+def _reference(pl: Placement) -> str:
+    """What the distance of a placement is measured from: "its centre", "where you put it on it", …"""
+    if pl.onto == START:
+        return "it" if pl.spot is None else "where you put it"
+    if pl.onto == TABLE:
+        return "that spot"
+    return "its centre" if pl.spot is None or math.hypot(pl.spot[0], pl.spot[1]) < 0.01 else "where you put it on it"
+
+
+def _done(pl: Placement, c: _Check, poses: Sequence[ObjectPose]) -> tuple[str, str]:
+    """Where an object is, said of a placement that holds, and how close: ("on the pad", "0.4 cm from its
+    centre")."""
+    d = format_distance(c.distance)
+    if pl.onto == START:
+        head = "back where it started" if pl.spot is None else "where you put it, relative to where it started"
+        return head, f"{d} from {_reference(pl)}"
+    if pl.onto == TABLE:
+        return "on the table where you put it", (f"{d} from that spot" if pl.spot is not None else "")
+    return f"{_on(pl.onto, poses)} the {pl.onto}", f"{d} from {_reference(pl)}"
+
+
+def _went(where: tuple[str, str]) -> str:
+    """A stop on the way in words: "went onto the pad (0.3 cm from its centre), then "."""
+    head, detail = where
+    if head.startswith(("on ", "in ")):
+        head = head[:2] + "to" + head[2:]
+    return f"went {head}" + (f" ({detail})" if detail else "") + ", then "
+
+
+def _missed(pl: Placement, c: _Check, pose: ObjectPose, poses: Sequence[ObjectPose]) -> str:
+    """Where an object is, said of a placement that does not hold: "beside the pad, 9 cm from its centre"."""
+    if pl.onto in (START, TABLE):
+        ref = "where it started" if pl.onto == START and pl.spot is None else "where you put it"
+        if not math.isfinite(c.distance):
+            return f"away from {ref}"
+        return describe_offset(np.asarray(pose.position) - c.target, ref)
+    if not math.isfinite(c.distance):
+        return f"away from the {pl.onto}: the {pl.onto} is not on the table"
+    d = format_distance(c.distance)
+    centre = "its centre" if _reference(pl) == "its centre" else "where you put it on it"
+    if pose.on == "floor":
+        return f"on the floor, {d} from the {pl.onto}: it fell off the table"
+    if pose.on is not None and pose.on not in SURFACES:
+        return f"{_on(pose.on, poses)} the {pose.on}, not {_on(pl.onto, poses)} the {pl.onto} ({d} from {centre})"
+    return f"beside the {pl.onto}, {d} from {centre}"
+
+
+def _object_result(run: WorldRun, goal: Goal, name: str) -> ObjectResult:
     events = run.events
+    places = goal.of(name)
+    arm = goal.arm(name)
     grasps = [e for e in events if e.kind == "grasp" and e.object == name]
     releases = [e for e in events if e.kind == "release" and e.object == name]
+    start = next((e.pose(name) for e in events if e.kind == "start" and e.pose(name) is not None), None)
     t_prev = -math.inf
-    label = name[:1].upper() + name[1:]
-    n = len(g.releases)
-    for k in range(n):
+    n = len(places)
+    done: list[tuple[str, str]] = []
+    for k, pl in enumerate(places):
         when = f" the {_ordinal(k)} time" if n > 1 else ""
         if k >= len(grasps):
-            return ObjectResult(name, False, "never picked up", _not_picked(run, g, k, t_prev, label), None)
+            return ObjectResult(name, False, "never picked up", _not_picked(run, name, arm, k, t_prev) + ".", None)
         if k >= len(releases) or releases[k].t < grasps[k].t:
             text = f"The {name} was still in the gripper at the end: the gripper never opened{when}."
             return ObjectResult(name, False, "still held", text, None)
         rel = releases[k]
         pose = rel.pose(name)
         assert pose is not None
-        target = np.asarray(g.releases[k])
-        d = float(np.linalg.norm(np.asarray(pose.position) - target))
-        if d > SUCCESS_TOL:
-            arm = rel.arm or g.arm
-            let_go = np.asarray(rel.gripper if rel.gripper is not None else pose.position)
-            t_next = min(
-                (e.t for e in events if e.t > rel.t and e.arm == arm and e.kind in ("grasp", "miss")), default=math.inf
-            )
-            sel = (run.path_t > rel.t) & (run.path_t <= t_next)
-            p = run.path[arm][sel]
-            reach = np.hypot(p[:, 0] - target[0], p[:, 1] - target[1]) if len(p) else np.array([math.inf])
-            short = math.hypot(let_go[0] - target[0], let_go[1] - target[1]) > 2 * GRASP_XY_TOL
-            if short and float(reach.min()) <= 2 * GRASP_XY_TOL:
+        c = _check(pl, pose, rel.poses, start)
+        if not c.ok:
+            where = _missed(pl, c, pose, rel.poses)
+            d = c.distance if math.isfinite(c.distance) else None
+            if _early(run, rel, arm, pose, c.target):
                 text = (
-                    f"The {name} was dropped early{when}: it landed {format_distance(d)} from where you put it, "
-                    "because the gripper opened before it got there."
+                    f"The {name} was dropped early{when}: it landed {where}, because the gripper opened before it "
+                    f"got there{NOT_DONE}"
                 )
                 return ObjectResult(name, False, "dropped early", text, d)
-            off = describe_offset(np.asarray(pose.position) - target, g.where(k))
-            text = f"The {name} was released in the wrong place{when}: {off}"
-            expected = g.landed_on[k] if k < len(g.landed_on) else None
-            if expected is not None and pose.on != expected:
-                text += f" (it landed on the {pose.on}, not on the {expected})"
-            text += "."
+            if k < n - 1:
+                text = f"The {name} was released in the wrong place{when}: it landed {where}{NOT_DONE}"
+            else:
+                text = f"The {name} ended {where}{NOT_DONE}"
             return ObjectResult(name, False, "wrong place", text, d)
+        if k < n - 1:
+            done.append(_done(pl, c, rel.poses))
         t_prev = rel.t
-    end = run.final
-    fp = next((p for p in end if p.name == name), None)
+    fp = next((p for p in run.final if p.name == name), None)
     if fp is None:  # pragma: no cover - the run's scene lacks the object
         return ObjectResult(name, False, "never picked up", f"The {name} is not in the scene.", None)
     if fp.held_by is not None:
         text = f"The {name} was still in the gripper at the end: the gripper never let go of it."
         return ObjectResult(name, False, "still held", text, None)
-    d = float(np.linalg.norm(np.asarray(fp.position) - np.asarray(g.final)))
-    if d > SUCCESS_TOL:
-        off = describe_offset(np.asarray(fp.position) - np.asarray(g.final), g.where())
+    last = places[-1]
+    c = _check(last, fp, run.final, start)
+    if not c.ok:
         again = ": it was picked up again afterwards" if len(grasps) > n else ""
-        return ObjectResult(name, False, "moved", f"The {name} ended {off}{again}.", d)
-    on = g.relative_to[-1] if g.relative_to else None
-    if not on:  # what it stands on says that it was moved there (never "where you put it" alone)
-        on = fp.on if fp.on not in (None, "table", "floor", "hand") else _pad_under(fp, end)
-    back = _back_words(g, end) if math.dist(fp.position, g.start) <= SUCCESS_TOL else ""
-    if on:
-        text = f"The {name} ended on the {on}, {format_distance(d)} from where you put it — the skill works."
-    elif back:  # it came back to where it started: say where it went, or it reads as if nothing happened
-        text = (
-            f"The {name} ended back where it started, {back}: {format_distance(d)} from {g.where()} — the skill works."
-        )
-    else:
-        text = f"The {name} ended {format_distance(d)} from {g.where()} — the skill works."
-    return ObjectResult(name, True, "works", text, d)
+        d = c.distance if math.isfinite(c.distance) else None
+        text = f"The {name} ended {_missed(last, c, fp, run.final)}{again}{NOT_DONE}"
+        return ObjectResult(name, False, "moved", text, d)
+    head, detail = _done(last, c, run.final)
+    text = f"The {name} {''.join(_went(w) for w in done)}ended {head}" + (f", {detail}." if detail else ".")
+    return ObjectResult(name, True, "works", text, c.distance)
 
 
-def _back_words(g: ObjectGoal, poses: Sequence[ObjectPose]) -> str:
-    """Where an object that came back went on the way: "after its stop on the pad" ("" without a stop)."""
-    stops = g.releases[:-1]
-    if not stops:
-        return ""
-    probe = [ObjectPose(g.name, g.kind, (0.0, 0.0, 0.0), p, (1.0, 0.0, 0.0, 0.0)) for p in stops]
-    pads = [n for n in (_pad_under(p, poses) for p in probe) if n is not None]
-    if pads:
-        return f"after its stop on the {pads[0]}"
-    return "after its stop on the way" if len(stops) == 1 else f"after {len(stops)} stops on the way"
+def _early(run: WorldRun, rel: WorldEvent, arm: str, pose: ObjectPose, target: np.ndarray) -> bool:
+    """Whether the gripper let go far from ``target`` and then went on to it (it opened too soon)."""
+    let_go = np.asarray(rel.gripper if rel.gripper is not None else pose.position)
+    if math.hypot(let_go[0] - target[0], let_go[1] - target[1]) <= 2 * GRASP_XY_TOL:
+        return False
+    t_next = min(
+        (e.t for e in run.events if e.t > rel.t and e.arm == arm and e.kind in ("grasp", "miss")), default=math.inf
+    )
+    sel = (run.path_t > rel.t) & (run.path_t <= t_next)
+    p = run.path.get(arm, np.zeros((0, 3)))[sel] if arm in run.path else np.zeros((0, 3))
+    if not len(p):
+        return False
+    return float(np.hypot(p[:, 0] - target[0], p[:, 1] - target[1]).min()) <= 2 * GRASP_XY_TOL
 
 
-def _not_picked(run: WorldRun, g: ObjectGoal, k: int, t_prev: float, label: str) -> str:
-    """Why object ``g`` was not picked up (for the k-th time): where the gripper closed instead, in words."""
-    head = f"The {g.name} was never picked up" if k == 0 else f"The {g.name} was not picked up the {_ordinal(k)} time"
-    after = [e for e in run.events if e.t > t_prev and e.arm == g.arm]
-    other = next((e for e in after if e.kind == "grasp" and e.object != g.name), None)
-    misses = [e for e in after if e.kind == "miss" and e.gripper is not None and e.pose(g.name) is not None]
+def _not_picked(run: WorldRun, name: str, arm: str, k: int, t_prev: float) -> str:
+    """Why object ``name`` was not picked up (for the k-th time): where the gripper closed instead, in words
+    (no full stop)."""
+    head = f"The {name} was never picked up" if k == 0 else f"The {name} was not picked up the {_ordinal(k)} time"
+    after = [e for e in run.events if e.t > t_prev and e.arm == arm]
+    other = next((e for e in after if e.kind == "grasp" and e.object != name), None)
+    misses = [e for e in after if e.kind == "miss" and e.gripper is not None and e.pose(name) is not None]
     if not misses:
         if other is not None:
-            return f"{head}: the gripper picked up the {other.object} instead."
-        return f"{head}: the gripper never closed." if k == 0 else f"{head}: the gripper did not close again."
+            return f"{head}: the gripper picked up the {other.object} instead"
+        return f"{head}: the gripper never closed" if k == 0 else f"{head}: the gripper did not close again"
 
     def offset(e: WorldEvent) -> np.ndarray:
-        pose = e.pose(g.name)
+        pose = e.pose(name)
         assert pose is not None and e.gripper is not None
         gp, base = np.asarray(e.gripper), np.asarray(pose.position)
         v = np.zeros(3)
@@ -309,17 +293,4 @@ def _not_picked(run: WorldRun, g: ObjectGoal, k: int, t_prev: float, label: str)
     best = min(misses, key=lambda e: float(np.linalg.norm(offset(e))))
     v = offset(best)
     where = describe_offset(v, "it") if np.linalg.norm(v) >= 0.001 else "right next to it"
-    return f"{head}: the gripper closed {where}."
-
-
-def _pad_under(p: ObjectPose, poses: Sequence[ObjectPose]) -> str | None:
-    """The name of a pad whose footprint holds ``p``'s bottom centre (None when there is none)."""
-    for o in poses:
-        if o.kind != "pad" or o.name == p.name:
-            continue
-        c, s_ = math.cos(o.yaw), math.sin(o.yaw)
-        dx, dy = p.position[0] - o.position[0], p.position[1] - o.position[1]
-        u, v = c * dx + s_ * dy, -s_ * dx + c * dy
-        if abs(u) <= o.size[0] / 2 and abs(v) <= o.size[1] / 2:
-            return o.name
-    return None
+    return f"{head}: the gripper closed {where}"

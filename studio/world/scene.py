@@ -23,6 +23,7 @@ from studio.world.geometry import (
     finite3,
     landing,
 )
+from studio.world.goal import MAX_PLACEMENTS, START, TABLE, Placement, declared, placements_from
 
 
 @dataclass(frozen=True)
@@ -91,11 +92,14 @@ class Scene:
         preset: the preset it started from ("empty table", "stack-cup", "pick-place", or "" for none).
         table: the table, or None (objects then rest on the floor).
         objects: the objects, names unique.
+        goal: the task's goal as the set-up states it or the teacher confirmed it (() : read it from the
+            demonstrations; :mod:`studio.world.goal`).
     """
 
     preset: str = "empty table"
     table: Table | None = field(default_factory=Table)
     objects: tuple[WorldObject, ...] = ()
+    goal: tuple[Placement, ...] = ()
 
     def __post_init__(self) -> None:
         if len(self.objects) > MAX_OBJECTS:
@@ -103,6 +107,8 @@ class Scene:
         names = [o.name for o in self.objects]
         if len(set(names)) != len(names):
             raise InvalidInput("Two objects in the scene have the same name.")
+        if len(self.goal) > MAX_PLACEMENTS:
+            raise InvalidInput(f"A task's goal holds at most {MAX_PLACEMENTS} placements.")
 
     def names(self) -> list[str]:
         return [o.name for o in self.objects]
@@ -148,20 +154,42 @@ class Scene:
     def move(self, name: str, position: Sequence[float], yaw: float | None = None, *, settle: bool = True) -> Scene:
         """A new scene with ``name`` put at ``position`` (bottom centre) and heading ``yaw`` (kept when None).
 
-        With ``settle`` it comes to rest on the surface below (as when let go); an object the teacher holds
-        out in the air stays where it is put.
+        With ``settle`` it comes to rest on the surface below (as when let go), and what rested on it where it
+        stood comes down onto what is below it now; an object the teacher holds out in the air stays where it
+        is put.
         """
         old = self.object(name)
         obj = replace(old, position=finite3("object position", position), yaw=old.yaw if yaw is None else float(yaw))
         if settle and not obj.held_out:
             others = tuple(o for o in self.objects if o.name != name)
             obj = replace(obj, position=rest_position(obj, self.table, others))
-        return replace(self, objects=tuple(obj if o.name == name else o for o in self.objects))
+        moved = replace(self, objects=tuple(obj if o.name == name else o for o in self.objects))
+        return moved.settled() if settle else moved
+
+    def settled(self) -> Scene:
+        """The scene with every object not held out resting on what is below it, lowest first (one left in the
+        air by a move, or standing with its centre beyond the table's edge, comes down)."""
+        objs = {o.name: o for o in self.objects}
+        for o in sorted(self.objects, key=lambda x: x.position[2]):
+            if o.held_out:
+                continue
+            others = tuple(x for n, x in objs.items() if n != o.name and x.position[2] < o.position[2] + 1e-9)
+            objs[o.name] = replace(o, position=rest_position(o, self.table, others))
+        return replace(self, objects=tuple(objs[o.name] for o in self.objects))
 
     def remove(self, name: str) -> Scene:
-        """A new scene without ``name``."""
+        """A new scene without ``name`` (and without the goal's placements that name it)."""
         self.object(name)
-        return replace(self, objects=tuple(o for o in self.objects if o.name != name))
+        goal = tuple(p for p in self.goal if name not in (p.object, p.onto))
+        return replace(self, objects=tuple(o for o in self.objects if o.name != name), goal=goal).settled()
+
+    def with_goal(self, goal: Sequence[Placement]) -> Scene:
+        """A new scene whose task's goal is ``goal`` (every object it names must be in the scene)."""
+        names = set(self.names())
+        for p in goal:
+            if p.object not in names or (p.onto not in (START, TABLE) and p.onto not in names):
+                raise InvalidInput(f"The goal names an object that is not on the table ({p.object} onto {p.onto}).")
+        return replace(self, goal=tuple(goal))
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -169,11 +197,13 @@ class Scene:
             "preset": self.preset,
             "table": None if self.table is None else self.table.to_dict(),
             "objects": [o.to_dict() for o in self.objects],
+            "goal": [p.to_dict() for p in self.goal],
         }
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any] | None) -> Scene:
-        """The scene from :meth:`to_dict`; None (an older session without a scene) gives an empty table."""
+        """The scene from :meth:`to_dict`; None (an older session without a scene) gives an empty table. A scene
+        saved before goals were kept has its set-up's goal (:func:`studio.world.goal.declared`)."""
         if d is None:
             return cls()
         try:
@@ -184,7 +214,17 @@ class Scene:
                 )
             table = None if d.get("table") is None else Table.from_dict(d["table"])
             objects = tuple(WorldObject.from_dict(o) for o in d.get("objects", []))
-            return cls(str(d.get("preset", "")), table, objects)
+            preset = str(d.get("preset", ""))
+            names = {o.name for o in objects}
+            if "goal" in d:  # a placement naming an object no longer there is left out
+                goal = tuple(
+                    p
+                    for p in placements_from(d["goal"])
+                    if p.object in names and (p.onto in (START, TABLE) or p.onto in names)
+                )
+            else:
+                goal = declared(preset, [o.name for o in objects])
+            return cls(preset, table, objects, goal)
         except SessionFormatError:
             raise
         except (KeyError, TypeError, ValueError, AttributeError) as exc:

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from studio.core.errors import InvalidInput
+from studio.core.rotations import matrix_from_quat_wxyz
 from studio.core.types import ARMS, Arm, check_arm
 from studio.world.events import ObjectPose, WorldEvent
 from studio.world.geometry import transform
@@ -124,6 +125,16 @@ class World:
         with self._lock:
             return [s.obj.name for s in self._objects.holding(arm)]
 
+    def push(self, pose: ObjectPose, t: float, arm: Arm | None = None) -> WorldEvent:
+        """The robot (``arm``) ran into an object at time ``t``: it stands at ``pose`` now (:mod:`.hits`); a "push"
+        event records it (never kept in a session)."""
+        with self._lock:
+            self._objects.push(pose)
+            ev = WorldEvent(float(t), "push", arm, pose.name, None, self._objects.poses())
+            self._events.append(ev)
+            self.version += 1
+            return ev
+
     def snapshot(self, kind: str, t: float | None = None) -> WorldEvent:
         """Record a "start" or "end" event (every object's pose) at time ``t`` (default: the last sample's)."""
         if kind not in ("start", "end"):
@@ -189,17 +200,38 @@ class World:
 
     def _gripper_events(self, arm: Arm, det: Grip, t: np.ndarray, q: np.ndarray, col: np.ndarray) -> list[WorldEvent]:
         out: list[WorldEvent] = []
+        last = 0
         for k, g in enumerate(col.tolist()):
             action = det.step(g)
             if action is None:
                 continue
+            self._sweep(arm, t[last:k], q[last:k])
+            last = k
             T = self._gripper_T(arm, q[k])
             self._objects.carry(arm, T)
             objects = self._objects
             ev = objects.close(arm, float(t[k]), T) if action == "close" else objects.open(arm, float(t[k]), T)
             if ev is not None:
                 out.append(ev)
+        self._sweep(arm, t[last:], q[last:])
         return out
+
+    def _sweep(self, arm: Arm, t: np.ndarray, q: np.ndarray) -> None:
+        """A held cup's way down into another (:meth:`Objects.sweep`), checked about every 10 ms."""
+        objs = self._objects
+        if len(t) == 0 or not any(s.obj.kind == "cup" for s in objs.holding(arm)):
+            return
+        if not any(s.obj.kind == "cup" and s.held_by is None and not s.held_out for s in objs.states.values()):
+            return  # no cup to go into
+        idx = np.flatnonzero(np.diff(np.floor(t / 0.01), prepend=-math.inf) > 0)
+        if len(idx) <= 8:  # the live stream's batches: one or two samples (fk_batch pays a set-up per call)
+            objs.sweep(arm, [self._gripper_T(arm, q[k]) for k in idx])
+            return
+        p, wxyz = self.baxter.fk_batch(arm, q[idx, :7] if arm == "left" else q[idx, 7:])
+        T = np.tile(np.eye(4), (len(idx), 1, 1))
+        T[:, :3, :3] = matrix_from_quat_wxyz(wxyz)
+        T[:, :3, 3] = p
+        objs.sweep(arm, list(T))
 
     def _record_path(self, t: np.ndarray, q: np.ndarray) -> None:
         bucket = np.floor(t * self._path_rate)

@@ -286,3 +286,30 @@ def test_issue_19_hard_cartesian_pick_place_tracks_every_reachable_stretch(baxte
     assert sk.joint_trajectory is not None
     tracked, reachable = tracked_of_reachable(baxter, sk.trajectory, sk.joint_trajectory)
     assert tracked / reachable >= 0.995, f"{tracked / reachable:.2%} of the reachable samples tracked"
+
+
+def test_the_arms_self_motion_keeps_the_elbow_clear_where_it_can(baxter: Baxter) -> None:
+    """A box where the elbow is as the plain IK follows a straight path: with ``avoid`` the path IK turns the elbow
+    out of it through the arm's self-motion, the gripper on its path throughout, no posture change."""
+    from studio.core.collision import CollisionModel, Obstacle, RobotGeometry, obstacle_pose
+
+    q_home = baxter.neutral("left")
+    right = baxter.neutral("right")
+    down = np.array([0.0, 1.0, 0.0, 0.0])  # pointing down
+    n = 300
+    t = np.linspace(0.0, 6.0, n)
+    P = np.column_stack([np.linspace(0.55, 0.75, n), np.full(n, 0.35), np.full(n, 0.05)])
+    W = np.tile(down, (n, 1))
+    plain = solve_path(t, P, W, "left", q_home, baxter)
+    geo = RobotGeometry.load()
+    elbow = next(g for g in geo.geoms if g.name == "left_lower_elbow_0")
+    _, p = geo.frames(np.concatenate([plain.spline()(t[n // 2 : n // 2 + 1])[0], right])[None], np.full((1, 2), 100.0))
+    box = Obstacle("box", "box", (0.08, 0.08, 0.08), obstacle_pose(p[0, elbow.joint]))
+    touching = CollisionModel([box]).arm_touching("left", right)
+    assert touching(plain.spline()(t)).all()  # the plain IK's elbow is in the box all along
+    clear = solve_path(t, P, W, "left", q_home, baxter, avoid=touching)
+    Q = clear.spline()(t)
+    assert not touching(Q).any()
+    assert clear.reached.all() and clear.breaks.size == 0
+    pos, _ = baxter.fk_batch("left", Q)
+    assert np.abs(pos - P).max() < 1e-3  # the gripper kept its path

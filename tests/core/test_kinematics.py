@@ -16,10 +16,13 @@ from studio.core.kinematics import (
     DH_JOINT_OFFSET,
     DH_TABLE,
     DH_TABLE_EXACT_ALPHA,
+    LIGHT_URDF,
     Baxter,
+    baxter_urdf_path,
     dh_fk,
     make_sign_continuous,
     matrix_from_quat_wxyz,
+    model_urdf_path,
     quat_angle,
     quat_wxyz_from_matrix,
 )
@@ -54,6 +57,24 @@ def test_fk_known_configurations(baxter: Baxter, arm: Arm, which: str) -> None:
     np.testing.assert_allclose(pos, exp_pos, atol=2e-6)
     assert _same_quat(quat, np.array(exp_quat), atol=2e-6)
     assert abs(np.linalg.norm(quat) - 1.0) < 1e-12
+
+
+def test_the_model_is_the_light_urdf_with_the_originals_joints(baxter: Baxter) -> None:
+    """The studio builds its model from urdf/baxter_light.urdf (the first start does not install the original meshes,
+    decision 091): its joints, limits and every frame are example-robot-data's."""
+    assert baxter.urdf_path == model_urdf_path() == LIGHT_URDF
+    original = pin.buildModelFromUrdf(str(baxter_urdf_path()))
+    light = baxter.model
+    assert list(original.names) == list(light.names) and original.nframes == light.nframes
+    for name in ("lowerPositionLimit", "upperPositionLimit", "velocityLimit", "effortLimit"):
+        np.testing.assert_array_equal(getattr(original, name), getattr(light, name))
+    a, b = original.createData(), light.createData()
+    for _ in range(200):
+        q = pin.randomConfiguration(original)
+        pin.framesForwardKinematics(original, a, q)
+        pin.framesForwardKinematics(light, b, q)
+        for i, f in enumerate(original.frames):
+            np.testing.assert_array_equal(a.oMf[i].homogeneous, b.oMf[light.getFrameId(f.name)].homogeneous)
 
 
 def test_limits_match_urdf(baxter: Baxter) -> None:

@@ -15,7 +15,7 @@ from studio.core.kinematics import Baxter
 from studio.core.pipeline import demo_from_recording
 from studio.core.quality.judgement import GOOD_G_OVER_R
 from studio.core.segment_view import demos_in_frames, segment_fits
-from studio.core.segments import learn_relative, place_skill
+from studio.core.segments import choose_frames, learn_relative, place_skill, plan
 from studio.core.types import Demo
 from studio.teacher import Place, Places
 from studio.world import preset, simulate
@@ -118,3 +118,50 @@ def test_each_segment_fits_its_demonstrations_in_its_own_frame():
     assert [(f.start, f.end) for f in fits] == [("start", "grasp"), ("grasp", "release"), ("release", "end")]
     assert [f.role for f in fits] == ["object:cup", "object:bottom cup", "object:bottom cup"]
     assert all(0.0 <= f.distance < 0.1 and f.g_over_r < GOOD_G_OVER_R for f in fits), fits
+
+
+# -- frames by meaning where the demonstrations cannot decide (issue 27, decision 085) ------------------------------
+def _contacts(task: str, seeds, hands, scenes) -> list[DemoObjects]:
+    """The objects and contacts of the scripted teacher's one-way takes (``hands``: where its hand acts in each,
+    ``scenes``: where the objects stand)."""
+    out = []
+    for s, hand, scene in zip(seeds, hands, scenes, strict=True):
+        rec = teacher.recording_from_plan(teacher.teach(task, s, places=hand, once=True))
+        objs = demo_objects(simulate(rec.t, rec.q, rec.gripper, scene).events, "left")
+        assert objs is not None
+        out.append(objs)
+    return out
+
+
+def test_at_one_place_a_release_follows_its_target_even_when_one_take_missed_it():
+    scene = preset("pick-place")
+    objs = _contacts("pick-place", (1, 2, 3), [Places(), Places(put=Place(0.07, 0.0, 0.0)), Places()], [scene] * 3)
+    assert [getattr(o.contacts[1].pose("block"), "on", None) for o in objs] == ["pad", "table", "pad"]
+    borders, choices, why = choose_frames(objs)  # no goal: the object most takes put it on
+    assert not why and [b.role for b in borders] == ["object:block", "object:pad"]
+    assert [(c.rule, c.told, c.against) for c in choices] == [
+        ("object:block", False, False),
+        ("object:pad", False, False),
+    ]
+    landed = borders[1].landed
+    assert np.hypot(landed[0], landed[1]) < 0.01  # where the two takes on the pad put it, not pulled 2 cm away
+    # The goal decides what the demonstrations cannot: back where it started, or a fixed place.
+    assert plan(objs, {1: "start:block"})[0][1].role == "start:block"
+    assert plan(objs, {1: "robot"})[0][1].role == "robot"
+
+
+def test_demonstrations_that_clearly_contradict_the_rule_are_followed():
+    """The block put down 13 cm to the robot's right of where it stood, from three places, while the pad stayed:
+    the goal says the pad, the demonstrations say where the block stood — followed, and said."""
+    starts = [Place(0.0, 0.0, 0.0), Place(-0.08, -0.06, 0.0), Place(0.06, -0.1, 0.0)]
+    hands = [Places(pick=p, put=Place(p.dx, p.dy - 0.13, 0.0)) for p in starts]
+    scenes = [preset("pick-place", places=Places(pick=p)) for p in starts]
+    objs = _contacts("pick-place", (1, 2, 3), hands, scenes)
+    borders, choices, _ = choose_frames(objs, {1: "object:pad"})
+    assert borders[1].role == "start:block"
+    assert choices[1].rule == "object:pad" and choices[1].told and choices[1].against
+    # Takes that put it on the pad from different places agree with the rule: the pad, told apart, not against.
+    hands = [Places(pick=p) for p in starts]
+    objs = _contacts("pick-place", (1, 2, 3), hands, scenes)
+    borders, choices, _ = choose_frames(objs, {1: "object:pad"})
+    assert borders[1].role == "object:pad" and choices[1].told and not choices[1].against

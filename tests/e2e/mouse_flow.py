@@ -200,12 +200,12 @@ def out_of_reach_label(page: Page) -> Locator:
 
 
 # -- the flow -------------------------------------------------------------------------------------------------
-def new_session(t: Teacher, name: str = NEW_SESSION) -> None:
-    """Sessions step → a new session on the stack-cup table → back to Teach."""
+def new_session(t: Teacher, name: str = NEW_SESSION, table: str = "stack-cup") -> None:
+    """Sessions step → a new session on the ``table`` set-up → back to Teach."""
     t.part("new session")
     t.step("Sessions")
     t.type_into("New name", name)
-    t.choose("New session's table", "stack-cup")
+    t.choose("New session's table", table)
     t.in_row("Session action", "New")
     ui.wait_text(t.page, re.escape(name))
     t.step("Teach")
@@ -231,9 +231,9 @@ def _wait_view_still(page: Page) -> None:
         page.wait_for_timeout(250)
 
 
-def grasp_the_cup(t: Teacher) -> None:
-    """Go above the handed-over cup, down with the keys, close the gripper (C) until it holds the cup."""
-    t.send(lambda: t.in_row("Go above the", "cup"))
+def grasp(t: Teacher, name: str) -> None:
+    """Go above object ``name``, down with the keys (to 1 cm below its top), close the gripper (C)."""
+    t.send(lambda: t.in_row("Go above the", name))
     for _ in range(DOWN_PRESSES):
         t.press_and_follow("KeyQ", 2, -1)
     t.settle()
@@ -241,22 +241,36 @@ def grasp_the_cup(t: Teacher) -> None:
     ui.wait_status(t.page, "s.open < 1")
 
 
-def put_into_the_bottom_cup(t: Teacher) -> None:
-    """Carry the cup above the bottom cup and open the gripper (O)."""
-    t.send(lambda: t.in_row("Go above the", "bottom cup"))
+def let_go_above(t: Teacher, name: str) -> None:
+    """Carry what the gripper holds above object ``name`` and open the gripper (O): it comes down onto (into) it."""
+    t.send(lambda: t.in_row("Go above the", name))
     t.key("KeyO")
     ui.wait_status(t.page, "s.open > 99")
 
 
-def demonstrate(t: Teacher) -> None:
-    """One take: Record, the cup into the bottom cup, back home (H), Stop (so the next take starts at home)."""
+def grasp_the_cup(t: Teacher) -> None:
+    grasp(t, "cup")
+
+
+def take(t: Teacher, carried: str, target: str) -> None:
+    """One take: Record, ``carried`` onto ``target``, back home (H), Stop (so the next take starts at home)."""
     t.button("Record")
     ui.wait_text(t.page, "Recording")
-    grasp_the_cup(t)
-    put_into_the_bottom_cup(t)
+    grasp(t, carried)
+    let_go_above(t, target)
     t.send(lambda: t.key("KeyH"))
     t.button("Stop")
     ui.wait_text(t.page, "Not recording")
+
+
+def demonstrate(t: Teacher) -> None:
+    """One take of stack-cup: the cup into the bottom cup."""
+    take(t, "cup", "bottom cup")
+
+
+def demonstrate_pick_place(t: Teacher) -> None:
+    """One take of pick-place as a newcomer shows it: the block onto the pad (no way back)."""
+    take(t, "block", "pad")
 
 
 def out_of_reach_and_back(t: Teacher) -> dict[str, object]:
@@ -301,12 +315,13 @@ def finish_excursion(t: Teacher) -> None:
     t.send(lambda: t.key("KeyH"))
 
 
-def teach_train_preview(t: Teacher) -> str:
-    """Three demonstrations, Train, Preview played to its end; returns the preview's task result in words."""
+def teach_train_preview(t: Teacher, take: Callable[[Teacher], None] = demonstrate) -> str:
+    """Three demonstrations (each one ``take``), Train, Preview played to its end; returns the preview's task
+    result in words."""
     t.part("demonstrations")
     t.in_row("View", "Reset")
     for _ in range(3):
-        demonstrate(t)
+        take(t)
     expect(t.page.locator(".demo-row")).to_have_count(3)
     t.shot("three demonstrations")
     t.part("train and preview")
@@ -314,11 +329,16 @@ def teach_train_preview(t: Teacher) -> str:
     t.button("Train")
     ui.wait_text(t.page, r"^Trained\.", timeout=180)
     t.shot("trained")
+    return preview_to_the_end(t)
+
+
+def preview_to_the_end(t: Teacher, shot: str = "preview: the skill works") -> str:
+    """The Preview step, Play, until the time reaches the end; returns the task result in words."""
     t.step("Preview")
     t.in_row("Playback", "Play")
     ui.wait_text(t.page, "learned skill \\(preview\\), playing")
     result = t.page.locator(".task-result").first
-    expect(result).to_contain_text(re.compile(r"ended"), timeout=120_000)
+    expect(result).to_contain_text(re.compile(r"ended|picked up|in the gripper"), timeout=120_000)
     m = re.search(r"Learned path \(([\d.]+) s\)", t.page.get_by_text(re.compile(r"Learned path \(")).first.inner_text())
     assert m is not None
     length = float(m.group(1))
@@ -333,8 +353,27 @@ def teach_train_preview(t: Teacher) -> str:
         polling=200,
         timeout=120_000,
     )
-    t.shot("preview: the skill works")
+    t.shot(shot)
     return result.inner_text()
+
+
+def choose_object(t: Teacher, name: str) -> None:
+    """Teach step: choose object ``name`` (its handle appears on it) and look from the top."""
+    t.part("move an object")
+    t.step("Teach")
+    t.choose("Object", name)
+    t.in_row("View", "Top")
+    _wait_view_still(t.page)
+
+
+def drag_handle(t: Teacher, at: np.ndarray, wxyz: np.ndarray, axis: int, metres: float, scale: float = 0.16) -> None:
+    """Drag the chosen object's handle (``scale`` m, at ``at``, turned as ``wxyz``) along its own arrow ``axis`` by
+    ``metres`` (Top view), pressing on the arrow's head."""
+    from studio.core.rotations import matrix_from_quat_wxyz
+
+    along = matrix_from_quat_wxyz(np.asarray(wxyz, dtype=float))[:, axis]
+    grab = np.asarray(at, dtype=float) + along * 0.85 * scale  # the arrow's head, beyond the turning ring
+    t.drag([project("Top", grab), project("Top", grab + along * metres)])
 
 
 TEACHING_PARTS = ("new session", "demonstrations", "train and preview")

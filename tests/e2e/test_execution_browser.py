@@ -114,8 +114,9 @@ def test_run_on_robot_follows_the_plan_and_does_the_task(browser, tmp_path) -> N
         text = result.inner_text()
         m = re.search(
             r"On the robot: the skill does the task\. The robot followed the plan within ([\d.]+) mm at every moment "
-            r"and ended ([\d.]+) mm from its last pose; the block ended back where it started, after its stop on the "
-            r"pad: ([\d.]+ cm|less than 1 mm) from where you put it — the skill works\.",
+            r"and ended ([\d.]+) mm from its last pose; the block went onto the pad \(([\d.]+ cm|less than 1 mm) "
+            r"from its centre\), then ended back where it started, ([\d.]+ cm|less than 1 mm) from it — the skill "
+            r"works\.",
             text,
         )
         assert m, text

@@ -52,7 +52,7 @@ def test_move_the_cup_and_the_skill_follows_it(browser, sessions) -> None:
         ui.tab(page, "Preview")
         task = page.locator(".task-result").first
         expect(task).to_have_attribute("data-ok", "true", timeout=60_000)
-        expect(task).to_contain_text("ended on the bottom cup")
+        expect(task).to_contain_text("ended in the bottom cup")
         expect(page.locator('.reach-warning[data-outside="false"]')).to_contain_text("one place only")
         views(app, page, out, "1-trained")
         # Choose the bottom cup and drag its handle 6 cm to the robot's right.
@@ -78,7 +78,7 @@ def test_move_the_cup_and_the_skill_follows_it(browser, sessions) -> None:
         warn = page.locator('.reach-warning[data-outside="true"]').first
         expect(warn).to_contain_text("You never showed me the bottom cup this far to the robot's right", timeout=60_000)
         expect(task).to_have_attribute("data-ok", "true", timeout=60_000)
-        expect(task).to_contain_text("ended on the bottom cup")
+        expect(task).to_contain_text("ended in the bottom cup")
         text = task.inner_text()
         (out / "task-result.txt").write_text(text + "\n" + warn.inner_text() + "\n")
         # The preview plays the adapted skill: at its end the cup sits on the moved bottom cup.

@@ -231,3 +231,31 @@ def test_an_oversize_upload_is_refused_in_plain_words(browser, shots, tmp_path, 
         page.close()
     finally:
         app.stop()
+
+
+def test_a_cookie_bomb_from_another_port_gets_words_and_the_studio_keeps_working(
+    browser, studio_factory, shots, other_site, tmp_path
+) -> None:
+    """Issue 31 §4, today: 30 cookies of 3.5 KB on ``path=/``, set by a page of another port of 127.0.0.1, and
+    Chromium got no answer at all from the studio (ERR_EMPTY_RESPONSE) until the cookies were cleared."""
+    server = studio_factory("fresh", sessions_dir=tmp_path / "sessions")
+    context = browser.new_context(viewport=ui.VIEWPORT)
+    evil = context.new_page()
+    evil.goto(other_site)
+    evil.evaluate("() => { for (let i = 0; i < 30; i++) document.cookie = `junk${i}=${'x'.repeat(3500)}; path=/`; }")
+    assert len([c for c in context.cookies() if c["name"].startswith("junk")]) == 30
+    # Without the key the page says what happened and how to clear the cookies.
+    response = evil.goto(server.base)
+    assert response is not None and response.status == 431
+    expect(evil.get_by_text("KB of cookies with this request")).to_be_visible()
+    assert "Cookies and site data" in evil.content()
+    shots(evil, "the cookie bomb told")
+    # The printed address still opens the studio, which works and tells the tab.
+    page = context.new_page()
+    page.goto(server.url)
+    ui.wait_ready(page)
+    expect(page.get_by_text("Too many cookies for this address")).to_be_visible(timeout=30_000)
+    shots(page, "the studio with the cookie bomb")
+    ui.click_in_row(page, "Left gripper", "Close")
+    expect(page.locator('.gripper-status[data-arm="left"][data-open="0"]')).to_have_count(1, timeout=30_000)
+    context.close()

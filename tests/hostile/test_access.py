@@ -176,3 +176,66 @@ def test_the_page_and_its_websocket_work_with_the_cookie_under_its_path(
         assert c.wait_gui("Record")
     finally:
         c.close()
+
+
+# -- issue 31 §4-§5: a cookie bomb from any other local port, a doubled Origin ------------------------------------
+def _raw_get(app: Studio, path: str, headers: list[tuple[str, str]]) -> tuple[int, str]:
+    """(status, body) of a GET sent with exactly ``headers`` (repeats kept, as a browser or a program sends them)."""
+    import http.client
+
+    conn = http.client.HTTPConnection("127.0.0.1", app.port, timeout=20)
+    try:
+        conn.putrequest("GET", path, skip_host=True)
+        for name, value in [("Host", f"127.0.0.1:{app.port}"), *headers]:
+            conn.putheader(name, value)
+        conn.endheaders()
+        r = conn.getresponse()
+        return r.status, r.read().decode("utf-8", "replace")
+    finally:
+        conn.close()
+
+
+#: What a page of another program on 127.0.0.1 can set for every port: 30 cookies of 3.5 KB on ``path=/``.
+BOMB = "; ".join(f"junk{i}={'x' * 3500}" for i in range(30))
+
+
+def test_a_cookie_bomb_gets_words_and_the_studios_own_cookie_keeps_working(
+    app: Studio, opened: tuple[Browser, str]
+) -> None:
+    """Today: a Cookie header over ~8.1 KB got no answer at all (ERR_EMPTY_RESPONSE in the browser), until the
+    cookies were cleared."""
+    browser, page = opened
+    assert len(BOMB) > 100_000
+    path = page.split(f":{app.port}", 1)[1]
+    status, body = _raw_get(app, "/", [("Cookie", BOMB)])
+    assert status == 431 and "105 KB of cookies" in body and "Cookies and site data" in body, (status, body[:300])
+    assert "127.0.0.1" in body and "printed" in body and "<html" not in body.lower()
+    own = browser.cookie_header(page)
+    assert str(app.access.key) in own
+    for cookie in (f"{BOMB}; {own}", f"{own}; {BOMB}"):
+        status, body = _raw_get(app, path, [("Cookie", cookie)])
+        assert status == 200 and "<html" in body[:300].lower(), status
+    c = ViserClient(page.replace("http://", "ws://").rstrip("/"), origin=f"http://127.0.0.1:{app.port}",
+                    cookie=f"{BOMB}; {own}")  # fmt: skip
+    try:
+        assert c.wait_gui("Record")
+        told = c.wait_for(lambda _m: [n for n in c.notifications() if "Too many cookies" in str(n)])
+        assert told and "Cookies and site data" in str(told[0]), c.notifications()
+    finally:
+        c.close()
+    status, _ = _raw_get(app, path, [("Cookie", BOMB)])  # the bomb alone still has no key
+    assert status == 431
+    import http.client
+
+    with pytest.raises(http.client.RemoteDisconnected):  # only a Cookie line may be long: others as websockets did
+        _raw_get(app, path, [("X-Long", "y" * 20_000), ("Cookie", own)])
+
+
+def test_two_origin_headers_are_refused_with_403(app: Studio, opened: tuple[Browser, str]) -> None:
+    """Today: 500 (the refusal's log line read the Origin header with a lookup that raises on two)."""
+    browser, page = opened
+    path = page.split(f":{app.port}", 1)[1]
+    origin = f"http://127.0.0.1:{app.port}"
+    headers = [("Cookie", browser.cookie_header(page)), ("Origin", origin), ("Origin", "http://evil.example")]
+    assert _raw_get(app, path, headers)[0] == 403
+    assert _raw_get(app, path, headers[:2])[0] == 200

@@ -8,6 +8,7 @@ megabytes long, and ``studio import-csv`` refused for its file's name. The webso
 from __future__ import annotations
 
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -80,6 +81,52 @@ def test_a_delete_press_arriving_before_the_list_is_redrawn_deletes_nothing(
     finally:
         redraw.set()
         b.close()
+
+
+def test_two_deletes_in_two_tabs_moments_apart_delete_one_demonstration(
+    app: Studio, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Issue 31 §5, today: two tabs pressed Delete 1.5 s apart; the first deleted the chosen demonstration, the list
+    moved on by itself, and the second press deleted that one too (Undo offered). Now a press acts on a choice the
+    studio made only once it stood a while, or when pressed again."""
+    import studio.panels.demos as panel_module
+
+    monkeypatch.setattr(panel_module, "CHOICE_SETTLE_S", 3600.0)  # "a moment", however slow the machine
+    ctl, panel = app.controller, app.panels.demos
+    names = ctl.demos.names()
+    a, b = tab(app), tab(app)
+    try:
+        a.set_value("Demo", names[0])
+        assert wait_for(lambda: panel.demo_pick.value == names[0])
+        a.set_value("Demo action", "Delete")
+        assert wait_for(lambda: ctl.demos.names() == names[1:])
+        assert wait_for(lambda: panel.demo_pick.value == names[-1])  # the list moved on by itself
+        time.sleep(1.5)  # the attack's gap (not measured: the rule holds for any gap below CHOICE_SETTLE_S)
+        b.set_value("Demo action", "Delete")
+        told = lambda: [str(n) for n in b.notifications() if "nothing was done" in str(n)]  # noqa: E731
+        assert b.wait_for(lambda _m: told()), [str(n)[:300] for n in b.notifications()]
+        assert "moved on by itself" in told()[0] and f"{names[0]}" in told()[0] and "again" in told()[0]
+        assert ctl.demos.names() == names[1:]
+        b.set_value("Demo action", "Delete")  # pressed again: the tab means the one it shows now
+        assert wait_for(lambda: ctl.demos.names() == names[1:-1])
+    finally:
+        a.close()
+        b.close()
+
+
+def test_a_rename_in_one_tab_and_a_delete_in_another_say_what_happened(ctl: Controller) -> None:
+    """Issue 31 §5, today: "deleted already" for a demonstration that another tab had renamed."""
+    names = ctl.demos.names()
+    ctl.demos.rename(1, "walk")
+    with pytest.raises(StudioError) as err:
+        ctl.demos.delete(1, name=names[1])  # the other tab's press still names the old name
+    words = str(err.value)
+    assert f'"{names[1]}" was renamed to "walk"' in words and "nothing was deleted" in words, words
+    assert 'choose "walk"' in words and ctl.demos.names()[1] == "walk"
+    ctl.demos.delete(0, name=names[2])  # the row moved, the name did not: the named one is deleted
+    assert ctl.demos.names() == [names[0], "walk"]
+    with pytest.raises(StudioError, match="was deleted"):
+        ctl.demos.delete(0, name=names[2])
 
 
 def test_a_demo_deleted_while_training_leaves_the_skill_marked_stale(ctl: Controller, sessions: Path) -> None:
