@@ -189,6 +189,28 @@ def sessions(tmp_path: Path) -> Path:
     return d
 
 
+@pytest.fixture(scope="session")
+def trained_examples(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A folder holding the "pick-place" and "stack-cup" examples, each trained once per worker as the Train
+    button trains (``studio learn``) and saved: copied by the tests whose subject comes after training."""
+    from studio.cli import main
+
+    d = tmp_path_factory.mktemp("trained") / "sessions"
+    d.mkdir()
+    for name in ("pick-place", "stack-cup"):
+        shutil.copytree(ROOT / "sessions" / name, d / name)
+        assert main(["learn", name, "--sessions-dir", str(d)]) == 0
+    return d
+
+
+def trained_copy(trained: Path, name: str, sessions: Path) -> Path:
+    """Copy the trained example ``name`` from ``trained`` (:func:`trained_examples`) into ``sessions``."""
+    sessions.mkdir(parents=True, exist_ok=True)
+    shutil.rmtree(sessions / name, ignore_errors=True)
+    shutil.copytree(trained / name, sessions / name)
+    return sessions
+
+
 def _started(sessions: Path) -> tuple[Controller, SimulatedBaxter]:
     """A started controller on the "stack-cup" example, and its simulated robot (streaming in real time)."""
     from studio.controller import Controller
@@ -262,10 +284,13 @@ def browser() -> Iterator[Browser]:
 
 
 def drawn(page: Page, timeout: float = 30.0) -> None:
-    """Ask ``page`` for a frame and wait until it is drawn: what the page holds is then on screen."""
+    """Ask ``page`` for a frame and wait until it is drawn: what the page holds is then on screen (a page that
+    draws no scene, e.g. a refusal, after its next paint)."""
     done = page.evaluate(
         """(timeout) => new Promise((resolve) => {
             if (window.__studioFrames === undefined) return resolve(true);  // a page without page_js()
+            // a page without a render loop (not the studio's: a refusal, another site): its next paint will do
+            if (!window.__studioDraw) return requestAnimationFrame(() => resolve(true));
             const n = window.__studioFrames, until = performance.now() + timeout;
             window.__studioDrawNow();
             const check = () => {

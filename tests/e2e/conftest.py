@@ -15,15 +15,11 @@ import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import pytest
 from playwright.sync_api import expect
 
 from tests.conftest import free_port
-
-if TYPE_CHECKING:
-    from studio.robot_backend.simulated import SimulatedBaxter
 
 # Every page assertion waits up to 30 s (Playwright's default is 5 s): CI runs the other tests beside the browser
 # on a slower machine, where a frame of the software renderer alone can take a second. A passing check returns
@@ -33,16 +29,9 @@ expect.set_options(timeout=30_000)
 ROOT = Path(__file__).resolve().parents[2]
 ARTIFACTS = ROOT / "test-artifacts"
 
-#: Simulated seconds per wall second of the robot in the walks that are not about timing (docs/decisions/093):
-#: the arm gets where it is sent sooner; takes are recorded in the robot's own (simulated) time, as always.
+#: Simulated seconds per wall second of the robot in the walks (studios in a subprocess) that are not about
+#: timing (docs/decisions/093): the arm gets where it is sent sooner; takes are in the robot's own time.
 FAST = 3.0
-
-
-def fast_baxter() -> SimulatedBaxter:
-    """The simulated Baxter on the :data:`FAST` clock, for an in-process studio (``build_app(backend=...)``)."""
-    from studio.robot_backend.simulated import SimulatedBaxter
-
-    return SimulatedBaxter(time_scale=FAST)
 
 
 class StudioProcess:

@@ -29,7 +29,7 @@ from studio.teacher import PICK_PLACE_A, PICK_PLACE_B, PICK_PLACE_YAW_A, PICK_PL
 from studio.world import simulate
 from tests.conftest import wait_for
 from tests.e2e import ui
-from tests.e2e.conftest import ARTIFACTS, fast_baxter, free_port
+from tests.e2e.conftest import ARTIFACTS, free_port
 from tests.viser_client import drawn_at
 
 pytestmark = pytest.mark.e2e
@@ -126,7 +126,7 @@ def test_teach_with_objects_to_the_task_result(browser, tmp_path) -> None:
     sessions = tmp_path / "sessions"
     sessions.mkdir()
     wp = waypoints()
-    app = build_app(port=free_port(), session="scratch", sessions_dir=sessions, backend=fast_baxter())  # not timing
+    app = build_app(port=free_port(), session="scratch", sessions_dir=sessions)
     page = None
     try:
         page = ui.open_studio(browser, app.url())
