@@ -184,7 +184,11 @@ def test_the_stop_watch_ends_a_stopping_studio_whatever_still_runs(monkeypatch: 
                 stopped.set()
             n = len(ended)
             app.end_after(0.05, stopped)
-            assert wait_for(lambda n=n: len(ended) > n), "the stop watch did not end the process"
+
+            def gone(n: int = n) -> bool:
+                return len(ended) > n
+
+            assert wait_for(gone), "the stop watch did not end the process"
             assert ended[-1] == status
     finally:
         hung.set()

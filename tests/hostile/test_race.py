@@ -123,7 +123,11 @@ def test_two_websocket_clients_racing_open_and_record(sessions: Path, monkeypatc
             other = "pick-place" if start == "stack-cup" else "stack-cup"
             takes.clear()
             b.set_value("Open session", other)
-            assert wait_for(lambda o=other: app.panels.sessions.pick.value == o), "tab b's choice did not arrive"
+
+            def chosen(o: str = other) -> bool:
+                return bool(app.panels.sessions.pick.value == o)
+
+            assert wait_for(chosen), "tab b's choice did not arrive"
             b.set_value("Session action", "Open")
             time.sleep(delay_ms / 1000)
             a.set_value("Record", True)
@@ -131,7 +135,11 @@ def test_two_websocket_clients_racing_open_and_record(sessions: Path, monkeypatc
             time.sleep(0.5)  # the take's length (its samples), not a bound
             a.set_value("Stop", True)
             assert wait_for(lambda: len(takes) == 3), f"the take was not saved: {takes}"
-            assert wait_for(lambda n=i + 1: len(opens) == n), "tab b's Open was not handled"
+
+            def opened(n: int = i + 1) -> bool:
+                return len(opens) == n
+
+            assert wait_for(opened), "tab b's Open was not handled"
             after = demo_counts(sessions)
             where = takes[0][1]
             expected = {**counts, where: counts[where] + 1}
