@@ -39,8 +39,8 @@ CHROMIUM_ARGS = [
 ]
 
 
-#: Test pages draw at most one frame every FRAME_MS while something moves and viser's once-a-second safety-net
-#: frame every HEARTBEAT_MS (docs/decisions/093): software WebGL costs about 0.3 CPU seconds a frame here.
+#: Test pages draw at most one frame every FRAME_MS while something moves (but freely while the mouse acts on the
+#: page) and viser's once-a-second safety-net frame every HEARTBEAT_MS (docs/decisions/093).
 #: ``drawn()`` asks for a frame and waits until it is drawn, so a screenshot shows what the page holds.
 #: ``STUDIO_TEST_FRAMES=native`` leaves pages as they are (to measure the difference: bench/README.md).
 FRAME_MS, HEARTBEAT_MS = 1000, 10_000
@@ -49,14 +49,15 @@ NATIVE_FRAMES = os.environ.get("STUDIO_TEST_FRAMES") == "native"
 
 def page_js(frame_ms: int = FRAME_MS, heartbeat_ms: int = HEARTBEAT_MS) -> str:
     """A page script (run before the page's own): a callback asking for the next animation frame again (the
-    render loop) waits until ``frame_ms`` after the last such frame, a one-off (a transition) does not;
+    render loop) waits until ``frame_ms`` after the last such frame, a one-off (a transition) does not, nor does
+    any while the mouse acts on the page (a drag draws as it does for a person);
     viser's heartbeat every ``heartbeat_ms``; frames counted (``window.__studioFrames``) and one asked for on
     demand (``window.__studioDrawNow()``)."""
     return _PAGE_JS.replace("FRAME_MS_", str(int(frame_ms))).replace("HEARTBEAT_MS_", str(int(heartbeat_ms)))
 
 
 _PAGE_JS = """(() => {
-    const FRAME_MS = FRAME_MS_, HEARTBEAT_MS = HEARTBEAT_MS_;
+    const FRAME_MS = FRAME_MS_, HEARTBEAT_MS = HEARTBEAT_MS_, POINTER_MS = 500;
     const raf = window.requestAnimationFrame.bind(window), caf = window.cancelAnimationFrame.bind(window);
     const interval = window.setInterval.bind(window);
     const ran = new WeakSet(), native = new Map();
@@ -80,7 +81,7 @@ _PAGE_JS = """(() => {
         due.set(id, cb);
         if (!waiting) {
             waiting = true;
-            const wait = last + FRAME_MS - performance.now();
+            const now = performance.now(), wait = now < handled ? 0 : last + FRAME_MS - now;
             if (wait > 0) timer = setTimeout(() => { timer = null; raf(run); }, wait);
             else raf(run);
         }
@@ -91,6 +92,14 @@ _PAGE_JS = """(() => {
         if (window.__studioDraw) window.__studioDraw();
         if (timer !== null) { clearTimeout(timer); timer = null; raf(run); }
     };
+    // the mouse on the page (a drag of a handle, an orbit): frames as a person sees them, until POINTER_MS after
+    let handled = -Infinity;
+    const pointer = () => {
+        handled = performance.now() + POINTER_MS;
+        if (timer !== null) { clearTimeout(timer); timer = null; raf(run); }
+    };
+    for (const type of ["pointerdown", "pointermove", "pointerup", "wheel"])
+        window.addEventListener(type, pointer, { capture: true, passive: true });
     window.cancelAnimationFrame = (id) => {
         due.delete(id);
         if (native.has(id)) { caf(native.get(id)); native.delete(id); }
