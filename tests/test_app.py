@@ -439,6 +439,19 @@ def test_sliders_show_real_units_and_whose_values_they_are(app: Studio, page: Vi
     assert s5.value == pytest.approx(100 * ctl.keypoints.params().eps5, abs=0.05)
 
 
+def test_a_slider_the_teacher_just_moved_is_not_put_back_by_a_view_computed_before(app: Studio) -> None:
+    kp, ctl = app.panels.keypoints, app.controller
+    ctl.keypoints.refresh()
+    s5 = kp.sliders["eps5"]
+    auto5 = float(s5.value)
+    s5.value = auto5 + 0.5  # the teacher's move reached the slider; its callback has not run yet
+    kp.thresholds.sync()  # a key-point view computed before the move is shown meanwhile
+    assert s5.value == pytest.approx(auto5 + 0.5)
+    ctl.keypoints.set_param("eps5", (auto5 + 0.5) / 100)  # the callback
+    kp.thresholds.sync(every=True)
+    assert s5.value == pytest.approx(auto5 + 0.5)
+
+
 def test_train_panel_says_how_good_the_skill_is(app: Studio, page: ViserClient) -> None:
     ctl, train = app.controller, app.panels.train
     ctl.training.train().result(timeout=120)

@@ -188,15 +188,17 @@ def test_grippers_uncalibrated_suction_or_missing_are_refused_in_words() -> None
     bed = BaxterBed(gripper_calibrated=False)
     robot = connect(bed)
     try:
-        assert wait_for(lambda: "not calibrated" in robot.grippers()["left"])
+        assert wait_for(lambda: "not calibrated" in robot.grippers()["left"]), robot.grippers()
         with pytest.raises(StudioError, match="left gripper is not calibrated"):
             robot.execute(plan_for(robot, gripper=True))
         robot.execute(plan_for(robot, seconds=1.0))  # a skill that never moves the gripper runs
-        assert wait_for(lambda: robot.progress().state == "done")
+        assert wait_for(lambda: robot.progress().state not in ("running", "stopping")), robot.progress()
+        assert robot.progress().state == "done", robot.progress()
         robot.calibrate_grippers(("left",))
         assert robot.grippers()["left"] == ""
         robot.execute(plan_for(robot, gripper=True))
-        assert wait_for(lambda: robot.progress().state == "done")
+        assert wait_for(lambda: robot.progress().state not in ("running", "stopping")), robot.progress()
+        assert robot.progress().state == "done", robot.progress()
         assert 20.0 in bed.grippers["left"].gos  # the robot's gripper really closed
     finally:
         robot.stop()
@@ -205,7 +207,7 @@ def test_grippers_uncalibrated_suction_or_missing_are_refused_in_words() -> None
         other = BaxterBed(gripper_type=kind)
         r = connect(other)
         try:
-            assert wait_for(lambda r=r, words=words: words in r.grippers()["left"])  # type: ignore[misc]
+            assert wait_for(lambda r=r, words=words: words in r.grippers()["left"]), r.grippers()  # type: ignore[misc]
             with pytest.raises(StudioError, match=words):
                 r.execute(plan_for(r, gripper=True))
         finally:

@@ -129,6 +129,7 @@ class ThresholdSliders:
         self.sliders: dict[str, viser.GuiSliderHandle[float]] = {}
         self.lines: list[viser.GuiHtmlHandle] = []
         self._scale = 0.0
+        self._pushed: dict[str, float] = {}  # the value each slider was last given by the studio
         settings = ctl.keypoints.settings()
         params = ctl.keypoints.params()
         with gui.add_folder("All thresholds", expand_by_default=False):
@@ -148,6 +149,7 @@ class ThresholdSliders:
                             hint=f"{spec.hint} ({spec.symbol} in the paper.)",
                         )
                         s.precision = _digits(spec.step)
+                        self._pushed[spec.name] = float(s.value)
                         s.on_update(self._make_cb(spec))
                         self.sliders[spec.name] = s
             self.yours = gui.add_dropdown(
@@ -174,6 +176,7 @@ class ThresholdSliders:
                 value = min(max(value, math.pi), 2 * math.pi)
             first = self.ctl.keypoints.settings().is_auto(spec.name)
             self.ctl.keypoints.set_param(spec.name, value)
+            self._pushed[spec.name] = float(self.sliders[spec.name].value)  # the studio holds this value now
             self.touched()
             if first:  # it is the teacher's from now on
                 self.sliders[spec.name].label = spec.label(True)
@@ -205,9 +208,12 @@ class ThresholdSliders:
                 hi, step = scaled_range(size, v)
                 s.max, s.step, s.precision = hi, step, _digits(step)
             if every or auto:
+                if not every and abs(float(s.value) - self._pushed.get(name, float(s.value))) > 1e-9:
+                    continue  # the teacher has just moved it: their value is on its way to the controller
                 v = round(min(max(v, s.min), s.max), _digits(s.step) + 1)  # what the box can show
                 if abs(float(s.value) - v) > 1e-9:
                     s.value = v
+                self._pushed[name] = float(s.value)
                 if s.label != spec.label(not auto):
                     s.label = spec.label(not auto)
         self._sync_whose()

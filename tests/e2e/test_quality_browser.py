@@ -45,8 +45,8 @@ def test_live_path_suggest_and_verdict(browser, studio_factory, shots, sessions)
     auto5 = ui.threshold_value(page, EPS5)
     shown = ui.threshold(page, EPS5).locator("input.mantine-NumberInput-input").input_value()
     thumb = ui.threshold(page, EPS5).locator("[role=slider]").first
-    thumb.focus()
-    page.keyboard.press("ArrowRight")
+    ui.reveal(thumb)
+    thumb.press("ArrowRight")  # focuses the slider's thumb, then the key
     expect(page.locator(".live-path").first).to_contain_text("The learned path would stay within", timeout=30_000)
     box = ui.threshold(page, EPS5).locator("input.mantine-NumberInput-input")
     expect(box).not_to_have_value(shown, timeout=30_000)  # the step reached the slider's box
@@ -55,9 +55,8 @@ def test_live_path_suggest_and_verdict(browser, studio_factory, shots, sessions)
     expect(page.locator("label", has_text=f"{EPS5} · yours")).to_be_visible()  # the teacher's value now
     shots(page, "eps5 one step right: key-points and the dashed live path")
     counts = ui.keypoint_counts(page)
-    thumb.focus()  # the screenshot closed a notice, which took the focus
-    for _ in range(3):
-        page.keyboard.press("ArrowRight")
+    for _ in range(3):  # the screenshot closed a notice, which took the focus: each press focuses the thumb
+        thumb.press("ArrowRight")
     page.wait_for_function(
         f"() => parseInt(document.querySelector('.live-path').dataset.version) > {v1}", timeout=30_000
     )
@@ -69,9 +68,9 @@ def test_live_path_suggest_and_verdict(browser, studio_factory, shots, sessions)
     row14 = ui.threshold(page, EPS14)
     row14.scroll_into_view_if_needed()
     before = ui.keypoint_counts(page)
-    row14.locator("[role=slider]").first.focus()
+    thumb14 = row14.locator("[role=slider]").first
     for _ in range(6):
-        page.keyboard.press("ArrowLeft")
+        thumb14.press("ArrowLeft")
     line = page.locator(".kp-line").nth(1)  # the counts line of the orientation folder
     expect(line).to_contain_text("Key-points now")
     assert in_viewport(page, row14) and in_viewport(page, line), "the counts scrolled out of sight"

@@ -59,8 +59,9 @@ def threshold(page: Page, label: str) -> Locator:
 
 
 def set_threshold(page: Page, label: str, value: float) -> None:
-    """Type a value into a threshold slider's number box (its folder "All thresholds" must be open)."""
+    """Type a value into a threshold slider's number box (opening its folders if they are closed)."""
     box = threshold(page, label).locator("input.mantine-NumberInput-input")
+    reveal(box)
     box.click()
     box.fill(str(value))
     box.press("Enter")
@@ -105,10 +106,25 @@ def plain(label: str) -> str:
 
 
 def open_folder(page: Page, title: str) -> None:
-    """Expand a collapsed folder by its title (the controls inside are then found by auto-waiting locators)."""
+    """Open a folder by its title (a folder already open stays open); returns once it shows open."""
     head = page.get_by_text(plain(title), exact=True).first
     head.scroll_into_view_if_needed()
-    head.click()
+    if head.locator("svg.tabler-icon-chevron-down").count():
+        head.click()
+    expect(head.locator("svg.tabler-icon-chevron-up")).to_be_attached()
+
+
+def reveal(target: Locator) -> None:
+    """Open every closed folder around ``target``, outermost first, and return once it is visible (a folder
+    drawn again, e.g. when the page reconnects, starts closed)."""
+    closed = target.locator("xpath=ancestor::div[@aria-hidden='true']/preceding-sibling::div[1]")
+    for _ in range(8):  # folders nest a few deep; each pass opens the outermost closed one
+        n = closed.count()
+        if n == 0:
+            break
+        closed.first.click()
+        expect(closed).to_have_count(n - 1)
+    expect(target).to_be_visible()
 
 
 def choose(page: Page, label: str, option: str) -> None:
