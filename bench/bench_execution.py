@@ -45,7 +45,7 @@ from scipy.ndimage import maximum_filter1d, uniform_filter1d
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from studio.core.execution import joint_trajectory
-from studio.core.ik_path import ACCEPT_ORIENTATION_RAD, ACCEPT_POSITION_M, _PathSolver, pose_reachable, rotation_angle
+from studio.core.ik_solver import ACCEPT_ORIENTATION_RAD, ACCEPT_POSITION_M, PathSolver, pose_reachable, rotation_angle
 from studio.core.kinematics import Baxter, matrix_from_quat_wxyz
 from studio.core.pipeline import demo_from_recording, learn_skill
 from studio.core.types import Demo, JointTrajectory
@@ -181,7 +181,7 @@ def reachable_missed(b: Baxter, tr: Demo, missed: np.ndarray, rng: np.random.Gen
     """
     if missed.shape[0] == 0:
         return 0.0
-    S = _PathSolver(b, "left", tr.t, tr.position, matrix_from_quat_wxyz(tr.orientation))
+    S = PathSolver(b, "left", tr.t, tr.position, matrix_from_quat_wxyz(tr.orientation))
     S.rng = rng
     runs = np.split(missed, np.flatnonzero(np.diff(missed) > 1) + 1)
     total = 0.0

@@ -24,11 +24,12 @@ from bench_suite import process_cpu  # noqa: E402
 from tests.e2e.conftest import StudioProcess  # noqa: E402
 
 
-def idle_process(rounds: int, seconds: float) -> list[float]:
-    """Cores used by an idle studio process, one figure per round (after it finished starting)."""
+def idle_process(rounds: int, seconds: float, time_scale: float = 1.0) -> list[float]:
+    """Cores used by an idle studio process, one figure per round (after it finished starting); its simulated
+    robot on a ``time_scale`` clock (tests/e2e/fast_robot.py)."""
     sessions = Path(tempfile.mkdtemp())
     shutil.copytree(ROOT / "sessions" / "stack-cup", sessions / "stack-cup")
-    server = StudioProcess(sessions, "stack-cup").start()
+    server = StudioProcess(sessions, "stack-cup", time_scale=time_scale).start()
     out = []
     try:
         assert server.proc is not None
@@ -82,6 +83,7 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--seconds", type=float, default=20.0)
     ap.add_argument("--calls", type=int, default=2000)
+    ap.add_argument("--time-scale", type=float, default=0.0, help="also an idle studio on this faster clock")
     args = ap.parse_args()
     now, before = shown_per_call(args.calls)
     print(
@@ -93,6 +95,13 @@ def main() -> None:
         f"idle studio process: median {statistics.median(cores):.3f} cores "
         f"(rounds: {', '.join(f'{c:.3f}' for c in cores)})"
     )
+    if args.time_scale:
+        fast = idle_process(args.rounds, args.seconds, args.time_scale)
+        ratio = statistics.median(fast) / statistics.median(cores)
+        print(
+            f"idle studio process, robot on a {args.time_scale:g}x clock: median {statistics.median(fast):.3f} cores "
+            f"(rounds: {', '.join(f'{c:.3f}' for c in fast)}), ×{ratio:.2f}"
+        )
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """Where the test suite's time goes: runs a command (by default the test command, ``scripts/run-tests.sh``) and
-reads every process's CPU time from /proc once a second, then prints the CPU seconds per kind of process
-(Chromium's GPU process and renderers, the pytest workers with their in-process studios, the studios started as
-subprocesses, pip, lint) beside the wall time and the share of the two cores left idle.
+reads the CPU time of every process it starts (its descendants only: the machine may be shared) from /proc once a
+second, then prints the CPU seconds per kind of process (Chromium's GPU process and renderers, the pytest workers
+with their in-process studios, the studios started as subprocesses, pip, lint) beside the wall time.
 
     .venv/bin/python bench/bench_suite.py                     # the whole test command
     .venv/bin/python bench/bench_suite.py -- .venv/bin/python -m pytest -n 2 tests/e2e   # any command
@@ -10,6 +10,7 @@ subprocesses, pip, lint) beside the wall time and the share of the two cores lef
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import subprocess
 import sys
@@ -26,6 +27,7 @@ KINDS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("chromium renderers", ("chromium", "type=renderer")),
     ("chromium, other", ("chromium",)),
     ("studio servers started as subprocesses", ("studio serve",)),
+    ("studio servers started as subprocesses", ("fast_robot", "serve")),
     ("playwright driver", ("playwright/driver",)),
     ("pytest workers, with their in-process studios", ("pytest",)),
     ("pytest workers, with their in-process studios", ("exec(eval(sys.stdin",)),
@@ -42,11 +44,15 @@ def kind(cmdline: str) -> str:
     return "other"
 
 
+def command(pid: str) -> str:
+    return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+
+
 def process_cpu(pid: str) -> tuple[str, float] | None:
     """The kind of process ``pid`` and its CPU seconds so far (None once it has ended)."""
     try:
         stat = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-        cmd = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+        cmd = command(pid)
     except OSError:
         return None
     return kind(cmd), (int(stat[11]) + int(stat[12])) / TICK
@@ -56,29 +62,48 @@ def _idle() -> float:
     return float(Path("/proc/stat").read_text().split("\n", 1)[0].split()[4]) / TICK
 
 
+def _parent(pid: str) -> str | None:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1]
+    except OSError:
+        return None
+
+
 class Sampler:
-    """CPU seconds per kind of process since it started (each process's last reading before it ended)."""
+    """CPU seconds per kind of process among the descendants of ``root`` (each process's last reading before it
+    ended): other people's processes on a shared machine are not counted."""
 
     def __init__(self) -> None:
-        self.base = self._sweep()
+        self.root = ""
         self.last: dict[str, tuple[str, float]] = {}
+        self.commands: dict[str, str] = {}  # of the processes of no known kind
         self.idle0 = _idle()
         self.stop = threading.Event()
 
-    @staticmethod
-    def _sweep() -> dict[str, float]:
-        out = {}
+    def _tree(self) -> set[str]:
+        children: dict[str, list[str]] = {}
         for pid in os.listdir("/proc"):
-            if pid.isdigit() and (got := process_cpu(pid)) is not None:
-                out[pid] = got[1]
-        return out
+            if pid.isdigit() and (parent := _parent(pid)) is not None:
+                children.setdefault(parent, []).append(pid)
+        tree, todo = set(), [self.root]
+        while todo:
+            pid = todo.pop()
+            tree.add(pid)
+            todo.extend(children.get(pid, ()))
+        return tree
 
     def run(self) -> None:
-        me = str(os.getpid())
         while not self.stop.wait(1.0):
-            for pid in os.listdir("/proc"):
-                if pid.isdigit() and pid != me and (got := process_cpu(pid)) is not None:
-                    self.last[pid] = (got[0], got[1] - self.base.get(pid, 0.0))
+            self.sweep()
+
+    def sweep(self) -> None:
+        for pid in self._tree():
+            if (got := process_cpu(pid)) is not None:
+                # an ended process (a zombie) has no command line any more: it keeps the kind it had
+                self.last[pid] = (self.last[pid][0] if got[0] == "other" and pid in self.last else got[0], got[1])
+                if got[0] == "other" and pid not in self.commands:
+                    with contextlib.suppress(OSError):
+                        self.commands[pid] = command(pid)[:100]
 
     def totals(self) -> dict[str, float]:
         tot: dict[str, float] = {}
@@ -93,10 +118,12 @@ def main() -> int:
     args = ap.parse_args()
     cmd = args.command or ["bash", "scripts/run-tests.sh"]
     sampler = Sampler()
+    t0 = time.monotonic()
+    proc = subprocess.Popen(cmd, cwd=ROOT)
+    sampler.root = str(proc.pid)
     th = threading.Thread(target=sampler.run, daemon=True)
     th.start()
-    t0 = time.monotonic()
-    rc = subprocess.call(cmd, cwd=ROOT)
+    rc = proc.wait()
     wall = time.monotonic() - t0
     sampler.stop.set()
     th.join()
@@ -107,6 +134,9 @@ def main() -> int:
     print(f"idle: {idle:.0f} core-s of {wall * cores:.0f} ({100 * idle / (wall * cores):.0f} %)")
     for k, v in sorted(tot.items(), key=lambda kv: -kv[1]):
         print(f"{v:7.0f} s  {100 * v / max(sum(tot.values()), 1e-9):4.0f} %  {k}")
+    others = sorted(((c, sampler.commands.get(p, "?")) for p, (k, c) in sampler.last.items() if k == "other"))
+    for c, cmd in others[::-1][:5]:
+        print(f"        {c:7.1f} s  other: {cmd}")
     return rc
 
 

@@ -20,11 +20,12 @@ import numpy as np
 from studio.core import sampling
 from studio.core.arms import normalize_arms
 from studio.core.errors import InvalidInput, NotEnoughData, StudioError
-from studio.core.quality import Remedy
 from studio.core.types import Arm, Recording, Skill
 from studio.storage import DEFAULT_ROOT, Session, SessionStore, check_demo_name
-from studio.words import SHARED_REMEDIES, Remedies, count_words, tune_summary
-from studio.words import verdict_lines as verdict_words
+from studio.words import count_words, tune_summary
+from studio.words.controls import CLI_CONTROLS
+from studio.words.quality import cli_remedies
+from studio.words.quality import verdict_lines as verdict_words
 
 if TYPE_CHECKING:
     from studio.controller import Controller
@@ -68,7 +69,9 @@ def headless(store: SessionStore, session: Session) -> Iterator[Controller]:
     from studio.controller import Controller
     from studio.robot_backend.simulated import SimulatedBaxter
 
-    ctl = Controller(store=store, session=session, backend=SimulatedBaxter(), notifier=_Quiet(), headless=True)
+    ctl = Controller(
+        store=store, session=session, backend=SimulatedBaxter(), notifier=_Quiet(), headless=True, controls=CLI_CONTROLS
+    )
     try:
         yield ctl
     finally:
@@ -142,21 +145,6 @@ def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
             for line in lines:
                 print(f"  {line}", file=out)
     return 0
-
-
-def cli_remedies(session: str, auto: bool) -> Remedies:
-    """The knob that would help, said with ``studio learn``'s options (it has no Suggest or Detail)."""
-    again = f'learn again with `studio learn "{session}" --auto`, which searches for better thresholds'
-    search = "record one or two more demonstrations (--auto already chose the thresholds)" if auto else again
-    redo = "re-record it, or hide it in the studio"
-    way = "open the session in the studio to choose another way (Train, How the skill is made)"
-    return {
-        **SHARED_REMEDIES,
-        Remedy.MORE_KEYPOINTS: search,
-        Remedy.SHARPER_CORNERS: search,
-        Remedy.REDO_DEMO: redo,
-        Remedy.CHOOSE_ROUTE: way,
-    }
 
 
 def _fmt(x: float, spec: str = ".3g") -> str:
@@ -402,7 +390,6 @@ def make_examples(args: argparse.Namespace, out: TextIO | None = None) -> int:
 __all__ = [
     "EXAMPLES",
     "build_example",
-    "cli_remedies",
     "export_csv",
     "headless",
     "import_csv",

@@ -94,6 +94,8 @@ class BaxterBed:
         self.hand_speed = 0.5
         self.stamp_offset = 0.0
         self._stamp_once: float | None = None
+        self._epoch = time.time() - time.monotonic()  # the robot's clock: wall time of a monotonic instant
+        self._tick = time.monotonic()
         #: how many arm and finger-only JointState messages reached a subscriber
         self.sent = {"joints": 0, "fingers": 0}
         self.renamed: dict[str, str] = {}
@@ -221,6 +223,7 @@ class BaxterBed:
             await asyncio.sleep(max(0.0, nxt - time.monotonic()))
             if self.delay:
                 await asyncio.sleep(self.delay)
+            self._tick = nxt  # the robot stamps a message when it samples, however late this loop sends it
             fn()
 
     async def _handler(self, ws: Any) -> None:
@@ -328,7 +331,7 @@ class BaxterBed:
         while True:
             await asyncio.sleep(0.002)
             now = time.monotonic()
-            dt, last = min(now - last, 0.05), now
+            dt, last = now - last, now  # a real arm keeps moving while this loop waits for the CPU
             with self.lock:
                 if self.hand is not None:  # moved by hand in zero-g: the arm goes where the teacher takes it
                     by_hand = self.hand_speed * dt
@@ -347,7 +350,7 @@ class BaxterBed:
                     g.position += float(np.clip(g.target - g.position, -200.0 * dt, 200.0 * dt))
 
     def _stamp(self, arm: bool = False) -> dict[str, Any]:
-        s = time.time() + self.stamp_offset
+        s = self._epoch + self._tick + self.stamp_offset
         if arm and self._stamp_once is not None:  # a finger-only message must not take the arm's bad stamp
             s, self._stamp_once = self._stamp_once, None
             return {"secs": s, "nsecs": 0}

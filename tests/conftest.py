@@ -11,7 +11,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 import pytest
@@ -20,7 +20,7 @@ from studio.controller import Kind, Notifier
 from studio.robot_backend.base import JointStateBatch
 
 if TYPE_CHECKING:
-    from playwright.sync_api import Browser
+    from playwright.sync_api import Browser, BrowserContext, Page
 
     from studio.app import Studio
     from studio.controller import Controller
@@ -39,6 +39,82 @@ CHROMIUM_ARGS = [
 ]
 
 
+#: Test pages draw at most one frame every FRAME_MS while something moves (but freely while the mouse acts on the
+#: page) and viser's once-a-second safety-net frame every HEARTBEAT_MS (docs/decisions/093).
+#: ``drawn()`` asks for a frame and waits until it is drawn, so a screenshot shows what the page holds.
+#: ``STUDIO_TEST_FRAMES=native`` leaves pages as they are (to measure the difference: bench/README.md).
+FRAME_MS, HEARTBEAT_MS = 1000, 10_000
+NATIVE_FRAMES = os.environ.get("STUDIO_TEST_FRAMES") == "native"
+
+
+def page_js(frame_ms: int = FRAME_MS, heartbeat_ms: int = HEARTBEAT_MS) -> str:
+    """A page script (run before the page's own): a callback asking for the next animation frame again (the
+    render loop) waits until ``frame_ms`` after the last such frame, a one-off (a transition) does not, nor does
+    any while the mouse acts on the page (a drag draws as it does for a person);
+    viser's heartbeat every ``heartbeat_ms``; frames counted (``window.__studioFrames``) and one asked for on
+    demand (``window.__studioDrawNow()``)."""
+    return _PAGE_JS.replace("FRAME_MS_", str(int(frame_ms))).replace("HEARTBEAT_MS_", str(int(heartbeat_ms)))
+
+
+_PAGE_JS = """(() => {
+    const FRAME_MS = FRAME_MS_, HEARTBEAT_MS = HEARTBEAT_MS_, POINTER_MS = 500;
+    const raf = window.requestAnimationFrame.bind(window), caf = window.cancelAnimationFrame.bind(window);
+    const interval = window.setInterval.bind(window);
+    const ran = new WeakSet(), native = new Map();
+    let last = -Infinity, waiting = false, next = 1, due = new Map(), timer = null;
+    window.__studioFrames = 0;
+    const run = (now) => {
+        waiting = false;
+        last = now;
+        window.__studioFrames += 1;
+        const cbs = [...due.values()];
+        due = new Map();
+        for (const cb of cbs) cb(now);
+    };
+    window.requestAnimationFrame = (cb) => {
+        const id = next++;
+        if (!ran.has(cb)) {
+            ran.add(cb);
+            native.set(id, raf((now) => { native.delete(id); window.__studioFrames += 1; cb(now); }));
+            return id;
+        }
+        due.set(id, cb);
+        if (!waiting) {
+            waiting = true;
+            const now = performance.now(), wait = now < handled ? 0 : last + FRAME_MS - now;
+            if (wait > 0) timer = setTimeout(() => { timer = null; raf(run); }, wait);
+            else raf(run);
+        }
+        return id;
+    };
+    // a frame now (for a screenshot): the render loop asked for one, and one that waits is not kept waiting
+    window.__studioDrawNow = () => {
+        if (window.__studioDraw) window.__studioDraw();
+        if (timer !== null) { clearTimeout(timer); timer = null; raf(run); }
+    };
+    // the mouse on the page (a drag of a handle, an orbit): frames as a person sees them, until POINTER_MS after
+    let handled = -Infinity;
+    const pointer = () => {
+        handled = performance.now() + POINTER_MS;
+        if (timer !== null) { clearTimeout(timer); timer = null; raf(run); }
+    };
+    for (const type of ["pointerdown", "pointermove", "pointerup", "wheel"])
+        window.addEventListener(type, pointer, { capture: true, passive: true });
+    window.cancelAnimationFrame = (id) => {
+        due.delete(id);
+        if (native.has(id)) { caf(native.get(id)); native.delete(id); }
+    };
+    // viser's render heartbeat is its only one-second interval: slowed, and kept as the way to ask for a frame
+    window.setInterval = (fn, ms, ...args) => {
+        if (ms === 1000 && !window.__studioDraw) {
+            window.__studioDraw = fn;
+            ms = HEARTBEAT_MS;
+        }
+        return interval(fn, ms, ...args);
+    };
+})();"""
+
+
 def free_port() -> int:
     """A TCP port on 127.0.0.1 that nothing listens on right now."""
     with socket.socket() as s:
@@ -53,6 +129,24 @@ def reap(proc: subprocess.Popen) -> None:
         proc.wait()
     if proc.stdout is not None:
         proc.stdout.close()
+
+
+def cpu_seconds(pid: int) -> tuple[str, float]:
+    """The state letter of process ``pid`` ("Z": ended, not yet reaped) and the CPU seconds it used (all threads)."""
+    f = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return f[0], (int(f[11]) + int(f[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def end_with_signal(proc: subprocess.Popen, sig: int, timeout: float = 60.0) -> float:
+    """Send ``sig`` to ``proc`` (a child of this test), wait until it has ended (``timeout``: wall seconds, only
+    against a hang) and reap it; returns the CPU seconds it used after the signal (how long it kept working,
+    whatever else loads the machine)."""
+    _, before = cpu_seconds(proc.pid)
+    proc.send_signal(sig)
+    assert wait_for(lambda: cpu_seconds(proc.pid)[0] == "Z", timeout), f"still running {timeout} s after {sig}"
+    _, after = cpu_seconds(proc.pid)
+    proc.wait(timeout=10)
+    return after - before
 
 
 def wait_for(pred: Callable[[], bool], timeout: float = 30.0) -> bool:
@@ -102,6 +196,28 @@ def sessions(tmp_path: Path) -> Path:
     d.mkdir()
     shutil.copytree(ROOT / "sessions" / "stack-cup", d / "stack-cup")
     return d
+
+
+@pytest.fixture(scope="session")
+def trained_examples(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A folder holding the "pick-place" and "stack-cup" examples, each trained once per worker as the Train
+    button trains (``studio learn``) and saved: copied by the tests whose subject comes after training."""
+    from studio.cli import main
+
+    d = tmp_path_factory.mktemp("trained") / "sessions"
+    d.mkdir()
+    for name in ("pick-place", "stack-cup"):
+        shutil.copytree(ROOT / "sessions" / name, d / name)
+        assert main(["learn", name, "--sessions-dir", str(d)]) == 0
+    return d
+
+
+def trained_copy(trained: Path, name: str, sessions: Path) -> Path:
+    """Copy the trained example ``name`` from ``trained`` (:func:`trained_examples`) into ``sessions``."""
+    sessions.mkdir(parents=True, exist_ok=True)
+    shutil.rmtree(sessions / name, ignore_errors=True)
+    shutil.copytree(trained / name, sessions / name)
+    return sessions
 
 
 def _started(sessions: Path) -> tuple[Controller, SimulatedBaxter]:
@@ -164,15 +280,64 @@ def _work_threads_end_with_their_test() -> Iterator[None]:
 
 @pytest.fixture(scope="session")
 def browser() -> Iterator[Browser]:
-    """One headless Debian Chromium for the whole run (pages are opened and closed by each test)."""
+    """One headless Debian Chromium for the whole run (pages are opened and closed by each test); its pages run
+    :func:`page_js` and take screenshots of a freshly drawn frame (:func:`drawn`)."""
     if not Path(CHROMIUM).exists():
         pytest.skip(f"Debian chromium not found at {CHROMIUM} (apt-get install chromium)")
     from playwright.sync_api import sync_playwright
 
     with sync_playwright() as p:
         b = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
-        yield b
+        yield cast("Browser", _Drawn(b))
         b.close()
+
+
+def drawn(page: Page, timeout: float = 30.0) -> None:
+    """Ask ``page`` for a frame and wait until it is drawn: what the page holds is then on screen (a page that
+    draws no scene, e.g. a refusal, after its next paint)."""
+    done = page.evaluate(
+        """(timeout) => new Promise((resolve) => {
+            if (window.__studioFrames === undefined) return resolve(true);  // a page without page_js()
+            // a page without a render loop (not the studio's: a refusal, another site): its next paint will do
+            if (!window.__studioDraw) return requestAnimationFrame(() => resolve(true));
+            const n = window.__studioFrames, until = performance.now() + timeout;
+            window.__studioDrawNow();
+            const check = () => {
+                if (window.__studioFrames > n) resolve(true);
+                else if (performance.now() > until) resolve(false);
+                else setTimeout(check, 20);
+            };
+            check();
+        })""",
+        timeout * 1000,
+    )
+    assert done, f"the page drew no frame within {timeout} s"
+
+
+class _Drawn:
+    """A browser (or context) whose new pages run :func:`page_js` and draw a frame before each screenshot."""
+
+    def __init__(self, inner: Browser | BrowserContext) -> None:
+        self._inner = inner
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(self._inner, name)
+
+    def new_context(self, **kwargs: object) -> BrowserContext:
+        return cast("BrowserContext", _Drawn(self._inner.new_context(**kwargs)))  # type: ignore[union-attr,arg-type]
+
+    def new_page(self, **kwargs: object) -> Page:
+        page = self._inner.new_page(**kwargs)  # type: ignore[arg-type]
+        if not NATIVE_FRAMES:
+            page.add_init_script(page_js())
+        shot = page.screenshot
+
+        def screenshot(**kw: object) -> bytes:
+            drawn(page)
+            return shot(**kw)  # type: ignore[arg-type]
+
+        setattr(page, "screenshot", screenshot)  # noqa: B010
+        return page
 
 
 #: The browser test files of the first of two groups (the rest form the second), balanced on their durations.

@@ -1,5 +1,5 @@
 """The panels' honest words with a server: the task of the set-up, Undo after Discard, the last run marked out of
-date after a change, the Run on robot warning, the skill speed and Remove pauses controls, the session box
+date after a change, the Run on robot warning, the skill speed, one skill length and Keep its pauses, the session box
 that names the open session, an empty "New name" after New, "1 demonstration", and a restart that reopens the
 last session."""
 
@@ -68,7 +68,7 @@ def test_the_last_run_goes_out_of_date_when_the_objects_move(app: Studio) -> Non
     assert "The bottom cup is 12 cm from where it stood when you taught" in preview.reach.content
 
 
-def test_skill_speed_and_remove_pauses_controls(app: Studio) -> None:
+def test_skill_speed_keep_pauses_and_one_skill_length(app: Studio) -> None:
     ctl = app.controller
     ctl.training.train().result()
     preview, train = app.panels.preview, app.panels.train
@@ -78,9 +78,22 @@ def test_skill_speed_and_remove_pauses_controls(app: Studio) -> None:
     assert wait_for(lambda: preview.skill_speed.value == "2×")
     m = re.search(r"Learned path \(([\d.]+) s\)", preview.info.content)
     assert m and float(m.group(1)) < taught * 0.8
-    assert train.pauses.value is False
-    ctl.training.set_remove_pauses(True)
-    assert train.pauses.value is True
+    # one length everywhere: Train's result line and its chart say what Preview plays
+    length = ctl.placed.duration()
+    assert m and float(m.group(1)) == round(length, 1)
+    assert wait_for(lambda: f"The skill lasts **{length:.1f} s**" in train.status.content), train.status.content
+    assert f"learned path (left, {length:.1f} s)" in train.plots.content
+    # the demonstration list says the pauses it shortened; the chosen one can keep them
+    demos = app.panels.demos
+    assert demos.demo_pauses.value is False and not ctl.demos.keeps_pauses(0)
+    row = re.search(r'data-demo="0"[^>]*>.*?</div>', demos.demo_list.content)
+    assert row and re.search(r"[\d.]+ s of [\d.]+ s recorded", row.group(0)), demos.demo_list.content
+    demos.demo_pick.value = ctl.demos.names()[0]  # type: ignore[misc]
+    ctl.demos.set_keep_pauses(0, True)
+    assert ctl.demos.keeps_pauses(0) and ctl.session.skills_stale
+    assert wait_for(lambda: demos.demo_pauses.value is True)
+    ctl.demos.set_keep_pauses(0, False)
+    assert wait_for(lambda: demos.demo_pauses.value is False) and not ctl.demos.keeps_pauses(0)
 
 
 def test_one_demonstration_is_said_in_the_singular(app: Studio) -> None:

@@ -22,10 +22,11 @@ ALLOWED = {
     "csv_io": {"core", "storage", "csv_io"},
     "teacher": {"core", "teacher"},
     "world": {"core", "robot_backend", "teacher", "world"},
-    "security": {"core", "security"},
+    "viser_adapter": {"core", "viser_adapter"},
+    "security": {"core", "viser_adapter", "security"},
     "words": {"core", "words"},
     "controller": {"core", "robot_backend", "recorder", "storage", "csv_io", "world", "words", "controller"},
-    "panels": {"core", "controller", "words", "panels"},
+    "panels": {"core", "controller", "words", "viser_adapter", "panels"},
     "app": {"core", "robot_backend", "storage", "controller", "panels", "security", "app"},
     "commands": {
         "core",
@@ -180,7 +181,7 @@ def test_modules_and_classes_stay_under_the_ceiling() -> None:
     big = []
     for name, path in MODULES.items():
         src = path.read_text()
-        if _layer(name) != "core" and len(src.splitlines()) > MAX_MODULE_LINES:
+        if len(src.splitlines()) > MAX_MODULE_LINES:
             big.append(f"{name}: {len(src.splitlines())} lines")
         for node in ast.walk(parsed(path)):
             if isinstance(node, ast.ClassDef) and node.end_lineno is not None:

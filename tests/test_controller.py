@@ -10,7 +10,8 @@ import pytest
 
 from studio.controller import PREVIEW, REPLAY, Controller, Topic
 from studio.core.errors import NotEnoughData, SessionFormatError, StudioError
-from studio.core.quality import Issue
+from studio.core.quality.judgement import Close
+from studio.core.quality.notes import OddDemo
 from studio.core.types import Arm
 from studio.storage import SessionStore
 from tests.conftest import RecordingNotifier, wait_for
@@ -138,6 +139,17 @@ def test_replay_seek_needs_play_first(ctl: Controller) -> None:
     with pytest.raises(StudioError, match="Press Play first"):
         ctl.playback.seek(REPLAY, 1.0)
     assert ctl.playback.kind is None
+
+
+def test_the_controller_says_each_audience_s_way_to_a_control(ctl: Controller) -> None:
+    from studio.words.controls import CLI_CONTROLS
+
+    ctl.sessions.new("nothing learned")
+    with pytest.raises(StudioError, match="no learned skill to preview yet: press Train first"):
+        ctl.playback.preview_recording()
+    ctl.ctx.controls = CLI_CONTROLS  # as `studio learn`'s headless controller says it
+    with pytest.raises(StudioError, match="no learned skill to preview yet: run `studio learn` first"):
+        ctl.playback.preview_recording()
 
 
 def test_training_needs_two_demos_in_plain_words(ctl: Controller) -> None:
@@ -360,7 +372,7 @@ def test_training_is_judged_in_plain_words(ctl: Controller) -> None:
     ctl.training.train().result(timeout=120)
     assert wait_for(lambda: "left" in ctl.training.verdicts() and not ctl.training.judging, 120)
     v = ctl.training.verdicts()["left"]
-    assert v.verdict is not None and v.verdict.level == "good" and v.verdict.headline.issue is Issue.CLOSE
+    assert v.verdict is not None and v.verdict.level == "good" and isinstance(v.verdict.headline, Close)
     assert [f.name for f in v.fits] == ["demo 1", "demo 2", "demo 3"] and all(f.well for f in v.fits)
     assert verdicts[0] == 0 and verdicts[-1] == 1
     ctl.demos.rename(0, "renamed")  # the skill stays; its judgement says what it cannot judge any more
@@ -377,7 +389,7 @@ def test_an_odd_demonstration_is_named(ctl: Controller) -> None:
     ctl.training.train().result(timeout=180)
     assert wait_for(lambda: "left" in ctl.training.verdicts() and not ctl.training.judging, 180)
     v = ctl.training.verdicts()["left"]
-    assert v.verdict is not None and (Issue.OUTLIER, "demo 4") in [(f.issue, f.demo) for f in v.verdict.notes]
+    assert v.verdict is not None and "demo 4" in [f.demo for f in v.verdict.notes if isinstance(f, OddDemo)]
     assert [f.well for f in v.fits] == [True, True, True, False]
 
 

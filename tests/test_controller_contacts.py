@@ -16,9 +16,10 @@ import pytest
 from studio import teacher
 from studio.commands import headless, record_plan, train
 from studio.controller import Controller
-from studio.core.collision import CollisionModel, Obstacle, obstacle_pose
+from studio.core.collision import CollisionModel
 from studio.core.errors import StudioError
 from studio.core.kinematics import Baxter
+from studio.core.obstacles import Obstacle, obstacle_pose
 from studio.robot_backend.simulated import SimulatedBaxter
 from studio.storage import SessionStore
 from studio.world import preset

@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 from studio.controller import Controller, Step
-from studio.core.quality import Issue
-from studio.panels.train import REMEDIES
+from studio.core.quality.judgement import Close
 from studio.robot_backend.simulated import SimulatedBaxter
 from studio.teacher import Place, Places, teach
-from studio.words import frame_lines, segment_lines, verdict_lines
+from studio.words import frame_lines, segment_lines
+from studio.words.quality import STUDIO_REMEDIES, verdict_lines
 from studio.world import preset, simulate
 from tests.conftest import wait_for
 
@@ -136,8 +136,8 @@ def test_takes_in_different_places_teach_a_skill_that_follows_the_objects(rig) -
     assert wait_for(lambda: "left" in ctl.training.verdicts() and not ctl.training.judging)
     judged = ctl.training.verdicts()["left"]
     assert judged.verdict is not None, judged.message
-    said = verdict_lines(judged.verdict, REMEDIES)
-    assert judged.verdict.headline.issue is Issue.CLOSE, said  # measured in the robot's frame: far (decision 081)
+    said = verdict_lines(judged.verdict, STUDIO_REMEDIES)
+    assert isinstance(judged.verdict.headline, Close), said  # measured in the robot's frame: far (decision 081)
     lines = segment_lines(judged.segments)
     assert [x.split(" (")[0] for x in lines] == [
         "Reaching for the block",

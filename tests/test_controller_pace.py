@@ -1,5 +1,6 @@
-"""The pace of the skill in the controller: "Remove pauses" learns from demonstrations with their long rests
-shortened, and the skill speed retimes what Preview, the task result and Run on robot play."""
+"""The pace of the skill in the controller: each take is learned from its first motion to its last with its
+pauses shortened (unless the teacher keeps them), and the skill speed retimes what Preview, the task result and
+Run on robot play."""
 
 from __future__ import annotations
 
@@ -26,18 +27,27 @@ def ctl(sessions: Path) -> Iterator[Controller]:
     c.shutdown()
 
 
-def test_removing_pauses_makes_a_shorter_skill_that_still_does_the_task(ctl: Controller) -> None:
+def test_pauses_are_shortened_by_default_and_a_take_can_keep_them(ctl: Controller) -> None:
     ctl.training.train().result()
-    taught = ctl.playback.preview_duration()
+    brisk = ctl.placed.duration()
+    assert ctl.playback.preview_duration() == brisk  # one length: what Preview plays
     result = ctl.scene.task_result()
-    assert result is not None and result.ok
-    told: list[bool] = []
-    ctl.events.on(Topic.TRAINING, lambda: told.append(ctl.training.remove_pauses))
-    ctl.training.set_remove_pauses(True)
-    assert told == [True]
+    assert result is not None and result.ok, result
+    clocks = [d.clock for d in ctl.demos.summaries()]
+    assert all(c is not None for c in clocks)
+    shortened = sum(c.removed + c.still_ends for c in clocks if c is not None)
+    assert shortened > 1.0, clocks  # the scripted teacher rests at its start, grasps and releases
+    for c, d in zip(clocks, ctl.demos.summaries(), strict=True):
+        assert c is not None and c.duration < d.duration
+    told: list[int] = []
+    ctl.events.on(Topic.DEMOS, lambda: told.append(1))
+    for i in range(len(clocks)):
+        ctl.demos.set_keep_pauses(i, True)
+    assert told and ctl.session.skills_stale
+    assert all(d.clock is not None and d.clock.kept and d.clock.removed == 0 for d in ctl.demos.summaries())
     ctl.training.train().result()
-    brisk = ctl.playback.preview_duration()
-    assert brisk < taught * 0.9, (brisk, taught)  # the scripted teacher rests at each grasp and release
+    removed = sum(c.removed for c in clocks if c is not None)
+    assert ctl.placed.duration() >= brisk + (0.3 * removed if removed > 1.0 else 0.0), (removed, brisk)
     result = ctl.scene.task_result()
     assert result is not None
     assert result.ok, result.text

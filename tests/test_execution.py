@@ -18,6 +18,7 @@ from studio.core.types import Recording
 from studio.recorder import Recorder
 from studio.robot_backend.replay import ReplayBackend
 from studio.robot_backend.simulated import SimulatedBaxter
+from studio.words.robot import tracking_summary
 from tests.conftest import Collector, wait_for
 from tests.core.teacher_demos import demos
 
@@ -102,7 +103,7 @@ def test_execution_is_recorded_like_a_demonstration_and_compared_with_the_plan(s
     assert given.completed == pytest.approx(1.0, abs=1e-3)
     assert given.max_position_error < 3e-3 and given.max_path_error < 3e-3  # sensor noise only
     assert given.joint_error.max() < 2e-3
-    assert "ran 100% of the plan" in given.summary()
+    assert tracking_summary(given).startswith("The robot ran 100% of the plan; its gripper stayed within ")
 
 
 def test_controlled_stop_slows_down_along_the_path_within_the_limits(skill) -> None:
@@ -149,11 +150,13 @@ def test_emergency_stop_halts_within_one_control_cycle_in_real_time(skill) -> No
         assert wait_for(lambda: sim.sim_time > 0.6)  # moving by now (the approach)
         t_call = sim.now()
         sim.emergency_stop()
-        assert wait_for(lambda: sim.sim_time > t_call + 0.2)
+        t_held = sim.held_from  # the first sample after the stop reached the robot (a loaded machine: after t_call)
+        assert t_held is not None and t_held >= t_call
+        assert wait_for(lambda: sim.sim_time > t_held + 0.2)
     finally:
         sim.stop()
     t, q, _ = col.arrays()
-    after = t > t_call + 1e-3  # every sample after the first control cycle past the call
+    after = t > t_held + 1e-3  # every sample after the first control cycle past the stop
     assert after.sum() > 100
     moving_before = np.abs(np.diff(q[t <= t_call], axis=0)).max()
     assert moving_before > 1e-5
@@ -256,4 +259,26 @@ def test_both_arms_run_together_and_a_partial_run_is_reported(tmp_path: Path) ->
     # it stopped along the path (within the acceleration limits): close to the planned path all along, while
     # the same-time error grows once the plan goes on without the robot
     assert report.max_path_error < 5e-3 and report.max_position_error > 0.05
-    assert "The robot ran" in report.summary()
+    assert f"The robot ran {round(report.completed * 100)}% of the plan" in tracking_summary(report)
+
+
+def test_a_run_verdict_is_facts_and_every_failure_has_its_words() -> None:
+    """The core says what failed (``RunFailure``) and keeps the numbers; ``words.robot`` says it, each failure in
+    its own phrase, in the verdict's order."""
+    from studio.core.execution import COMPLETE_MIN, RunFailure, RunVerdict
+    from studio.words.robot import run_failure_words
+
+    works = RunVerdict(1.0, 0.004, 0.001, 2, 2, True)
+    assert works.works and works.failures() == [] and run_failure_words(works) == []
+    worst = RunVerdict(0.42, 0.031, 0.0062, 1, 2, False, same_time=False)
+    assert worst.failures() == list(RunFailure)
+    assert run_failure_words(worst) == [
+        "the robot did 42 % of the run",
+        "its gripper was up to 3.1 cm from the planned path",
+        "it ended 6.2 mm from the plan's last pose",
+        "it did 1 of the 2 gripper actions",
+        "the objects did not end where you put them",
+    ]
+    late = RunVerdict(COMPLETE_MIN, 0.025, 0.0, 0, 0, None)
+    assert late.failures() == [RunFailure.OFF_TRACK]
+    assert run_failure_words(late) == ["its gripper was up to 2.5 cm from where the plan was at the same moment"]

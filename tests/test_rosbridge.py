@@ -117,8 +117,9 @@ def test_joint_commands_are_position_mode_by_name_at_100_hz(bridge: BaxterBed, r
     np.testing.assert_allclose(cmds[-1][1]["msg"]["command"], target)
     times = np.array([t for t, _ in cmds])
     rate = (len(times) - 1) / (times[-1] - times[0])
-    # republished at 100 Hz (Baxter drops a command after 0.2 s); a loaded machine (CI) may drop a few ticks
-    assert 50 < rate < 130, rate
+    # republished at 100 Hz (Baxter drops a command after 0.2 s), never faster; a loaded machine delays ticks (a
+    # late one is not caught up): the floor is generous
+    assert 20 < rate < 130, rate
     assert wait_for(lambda: np.allclose(robot.state().q[:7], target))
     # after the hold time the arm is no longer commanded (it can be guided by hand again)
     assert quiet_for(lambda: len(bridge.by_op("publish", "/robot/limb/left/joint_command")), 0.3, timeout=5)
@@ -162,12 +163,18 @@ def test_executes_a_plan_streaming_commands_and_stops(bridge: BaxterBed, robot: 
     with pytest.raises(StudioError, match="already running"):
         robot.execute(plan)
     assert wait_for(lambda: robot.progress().state == "done", timeout=plan.duration + 30)
-    cmds = bridge.by_op("publish", "/robot/limb/left/joint_command")[n0:]
+
+    def commands() -> list:
+        return bridge.by_op("publish", "/robot/limb/left/joint_command")[n0:]
+
+    # the commands walk along the plan and end at its last pose (the last may still be on its way); the fake
+    # robot followed
+    assert wait_for(lambda: np.allclose(commands()[-1][1]["msg"]["command"], plan.q[-1, :7], atol=1e-9))
+    cmds = commands()
     times = np.array([t for t, _ in cmds])
     rate = (len(times) - 1) / (times[-1] - times[0])
-    assert 50 < rate < 130, rate
-    # the commands walk along the plan and end at its last pose; the fake robot followed
-    np.testing.assert_allclose(cmds[-1][1]["msg"]["command"], plan.q[-1, :7], atol=1e-9)
+    # 100 Hz, never faster; a loaded machine delays ticks (a late one is not caught up): the floor is generous
+    assert 20 < rate < 130, rate
     assert wait_for(lambda: np.allclose(robot.state().q[:7], plan.q[-1, :7]))
     assert not bridge.by_op("publish", "/robot/limb/right/joint_command")  # only the planned arm moves
 

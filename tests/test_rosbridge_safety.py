@@ -154,12 +154,31 @@ def test_a_lost_link_fails_the_run_and_nothing_resumes_after_it(
 
 
 def test_speed_ratio_is_set_for_the_run_and_the_arm_keeps_up(bed: BaxterBed, robot: RosbridgeBaxter) -> None:
+    """Every command of the run reaches the robot at the full speed ratio (Baxter's default, 0.3, would leave the
+    arm behind the plan), the default comes back after it, and the arm comes to rest at the plan's last pose."""
     assert bed.speed_ratio == [0.3, 0.3]  # Baxter's default
     plan = plan_for(robot, seconds=3.0)
     robot.execute(plan)
     assert wait_for(lambda: bed.speed_ratio[0] == 1.0)
     assert wait_for(lambda: robot.progress().state == "done")
     assert wait_for(lambda: bed.speed_ratio[0] == 0.3)  # the default again for moves by hand
+    # In the order the robot received them: the full ratio, the run's commands, the default again, then only
+    # the hold of the last pose (as after a move by hand).
+    with bed.lock:
+        sent = [(o["topic"], o.get("msg") or {}) for _, o in bed.ops if o.get("op") == "publish"]
+    ratios = [(i, m.get("data")) for i, (topic, m) in enumerate(sent) if topic == "/robot/limb/left/set_speed_ratio"]
+    full = next(i for i, r in ratios if r == 1.0)
+    default = next(i for i, r in ratios if r == 0.3 and i > full)
+    commands = [i for i, (topic, _) in enumerate(sent) if topic == LEFT_CMD]
+    assert commands and full < commands[0] < default, (full, commands[:1], default)
+    held = [sent[i][1]["command"] for i in commands if i > default]
+    assert np.allclose(held, plan.q[-1, :7], atol=1e-9) if held else True
+
+    def at_rest() -> bool:
+        with bed.lock:
+            return bed.target[0] is not None and bool(np.max(np.abs(bed.q[:7] - bed.target[0])) < 1e-9)
+
+    assert wait_for(at_rest)
     with bed.lock:
         q_end = bed.q[:7].copy()
     assert np.max(np.abs(q_end - plan.q[-1, :7])) < 0.01

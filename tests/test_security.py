@@ -18,8 +18,8 @@ from pathlib import Path
 import pytest
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 
-from studio.app import Studio, build_app
-from tests.conftest import free_port, reap, wait_for
+from studio.app import STOP_S, Studio, build_app
+from tests.conftest import end_with_signal, free_port, reap, wait_for
 from tests.viser_client import ViserClient
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -612,10 +612,8 @@ def test_the_key_is_read_from_a_file_and_never_shown_in_ps(sessions: Path, tmp_p
         assert key not in cmdline and str(key_file) in cmdline
         status, _, _ = http_get(port, f"/?key={key}")
         assert status == 303
-        t0 = time.monotonic()
-        proc.send_signal(signal.SIGTERM)
-        proc.wait(timeout=30)
-        assert time.monotonic() - t0 < 5.0 and proc.returncode == 0
+        worked = end_with_signal(proc, signal.SIGTERM)  # CPU seconds after it (see tests/hostile/test_flood.py)
+        assert proc.returncode == 0 and worked < 2 * STOP_S
     finally:
         reap(proc)
 

@@ -9,40 +9,61 @@ from pathlib import Path
 import pytest
 
 from studio import words as W
-from studio.commands import cli_remedies
-from studio.core.quality import Disagreement, Finding, GripperMismatch, Issue, Level, Remedy, Verdict
-from studio.panels.train import REMEDIES as STUDIO
+from studio.core.quality import Disagreement, GripperMismatch, Level, Verdict
+from studio.core.quality.judgement import Close, CutsCorner, Loose, Strays
+from studio.core.quality.notes import (
+    KINDS,
+    EndOff,
+    GripperMissed,
+    GripperOff,
+    GripperUse,
+    MissesHeldOut,
+    OddDemo,
+    OffPath,
+    Slow,
+    StartOff,
+    Unreachable,
+)
+from studio.words import quality as WQ
+from studio.words.quality import STUDIO_REMEDIES as STUDIO
+from studio.words.quality import Remedy, cli_remedies
 
 #: One finding of every kind, with figures.
 EVERY_NOTE = (
-    Finding(Issue.START_OFF, distance=0.004),
-    Finding(Issue.END_OFF, distance=0.012),
-    Finding(Issue.GRIPPER_MISMATCH, mismatch=GripperMismatch(Disagreement.SKILL_DIFFERS, 1, 2)),
-    Finding(Issue.GRIPPER_MISSED, Remedy.MORE_KEYPOINTS, action="close"),
-    Finding(Issue.GRIPPER_OFF, Remedy.MORE_KEYPOINTS, distance=0.02, time=1.5, action="open"),
-    Finding(Issue.UNREACHABLE, Remedy.WITHIN_REACH, distance=0.03, time=2.0, share=0.1),
-    Finding(Issue.OFF_PATH, Remedy.WITHIN_REACH, distance=0.007, time=0.1, share=0.0),
-    Finding(Issue.SLOW, time=5.0, durations=(5.0, 2.0, 2.5)),
-    Finding(Issue.HELD_OUT, Remedy.MORE_DEMOS, distance=0.01),
-    Finding(Issue.OUTLIER, Remedy.REDO_DEMO, distance=0.05, demo="demo 4"),
+    StartOff(0.004),
+    EndOff(0.012),
+    GripperUse(GripperMismatch(Disagreement.SKILL_DIFFERS, 1, 2)),
+    GripperMissed("close"),
+    GripperOff("open", 0.02, 1.5),
+    Unreachable(0.1, 0.03, 2.0),
+    OffPath(0.007, 0.1),
+    Slow(5.0, 2.0, 2.5),
+    MissesHeldOut(0.01),
+    OddDemo("demo 4", 0.05),
 )
 HEADLINES = (
-    Verdict(Level.POOR, Finding(Issue.STRAYS, Remedy.MORE_KEYPOINTS, distance=0.03), EVERY_NOTE),
-    Verdict(Level.FAIR, Finding(Issue.CUTS_CORNER, Remedy.SHARPER_CORNERS, distance=0.02, time=1.0)),
-    Verdict(Level.FAIR, Finding(Issue.LOOSE, Remedy.MORE_KEYPOINTS, distance=0.01)),
-    Verdict(Level.FAIR, Finding(Issue.CLOSE, distance=0.002), EVERY_NOTE[:1]),
-    Verdict(Level.GOOD, Finding(Issue.CLOSE, distance=0.002)),
+    Verdict(Level.POOR, Strays(0.03), EVERY_NOTE),
+    Verdict(Level.FAIR, CutsCorner(0.02, 1.0)),
+    Verdict(Level.FAIR, Loose(0.01)),
+    Verdict(Level.FAIR, Close(0.002), EVERY_NOTE[:1]),
+    Verdict(Level.GOOD, Close(0.002)),
 )
+
+
+def test_every_kind_of_finding_has_words() -> None:
+    # no silent fallback: a kind of finding without an entry in the words table would fail the Train panel
+    assert set(WQ.FINDING_WORDS) == set(KINDS) and len(KINDS) == len(set(KINDS))
+    assert all(w.remedy is None or w.remedy in Remedy for w in WQ.FINDING_WORDS.values())
 
 
 @pytest.mark.parametrize("remedies", [STUDIO, cli_remedies("my session", False), cli_remedies("x", True)])
-def test_every_remedy_is_said(remedies: W.Remedies) -> None:
+def test_every_remedy_is_said(remedies: WQ.Remedies) -> None:
     assert set(remedies) == set(Remedy)
     assert all(r and r[0].islower() and not r.endswith(".") for r in remedies.values())
 
 
 def test_every_finding_has_its_own_sentence() -> None:
-    lines = W.verdict_lines(HEADLINES[0], STUDIO)
+    lines = WQ.verdict_lines(HEADLINES[0], STUDIO)
     assert len(lines) == 1 + len(EVERY_NOTE) and len(set(lines)) == len(lines)
     assert not any("nan" in line or "Issue." in line for line in lines)
     assert "The skill does not use the gripper as you did (1 gripper actions instead of 2)." in lines
@@ -59,23 +80,40 @@ def test_every_finding_has_its_own_sentence() -> None:
 def test_the_command_line_names_its_options_not_the_studio_controls() -> None:
     for auto in (False, True):
         remedies = cli_remedies("my session", auto)
-        text = "\n".join(line for v in HEADLINES for line in W.verdict_lines(v, remedies))
+        text = "\n".join(line for v in HEADLINES for line in WQ.verdict_lines(v, remedies))
         assert not re.search(r"\bpress\b|Suggest|Detail|Corner sharpness", text), text
-    text = "\n".join(W.verdict_lines(HEADLINES[2], cli_remedies("my session", False)))
+    text = "\n".join(WQ.verdict_lines(HEADLINES[2], cli_remedies("my session", False)))
     assert 'learn again with `studio learn "my session" --auto`' in text
-    assert "--auto already chose" in "\n".join(W.verdict_lines(HEADLINES[2], cli_remedies("my session", True)))
-    studio_text = "\n".join(W.verdict_lines(HEADLINES[1], STUDIO))
+    assert "--auto already chose" in "\n".join(WQ.verdict_lines(HEADLINES[2], cli_remedies("my session", True)))
+    studio_text = "\n".join(WQ.verdict_lines(HEADLINES[1], STUDIO))
     assert studio_text.endswith("— press Suggest, or lower Corner sharpness.")
 
 
-def test_the_core_names_no_control_of_the_studio() -> None:
-    # the issue's check: `grep -rn "press\|Suggest\|Detail" studio/core` finds nothing
-    core = Path(__file__).resolve().parent.parent / "studio" / "core"
+def test_each_audience_says_every_control_and_the_command_line_never_says_press() -> None:
+    from studio.words.controls import CLI_CONTROLS, STUDIO_CONTROLS, Control, say
+
+    assert set(CLI_CONTROLS) == set(STUDIO_CONTROLS) == set(Control)
+    assert not [v for v in CLI_CONTROLS.values() if re.search(r"\bpress", v, re.IGNORECASE)]
+    assert say(STUDIO_CONTROLS, Control.TRAIN) == "press Train" and say(CLI_CONTROLS, Control.TRAIN, first=True) == (
+        "Run `studio learn`"
+    )
+
+
+@pytest.mark.parametrize(
+    ("layer", "pattern"),
+    [
+        ("core", re.compile(r"press|Suggest|Detail")),  # the core's facts name no control of the studio
+        # issue 28: the controller, which `studio learn` runs too, names a Control; each audience says it
+        ("controller", re.compile(r"press|open preview|train panel", re.IGNORECASE)),
+    ],
+)
+def test_core_and_controller_name_no_control_of_the_studio(layer: str, pattern: re.Pattern[str]) -> None:
+    root = Path(__file__).resolve().parent.parent / "studio" / layer
     found = [
-        f"{p.relative_to(core.parent)}:{i}: {line.strip()}"
-        for p in sorted(core.rglob("*.py"))
+        f"{p.relative_to(root.parent)}:{i}: {line.strip()}"
+        for p in sorted(root.rglob("*.py"))
         for i, line in enumerate(p.read_text().splitlines(), 1)
-        if re.search(r"press|Suggest|Detail", line)
+        if pattern.search(line)
     ]
     assert not found, "\n".join(found)
 

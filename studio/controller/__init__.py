@@ -27,13 +27,14 @@ from studio.controller.scene import SceneActions
 from studio.controller.sessions import RECOVERED, SessionActions, open_or_create
 from studio.controller.suggest import Suggesting, SuggestState
 from studio.controller.teaching import Reach, Teaching
-from studio.controller.training import FRAME_WORDS, MODE_WORDS, SkillVerdict, Training, UsedDemo
+from studio.controller.training import SkillVerdict, Training, UsedDemo
 from studio.controller.undo import Undo
 from studio.controller.unsaved import UnsavedTakes
 from studio.controller.view import Layer, Step, View
 from studio.core.kinematics import Baxter
 from studio.robot_backend.base import RobotBackend
 from studio.storage import Session, SessionStore
+from studio.words.controls import STUDIO_CONTROLS, Controls
 from studio.world import FLOOR_Z, Goal, GraspNote, ObjectPose, Placement, Scene, TaskResult, WorldEvent, WorldObject
 from studio.world import PRESETS as SCENE_PRESETS
 
@@ -52,6 +53,7 @@ class Controller:
 
     Start it with :meth:`start` (robot streaming, key-point thread) and stop it with :meth:`shutdown`.
     ``headless``: for commands without a GUI (``studio learn``): a failed job raises from its future.
+    ``controls``: how its audience reaches the controls its sentences point to (the studio's buttons by default).
     """
 
     def __init__(
@@ -63,10 +65,11 @@ class Controller:
         baxter: Baxter | None = None,
         notifier: Notifier | None = None,
         headless: bool = False,
+        controls: Controls = STUDIO_CONTROLS,
     ) -> None:
         baxter = baxter if baxter is not None else Baxter.load()
         opened = session if isinstance(session, Session) else open_or_create(store, session)
-        self.ctx = ctx = Context(store, opened, baxter, notifier or LogNotifier(), headless=headless)
+        self.ctx = ctx = Context(store, opened, baxter, notifier or LogNotifier(), headless=headless, controls=controls)
         # Each part gets the context and narrow callables or protocols for what it asks of the others (late
         # bound: a part is asked only once all exist); it subscribes to the events it follows itself.
         self.view = View(ctx.events)
@@ -188,8 +191,6 @@ class Controller:
 
 __all__ = [
     "FLOOR_Z",
-    "FRAME_WORDS",
-    "MODE_WORDS",
     "PALETTE",
     "PREVIEW",
     "RECOVERED",

@@ -20,6 +20,7 @@ from studio.core.errors import InvalidInput, StudioError
 from studio.core.kinematics import Baxter
 from studio.core.types import Arm
 from studio.storage import Session, SessionStore
+from studio.words.controls import STUDIO_CONTROLS, Control, Controls, say
 
 log = logging.getLogger(__name__)
 
@@ -62,12 +63,21 @@ class Context:
         helpers: the threads a job on the work thread spreads its tasks over (Suggest's candidates).
         headless: a failed job on the work thread stays in its future (the caller raises it) instead of
             becoming a notification.
+        controls: how the audience reaches a :class:`~studio.words.controls.Control` its sentences point to.
     """
 
     def __init__(
-        self, store: SessionStore, session: Session, baxter: Baxter, notifier: Notifier, *, headless: bool = False
+        self,
+        store: SessionStore,
+        session: Session,
+        baxter: Baxter,
+        notifier: Notifier,
+        *,
+        headless: bool = False,
+        controls: Controls = STUDIO_CONTROLS,
     ) -> None:
         self.store = store
+        self.controls = controls
         self.session = session
         self.baxter = baxter
         self.notifier = notifier
@@ -99,6 +109,10 @@ class Context:
 
     def notify(self, title: str, body: str, *, kind: Kind = "error", client: object | None = None) -> None:
         self.notifier.notify(title, body, kind=kind, client=client)
+
+    def say(self, control: Control, *, first: bool = False) -> str:
+        """How this audience reaches ``control`` (its phrase in :attr:`controls`; capitalised with ``first``)."""
+        return say(self.controls, control, first=first)
 
     def emit(self, topic: Topic) -> None:
         self.events.emit(topic)

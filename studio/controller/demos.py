@@ -1,5 +1,5 @@
 """The session's demonstrations as the studio shows them: colours, visibility, the 8-D Demo per arm (FK once,
-cached), and the edits (hide, rename, trim, delete with a second press to confirm)."""
+cached), and the edits (hide, rename, trim, delete with a second click to confirm)."""
 
 from __future__ import annotations
 
@@ -12,8 +12,11 @@ import numpy as np
 from studio.controller.context import Context
 from studio.controller.events import Topic
 from studio.core.errors import StudioError
+from studio.core.frames import DemoObjects
+from studio.core.pace import TakeClock, take_clock
 from studio.core.types import Arm, Demo, Recording
 from studio.storage.format import WORK_SAMPLES, check_demo_name, shown
+from studio.words.controls import Control
 from studio.world import WorldEvent
 
 #: Demo colours (RGB), distinct on the light background, never red (red marks the cluster centroids) and never
@@ -48,6 +51,8 @@ class DemoSummary:
     samples: int
     arms: tuple[Arm, ...]
     visible: bool
+    #: the demonstration as taught: first to last motion, pauses shortened unless kept (:class:`TakeClock`)
+    clock: TakeClock | None = None
 
 
 class Keep(Protocol):
@@ -71,8 +76,10 @@ class Demos:
         #: Keeps a deleted demonstration for Undo.
         self.keep: Keep = keep or _forget
         self._cache: dict[tuple[int, str], tuple[Recording, Demo, int]] = {}
+        self._clocks: dict[int, tuple[Recording, int, bool, TakeClock]] = {}
+        self._taught: dict[tuple[int, str], tuple[TakeClock, Demo]] = {}
         self._told_stride = 1
-        #: names given in this session, old → new: what became of a name a press in another tab still shows
+        #: names given in this session, old → new: what became of a name a click in another tab still shows
         self._renamed: dict[str, str] = {}
         ctx.events.on(Topic.DEMOS, self._prune)
         ctx.events.on(Topic.SESSION, self.clear)
@@ -103,13 +110,48 @@ class Demos:
     def summaries(self) -> list[DemoSummary]:
         hidden = self.hidden
         return [
-            DemoSummary(i, r.name, self.color(i), float(r.duration), len(r), tuple(r.arms), r.name not in hidden)
+            DemoSummary(
+                i, r.name, self.color(i), float(r.duration), len(r), tuple(r.arms), r.name not in hidden, self.clock(r)
+            )
             for i, r in enumerate(self.recordings())
         ]
 
     def demo(self, i: int, arm: Arm) -> Demo:
-        """The 8-D Demo of recording ``i`` for ``arm`` (FK once, cached)."""
+        """The 8-D Demo of recording ``i`` for ``arm`` as taught (FK once, cached)."""
         return self.demo_of(self.recordings()[i], arm)
+
+    def keeps_pauses(self, i: int) -> bool:
+        """Whether demonstration ``i`` is learned with its pauses (the teacher kept them)."""
+        names = self.names()
+        return 0 <= i < len(names) and names[i] in self.ctx.session.pauses_kept
+
+    def set_keep_pauses(self, i: int, keep: bool) -> None:
+        """Learn demonstration ``i`` with its pauses as they were (``keep``), or shortened (the default)."""
+        with self.ctx.lock:
+            self.ctx.session.set_demo_pauses(i, keep)
+        self.changed()
+
+    def clock(self, rec: Recording) -> TakeClock:
+        """How take ``rec`` becomes a demonstration (first to last motion of its arms, pauses shortened unless
+        kept; cached)."""
+        step, kept = self.stride(), rec.name in self.ctx.session.pauses_kept
+        hit = self._clocks.get(id(rec))
+        if hit is not None and hit[0] is rec and hit[1] == step and hit[2] == kept:
+            return hit[3]
+        clock = take_clock([self.take_of(rec, arm) for arm in rec.arms], keep=kept)
+        self._clocks[id(rec)] = (rec, step, kept, clock)
+        return clock
+
+    def objects_of(self, arm: Arm, indices: Sequence[int]) -> list[DemoObjects] | str:
+        """The objects and ``arm``'s contacts of demonstrations ``indices``, each contact at its moment in the
+        demonstration as taught, or why a skill cannot follow them (plain words)."""
+        from studio.controller.placed import demo_objects_of
+
+        objs = demo_objects_of(self.ctx.session, arm, indices)
+        if isinstance(objs, str):
+            return objs
+        recs = self.recordings()
+        return [self.clock(recs[i]).objects(o) for i, o in zip(indices, objs, strict=True)]
 
     def stride(self) -> int:
         """Every how many samples the demonstrations are worked on: 1, or more when all of them together hold
@@ -118,7 +160,17 @@ class Demos:
         return max(1, -(-total // WORK_SAMPLES))
 
     def demo_of(self, rec: Recording, arm: Arm) -> Demo:
-        """The 8-D Demo of recording object ``rec`` for ``arm`` (FK once, cached), at :meth:`stride`."""
+        """The 8-D Demo of recording object ``rec`` for ``arm`` as taught (:meth:`clock`), at :meth:`stride`."""
+        clock = self.clock(rec)
+        hit = self._taught.get((id(rec), arm))
+        if hit is not None and hit[0] is clock:  # a clock is made for one recording object, stride and choice
+            return hit[1]
+        d = clock.demo(self.take_of(rec, arm))
+        self._taught[(id(rec), arm)] = (clock, d)
+        return d
+
+    def take_of(self, rec: Recording, arm: Arm) -> Demo:
+        """The 8-D Demo of the whole take ``rec`` for ``arm`` (FK once, cached), at :meth:`stride`."""
         from studio.core.pipeline import demo_from_recording
 
         step = self.stride()
@@ -231,9 +283,11 @@ class Demos:
             if name is not None:
                 if name not in names:
                     new = self.renamed_to(name)
-                    again = f" To delete it, choose {shown(new)} and press Delete again." if new else ""
+                    again = (
+                        f" To delete it, choose {shown(new)} and {self.ctx.say(Control.DELETE)} again." if new else ""
+                    )
                     raise StudioError(
-                        f"{self.gone(name)} (in another tab?) before your press arrived; nothing was deleted.{again}"
+                        f"{self.gone(name)} (in another tab?) before your click arrived; nothing was deleted.{again}"
                     )
                 i = names.index(name)
             rec = session.recordings[i] if 0 <= i < len(session.recordings) else None
@@ -245,7 +299,7 @@ class Demos:
             self.keep(rec, events, hidden=hidden)
             self.ctx.notify(
                 "Demonstration deleted",
-                f'"{rec.name}" was deleted. Press Undo (in Teach) to bring it back.',
+                f'"{rec.name}" was deleted. {self.ctx.say(Control.UNDO, first=True)} (in Teach) to bring it back.',
                 kind="success",
             )
 
@@ -256,9 +310,13 @@ class Demos:
     def _prune(self) -> None:
         live = {id(r) for r in self.recordings()}
         self._cache = {k: v for k, v in self._cache.items() if k[0] in live}
+        self._clocks = {k: v for k, v in self._clocks.items() if k in live}
+        self._taught = {k: v for k, v in self._taught.items() if k[0] in live}
 
     def clear(self) -> None:
         """Forget everything cached (another session was opened)."""
         self._cache = {}
+        self._clocks = {}
+        self._taught = {}
         self._told_stride = 1
         self._renamed = {}

@@ -37,7 +37,6 @@ from studio.controller.run import (
     wait_confirmed,
 )
 from studio.core import sampling
-from studio.core.collision import Touch
 from studio.core.errors import StudioError
 from studio.core.execution import (
     ExecutionPlan,
@@ -46,10 +45,13 @@ from studio.core.execution import (
     judge_run,
     plan_execution,
 )
-from studio.core.ik_path import Feasibility
+from studio.core.feasibility import Feasibility
+from studio.core.touches import Touch
 from studio.core.types import Arm, Recording, Skill
 from studio.robot_backend.base import ExecutionProgress, RobotBackend, RobotHealth
 from studio.words import contact_advice, touch_words
+from studio.words.controls import Control
+from studio.words.robot import feasibility_words
 from studio.world import TaskResult
 
 log = logging.getLogger(__name__)
@@ -149,20 +151,21 @@ class ExecutionActions:
 
     def why_not(self) -> str:
         """Why "Run on robot" cannot start now, in plain words ("" when it can)."""
+        say = self.ctx.say
         if self._status.estop:
-            return "The emergency stop is on. When it is safe, press Release emergency stop, then run again."
+            return f"The emergency stop is on. When it is safe, {say(Control.RELEASE_ESTOP)}, then run again."
         health = self.backend.health()
         if not health.ready:
             return health.message
         if self._run is not None:
-            return "The robot is already running the skill: wait for it to finish, or press Stop."
+            return f"The robot is already running the skill: wait for it to finish, or {say(Control.STOP)}."
         if self.teaching.recording:
             return "Stop the recording before running the skill on the robot."
         if self.training_busy():
             return "Wait for the training to finish before running the skill on the robot."
         if not sampling.executable(self.skills()):
-            return "There is no learned skill to run yet: record demonstrations and press Train first."
-        bad = [f.message for f in self.feasibility().values() if not f.ok]
+            return f"There is no learned skill to run yet: record demonstrations and {say(Control.TRAIN)} first."
+        bad = [feasibility_words(f) for f in self.feasibility().values() if not f.ok]
         if bad:
             return " ".join(bad) + " The robot does not run a skill it cannot follow."
         touching = self.contacts()
@@ -172,13 +175,15 @@ class ExecutionActions:
 
     def check_free(self, doing: str) -> None:
         """Refuse, in plain words, ``doing`` something that moves the robot while it runs or is emergency-stopped."""
+        say = self.ctx.say
         if self._status.estop:
             raise StudioError(
-                f"The emergency stop is on: press Release emergency stop (when it is safe) before {doing}."
+                f"The emergency stop is on: {say(Control.RELEASE_ESTOP)} (when it is safe) before {doing}."
             )
         if self._run is not None:
             raise StudioError(
-                f"The robot is running the learned skill: wait for it to finish, or press Stop, before {doing}."
+                f"The robot is running the learned skill: wait for it to finish, or {say(Control.STOP)}, before "
+                f"{doing}."
             )
         health = self.backend.health()
         if not health.ready:
@@ -186,7 +191,7 @@ class ExecutionActions:
 
     def _check_leave(self, doing: str) -> None:
         if self.backend.progress().active:
-            raise StudioError(f"Wait for the robot's run to end (or press Stop) before {doing}.")
+            raise StudioError(f"Wait for the robot's run to end (or {self.ctx.say(Control.STOP)}) before {doing}.")
 
     def check_not_running(self) -> None:
         """Refuse a preview or replay while the robot runs: the scene shows the real robot then."""
@@ -204,7 +209,7 @@ class ExecutionActions:
             jts = {arm: s.joint_trajectory for arm, s in skills.items() if s.joint_trajectory is not None}
             self.unload_playback()
             self.display.show_live()  # the drawn robot is the real one during the run
-            hold_still(self.backend)
+            hold_still(self.backend, again=self.ctx.say(Control.RUN))
             st = self.backend.state()
             plan = plan_execution(jts, st.q, st.gripper, self.ctx.baxter, rate_hz=self.backend.rate_hz)
             self._check_approach(plan, st.q)
@@ -231,7 +236,7 @@ class ExecutionActions:
         if found:
             raise StudioError(
                 f"On the way to the skill's start, {touch_words(found[0])}. Move the arm near the skill's start by "
-                "hand first (clear of the table and the objects), then press Run on robot again."
+                f"hand first (clear of the table and the objects), then {self.ctx.say(Control.RUN)} again."
             )
 
     def _stop_at_contact(self, touch: Touch) -> None:
@@ -241,7 +246,7 @@ class ExecutionActions:
         t = self.backend.progress().t
         self.scene.hit(touch, self.backend.state().q)
         with self._lock:
-            msg = stopped_words(touch, t)
+            msg = stopped_words(touch, t, self.ctx.say(Control.RELEASE_ESTOP))
             self._status = dataclasses.replace(self._status, estop=True, message=msg)
         self.ctx.emit(Topic.EXECUTION)
         self.ctx.notify("The robot touched something", msg, kind="warning")
@@ -276,8 +281,8 @@ class ExecutionActions:
         self.ctx.emit(Topic.EXECUTION)
 
     def release_emergency_stop(self) -> None:
-        """Allow motion again (the robot stays where it halted); the robot is reset and enabled (its own pressed
-        emergency-stop button is told in words and keeps it stopped)."""
+        """Allow motion again (the robot stays where it halted); the robot is reset and enabled (its own emergency-stop
+        button, when down, is told in words and keeps it stopped)."""
         why = ""
         try:
             self.backend.clear_emergency_stop()
@@ -342,7 +347,11 @@ class ExecutionActions:
         with self._lock:
             st = self._status
             duration = p.duration or run.plan.duration
-            said = stopped_words(run.touch, p.t) if run.touch is not None and st.estop else ended(p, st.estop)
+            said = (
+                stopped_words(run.touch, p.t, self.ctx.say(Control.RELEASE_ESTOP))
+                if run.touch is not None and st.estop
+                else ended(p, st.estop)
+            )
             self._status = RunStatus(p.state, p.t, duration, said, result, ok, st.estop)
             if self._run is run:
                 self._run = None
@@ -390,12 +399,12 @@ class ExecutionActions:
         abandon(run, self.backend)
 
 
-def stopped_words(touch: Touch, t: float) -> str:
+def stopped_words(touch: Touch, t: float, release: str) -> str:
     """A run stopped at a contact, in words: "The robot was stopped at 7.3 s: the left fingers touched the table.
-    When it is safe, press Release emergency stop, then lift the gripper first."."""
+    When it is safe, <release>, then lift the gripper first." (``release``: how to release the emergency stop)."""
     return (
-        f"The robot was stopped at {t:.1f} s: {touch_words(touch, 'did')}. When it is safe, press Release emergency "
-        f"stop, then {contact_advice(touch)}."
+        f"The robot was stopped at {t:.1f} s: {touch_words(touch, 'did')}. When it is safe, {release}, then "
+        f"{contact_advice(touch)}."
     )
 
 

@@ -16,6 +16,7 @@ from studio.controller.context import Context
 from studio.controller.demos import demo_color
 from studio.controller.events import Topic
 from studio.core.errors import StudioError
+from studio.core.frames import DemoObjects
 from studio.core.keypoints import KeypointCache
 from studio.core.thresholds import NAMES, DemoStats, ThresholdSettings
 from studio.core.types import Arm, Demo, KeypointParams
@@ -58,9 +59,11 @@ class KeypointView:
 
 
 class ShownDemos(Protocol):
-    """The shown demonstrations of an arm (:meth:`studio.controller.demos.Demos.for_arm`)."""
+    """The shown demonstrations of an arm (:meth:`studio.controller.demos.Demos.for_arm`) and their objects
+    (:meth:`~studio.controller.demos.Demos.objects_of`: contacts on the demonstrations' clock)."""
 
     def for_arm(self, arm: Arm) -> list[tuple[int, Demo]]: ...
+    def objects_of(self, arm: Arm, indices: Sequence[int]) -> list[DemoObjects] | str: ...
 
 
 #: Work done on the key-point thread after each new view while no newer request waits: ``follower(view,
@@ -269,7 +272,7 @@ class KeypointTuning:
         """The shown demos of ``arm`` as a skill that follows the objects learns them (each stretch in its
         object's frame, placed where the objects are now), or None when the session's skills keep fixed places
         or these demos cannot follow the objects."""
-        from studio.controller.placed import demo_objects_of, rules_of
+        from studio.controller.placed import rules_of
         from studio.core.segment_view import demos_in_frames
         from studio.world.relative import objects_now
 
@@ -282,7 +285,7 @@ class KeypointTuning:
         if hit is not None and hit[0] is session and hit[1] is scene and hit[2] == sig:  # same objects, not equal
             return hit[3]
         indices = [i for i, _ in demos]
-        objs = demo_objects_of(session, arm, indices)
+        objs = self.demos.objects_of(arm, indices)
         moved = None
         if not isinstance(objs, str):
             rules = rules_of(session, objs, indices)

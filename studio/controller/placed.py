@@ -92,6 +92,13 @@ class PlacedSkills:
             out[arm] = placed
         return out
 
+    def duration(self) -> float:
+        """The skill's length (s): how long what Preview, the task result and Run on robot play lasts; the one
+        figure Train and Preview show (the joint limits may make it longer than the learned path's own time)."""
+        from studio.core.sampling import duration
+
+        return duration(self.get())
+
     def _kept_clear(self, skill: Skill, arm: Arm, scene: Scene, *, other_free: bool) -> Skill:
         """The skill with its arm's posture moved (the self-motion) where its shoulder, elbow or forearm would touch
         the table, an object, the robot's body or the other arm at rest (decision 087); as it is when clear."""

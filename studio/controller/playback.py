@@ -20,6 +20,7 @@ from studio.core.errors import NotEnoughData, StudioError
 from studio.core.types import Arm, Recording, Skill
 from studio.robot_backend.base import JointStateBatch
 from studio.robot_backend.replay import ReplayBackend
+from studio.words.controls import Control
 
 
 class PlaybackKind(StrEnum):
@@ -185,7 +186,9 @@ class Player:
         pb = self._get(kind)
         if pb is None:
             if make is None:
-                raise StudioError("Press Play first to choose a demonstration to replay.")
+                raise StudioError(
+                    f"{self.ctx.say(Control.PLAY, first=True)} first to choose a demonstration to replay."
+                )
             pb = self._load(kind, key, make(), 1.0)
         pb.seek(t)
         self.display.show(pb.source)
@@ -242,13 +245,14 @@ class Player:
 
     # -- the two sources ---------------------------------------------------------------------------------------
     def preview_duration(self) -> float:
+        """The preview's length: the skills it plays (:meth:`PlacedSkills.duration`'s figure)."""
         return sampling.duration(self.skills())
 
     def preview_recording(self) -> Recording:
         """The learned joint trajectories of all arms as one Recording (arms without a skill hold still)."""
         skills = sampling.executable(self.skills())
         if not skills:
-            raise NotEnoughData("There is no learned skill to preview yet: press Train first.")
+            raise NotEnoughData(f"There is no learned skill to preview yet: {self.ctx.say(Control.TRAIN)} first.")
         t_end = sampling.duration(skills)
         t = np.linspace(0.0, max(t_end, 0.01), max(2, int(t_end * PREVIEW_RATE_HZ) + 1))
         _, _, q_live, g_live = self.display.live.get()  # the arms without a skill hold the live robot's pose

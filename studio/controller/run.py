@@ -21,14 +21,15 @@ from typing import Protocol
 
 import numpy as np
 
-from studio.core.collision import Touch
 from studio.core.errors import StudioError
 from studio.core.execution import ExecutionPlan, RunVerdict, TrackingReport, compare_execution, skill_feasibility
-from studio.core.ik_path import Feasibility
+from studio.core.feasibility import Feasibility
 from studio.core.kinematics import Baxter
+from studio.core.touches import Touch
 from studio.core.types import Arm, Recording, Skill
 from studio.recorder import Recorder
 from studio.robot_backend.base import ExecutionProgress, JointStateBatch, RobotBackend, RobotHealth
+from studio.words.robot import run_failure_words
 from studio.world import TaskResult, format_distance
 
 log = logging.getLogger(__name__)
@@ -337,9 +338,10 @@ def abandon(run: Run, backend: RobotBackend) -> None:
     run.release()
 
 
-def hold_still(backend: RobotBackend) -> None:
+def hold_still(backend: RobotBackend, again: str) -> None:
     """A robot still going where it was moved by hand holds where it is, at rest for a few control cycles, so a
-    plan starts from rest there; refused in plain words when it does not settle within :data:`HOLD_S`."""
+    plan starts from rest there; refused in plain words (``again``: how to start the run again) when it does not
+    settle within :data:`HOLD_S`."""
     if not backend.state().moving:
         return
     backend.stop_motion()
@@ -351,8 +353,7 @@ def hold_still(backend: RobotBackend) -> None:
             return
         time.sleep(0.005)
     raise StudioError(
-        "The robot is still moving to where you moved it by hand: wait until it stands still, then press "
-        "Run on robot again."
+        f"The robot is still moving to where you moved it by hand: wait until it stands still, then {again} again."
     )
 
 
@@ -389,7 +390,7 @@ def judgement(p: ExecutionProgress, verdict: RunVerdict, task: TaskResult | None
         if task is None:
             return head + " — the skill works."
         return f"{head}; {task.text[:1].lower()}{task.text[1:].rstrip('.')} — the skill works."
-    failed = verdict.failures() or [f"the run ended before its end ({p.state})"]
+    failed = run_failure_words(verdict) or [f"the run ended before its end ({p.state})"]
     text = "The skill did not work: " + "; ".join(failed) + "."
     if task is not None and not task.ok:
         text += f" {task.text}"

@@ -20,8 +20,8 @@ from studio.controller.context import Context
 from studio.controller.events import Topic
 from studio.controller.placed import goal_of
 from studio.controller.playback import Playback, PlaybackKind
-from studio.core.collision import Touch
 from studio.core.errors import StudioError
+from studio.core.touches import Touch
 from studio.core.types import ARMS, Arm, Recording
 from studio.robot_backend.base import RobotBackend
 from studio.words import contact_sentence, hit_words, recorded_touch_words

@@ -25,10 +25,11 @@ from studio.recorder import Recorder
 from studio.robot_backend.base import JointStateBatch, RobotBackend
 from studio.storage import ReadOnly, Session
 from studio.words import blocked_words
+from studio.words.controls import Control
 from studio.world import WorldEvent
 
 if TYPE_CHECKING:
-    from studio.core.collision import Touch
+    from studio.core.touches import Touch
 
 log = logging.getLogger(__name__)
 #: Seconds an out-of-reach handle target stays told (marker and words) once the drag ended: the handle is
@@ -329,7 +330,9 @@ class Teaching:
                 where = " in another browser tab" if by is not None else ""
                 raise StudioError(f"A recording is already running{where}. Stop it first.")
             if self._saving:
-                raise StudioError("The last demonstration is still being saved: press Record again in a moment.")
+                raise StudioError(
+                    f"The last demonstration is still being saved: {self.ctx.say(Control.RECORD)} again in a moment."
+                )
             self.motion_guard("recording")
             session = self.ctx.session
             if session.read_only:  # refused before the take, never after it
@@ -395,7 +398,7 @@ class Teaching:
 
     def discard_recording(self, by: object | None = None, *, now: float | None = None) -> bool:
         """Throw the running take away. From another browser tab than the one recording (``by``), the first
-        press asks and a second one within :data:`DISCARD_CONFIRM_S` discards. Returns True when discarded."""
+        click asks and a second one within :data:`DISCARD_CONFIRM_S` discards. Returns True when discarded."""
         now = time.monotonic() if now is None else now
         with self.ctx.lock:
             other = by is not None and self._recorder is not None and _tab_id(by) != self._owner
@@ -404,7 +407,8 @@ class Teaching:
                 self._discard_asked = now
                 self.ctx.notify(
                     "Discard the recording of another tab?",
-                    f"This recording was started in another browser tab. Press Discard again within "
+                    f"This recording was started in another browser tab. {self.ctx.say(Control.DISCARD, first=True)} "
+                    "again within "
                     f"{DISCARD_CONFIRM_S:.0f} seconds to throw it away.",
                     kind="warning",
                     client=by,
@@ -419,7 +423,7 @@ class Teaching:
             self.keep(*kept)
             self.ctx.notify(
                 "Recording thrown away",
-                f'"{kept[0].name}" was thrown away. Press Undo to keep it after all.',
+                f'"{kept[0].name}" was thrown away. {self.ctx.say(Control.UNDO, first=True)} to keep it after all.',
                 kind="info",
             )
         return rec is not None
@@ -473,5 +477,5 @@ def take_words(recording: Recording) -> str:
 
 
 def _tab_id(tab: object | None) -> object | None:
-    """Who pressed a button: viser's tab handle has a ``client_id`` (None: the studio itself, or a script)."""
+    """Who clicked a button: viser's tab handle has a ``client_id`` (None: the studio itself, or a script)."""
     return getattr(tab, "client_id", tab)

@@ -14,30 +14,19 @@ import numpy as np
 from studio.controller.context import Context
 from studio.controller.events import Topic
 from studio.controller.learning import ShownDemos
-from studio.controller.placed import demo_objects_of, rules_of
+from studio.controller.placed import rules_of
 from studio.core.errors import NotEnoughData, StudioError
 from studio.core.frames import ObjectAt
 from studio.core.learn import TaughtObjects
 from studio.core.learn_settings import LearnSettings
-from studio.core.pace import remove_pauses
 from studio.core.quality import DemoFit, Verdict
 from studio.core.segment_view import SegmentFit
 from studio.core.segments import FrameChoice
 from studio.core.thresholds import ThresholdSettings
 from studio.core.types import FRAMES, Arm, Demo, Generalization, KeypointParams, Recording, Skill
-from studio.storage import ReadOnly, Session
+from studio.storage import ReadOnly
+from studio.words.controls import Control
 from studio.world.relative import objects_now
-
-#: How each choice of frames is called in the Train panel.
-FRAME_WORDS = {
-    "objects": "Follow the objects (each part learned relative to the object it acts on)",
-    "robot": "Fixed places (the paper: one path in the robot's frame)",
-}
-#: How each generalisation mode is called in the Train panel.
-MODE_WORDS: dict[Generalization, str] = {
-    Generalization.ALIGNED_MEAN: "Follow the demonstrations (average of your demonstrations, aligned in time)",
-    Generalization.PAPER: "Paper's spline (a smooth curve through the learned states, as in the paper)",
-}
 
 
 @dataclass(frozen=True)
@@ -97,8 +86,6 @@ class Training:
         self.judgement: Future[None] | None = None
         self._verdicts: dict[Arm, SkillVerdict] = {}
         self._routes: dict[Arm, int] = {}
-        #: Learn from the demonstrations with their long rests shortened (:func:`studio.core.pace.remove_pauses`).
-        self.remove_pauses = False
         ctx.on_leave(self._check_leave)
         ctx.events.on(Topic.SESSION, self._on_session)
 
@@ -131,14 +118,6 @@ class Training:
             if frames == self.ctx.session.frames:
                 return
             self.ctx.session.set_params(mode=frames)
-        self.ctx.emit(Topic.TRAINING)
-
-    def set_remove_pauses(self, on: bool) -> None:
-        """Shorten the long rests of each demonstration before learning (the next training on)."""
-        with self.ctx.lock:
-            if bool(on) == self.remove_pauses:
-                return
-            self.remove_pauses = bool(on)
         self.ctx.emit(Topic.TRAINING)
 
     def _check_leave(self, doing: str) -> None:
@@ -188,16 +167,15 @@ class Training:
                     generalization=session.generalization,
                     frames=frames,
                     route=self._routes.get(arm),
-                    remove_pauses=self.remove_pauses,
                 )
                 for arm in per_arm
             }
             used = [session.recordings[i] for demos in per_arm.values() for i, _ in demos]
             self.busy = True
         self.ctx.emit(Topic.TRAINING)
-        now = objects_now(session.objects.scene)
+        now = tuple(objects_now(session.objects.scene))
         objects = {
-            arm: self._taught(session, arm, [i for i, _ in demos], now) if frames == "objects" else None
+            arm: self._taught(arm, [i for i, _ in demos], now) if frames == "objects" else None
             for arm, demos in per_arm.items()
         }
 
@@ -240,29 +218,25 @@ class Training:
                 self.ctx.notify(
                     "Training finished",
                     "The robot learned the skill, but a demonstration was changed or deleted while it trained: "
-                    "press Train again to learn from the demonstrations as they are now.",
+                    f"{self.ctx.say(Control.TRAIN)} again to learn from the demonstrations as they are now.",
                     kind="warning",
                 )
             else:
-                self.ctx.notify(
-                    "Training finished", "The robot learned the skill: open Preview to watch it.", kind="success"
-                )
+                said = f"The robot learned the skill: {self.ctx.say(Control.PREVIEW)} to watch it."
+                self.ctx.notify("Training finished", said, kind="success")
             self.judge()
 
         fut = self.ctx.submit(job, done=done, title="Training failed")
         fut.add_done_callback(lambda f: self._finished())
         return fut
 
-    @staticmethod
-    def _taught(
-        session: Session, arm: Arm, indices: list[int], now: tuple[ObjectAt, ...] | None = None
-    ) -> TaughtObjects:
-        """The objects and ``arm``'s contacts of the demonstrations ``indices``, or why the skill cannot follow
-        them; ``now``: where the objects stand now."""
-        objs = demo_objects_of(session, arm, indices)
+    def _taught(self, arm: Arm, indices: list[int], now: tuple[ObjectAt, ...] | None = None) -> TaughtObjects:
+        """The objects and ``arm``'s contacts of the demonstrations ``indices`` (each contact at its moment in the
+        demonstration as taught), or why the skill cannot follow them; ``now``: where the objects stand now."""
+        objs = self.demos.objects_of(arm, indices)
         if isinstance(objs, str):
             return TaughtObjects(why_not=objs)
-        return TaughtObjects(tuple(objs), rules=rules_of(session, objs, indices), now=now)
+        return TaughtObjects(tuple(objs), rules=rules_of(self.ctx.session, objs, indices), now=now)
 
     def _finished(self) -> None:
         if self.busy:  # the job failed: done() never ran
@@ -284,7 +258,7 @@ class Training:
         with self.ctx.lock:
             self.judging = bool(skills)
         self.ctx.emit(Topic.VERDICT)
-        settings = LearnSettings(n_clusters=session.n_clusters, remove_pauses=self.remove_pauses)
+        settings = LearnSettings(n_clusters=session.n_clusters)
 
         def job() -> None:
             out = {arm: self._judge_one(arm, skill, settings) for arm, skill in skills.items()}
@@ -306,21 +280,20 @@ class Training:
         from studio.core.learn import judge
 
         used = self.skill_demos(arm)
-        if not used or any(u.index is None for u in used):
+        demos = [u.demo for u in used if u.demo is not None]  # as taught
+        if len(demos) != len(used) or not demos:
             return SkillVerdict(
                 skill,
                 None,
                 message="Some demonstrations this skill learned from were renamed or deleted since: train again "
                 "to see how good it is.",
             )
-        session = self.ctx.session
         indices = [u.index for u in used if u.index is not None]
-        demos = [self.demos.demo_of(session.recordings[i], arm) for i in indices]  # as taught: judge prepares them
         if any(len(k) and int(np.max(k)) >= len(d) for k, d in zip(skill.keypoints, demos, strict=False)):
             return SkillVerdict(
                 skill, None, message="Demonstrations were trimmed since this skill was learned: train again."
             )
-        objects = self._taught(session, arm, indices) if skill.frames is not None else None
+        objects = self._taught(arm, indices) if skill.frames is not None else None
         j = judge(skill, demos, objects, settings, arm=arm, baxter=self.ctx.baxter, caches=self.ctx.caches)
         return SkillVerdict(skill, j.verdict, j.fits, segments=j.segments, choices=j.choices)
 
@@ -349,8 +322,7 @@ class Training:
         for nm in self.skill_demo_names(arm):
             hit = by_name.get(nm)
             if hit is not None and arm in hit[1].arms:
-                demo = self.demos.demo_of(hit[1], arm)
-                out.append(UsedDemo(nm, hit[0], remove_pauses(demo) if self.remove_pauses else demo))
+                out.append(UsedDemo(nm, hit[0], self.demos.demo_of(hit[1], arm)))
             else:
                 out.append(UsedDemo(nm, None, None))
         return out

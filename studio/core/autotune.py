@@ -73,8 +73,10 @@ class Score:
     task: float = 0.0
 
     def no_worse(self, other: Score) -> bool:
-        """Neither held-out figure is worse than ``other``'s (the task by no more than :data:`TASK_TIE_M`)."""
-        return self.g_over_r <= other.g_over_r and (self.task <= other.task + TASK_TIE_M or self.task == other.task)
+        """Neither held-out figure is worse than ``other``'s (G/R by no more than the measure's resolution,
+        :data:`OWN_MARGIN`; the task by no more than :data:`TASK_TIE_M`)."""
+        path = self.g_over_r <= other.g_over_r * (1.0 + OWN_MARGIN) or self.g_over_r == other.g_over_r
+        return path and (self.task <= other.task + TASK_TIE_M or self.task == other.task)
 
     def gains(self, other: Score, margin: float) -> bool:
         """At least one held-out figure is better than ``other``'s by ``margin`` (relative; the task also by

@@ -1,335 +1,32 @@
-"""Baxter's collision model and what stands around it: which pairs come closer than a margin, one pose or a path.
+"""Which pairs of bodies come closer than a margin, at one pose or along a path: Baxter and what stands around it.
 
-:class:`CollisionModel` (built once per scene): the robot from example-robot-data's collision geometry (in the
-light URDF) (pinocchio's ``GeometryModel``: arms, fingers at their opening, torso, head,
-pedestal; the SRDF's pairs that never meet left out) and the obstacles given (boxes, cylinders; moving per sample
-or not). :meth:`CollisionModel.near`: bounding spheres first, coal's signed distance for what they leave in.
-Rules and words: :mod:`studio.world.contacts`. Decision 087."""
+:class:`CollisionModel` (built once per scene): the robot's bodies (:mod:`studio.core.robot_geometry`) and the
+obstacles given (:mod:`studio.core.obstacles`; moving per sample or not). :meth:`CollisionModel.near`: bounding
+spheres first (every few samples on a long path, the margin widened), coal's signed distance for what they leave
+in. As stretches of time: :mod:`studio.core.touches`; rules and words: :mod:`studio.world.contacts`. Decision 087."""
 
 from __future__ import annotations
 
-import functools
-import math
 from collections.abc import Callable, Collection, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import coal
 import numpy as np
-import pinocchio as pin
 
 from studio.core.errors import InvalidInput
-from studio.core.kinematics import LIGHT_SRDF, LIGHT_URDF, Baxter, baxter_description_dir, package_share_dir
-from studio.core.types import ARMS, Arm
+from studio.core.obstacles import Obstacle
+from studio.core.robot_geometry import ARM_NOT_GRIPPER, FEW, FINGER_TRAVEL_M, Part, RobotGeometry, cover, rotate
+from studio.core.types import Arm
 
 #: Pairs closer than this (m) touch: the safety margin every check keeps.
 MARGIN_M = 0.005
 #: A path's broad phase looks at every this many samples (each standing for its neighbours, the margin widened by
 #: how far anything moves to them); the exact distances are then taken at every sample it leaves in.
 COARSE_STRIDE = 4
-#: Up to this many poses, each is taken on its own (pinocchio's kinematics pose by pose, no coarse pass): fewer
-#: steps than in batch for a move by hand.
-FEW = 24
-#: A finger's travel (m) from closed to fully open (the URDF's prismatic finger joints).
-FINGER_TRAVEL_M = 0.020833
-#: Parts of an arm by the URDF link its geometry hangs on (a link name without the arm's prefix).
-ARM_PARTS: dict[str, str] = {
-    "upper_shoulder": "shoulder",
-    "lower_shoulder": "shoulder",
-    "upper_elbow": "upper arm",
-    "upper_elbow_visual": "upper arm",
-    "lower_elbow": "elbow",
-    "upper_forearm": "forearm",
-    "upper_forearm_visual": "forearm",
-    "lower_forearm": "forearm",
-    "wrist": "wrist",
-    "hand_link": "hand",
-    "gripper_base_link": "hand",
-    "gripper_l_finger": "fingers",
-    "gripper_r_finger": "fingers",
-    "gripper_l_finger_tip": "fingers",
-    "gripper_r_finger_tip": "fingers",
-}
-#: The robot's body by link: torso, pedestal and the two spheres the URDF puts round the head.
-BODY_PARTS: dict[str, str] = {
-    "torso": "torso",
-    "pedestal": "pedestal",
-    "collision_head_link_1": "head",
-    "collision_head_link_2": "head",
-}
-#: The parts of an arm whose place the arm's posture decides (the gripper's place is the path's).
-ARM_NOT_GRIPPER = frozenset({"shoulder", "upper arm", "elbow", "forearm"})
-#: Parts of one arm that never meet each other (one rigid mechanism, fingers sliding on it).
-_GRIPPER = frozenset({"wrist", "hand", "fingers"})
-#: Geometry smaller than this (m, a sphere's radius) is a placeholder in the URDF, not a body.
-_PLACEHOLDER_M = 0.002
-
-
-@dataclass(frozen=True)
-class Obstacle:
-    """Something the robot must not go through: a box or an upright cylinder.
-
-    Attributes:
-        name: how it is called ("table", "cup 2").
-        shape: "box" or "cylinder".
-        size: box: its extents x, y, z; cylinder: diameter, diameter, height (m).
-        pose: (4, 4) where its centre is (the default where it stands; :meth:`CollisionModel.near` may move it).
-    """
-
-    name: str
-    shape: str
-    size: tuple[float, float, float]
-    pose: np.ndarray = field(default_factory=lambda: np.eye(4))
-
-    def __post_init__(self) -> None:
-        if self.shape not in ("box", "cylinder"):
-            raise InvalidInput(f'An obstacle is a box or a cylinder, not "{self.shape}".')
-        s = np.asarray(self.size, dtype=np.float64)
-        T = np.asarray(self.pose, dtype=np.float64)
-        if s.shape != (3,) or not np.all(np.isfinite(s)) or s.min() <= 0 or T.shape != (4, 4):
-            raise InvalidInput(f"The {self.name} needs three positive sizes and a pose.")
-        object.__setattr__(self, "pose", T)
-
-    @property
-    def half(self) -> np.ndarray:
-        """Half extents (3,) of its bounding box in its own frame."""
-        return 0.5 * np.asarray(self.size, dtype=np.float64)
-
-    def geometry(self) -> coal.CollisionGeometry:
-        if self.shape == "box":
-            return coal.Box(*self.size)
-        return coal.Cylinder(0.5 * self.size[0], self.size[2])
-
-
-@dataclass(frozen=True)
-class Part:
-    """What one body of the model is: ``arm`` ("left", "right" or None for the robot's body and obstacles),
-    ``part`` ("fingers", "forearm", "torso", or the obstacle's name) and ``robot`` (a part of Baxter)."""
-
-    arm: Arm | None
-    part: str
-    robot: bool
-
-
-@dataclass(frozen=True)
-class _Geom:
-    name: str
-    part: Part
-    joint: int  # index into the frames of :func:`_frames` (-1: fixed in the world)
-    R: np.ndarray  # (3, 3) placement in that joint's frame
-    p: np.ndarray  # (3,)
-    geometry: coal.CollisionGeometry
-    spheres: np.ndarray  # (k, 3) centres of its covering spheres in its own frame
-    radius: float  # of each covering sphere
-    box: np.ndarray | None  # half extents of its bounding box in its own frame (static bodies)
-
-
-def _cover(g: coal.CollisionGeometry) -> tuple[np.ndarray, float, np.ndarray | None]:
-    """Spheres that cover a geometry (centres in its frame, one radius) and, for a mesh, its bounding box."""
-    if isinstance(g, coal.Sphere):
-        return np.zeros((1, 3)), float(g.radius), np.full(3, float(g.radius))
-    if isinstance(g, coal.Cylinder):
-        r, half = float(g.radius), float(g.halfLength)
-        n = max(1, math.ceil(half / r))
-        z = -half + (np.arange(n) + 0.5) * (2 * half / n)
-        return np.column_stack([np.zeros(n), np.zeros(n), z]), math.hypot(r, half / n), np.array([r, r, half])
-    if isinstance(g, coal.Box):
-        h = np.asarray(g.halfSide, dtype=np.float64)
-        axis = int(np.argmax(h))
-        rest = np.delete(h, axis)
-        n = max(1, round(h[axis] / max(float(rest.max()), 1e-6)))
-        c = np.zeros((n, 3))
-        c[:, axis] = -h[axis] + (np.arange(n) + 0.5) * (2 * h[axis] / n)
-        return c, float(np.sqrt((h[axis] / n) ** 2 + float(rest @ rest))), h
-    g.computeLocalAABB()
-    lo, hi = np.asarray(g.aabb_local.min_), np.asarray(g.aabb_local.max_)
-    centre, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
-    return centre[None, :], float(np.linalg.norm(half)), half
-
-
-class RobotGeometry:
-    """Baxter's collision geometry from the URDF (loaded once per process with :meth:`load`): each body, the
-    joint it moves with, its covering spheres, and the pairs of bodies that can meet (the SRDF's others left out)."""
-
-    def __init__(self, baxter: Baxter) -> None:
-        model = baxter.model
-        urdf = baxter.urdf_path
-        light = urdf.resolve() == LIGHT_URDF.resolve()
-        dirs = [str(urdf.parent)] if light else [str(package_share_dir())]
-        gm = pin.buildGeomFromUrdf(model, str(urdf), pin.GeometryType.COLLISION, package_dirs=dirs)
-        gm.addAllCollisionPairs()
-        srdf = LIGHT_SRDF if light else baxter_description_dir() / "srdf" / "baxter_manipulation.srdf"
-        pin.removeCollisionPairs(model, gm, str(srdf))
-        # the joints whose frames move bodies: each arm's seven and its two fingers, in pinocchio's order
-        self.joint_ids = [j for j in range(1, model.njoints) if model.names[j] != "head_pan"]
-        self.parents = [
-            self.joint_ids.index(model.parents[j]) if model.parents[j] in self.joint_ids else -1 for j in self.joint_ids
-        ]
-        self.placements = [model.jointPlacements[j] for j in self.joint_ids]
-        self.prismatic = [model.joints[j].shortname().startswith("JointModelP") for j in self.joint_ids]
-        self.q_index = [model.joints[j].idx_q for j in self.joint_ids]
-        self._model = model
-        data = model.createData()
-        pin.forwardKinematics(model, data, pin.neutral(model))
-        geoms: list[_Geom] = []
-        keep: dict[int, int] = {}
-        for k, go in enumerate(gm.geometryObjects):
-            link = model.frames[go.parentFrame].name
-            part = _part_of(link)
-            g = go.geometry
-            if part is None or (isinstance(g, coal.Sphere) and g.radius < _PLACEHOLDER_M):
-                continue
-            if isinstance(g, coal.BVHModelBase):  # a mesh (torso, pedestal): its convex hull gives signed distances
-                g.buildConvexRepresentation(False)
-                g = g.convex
-            spheres, radius, box = _cover(g)
-            M = go.placement
-            j = go.parentJoint
-            if j in self.joint_ids:
-                joint = self.joint_ids.index(j)
-            else:  # fixed in the world (on the root or on the head, which stays at its zero)
-                joint, M = -1, data.oMi[j] * M
-            keep[k] = len(geoms)
-            geoms.append(
-                _Geom(
-                    go.name,
-                    part,
-                    joint,
-                    np.array(M.rotation),
-                    np.array(M.translation),
-                    g,
-                    spheres,
-                    radius,
-                    box if joint < 0 else None,
-                )
-            )
-        self.geoms = geoms
-        pairs = []
-        for cp in gm.collisionPairs:
-            a, b = keep.get(cp.first), keep.get(cp.second)
-            if a is None or b is None or (geoms[a].joint < 0 and geoms[b].joint < 0):
-                continue
-            pa, pb = geoms[a].part, geoms[b].part
-            if pa.arm is not None and pa.arm == pb.arm and {pa.part, pb.part} <= _GRIPPER:
-                continue  # the wrist, hand and fingers of one arm are one rigid mechanism: they never meet
-            pairs.append((a, b) if geoms[a].joint >= 0 else (b, a))  # the moving one first
-        self.pairs = np.array(sorted(pairs), dtype=np.int64).reshape(-1, 2)
-        self.arm_q = {
-            arm: np.array(
-                [
-                    self.q_index.index(model.joints[model.getJointId(f"{arm}_{s}")].idx_q)
-                    for s in ("s0", "s1", "e0", "e1", "w0", "w1", "w2")
-                ]
-            )
-            for arm in ARMS
-        }
-        self.fingers = {
-            arm: [self.joint_ids.index(model.getJointId(f"{arm[0]}_gripper_{s}_finger_joint")) for s in "lr"]
-            for arm in ARMS
-        }
-        self.finger_sign = {arm: [1.0, -1.0] for arm in ARMS}
-        self.reach = self._reach(baxter)
-
-    def _frames_each(self, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        model = self._model
-        data = model.createData()  # this call's own: safe from any thread
-        q = pin.neutral(model)
-        R = np.empty((v.shape[0], len(self.joint_ids), 3, 3))
-        p = np.empty((v.shape[0], len(self.joint_ids), 3))
-        for k in range(v.shape[0]):
-            q[self.q_index] = v[k]
-            pin.forwardKinematics(model, data, q)
-            for j, jid in enumerate(self.joint_ids):
-                M = data.oMi[jid]
-                R[k, j], p[k, j] = M.rotation, M.translation
-        return R, p
-
-    def _reach(self, baxter: Baxter) -> np.ndarray:
-        """(7,) per arm joint (s0..w2), how far (m) any part of the arm beyond it reaches from it (sampled over
-        postures, 5 % added): a joint turned by θ moves nothing farther than that × θ."""
-        rng = np.random.default_rng(11)
-        n = 256
-        Q = np.concatenate([baxter.random_configuration(a, rng, n) for a in ARMS], axis=1)
-        Rj, pj = self.frames(Q, np.full((n, 2), 100.0))
-        below = [{j} for j in range(len(self.joint_ids))]  # each joint and those it carries
-        for j in range(len(self.joint_ids)):
-            p = self.parents[j]
-            while p >= 0:
-                below[p].add(j)
-                p = self.parents[p]
-        out = np.zeros(7)
-        for arm in ARMS:
-            for k, j in enumerate(self.arm_q[arm].tolist()):
-                for g in self.geoms:
-                    if g.joint in below[j]:
-                        c = _apply(Rj[:, g.joint], g.spheres @ g.R.T + g.p) + pj[:, g.joint, None, :]
-                        far = float(np.linalg.norm(c - pj[:, j, None, :], axis=2).max()) + g.radius
-                        out[k] = max(out[k], far)
-        return out * 1.05
-
-    @classmethod
-    @functools.cache
-    def load(cls) -> RobotGeometry:
-        return cls(Baxter.load())
-
-    def joint_values(self, Q: np.ndarray, G: np.ndarray) -> np.ndarray:
-        """(N, J) the moving joints' values for arm joints Q (N, 14) and gripper openings G (N, 2) percent."""
-        n = Q.shape[0]
-        out = np.zeros((n, len(self.joint_ids)))
-        for i, arm in enumerate(ARMS):
-            out[:, self.arm_q[arm]] = Q[:, 7 * i : 7 * i + 7]
-            w = np.clip(G[:, i], 0.0, 100.0) / 100.0 * FINGER_TRAVEL_M
-            for f, s in zip(self.fingers[arm], self.finger_sign[arm], strict=True):
-                out[:, f] = s * w
-        return out
-
-    def frames(self, Q: np.ndarray, G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """World rotations (N, J, 3, 3) and origins (N, J, 3) of the moving joints: vectorised over N, or pose by
-        pose with pinocchio for a few (fewer steps)."""
-        v = self.joint_values(Q, G)
-        n, J = v.shape
-        if n <= FEW:
-            return self._frames_each(v)
-        R = np.empty((n, J, 3, 3))
-        p = np.empty((n, J, 3))
-        for j in range(J):
-            P = self.placements[j]
-            Pr, Pt = np.asarray(P.rotation), np.asarray(P.translation)
-            par = self.parents[j]
-            if par < 0:
-                Rj = np.broadcast_to(Pr, (n, 3, 3))
-                pj = np.broadcast_to(Pt, (n, 3))
-            else:
-                Rj = _times_const(R[:, par], Pr)
-                pj = p[:, par] + _apply(R[:, par], Pt[None, :])[:, 0]
-            if self.prismatic[j]:  # along the joint's y axis
-                p[:, j] = pj + Rj[:, :, 1] * v[:, j, None]
-                R[:, j] = Rj
-            else:  # about its z axis
-                c, s = np.cos(v[:, j])[:, None], np.sin(v[:, j])[:, None]
-                R[:, j, :, 0] = Rj[:, :, 0] * c + Rj[:, :, 1] * s
-                R[:, j, :, 1] = Rj[:, :, 1] * c - Rj[:, :, 0] * s
-                R[:, j, :, 2] = Rj[:, :, 2]
-                p[:, j] = pj
-        return R, p
-
-
-def _times_const(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """A (N, 3, 3) times a constant B (3, 3): one matrix product of the rows (N·3, 3) · (3, 3)."""
-    return (np.ascontiguousarray(A).reshape(-1, 3) @ B).reshape(A.shape)
 
 
 def _of(p: Part, arm: Arm, parts: Collection[str]) -> bool:
     return p.robot and p.arm == arm and p.part in parts
-
-
-def _part_of(link: str) -> Part | None:
-    if link in BODY_PARTS:
-        return Part(None, BODY_PARTS[link], True)
-    for arm, prefixes in (("left", ("left_", "l_")), ("right", ("right_", "r_"))):
-        for pre in prefixes:
-            if link.startswith(pre) and link[len(pre) :] in ARM_PARTS:
-                return Part(arm, ARM_PARTS[link[len(pre) :]], True)  # type: ignore[arg-type]
-    return None
 
 
 @dataclass(frozen=True, eq=False)
@@ -416,7 +113,7 @@ class CollisionModel:
         self._cols: dict[int, np.ndarray] = {}  # robot body -> its columns among the spheres
         self._box: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # fixed body -> (R0, p0, half)
         for i, g in enumerate(geoms):
-            c, r, box = _cover(g.geometry)
+            c, r, box = cover(g.geometry)
             local = c @ g.R.T + g.p  # in the joint's frame (the world's for a fixed body)
             if g.joint < 0:
                 # a ball (the head's) is its own bound: half extents < 0 say "a ball of that radius"
@@ -436,7 +133,7 @@ class CollisionModel:
         self._sb = np.array(sb, dtype=np.int64)
         self._ob_cover = []
         for o in self.obstacles:
-            c, r, _ = _cover(o.geometry())
+            c, r, _ = cover(o.geometry())
             self._ob_cover.append((c, r))
         # each pair: checked against a box (b is a fixed body or an obstacle) or by spheres (two moving robot bodies)
         self._kind = np.array([0 if (b in self._box or b >= R) else 1 for b in self.pairs[:, 1].tolist()])
@@ -559,7 +256,7 @@ class CollisionModel:
         for o in self.obstacles:
             T = poses.get(o.name)
             if T is not None and np.ndim(T) == 3:
-                c, r, _ = _cover(o.geometry())
+                c, r, _ = cover(o.geometry())
                 turn = np.linalg.norm((T[:, :3, :3] - T[rep, :3, :3]).reshape(n, 9), axis=1)  # ≥ the turn's angle
                 move += np.linalg.norm(T[:, :3, 3] - T[rep, :3, 3], axis=1) + turn * (float(np.abs(c).max()) + r)
         widen = np.zeros(coarse.shape[0])
@@ -711,7 +408,7 @@ class _Frames:
         """(m, k, 3) world centres of moving robot ``body``'s covering spheres at samples ``rows``."""
         m = self.m
         j = int(m._bj[body])
-        return _apply(self.Rj[rows, j], m._sl[m._cols[body]]) + self.pj[rows, j, None, :]
+        return rotate(self.Rj[rows, j], m._sl[m._cols[body]]) + self.pj[rows, j, None, :]
 
     def robot_bounds(self) -> np.ndarray:
         """(N, R, 3) world centres of the robot bodies' bounding spheres (meaningful for the moving ones)."""
@@ -727,7 +424,7 @@ class _Frames:
         """World centres (N, k, 3) of obstacle body ``i``'s covering spheres, and their radii (k,)."""
         c, r = self.m._ob_cover[i - self.m.n_robot]
         T = self.T[i - self.m.n_robot]
-        pts = _apply(T[:, :3, :3], c) + T[:, None, :3, 3]
+        pts = rotate(T[:, :3, :3], c) + T[:, None, :3, 3]
         if pts.shape[0] != self.n:
             pts = np.broadcast_to(pts, (self.n, *pts.shape[1:]))
         return pts, np.full(c.shape[0], r)
@@ -782,101 +479,4 @@ def _box_gap2(pts: np.ndarray, R: np.ndarray, p: np.ndarray, half: np.ndarray) -
     return out.sum(axis=2)
 
 
-def _apply(R: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rotations R (N, 3, 3) applied to vectors v (k, 3): (N, k, 3)."""
-    return (
-        v[None, :, 0, None] * R[:, None, :, 0]
-        + v[None, :, 1, None] * R[:, None, :, 1]
-        + v[None, :, 2, None] * R[:, None, :, 2]
-    )
-
-
-@dataclass(frozen=True)
-class Touch:
-    """One stretch of a motion during which two things come within the margin of each other (a fact; its words:
-    :func:`studio.words.touch_words`).
-
-    Attributes:
-        a, b: what touches what (a robot part or a carried object first; of two arms, the left first).
-        t_start, t_end: the stretch (s on the motion's clock); i_start, i_end: its samples (inclusive).
-        depth: how far they overlap at the deepest (m); at most 0 when they only came within the margin.
-        at: when they overlap the most (s).
-        carry: what ``a``'s arm carries meanwhile (None: nothing).
-        new: ``b`` is an object no demonstration had.
-    """
-
-    a: Part
-    b: Part
-    t_start: float
-    t_end: float
-    i_start: int
-    i_end: int
-    depth: float
-    at: float
-    carry: str | None = None
-    new: bool = False
-
-    @property
-    def arms(self) -> tuple[Arm, ...]:
-        """The arms whose parts touch."""
-        return tuple(p.arm for p in (self.a, self.b) if p.arm is not None)
-
-
-def stretches(near: Near, parts: Sequence[Part], t: np.ndarray, *, gap_s: float = 0.1) -> list[Touch]:
-    """The rows of ``near`` as stretches per pair of parts (samples closer than ``gap_s`` joined), earliest first."""
-    t = np.asarray(t, dtype=np.float64)
-    groups: dict[tuple[Part, Part], list[int]] = {}
-    for m, (a, b) in enumerate(zip(near.a.tolist(), near.b.tolist(), strict=True)):
-        pa, pb = parts[a], parts[b]
-        if pa.arm == "right" and pb.arm == "left":
-            pa, pb = pb, pa
-        groups.setdefault((pa, pb), []).append(m)
-    out: list[Touch] = []
-    for (pa, pb), rows in groups.items():
-        r = np.asarray(rows)
-        s = near.sample[r]
-        d = near.distance[r]
-        order = np.argsort(s, kind="stable")
-        s, d = s[order], d[order]
-        cut = np.flatnonzero((np.diff(s) > 1) & (np.diff(t[s]) > gap_s * (1 + 1e-9))) + 1
-        for seg_s, seg_d in zip(np.split(s, cut), np.split(d, cut), strict=True):
-            k = int(np.argmin(seg_d))
-            out.append(
-                Touch(
-                    pa,
-                    pb,
-                    float(t[seg_s[0]]),
-                    float(t[seg_s[-1]]),
-                    int(seg_s[0]),
-                    int(seg_s[-1]),
-                    float(-seg_d[k]),
-                    float(t[seg_s[k]]),
-                )
-            )
-    out.sort(key=lambda x: (x.t_start, -x.depth))
-    return out
-
-
-def obstacle_pose(position: Sequence[float] | np.ndarray, R: np.ndarray | None = None) -> np.ndarray:
-    """(4, 4) pose of an obstacle's centre at ``position`` with rotation ``R`` (default upright)."""
-    T = np.eye(4)
-    if R is not None:
-        T[:3, :3] = R
-    T[:3, 3] = position
-    return T
-
-
-__all__ = [
-    "ARM_NOT_GRIPPER",
-    "ARM_PARTS",
-    "BODY_PARTS",
-    "MARGIN_M",
-    "CollisionModel",
-    "Near",
-    "Obstacle",
-    "Part",
-    "RobotGeometry",
-    "Touch",
-    "obstacle_pose",
-    "stretches",
-]
+__all__ = ["COARSE_STRIDE", "MARGIN_M", "CollisionModel", "Near"]

@@ -10,21 +10,15 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from enum import Enum
 
 import numpy as np
 from scipy.interpolate import CubicSpline
 
 from studio.core.errors import IkFailed, InvalidInput, NotEnoughData
-from studio.core.ik_path import (
-    ACCEPT_ORIENTATION_RAD,
-    ACCEPT_POSITION_M,
-    Feasibility,
-    _PathSolver,
-    feasibility,
-    pose_reachable,
-    rotation_angle,
-    solve_path,
-)
+from studio.core.feasibility import Feasibility, feasibility
+from studio.core.ik_path import solve_path
+from studio.core.ik_solver import ACCEPT_ORIENTATION_RAD, ACCEPT_POSITION_M, PathSolver, pose_reachable, rotation_angle
 from studio.core.kinematics import Baxter, matrix_from_quat_wxyz
 from studio.core.rotations import make_sign_continuous
 from studio.core.timing import _trapezoid, _trapezoid_progress, retime
@@ -128,7 +122,7 @@ def joint_trajectory(
 
 
 def skill_feasibility(jt: JointTrajectory, trajectory: Demo | None = None, baxter: Baxter | None = None) -> Feasibility:
-    """Where the robot cannot follow the skill, on the skill's time line, in plain words.
+    """Where the robot cannot follow the skill, on the skill's time line, and why.
 
     Args:
         jt: the skill's joint trajectory (from :func:`joint_trajectory`).
@@ -138,7 +132,8 @@ def skill_feasibility(jt: JointTrajectory, trajectory: Demo | None = None, baxte
             Otherwise they index ``jt``.
 
     Returns:
-        A :class:`~studio.core.ik_path.Feasibility` (``ok``, ``spans``, ``message``).
+        A :class:`~studio.core.feasibility.Feasibility` (``ok``, ``spans``; its words:
+        :func:`studio.words.feasibility_words`).
     """
     s = jt.skill_time if jt.skill_time is not None else jt.t - jt.t[0]
     if trajectory is None:
@@ -151,7 +146,7 @@ def skill_feasibility(jt: JointTrajectory, trajectory: Demo | None = None, baxte
     np.maximum.at(pe, k, jt.position_error)
     np.maximum.at(oe, k, jt.orientation_error)
     b = baxter or Baxter.load()
-    solver = _PathSolver(b, jt.arm, tt, trajectory.position, matrix_from_quat_wxyz(trajectory.orientation))
+    solver = PathSolver(b, jt.arm, tt, trajectory.position, matrix_from_quat_wxyz(trajectory.orientation))
     return feasibility(tt, pe, oe, jt.arm, reachable=lambda i: pose_reachable(solver, i))
 
 
@@ -362,15 +357,6 @@ class TrackingReport:
         vals = [e for e in self.path_error.values() if e.size]
         return float(np.sqrt(np.mean(np.concatenate(vals) ** 2))) if vals else 0.0
 
-    def summary(self) -> str:
-        """One plain sentence for the teacher."""
-        pct = round(self.completed * 100)
-        return (
-            f"The robot ran {pct}% of the plan; its gripper stayed within "
-            f"{self.max_path_error * 1000:.1f} mm of the planned path "
-            f"({self.rms_path_error * 1000:.1f} mm on average)."
-        )
-
 
 def _estimate_offset(plan: ExecutionPlan, rec_t: np.ndarray, rec_q: np.ndarray, cols: np.ndarray) -> float:
     """Time shift (s) that best lines up the recorded joints with the planned ones (coarse, then finer)."""
@@ -477,6 +463,16 @@ GRIP_CHANGE = 10.0
 GRIP_WAIT_S = 2.0
 
 
+class RunFailure(Enum):
+    """One way a run fell short of "the skill works" (its numbers are the :class:`RunVerdict`'s)."""
+
+    UNFINISHED = "unfinished"  #: less than :data:`COMPLETE_MIN` of the plan done
+    OFF_TRACK = "off-track"  #: the gripper strayed more than :data:`TRACK_MAX_M`
+    OFF_END = "off-end"  #: it ended more than :data:`FINAL_MAX_M` from the plan's last pose
+    GRIPS = "grips"  #: a gripper action was not done
+    TASK = "task"  #: the objects did not end where the demonstrations put them
+
+
 @dataclass(frozen=True)
 class RunVerdict:
     """A run judged on what the robot did.
@@ -503,25 +499,21 @@ class RunVerdict:
     def works(self) -> bool:
         return not self.failures()
 
-    def failures(self) -> list[str]:
-        """What failed and by how much, one plain phrase each ([] when the skill works)."""
+    def failures(self) -> list[RunFailure]:
+        """What failed, in order ([] when the skill works); by how much is in the verdict's fields (words:
+        :func:`studio.words.run_failure_words`)."""
         out = []
         if self.completed < COMPLETE_MIN:
-            out.append(f"the robot did {self.completed * 100:.0f} % of the run")
+            out.append(RunFailure.UNFINISHED)
         if self.tracking_error > TRACK_MAX_M:
-            where = "where the plan was at the same moment" if self.same_time else "the planned path"
-            out.append(f"its gripper was up to {_words(self.tracking_error)} from {where}")
+            out.append(RunFailure.OFF_TRACK)
         if self.final_error > FINAL_MAX_M:
-            out.append(f"it ended {_words(self.final_error)} from the plan's last pose")
+            out.append(RunFailure.OFF_END)
         if self.grips_done < self.grips_planned:
-            out.append(f"it did {self.grips_done} of the {self.grips_planned} gripper actions")
+            out.append(RunFailure.GRIPS)
         if self.task_ok is False:
-            out.append("the objects did not end where you put them")
+            out.append(RunFailure.TASK)
         return out
-
-
-def _words(d: float) -> str:
-    return f"{max(d, 0.0001) * 1000:.1f} mm" if d < 0.01 else f"{d * 100:.1f} cm"
 
 
 def _grips(plan: ExecutionPlan, recording: Recording, offset: float) -> tuple[int, int]:
@@ -579,6 +571,7 @@ __all__ = [
     "FINAL_MAX_M",
     "TRACK_MAX_M",
     "ExecutionPlan",
+    "RunFailure",
     "RunVerdict",
     "TrackingReport",
     "compare_execution",

@@ -1,15 +1,13 @@
 """The use case "learn and judge a skill": :func:`learn_and_judge` takes one arm's demonstrations, their objects
 and one :class:`~studio.core.learn_settings.LearnSettings` and returns the skill with its verdict. Inside:
-pauses shortened, object frames or the robot's frame, which way, the verdict (held out, in the frames the
-skill follows). :func:`learn` and :func:`judge` are its two halves (the studio shows a skill before its
-verdict). Call chain: docs/decisions/095."""
+object frames or the robot's frame, which way, the verdict (held out, in the frames the skill follows).
+:func:`learn` and :func:`judge` are its two halves (the studio shows a skill before its verdict). Call chain:
+docs/decisions/095."""
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
-
-import numpy as np
 
 from studio.core import quality
 from studio.core.caches import LearningCaches
@@ -17,7 +15,6 @@ from studio.core.errors import StudioError
 from studio.core.frames import DemoObjects, ObjectAt
 from studio.core.kinematics import Baxter
 from studio.core.learn_settings import LearnSettings
-from studio.core.pace import remove_pauses, without_pauses
 from studio.core.pipeline import learn_path, learn_skill, routes_of
 from studio.core.quality import DemoFit, QualityReport, Verdict
 from studio.core.segment_view import SegmentFit, demos_in_frames, segment_fits, taught_placement
@@ -98,8 +95,8 @@ def learn(
     ``objects`` allow it (:func:`studio.core.segments.learn_relative`), else in the robot's frame from the way
     ``settings.route`` (:func:`studio.core.pipeline.learn_skill`); with ``arm``, its joint trajectory too.
 
-    Threshold settings are resolved for the demonstrations as taught; long rests are shortened after that
-    (``settings.remove_pauses``), the grasps and releases keeping their moments.
+    ``demos`` are the demonstrations as taught (first to last motion, pauses shortened:
+    :class:`studio.core.pace.TakeClock`), and ``objects`` their contacts on that clock.
 
     Raises:
         StudioError: too few demonstrations or key-points, an unknown way, the start out of reach (in words).
@@ -108,7 +105,7 @@ def learn(
     if isinstance(settings.params, ThresholdSettings):
         settings = replace(settings, params=settings.params.resolve(demos))
     wanted = objects if objects is not None and settings.frames == "objects" else None
-    demos, objs = _prepared(demos, wanted.demos if wanted is not None else (), settings.remove_pauses)
+    objs = wanted.demos if wanted is not None else ()
     if wanted is not None and objs:
         skill = learn_relative(demos, objs, settings, now=wanted.now, arm=arm, baxter=baxter, rules=wanted.rules)
         return LearnedSkill(skill)
@@ -130,10 +127,9 @@ def judge(
     baxter: Baxter | None = None,
     caches: LearningCaches | None = None,
 ) -> Judgement:
-    """How good ``skill`` is against the demonstrations it learned from (in the skill's order, as taught: their
-    rests are shortened here as learning did): held out (at most ``settings.folds`` demos left out in turn,
-    learned again the same way; with the skill's k when ``settings.n_clusters`` was chosen by hand), the
-    report and its verdict.
+    """How good ``skill`` is against the demonstrations it learned from (in the skill's order, as taught):
+    held out (at most ``settings.folds`` demos left out in turn, learned again the same way; with the skill's
+    k when ``settings.n_clusters`` was chosen by hand), the report and its verdict.
 
     A skill that follows the objects is judged where the demonstrations had them (the one nearest the middle
     of their places, never where the objects stand now): its path placed there against the demonstrations
@@ -141,30 +137,14 @@ def judge(
     not allow that (one is missing, the arm cannot follow it there) it is judged in the robot's frame.
     """
     caches = caches or LearningCaches()
-    given = objects.demos if objects is not None and skill.frames is not None else ()
-    demos, objs = _prepared(list(demos), given, settings.remove_pauses)
+    demos = list(demos)
+    objs = objects.demos if objects is not None and skill.frames is not None else ()
     if objs:
         rules = objects.rules if objects is not None else None
         framed = _judge_in_frames(skill, demos, objs, rules, settings.folds, arm, baxter)
         if framed is not None:
             return framed
     return _judge_in_robot_frame(skill, demos, settings, caches)
-
-
-def _prepared(
-    demos: list[Demo], objects: Sequence[DemoObjects], brisk: bool
-) -> tuple[list[Demo], tuple[DemoObjects, ...]]:
-    """The demonstrations and their objects as learning uses them: with ``brisk``, long rests shortened and each
-    contact moved to its moment then."""
-    if not brisk:
-        return demos, tuple(objects)
-    moved = []
-    for d, objs in zip(demos, objects, strict=True):
-        t = np.asarray(d.t, dtype=np.float64)
-        new = without_pauses(d)
-        contacts = tuple(replace(c, t=float(np.interp(c.t + t[0], t, new) - new[0])) for c in objs.contacts)
-        moved.append(replace(objs, contacts=contacts))
-    return [remove_pauses(d) for d in demos], tuple(moved)
 
 
 def _judge_in_robot_frame(

@@ -1,5 +1,5 @@
 """What one learning is asked to do (:class:`LearnSettings`): thresholds, k, the path's mode, the frames, which
-way, whether long rests are shortened, how it is judged. Every field has the studio's default."""
+way, how it is judged. Every field has the studio's default."""
 
 from __future__ import annotations
 
@@ -34,7 +34,6 @@ class LearnSettings:
             exists is the default again).
         split_routes: False learns from every demo even when they go several ways (a part of an object-relative
             skill, whose parts must keep every demo).
-        remove_pauses: shorten each demonstration's long rests first (:func:`studio.core.pace.remove_pauses`).
         folds: at most this many demonstrations are left out in turn when the skill is judged.
     """
 
@@ -47,7 +46,6 @@ class LearnSettings:
     frames: str = "objects"
     route: int | None = None
     split_routes: bool = True
-    remove_pauses: bool = False
     folds: int = 3
 
     def __post_init__(self) -> None:

@@ -8,12 +8,11 @@ also move viser's camera (which uses some of the same letters)."""
 from __future__ import annotations
 
 import json
-import logging
 from collections.abc import Mapping
 
 import viser
 
-log = logging.getLogger(__name__)
+from studio import viser_adapter
 
 #: A held key: its button at most every :data:`TAP_EVERY_S` for the first :data:`FAST_AFTER_S`, then its big
 #: step's button (Shift's) at most every :data:`BIG_EVERY_S`; with Shift, the big step's from the start.
@@ -58,19 +57,11 @@ _KEYS_JS = """
 
 def install_keys(server: viser.ViserServer, keys: Mapping[str, str]) -> None:
     """Send the key script to every tab, now and later. ``keys``: a key's ``KeyboardEvent.code`` (e.g. "KeyW"),
-    or "Shift+" and the code, → the exact label of the button it presses (Shift falls back to the plain key's).
-    Uses viser's message queue (an internal): if a viser upgrade moved it, the buttons still work and the
-    studio's log says the keys do not."""
-    try:
-        from viser import _messages
-
-        cfg = {
-            "keys": dict(keys),
-            "fastAfterMs": FAST_AFTER_S * 1000,
-            "tapEveryMs": TAP_EVERY_S * 1000,
-            "bigEveryMs": BIG_EVERY_S * 1000,
-        }
-        source = _KEYS_JS % json.dumps(cfg, ensure_ascii=False)
-        server.gui._websock_interface.queue_message(_messages.RunJavascriptMessage(source=source))
-    except (AttributeError, ImportError, TypeError):
-        log.warning("viser changed: the teaching keys are off (the buttons on screen still work)")
+    or "Shift+" and the code, → the exact label of the button it presses (Shift falls back to the plain key's)."""
+    cfg = {
+        "keys": dict(keys),
+        "fastAfterMs": FAST_AFTER_S * 1000,
+        "tapEveryMs": TAP_EVERY_S * 1000,
+        "bigEveryMs": BIG_EVERY_S * 1000,
+    }
+    viser_adapter.run_javascript(server, _KEYS_JS % json.dumps(cfg, ensure_ascii=False))

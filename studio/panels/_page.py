@@ -8,11 +8,10 @@ viser's ``RunJavascriptMessage``, which viser replays to every tab that connects
 from __future__ import annotations
 
 import json
-import logging
 
 import viser
 
-log = logging.getLogger(__name__)
+from studio import viser_adapter
 
 _GUARD_JS = """
 (() => {
@@ -67,24 +66,15 @@ _GUARD_JS = """
 """
 
 
-def _send(server: viser.ViserServer, source: str) -> None:
-    from viser import _messages
-
-    server.gui._websock_interface.queue_message(_messages.RunJavascriptMessage(source=source))
-
-
 def install(server: viser.ViserServer) -> None:
     """Send the script (arrow keys; the hints of every control built so far on its label) to every tab, now and
-    later. Call once, after the panels are built. It uses viser internals (the message queue, the table of
-    controls): if a viser upgrade moved them, the studio still starts, without this behaviour, and says so in
-    its log."""
-    try:
-        hints: dict[str, str] = {}
-        for uid, handle in server.gui._gui_input_handle_from_uuid.items():
-            hint = getattr(handle, "hint", None)
-            if isinstance(hint, str) and hint:
-                hints[uid] = hint
-        _send(server, _GUARD_JS)
-        _send(server, f"Object.assign(window.__studioPage.hints, {json.dumps(hints, ensure_ascii=False)});")
-    except (AttributeError, ImportError, TypeError):
-        log.warning("viser changed: arrow keys on a slider may also turn the camera, and hints stay off the labels")
+    later. Call once, after the panels are built."""
+    hints: dict[str, str] = {}
+    for uid, handle in viser_adapter.controls(server).items():
+        hint = getattr(handle, "hint", None)
+        if isinstance(hint, str) and hint:
+            hints[uid] = hint
+    viser_adapter.run_javascript(server, _GUARD_JS)
+    viser_adapter.run_javascript(
+        server, f"Object.assign(window.__studioPage.hints, {json.dumps(hints, ensure_ascii=False)});"
+    )

@@ -13,6 +13,7 @@ import viser
 
 from studio.controller import Controller, Layer, Topic
 from studio.core.errors import InvalidInput
+from studio.core.pace import TakeClock
 from studio.panels._charts import downsample_path, segments
 from studio.panels._choice import kept_choice
 
@@ -23,6 +24,17 @@ Shape = Literal["diamond", "circle"]
 #: Seconds a choice the studio made (the list moved on after a delete) or another tab made must stand before a
 #: press of Rename, Trim or Delete acts on it without being pressed again.
 CHOICE_SETTLE_S = 5.0
+
+
+def pause_words(clock: TakeClock | None) -> str:
+    """ " · 2 pauses removed (41 s)", " · its 2 pauses kept (45 s)" or "" (no pause)."""
+    if clock is None or not clock.pauses:
+        return ""
+    n = len(clock.pauses)
+    what = "1 pause" if n == 1 else f"{n} pauses"
+    if clock.kept:
+        return f" · its {what} kept ({sum(b - a for a, b in clock.pauses):.0f} s)"
+    return f" · {what} removed ({clock.removed:.0f} s)"
 
 
 class DemosPanel:
@@ -47,6 +59,12 @@ class DemosPanel:
             self.demo_list = gui.add_html(self._demo_list_html())
             self.demo_pick = gui.add_dropdown("Demo", options=["(none)"], initial_value="(none)")
             self.demo_show = gui.add_checkbox("Show in the scene", initial_value=True)
+            self.demo_pauses = gui.add_checkbox(
+                "Keep its pauses",
+                initial_value=False,
+                hint="Learn this demonstration with its pauses as they were (a wait that is part of the task). "
+                "Unticked, each pause is shortened to a moment, so the robot does not wait where you stopped to think.",
+            )
             self.demo_name = gui.add_text("Name", initial_value="")
             self.demo_trim = gui.add_multi_slider(
                 "Keep from … to (s)", min=0.0, max=1.0, step=0.01, initial_value=(0.0, 1.0)
@@ -54,6 +72,7 @@ class DemosPanel:
             self.demo_actions = gui.add_button_group("Demo action", options=("Rename", "Trim", "Delete"))
         self.demo_pick.on_update(ctl.guarded()(self._on_pick))
         self.demo_show.on_update(ctl.guarded()(self._on_show))
+        self.demo_pauses.on_update(ctl.guarded("Could not change the pauses")(self._on_pauses))
         self.demo_actions.on_click(ctl.guarded("Could not change the demonstration")(self._on_demo_action))
         ctl.events.on(Topic.DEMOS, self.refresh_demos)
         ctl.events.on(Topic.SESSION, self._on_session)
@@ -64,12 +83,16 @@ class DemosPanel:
         rows = []
         for d in self.ctl.demos.summaries():
             sw = f"background:rgb{d.color};" if d.visible else f"border:2px solid rgb{d.color};"
+            c = d.clock
+            length = d.duration if c is None else c.duration
+            recorded = f" of {d.duration:.1f} s recorded" if length < d.duration - 0.05 else ""
             rows.append(
-                f'<div class="demo-row" data-demo="{d.index}" style="display:flex;gap:6px;align-items:center;'
-                f'font-size:0.85em;margin:2px 0"><span style="display:inline-block;width:12px;height:12px;'
-                f'border-radius:6px;{sw}"></span><b>{html.escape(d.name)}</b>'
-                f"<span>{d.duration:.1f} s · {d.samples:,} samples · {'/'.join(d.arms)}"
-                f"{'' if d.visible else ' · hidden'}</span></div>"
+                f'<div class="demo-row" data-demo="{d.index}" data-length="{length:.2f}" '
+                f'data-pauses="{0 if c is None else len(c.pauses)}" data-kept="{int(c is not None and c.kept)}" '
+                'style="display:flex;gap:6px;align-items:center;flex-wrap:wrap;font-size:0.85em;margin:2px 0">'
+                f'<span style="display:inline-block;width:12px;height:12px;border-radius:6px;{sw}"></span>'
+                f"<b>{html.escape(d.name)}</b><span>{length:.1f} s{recorded}{pause_words(c)} · {d.samples:,} samples · "
+                f"{'/'.join(d.arms)}{'' if d.visible else ' · hidden'}</span></div>"
             )
             through = self.ctl.scene.demo_contact(d.index)  # recorded through something (imported, a real robot)
             if through:
@@ -80,8 +103,9 @@ class DemosPanel:
         if not rows:
             return '<div class="demo-row-empty" style="font-size:0.85em">No demonstrations yet: press Record.</div>'
         legend = (
-            '<div style="font-size:0.8em;color:#555;margin-top:2px">In the scene: ◆ the gripper closed, '
-            "● it opened.</div>"
+            '<div style="font-size:0.8em;color:#555;margin-top:2px">Each demonstration runs from your first move '
+            "to your last; pauses (the arm still for a second or more) are shortened unless you keep them. In the "
+            "scene: ◆ the gripper closed, ● it opened.</div>"
         )
         return "".join(rows) + legend
 
@@ -169,7 +193,7 @@ class DemosPanel:
         if event is not None and event.client_id is not None:  # a tab chose (the studio's own moves: refresh)
             self._chooser, self._chosen_at, self._told = event.client_id, time.time(), set()
         i = self._selected()
-        for h in (self.demo_show, self.demo_name, self.demo_trim):
+        for h in (self.demo_show, self.demo_pauses, self.demo_name, self.demo_trim):
             h.disabled = i is None
         if i is None:
             return
@@ -177,6 +201,7 @@ class DemosPanel:
         dur = max(demos.duration(i), 0.02)
         self.demo_name.value = demos.names()[i]
         self.demo_show.value = demos.visible(i)
+        self.demo_pauses.value = demos.keeps_pauses(i)
         self.demo_trim.max = round(dur + 0.005, 2)
         self.demo_trim.value = (0.0, round(dur + 0.005, 2))
 
@@ -186,6 +211,13 @@ class DemosPanel:
         i = self._selected()
         if i is not None:
             self.ctl.demos.set_visible(i, bool(self.demo_show.value))
+
+    def _on_pauses(self, event: viser.GuiEvent) -> None:
+        if event.client is None:
+            return
+        i = self._selected()
+        if i is not None and bool(self.demo_pauses.value) != self.ctl.demos.keeps_pauses(i):
+            self.ctl.demos.set_keep_pauses(i, bool(self.demo_pauses.value))
 
     def _on_demo_action(self, event: viser.GuiEvent) -> None:
         i = self._selected()

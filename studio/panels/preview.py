@@ -10,9 +10,10 @@ import numpy as np
 import viser
 
 from studio.controller import PREVIEW, Controller, Layer, Topic
-from studio.core.ik_path import Feasibility
+from studio.core.feasibility import Feasibility
 from studio.core.types import ARMS, Arm, Skill
 from studio.panels._charts import APPROACH_COLOR, EXECUTED_COLOR, downsample_path, segments
+from studio.words.robot import feasibility_words
 
 CYAN = (0, 200, 230)
 IK_FAIL = (230, 30, 30)
@@ -292,7 +293,7 @@ class PreviewPanel:
 
 
 def _info(duration: float, feasibility: dict[Arm, Feasibility], contacts: str = "") -> str:
-    bad = [f.message for f in feasibility.values() if not f.ok] + ([contacts] if contacts else [])
+    bad = [feasibility_words(f) for f in feasibility.values() if not f.ok] + ([contacts] if contacts else [])
     if bad:
         return f"Learned path ({duration:.1f} s) in cyan. In red: {' '.join(bad)} Press **Play** to watch it."
     return (

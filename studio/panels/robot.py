@@ -11,6 +11,7 @@ import numpy as np
 import viser
 from viser.extras import ViserUrdf
 
+from studio import viser_adapter
 from studio.controller import Controller, Topic
 from studio.core.arms import arm_columns, gripper_column
 from studio.core.types import ALL_ARM_JOINTS
@@ -146,11 +147,7 @@ class _FastPose:
     def build(cls, urdf: ViserUrdf) -> _FastPose | None:
         from studio.core.kinematics import quat_wxyz_from_matrix
 
-        try:
-            joints = list(urdf._urdf.joint_map.values())
-            frames = list(urdf._joint_frames)
-        except AttributeError:  # a viser version without these internals: use the public path
-            return None
+        joints, frames = viser_adapter.urdf_parts(urdf)
         if len(frames) != len(joints):
             return None
         items = []

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import viser
 
+from studio import viser_adapter
 from studio.controller import REPLAY, SCENE_PRESETS, Controller, Topic
 from studio.core.errors import InvalidInput
 from studio.panels._choice import kept_choice
@@ -162,7 +163,7 @@ class SessionsPanel:
     def _on_upload(self, event: viser.GuiEvent) -> None:
         f = self.upload.value
         # viser keeps the last file as the button's value (up to the 512 MB cap): imported or refused, let it go
-        self.upload._impl.value = type(f)("", b"")
+        viser_adapter.set_value_quietly(self.upload, type(f)("", b""))
         self.ctl.sessions.import_zip(f.name, f.content)
 
     def _on_export(self, event: viser.GuiEvent) -> None:

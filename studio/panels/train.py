@@ -8,29 +8,24 @@ import html
 import numpy as np
 import viser
 
-from studio.controller import FRAME_WORDS, MODE_WORDS, Controller, SkillVerdict, Step, Topic, UsedDemo
-from studio.core.quality import Remedy
-from studio.core.types import DEFAULT_FRAMES, DEFAULT_GENERALIZATION, Arm, Skill
+from studio.controller import Controller, SkillVerdict, Step, Topic, UsedDemo
+from studio.core.errors import StudioError
+from studio.core.types import DEFAULT_FRAMES, DEFAULT_GENERALIZATION, Arm, Generalization, Skill
 from studio.panels._charts import heatmap_svg, position_plot_svg
-from studio.words import (
-    SHARED_REMEDIES,
-    Remedies,
-    fit_note,
-    frame_lines,
-    route_label,
-    segment_lines,
-    verdict_lines,
-)
+from studio.words import frame_lines, route_label, segment_lines
+from studio.words.quality import STUDIO_REMEDIES, fit_note, verdict_lines
 
-_LEVEL_COLOR = {"good": "#15803d", "fair": "#b45309", "poor": "#b91c1c"}
-#: The knob that would help, said with the studio's own controls.
-REMEDIES: Remedies = {
-    **SHARED_REMEDIES,
-    Remedy.MORE_KEYPOINTS: "press Suggest, or move Detail towards more key-points",
-    Remedy.SHARPER_CORNERS: "press Suggest, or lower Corner sharpness",
-    Remedy.REDO_DEMO: "re-record or hide it",
-    Remedy.CHOOSE_ROUTE: "choose another way under Way",
+#: How each choice of frames is called (the Places chooser).
+FRAME_WORDS = {
+    "objects": "Follow the objects (each part learned relative to the object it acts on)",
+    "robot": "Fixed places (the paper: one path in the robot's frame)",
 }
+#: How each generalisation mode is called (the Path chooser).
+MODE_WORDS: dict[Generalization, str] = {
+    Generalization.ALIGNED_MEAN: "Follow the demonstrations (average of your demonstrations, aligned in time)",
+    Generalization.PAPER: "Paper's spline (a smooth curve through the learned states, as in the paper)",
+}
+_LEVEL_COLOR = {"good": "#15803d", "fair": "#b45309", "poor": "#b91c1c"}
 #: The fold with the model's own terms, each with a plain sentence.
 ADVANCED = "Advanced: how the model sees it"
 STATES_WORDS = "the key-points of all demonstrations, grouped into places the hand passes (large red markers)."
@@ -58,12 +53,6 @@ class TrainPanel:
             "Train",
             icon=viser.Icon.BRAIN,
             hint="Learn the skill from the shown demonstrations with the current key-point settings.",
-        )
-        self.pauses = gui.add_checkbox(
-            "Remove pauses",
-            initial_value=ctl.training.remove_pauses,
-            hint="Shorten every pause longer than a moment in your demonstrations before learning, so the robot does "
-            "not wait where you stopped to think. Press Train again after changing it.",
         )
         self.progress = gui.add_progress_bar(0.0, animated=True, visible=False)
         self.status = gui.add_markdown(self._status_text())
@@ -102,7 +91,6 @@ class TrainPanel:
         self.mode.on_update(ctl.guarded("Could not change how the skill is made")(self._on_mode))
         self.frames.on_update(ctl.guarded("Could not change how the skill is made")(self._on_frames))
         self.way.on_update(ctl.guarded("Could not learn the other way")(self._on_way))
-        self.pauses.on_update(ctl.guarded("Could not change the pauses")(self._on_pauses))
         ctl.events.on(Topic.SKILL, self.refresh)
         ctl.events.on(Topic.SESSION, self.refresh)
         ctl.events.on(Topic.DEMOS, self.refresh)  # renamed / deleted / trimmed demos: labels, plots and status
@@ -120,17 +108,31 @@ class TrainPanel:
                 "Press **Train** to learn it again."
             )
         if session.skills:
-            return "Trained. Press **Train** again after changing demonstrations or key-point settings."
+            again = "Press **Train** again after changing demonstrations or key-point settings."
+            return f"Trained.{self._length_words()} {again}"
         return "Not trained yet. Record at least two demonstrations, then press **Train**."
+
+    def _played(self) -> dict[Arm, Skill]:
+        """The skills as Preview and Run on robot play them ({} when they cannot be placed where the objects are)."""
+        try:
+            return self.ctl.placed.get()
+        except StudioError:
+            return {}
+
+    def _length_words(self) -> str:
+        """How long the skill lasts as Preview plays it (:meth:`PlacedSkills.duration`) against the median
+        demonstration as taught, in words ("" when it cannot be placed where the objects are)."""
+        if not self._played():
+            return ""
+        length = self.ctl.placed.duration()
+        taught = [d.clock.duration for d in self.ctl.demos.summaries() if d.visible and d.clock is not None]
+        of = f" (your demonstrations: {float(np.median(taught)):.1f} s, the median as taught)" if taught else ""
+        return f" The skill lasts **{length:.1f} s**{of}."
 
     def _on_train(self, event: viser.GuiEvent) -> None:
         self.ctl.training.train()  # the work thread learns; TRAINING and SKILL events redraw
         if self.ctl.view.step != Step.TRAIN:  # the scene shows the Train step (the learned path)
             self.ctl.view.set_step(Step.TRAIN)
-
-    def _on_pauses(self, event: viser.GuiEvent) -> None:
-        if event.client is not None:
-            self.ctl.training.set_remove_pauses(bool(self.pauses.value))
 
     def _on_mode(self, event: viser.GuiEvent) -> None:
         if event.client is None:
@@ -179,7 +181,6 @@ class TrainPanel:
             self.status.content = self._status_text()
             self.mode.value = MODE_WORDS[self.ctl.training.generalization]
             self.frames.value = FRAME_WORDS[self.ctl.training.frames]
-            self.pauses.value = self.ctl.training.remove_pauses
 
     def refresh(self) -> None:
         """Redraw the verdict and the results of the current skill(s)."""
@@ -221,7 +222,7 @@ class TrainPanel:
                     f"{html.escape(v.message)}</div>"
                 )
                 continue
-            head, *notes = verdict_lines(v.verdict, REMEDIES)
+            head, *notes = verdict_lines(v.verdict, STUDIO_REMEDIES)
             color = _LEVEL_COLOR.get(v.verdict.level, "#333")
             bullets = "".join(f"<li>{html.escape(n)}</li>" for n in notes)
             bullets += "".join(f'<li class="verdict-segment">{html.escape(n)}</li>' for n in segment_lines(v.segments))
@@ -310,8 +311,13 @@ class TrainPanel:
                     color=self.ctl.demos.color(u.index),
                 )
             )
-        traj = skill.trajectory
-        plots.append(
-            position_plot_svg(traj.t - traj.t[0], traj.position, [], title=f"learned path ({arm})", color=(0, 170, 200))
-        )
+        traj, played = skill.trajectory, self._played().get(arm)
+        jt = played.joint_trajectory if played is not None else None
+        t, pos = np.asarray(traj.t) - traj.t[0], np.asarray(traj.position)
+        if played is not None and jt is not None and jt.skill_time is not None and len(jt.t) > 1:
+            # on the clock the robot plays it (the joint limits may stretch it): the length Preview shows
+            along = np.asarray(played.trajectory.t)
+            pos = np.column_stack([np.interp(jt.skill_time, along, played.trajectory.position[:, c]) for c in range(3)])
+            t = np.asarray(jt.t) - jt.t[0]
+        plots.append(position_plot_svg(t, pos, [], title=f"learned path ({arm}, {t[-1]:.1f} s)", color=(0, 170, 200)))
         return plots

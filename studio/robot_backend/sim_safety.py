@@ -107,6 +107,12 @@ class SimFaults:
         with self._lock:
             return self._safety.ours
 
+    @property
+    def held_from(self) -> float | None:
+        """Time stamp (s) of the first sample the studio's emergency stop holds; None when it holds none."""
+        with self._lock:
+            return None if self._halt_k is None or not self._safety.ours else self._halt_k / self.rate_hz
+
     def _halt(self, cause: str) -> None:
         """Hold from the first sample after now, for ``cause`` (caller holds the lock)."""
         k = self._arms.k

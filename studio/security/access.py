@@ -15,6 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal
 
+from studio import viser_adapter
 from studio.core.errors import StudioError
 from studio.security import wire
 from studio.security.addresses import (
@@ -307,10 +308,14 @@ class Access:
         try:
             if self.hooked is None:
                 raise StudioError("its web server no longer starts where the studio checks who connects")
+            viser_adapter.check(server)  # every private piece of viser the studio relies on, or one line why not
             wire.install()  # each tab's messages reach the gate as they are read; a frame that fails is mended
             self.uploads = UploadLimit(server)
             self.presses = Presses(server)  # sees each message first, then hands it to the upload limit
-            self.scripts = read_page_scripts(getattr(server._websock_server, "_http_server_root", None))
+            self.scripts = read_page_scripts(viser_adapter.http_root(server))
+        except viser_adapter.ViserChanged:
+            server.stop()
+            raise
         except Exception as exc:
             server.stop()
             detail = str(exc) if isinstance(exc, StudioError) else f"{type(exc).__name__}: {exc}"

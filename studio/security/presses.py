@@ -15,7 +15,7 @@ from concurrent.futures import Future
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from studio.core.errors import StudioError
+from studio import viser_adapter
 from studio.security.addresses import split_host
 from studio.security.heads import MAX_LINE_BYTES, TOO_MANY_COOKIES_NOTE
 from studio.security.values import refusal, value_refusal
@@ -96,43 +96,27 @@ class Presses:
     """
 
     def __init__(self, server: viser.ViserServer) -> None:
-        from viser import _messages
-        from viser.infra import WebsockServer
-
-        ws = server._websock_server
-        gui, scene = server.gui, server.scene
-        handles = getattr(gui, "_gui_input_handle_from_uuid", None)
-        if not (
-            isinstance(ws, WebsockServer)
-            and callable(getattr(ws, "_handle_incoming_message", None))
-            and isinstance(getattr(ws, "_live_connections", None), dict)
-            and isinstance(handles, dict)
-            and all(hasattr(_messages, n) for n in ("GuiUpdateMessage", "ShareUrlRequest", "ShareUrlDisconnect"))
-            and hasattr(gui, "_thread_executor")
-            and hasattr(scene, "_thread_executor")
-        ):
-            raise StudioError("its GUI messages are no longer where the studio checks them")
-        self._msgs = _messages
+        viser_adapter.check(server)
+        self._msgs = viser_adapter.messages()
         self._server = server
-        self._handles: dict[str, Any] = handles
-        self._pool = gui._thread_executor
-        self._ws = ws
-        self._inner = ws._handle_incoming_message
+        self._handles = viser_adapter.controls(server)
+        self._pool = viser_adapter.thread_pool(server)
+        self._inner = viser_adapter.message_handler(server)
         self._tabs: dict[int, _Tab] = {}
         self._lock = threading.Lock()
         self._closed = False
         self._last_log: dict[str, float] = {}
         self.counts = Counts()
-        ws._handle_incoming_message = self.handle  # type: ignore[method-assign]
-        gui._thread_executor = self  # type: ignore[assignment]
-        scene._thread_executor = self  # type: ignore[assignment]
-        ws.on_client_disconnect(self._on_disconnect)
+        viser_adapter.set_message_handler(server, self.handle)
+        viser_adapter.set_thread_pool(server, self)
+        viser_adapter.on_disconnect(server, self._on_disconnect)
         server.on_client_connect(lambda client: self._told(client.client_id))
 
     # -- messages as they are read from a tab's socket, on viser's event loop ------------------------------
     def client_of(self, websocket: Any) -> int | None:
         """The tab (viser's client id) whose connection is ``websocket``."""
-        return next((cid for cid, conn in list(self._ws._live_connections.items()) if conn is websocket), None)
+        live = viser_adapter.connections(self._server)
+        return next((cid for cid, conn in list(live.items()) if conn is websocket), None)
 
     def greet(self, client_id: Any, websocket: Any) -> None:
         """A tab just connected: told when its browser sent a cookie bomb (:mod:`.heads`) with its request."""
@@ -178,7 +162,7 @@ class Presses:
                 label = str(getattr(control, "label", "?"))[:60]
                 self._log(f"value {label}", f'ignored a value a tab sent to "{label}": {why}')
                 return
-            if not control._impl.is_button:
+            if not viser_adapter.is_button(control):
                 self._hold(client_id, uuid, message, handle)
                 return
             if not self._may_press(client_id, uuid):
@@ -279,7 +263,7 @@ class Presses:
             return self._pool.submit(fn, *args, **kwargs)
         future: Future[Any] = Future()
         target = getattr(event, "target", None)
-        impl = getattr(target, "_impl", None)
+        impl = viser_adapter.state(target)
         # The value this tab sent (viser stored it just now, on its event loop). A button group's options are
         # different presses, and a handle's drag start, moves and end different steps; any other control's newer
         # value replaces the one still waiting.
@@ -335,14 +319,14 @@ class Presses:
         """Give the control back the value its tab sent before its callback reads it: the studio may have
         redrawn the control since (another tab's action), and the callback acts on what this tab asked for.
         False when that value no longer fits the control (its options changed meanwhile)."""
-        impl = getattr(job.target, "_impl", None)
+        impl = viser_adapter.state(job.target)
         if impl is None or getattr(impl, "value", None) == job.value:
             return True
         judged = isinstance(job.value, (str, bool, int, float, tuple, list))  # not an uploaded file
         if judged and value_refusal(job.target, job.value) is not None:
             self._log("stale", "ignored a value that no longer fits its control")
             return False
-        impl.value = job.value
+        viser_adapter.set_value_quietly(job.target, job.value)
         return True
 
     def close(self) -> None:

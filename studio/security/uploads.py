@@ -9,7 +9,7 @@ import time
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from studio.core.errors import StudioError
+from studio import viser_adapter
 
 if TYPE_CHECKING:
     import viser
@@ -39,28 +39,16 @@ class UploadLimit:
     """Checks viser's upload messages on one server before its GuiApi buffers them (docs/decisions/016)."""
 
     def __init__(self, server: viser.ViserServer) -> None:
-        from viser import _messages
-        from viser.infra import WebsockServer
-
-        ws = server._websock_server
-        inner = ws._handle_incoming_message
-        if not (
-            isinstance(ws, WebsockServer)
-            and callable(inner)
-            and isinstance(getattr(server.gui, "_current_file_upload_states", None), dict)
-            and hasattr(_messages, "FileTransferStartUpload")
-            and hasattr(_messages, "FileTransferPart")
-        ):
-            raise StudioError("its upload messages are no longer where the studio checks their size")
+        viser_adapter.check(server)
         self._server = server
-        self._msgs = _messages
-        self._inner = inner
+        self._msgs = viser_adapter.messages()
+        self._inner = viser_adapter.message_handler(server)
         self._transfers: dict[str, _Transfer] = {}
         self._lock = threading.Lock()
         #: uploads refused so far (for tests and logs)
         self.refused = 0
-        ws._handle_incoming_message = self.handle  # type: ignore[method-assign]
-        ws.on_client_disconnect(self._on_disconnect)
+        viser_adapter.set_message_handler(server, self.handle)
+        viser_adapter.on_disconnect(server, self._on_disconnect)
 
     async def handle(self, client_id: Any, message: Any) -> None:
         m = self._msgs
@@ -133,7 +121,7 @@ class UploadLimit:
 
     def _forget(self, tid: str) -> None:
         self._transfers.pop(tid, None)
-        self._server.gui._current_file_upload_states.pop(tid, None)
+        viser_adapter.upload_states(self._server).pop(tid, None)
 
     def _on_disconnect(self, conn: Any) -> None:
         with self._lock:
@@ -148,17 +136,17 @@ class UploadLimit:
             return
         m = self._msgs
         try:
-            conn = client._websock_connection
             # Close the browser's progress notice first, then release its upload button (an acknowledgement
             # of every byte): the order keeps the notice from turning into "File uploaded successfully".
-            conn.queue_message(m.RemoveNotificationMessage(f"upload-{msg.transfer_uuid}"))
-            conn.queue_message(
+            viser_adapter.send_to(client, m.RemoveNotificationMessage(f"upload-{msg.transfer_uuid}"))
+            viser_adapter.send_to(
+                client,
                 m.FileTransferPartAck(
                     source_component_uuid=msg.source_component_uuid,
                     transfer_uuid=msg.transfer_uuid,
                     transferred_bytes=size,
                     total_bytes=size,
-                )
+                ),
             )
             client.add_notification("The upload did not work", body, color="red", auto_close_seconds=None)
         except Exception:  # a tab that just closed

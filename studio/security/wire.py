@@ -9,13 +9,12 @@ import asyncio
 import contextvars
 import dataclasses
 import functools
-import inspect
 import logging
 import threading
 from collections.abc import Callable
 from typing import Any
 
-from studio.core.errors import StudioError
+from studio import viser_adapter
 from studio.core.text import sendable
 
 log = logging.getLogger("studio.security")
@@ -25,8 +24,6 @@ YIELD_EVERY = 16
 #: Bytes read from a tab's socket at once (asyncio reads 256 KiB: thousands of small messages parsed in one go,
 #: with every other tab waiting).
 READ_BYTES = 16 * 1024
-_READER_ARGS = ["websocket", "handle_message", "message_class"]
-_SENDER_ARGS = ["websocket", "buffer", "client_id", "backlog_done_message"]
 #: The gate of the server whose connection a task serves (a callable: the gate is built after viser starts).
 _GATE: contextvars.ContextVar[Callable[[], Any] | None] = contextvars.ContextVar("studio_gate", default=None)
 _LOCK = threading.Lock()
@@ -35,19 +32,11 @@ _LOCK = threading.Lock()
 def install() -> None:
     """Hook viser's reader and sender of each connection, once per process (connections of a server the studio
     did not start keep viser's own). Refused when viser moved them or changed what they take."""
-    from viser.infra import _infra
-
     with _LOCK:
-        reader, sender = _infra._message_consumer, _infra._message_producer
+        reader, sender = viser_adapter.reader_and_sender()
         if getattr(reader, "studio_hook", False):
             return
-        if (
-            not inspect.iscoroutinefunction(reader)
-            or not inspect.iscoroutinefunction(sender)
-            or list(inspect.signature(reader).parameters) != _READER_ARGS
-            or list(inspect.signature(sender).parameters) != _SENDER_ARGS
-        ):
-            raise StudioError("its websocket reader and sender are no longer where the studio hooks them")
+        viser_adapter.check()  # the reader and sender take what the hooks hand on
 
         async def consumer(websocket: Any, handle_message: Callable[[Any], None], message_class: Any) -> None:
             gate = _gate()
@@ -63,15 +52,12 @@ def install() -> None:
                 await send(sender, websocket, buffer, client_id, backlog_done_message)
 
         consumer.studio_hook = True  # type: ignore[attr-defined]
-        _infra._message_consumer = consumer
-        _infra._message_producer = producer
+        viser_adapter.set_reader_and_sender(consumer, producer)
 
 
 def hooked() -> bool:
     """Whether viser's reader and sender are the studio's (:func:`install`)."""
-    from viser.infra import _infra
-
-    return bool(getattr(_infra._message_consumer, "studio_hook", False))
+    return bool(getattr(viser_adapter.reader_and_sender()[0], "studio_hook", False))
 
 
 def serving(handler: Callable[[Any], Any], gate: Callable[[], Any]) -> Callable[[Any], Any]:

@@ -99,6 +99,8 @@ def load_session(path: Path, *, skip_damaged: bool = False) -> Session:
         s.objects.by_file[entry.file] = entry.events
         if entry.hidden:
             s.hidden_demos.add(rec.name)
+        if entry.keep_pauses:
+            s.pauses_kept.add(rec.name)
     for arm, info in m.skills.items():
         try:
             s.skills[arm] = load_skill(path / info.file, name, info.file)

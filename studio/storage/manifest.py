@@ -74,6 +74,8 @@ class DemoEntry:
     hidden: bool = False
     #: What happened to the objects (start, grasps, releases, misses, end; format 2, optional: none before).
     events: tuple[WorldEvent, ...] = ()
+    #: The teacher keeps its pauses (optional, default False: they are shortened, decision 094).
+    keep_pauses: bool = False
 
     def to_json(self) -> dict[str, object]:
         out: dict[str, object] = {
@@ -86,6 +88,8 @@ class DemoEntry:
         }
         if self.events:
             out["objects"] = events_to_dict(self.events)
+        if self.keep_pauses:
+            out["keep_pauses"] = True
         return out
 
 
@@ -354,6 +358,9 @@ class _Reader:
         hidden = d.get("hidden", False)
         if not isinstance(hidden, bool):
             raise self.bad(f'has an invalid "hidden" mark for demonstration {i + 1}')
+        keep = d.get("keep_pauses", False)
+        if not isinstance(keep, bool):
+            raise self.bad(f'has an invalid "keep_pauses" mark for demonstration {i + 1}')
         dur = d.get("duration", 0.0)
         duration = finite_number(dur) or 0.0
         objects = d.get("objects")
@@ -363,7 +370,7 @@ class _Reader:
             raise self.bad(f"has damaged object events for demonstration {i + 1} ({exc})") from exc
         if events is None:
             raise self.bad(f"has invalid object events for demonstration {i + 1}")
-        return DemoEntry(f, name, tuple(da), s, duration, hidden, events)
+        return DemoEntry(f, name, tuple(da), s, duration, hidden, events, keep)
 
     def scene(self) -> Scene | None:
         raw = self.raw.get("scene")

@@ -72,7 +72,7 @@ def _locked(fn: Callable[Concatenate[Session, P], R]) -> Callable[Concatenate[Se
 
 #: What a failed change puts back (the in-memory state; files on disk are written atomically, manifest last).
 _STATE = (
-    *("arms", "notes", "params", "n_clusters", "recordings", "hidden_demos", "skills", "skills_stale"),
+    *("arms", "notes", "params", "n_clusters", "recordings", "hidden_demos", "pauses_kept", "skills", "skills_stale"),
     *("skill_info", "precision", "_files", "_next_id", "objects", "thresholds", "generalization", "frames"),
 )
 
@@ -95,7 +95,8 @@ class Session:
         name, path: the session's name and folder.
         arms: the taught arm(s).
         params, thresholds, n_clusters, generalization: the learning settings (see :class:`Manifest`).
-        recordings: the demonstrations, in order; hidden_demos: names of those hidden from learning.
+        recordings: the demonstrations, in order; hidden_demos: names of those hidden from learning;
+            pauses_kept: names of those whose pauses the teacher keeps.
         skills: arm -> learned :class:`Skill`; skill_info: arm -> what it was learned from and when.
         skills_stale: the demonstrations changed since the skills were learned.
         problems, recovery_message: plain-words notes from loading (skipped damaged files, crash recovery).
@@ -116,6 +117,7 @@ class Session:
     frames: str = FRAMES[0]
     recordings: list[Recording] = field(default_factory=list)
     hidden_demos: set[str] = field(default_factory=set)
+    pauses_kept: set[str] = field(default_factory=set)
     skills: dict[Arm, Skill] = field(default_factory=dict)
     precision: str = "float64"
     skills_stale: bool = False
@@ -209,6 +211,8 @@ class Session:
         self.recordings[i] = Recording(t=r.t, q=r.q, gripper=r.gripper, arms=r.arms, name=nm)
         if r.name in self.hidden_demos:
             self.hidden_demos = (self.hidden_demos - {r.name}) | {nm}
+        if r.name in self.pauses_kept:
+            self.pauses_kept = (self.pauses_kept - {r.name}) | {nm}
         self._write_manifest()
 
     @_locked
@@ -219,12 +223,22 @@ class Session:
         self._write_manifest()
 
     @_locked
+    def set_demo_pauses(self, i: int, keep: bool) -> None:
+        """Keep the pauses of demonstration ``i`` (learned as they were), or shorten them again (the default)."""
+        name = self.recordings[self._check_index(i)].name
+        self.pauses_kept = (self.pauses_kept | {name}) if keep else (self.pauses_kept - {name})
+        self._mark_stale()
+        self._write_manifest()
+
+    @_locked
     def delete_demo(self, i: int) -> None:
         """Delete demonstration ``i``: the manifest stops listing it first, then its file is removed."""
         i = self._check_index(i)
         rel = self._files.pop(i)
         self.objects.removed(rel)
-        self.hidden_demos = self.hidden_demos - {self.recordings.pop(i).name}
+        gone = self.recordings.pop(i).name
+        self.hidden_demos = self.hidden_demos - {gone}
+        self.pauses_kept = self.pauses_kept - {gone}
         self._mark_stale()
         self._write_manifest()
         with contextlib.suppress(OSError):  # saved already; a file left behind is cleaned at the next open
@@ -375,6 +389,7 @@ def _manifest(session: Session) -> Manifest:
                 samples=len(r),
                 duration=r.duration,
                 hidden=r.name in session.hidden_demos,
+                keep_pauses=r.name in session.pauses_kept,
                 events=session.objects.events(f),
             )
             for f, r in zip(session._files, session.recordings, strict=True)

@@ -146,6 +146,8 @@ def _plan_arm(
     detour: float = 0.0,
     once: bool = False,
     dip: float = 0.0,
+    tempo: float = 1.0,
+    hesitate: float = 0.0,
 ) -> tuple[list[tuple[str, float, object]], np.ndarray]:
     """Timeline of one arm: list of ("move", t0, _Segment) / ("hold", t0, duration) and the start q."""
     q_home = baxter.neutral(arm)
@@ -155,7 +157,10 @@ def _plan_arm(
         keys = [_Key(_mirror(k.position), -k.yaw, k.hold, k.speed, k.grip, k.kind, bow=-k.bow, dip=k.dip) for k in keys]
         keys[0].position = home + (keys[0].position - _mirror(home))
         keys[-1].position = home + (keys[-1].position - _mirror(home))
-    pace = rng.uniform(0.82, 1.3) * (1.25 if task == "pick-place" else 1.0)  # overall speed
+    pace = rng.uniform(0.82, 1.3) * (1.25 if task == "pick-place" else 1.0) * tempo  # overall speed
+    if hesitate > 0:  # still before the first motion, while thinking above each object, and after the last
+        for k in (keys[0], keys[1], keys[4], keys[-1]):
+            k.hold += hesitate
     oris = [_down(k.yaw, rng.normal(0, 0.03, 3)) for k in keys]
     oris[0] = home_ori
     oris[-1] = quat_wxyz_from_matrix(rotvec_matrix(rng.normal(0, 0.01, 3)) @ matrix_from_quat_wxyz(home_ori))
@@ -258,6 +263,8 @@ def teach(
     detour: float = 0.0,
     once: bool = False,
     dip: float = 0.0,
+    tempo: float = 1.0,
+    hesitate: float = 0.0,
 ) -> TeacherPlan:
     """A human-like scripted demonstration of ``task`` (20–30 s, varied speed, pauses, jitter).
 
@@ -274,6 +281,9 @@ def teach(
             of the carry's direction, mirrored for the right arm): a way around an obstacle.
         once: pick-place puts the block on the pad and goes home, as a newcomer shows it (no way back).
         dip: the first carry sags this far down at mid-way (m, ±10 % per demonstration): a careless carry.
+        tempo: × the usual speed of every motion (0.1: slow careful drags).
+        hesitate: seconds the arm stays still before its first motion, above the first object, above where it
+            goes and after its last motion (a newcomer thinking).
 
     Returns:
         A :class:`TeacherPlan` (cached: the same arguments return the same read-only plan).
@@ -281,11 +291,13 @@ def teach(
     if task not in TASKS:
         raise InvalidInput(f'Unknown task "{task}": choose one of {", ".join(TASKS)}.')
     arms = ("left", "right") if arm == "both" else (check_arm(arm),)
+    if not (tempo > 0 and math.isfinite(tempo) and hesitate >= 0 and math.isfinite(hesitate)):
+        raise InvalidInput("The teacher's tempo must be positive and its hesitation not negative.")
     if not (rate_hz > 0 and math.isfinite(rate_hz)):
         raise InvalidInput(f"The sampling rate must be a positive number of samples per second (got {rate_hz}).")
     baxter = Baxter.load()
     rng = np.random.default_rng([seed, TASKS.index(task)])
-    timelines = {a: _plan_arm(task, a, rng, baxter, places, detour, once, dip) for a in arms}
+    timelines = {a: _plan_arm(task, a, rng, baxter, places, detour, once, dip, tempo, hesitate) for a in arms}
     # Generous horizon; slowed segments only lengthen a plan by a little.
     horizon = max(sum(_item_len(it) for it in items) for items, _ in timelines.values())
     t = np.arange(math.ceil(horizon * 1.5 * rate_hz) + 1) / rate_hz

@@ -14,9 +14,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from studio.core.collision import FEW, CollisionModel, Near, Obstacle, Part, Touch, stretches
+from studio.core.collision import CollisionModel, Near
 from studio.core.kinematics import Baxter
+from studio.core.obstacles import Obstacle
+from studio.core.robot_geometry import FEW, Part
 from studio.core.rotations import matrix_from_quat_wxyz
+from studio.core.touches import Touch, stretches
 from studio.core.types import ARMS, Arm
 from studio.world.events import ObjectPose
 from studio.world.geometry import FLOOR_Z, GRASP_BELOW_TOL, GRASP_XY_TOL, NEST_STEP, SNAP_UP, Table, yaw_quat

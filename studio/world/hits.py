@@ -13,9 +13,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from studio.core.collision import Part, Touch
 from studio.core.kinematics import Baxter
+from studio.core.robot_geometry import Part
 from studio.core.rotations import matrix_from_quat_wxyz, quat_wxyz_from_matrix
+from studio.core.touches import Touch
 from studio.core.types import ARMS
 from studio.world.contacts import along, touches
 from studio.world.events import ObjectPose, WorldEvent

@@ -80,10 +80,10 @@ def hard_cartesian_pick_place(seed: int, spread: float = 0.95) -> tuple[Demo, ..
 def tracked_of_reachable(b: Baxter, tr: Demo, jt: JointTrajectory, probes: int = 12) -> tuple[float, float]:
     """(tracked, reachable) skill samples: within 1 mm and 0.01 rad at their own skill time, and those some
     posture reaches (multi-start IK on up to ``probes`` samples of each missed stretch, as a share of it)."""
-    from studio.core.ik_path import (
+    from studio.core.ik_solver import (
         ACCEPT_ORIENTATION_RAD,
         ACCEPT_POSITION_M,
-        _PathSolver,
+        PathSolver,
         pose_reachable,
         rotation_angle,
     )
@@ -103,7 +103,7 @@ def tracked_of_reachable(b: Baxter, tr: Demo, jt: JointTrajectory, probes: int =
     missed = np.flatnonzero(~ok)
     reachable = float(ok.sum())
     if missed.size:
-        S = _PathSolver(b, jt.arm, tr.t, tr.position, matrix_from_quat_wxyz(tr.orientation))
+        S = PathSolver(b, jt.arm, tr.t, tr.position, matrix_from_quat_wxyz(tr.orientation))
         for run in np.split(missed, np.flatnonzero(np.diff(missed) > 1) + 1):
             pick = run[np.linspace(0, len(run) - 1, min(probes, len(run))).astype(int)]
             reachable += len(run) * float(np.mean([pose_reachable(S, int(i), seeds=30) for i in pick]))

@@ -9,8 +9,11 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from studio.core.collision import MARGIN_M, CollisionModel, Obstacle, Part, RobotGeometry, obstacle_pose, stretches
+from studio.core.collision import MARGIN_M, CollisionModel
 from studio.core.kinematics import Baxter, baxter_urdf_path, package_share_dir
+from studio.core.obstacles import Obstacle, obstacle_pose
+from studio.core.robot_geometry import Part, RobotGeometry
+from studio.core.touches import stretches
 
 TABLE_TOP = -0.07
 

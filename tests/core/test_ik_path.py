@@ -11,20 +11,13 @@ import pytest
 
 from studio.core.errors import InvalidInput
 from studio.core.execution import joint_trajectory, skill_feasibility
-from studio.core.ik_path import (
-    ACCEPT_ORIENTATION_RAD,
-    ACCEPT_POSITION_M,
-    KNOT_ARC_M,
-    KNOT_MAX_DT_S,
-    _PathSolver,
-    feasibility,
-    knot_indices,
-    rotation_angle,
-    solve_path,
-)
+from studio.core.feasibility import Unreachable, feasibility
+from studio.core.ik_path import KNOT_ARC_M, KNOT_MAX_DT_S, knot_indices, solve_path
+from studio.core.ik_solver import ACCEPT_ORIENTATION_RAD, ACCEPT_POSITION_M, PathSolver, rotation_angle
 from studio.core.kinematics import Baxter, matrix_from_quat_wxyz
 from studio.core.pipeline import learn_skill
 from studio.core.types import Arm, Demo
+from studio.words.robot import feasibility_words
 from tests.core.execution_demos import cartesian_pick_place, joint_space_pick_place
 from tests.core.teacher_demos import demos as teacher_demos
 
@@ -132,12 +125,13 @@ def test_a_stretch_beyond_reach_is_reported_and_does_not_slow_the_rest(baxter: B
     span = f.spans[0]
     # the unreachable part is around 1.5–2.5 s (it starts being out of reach a little after 1 s)
     assert 1.0 < span.t_start < 1.6 and 2.4 < span.t_end < 3.0
-    assert span.position_error == pytest.approx(0.10, abs=0.02)
+    assert span.position_error == pytest.approx(0.10, abs=0.02) and span.reason is Unreachable.REACH
+    said = feasibility_words(f)
     assert re.match(
         r"The left gripper cannot reach 1\.\d–2\.\d s of the skill: it would need to be 1[01] cm farther than "
         r"the arm reaches",
-        f.message,
-    ), f.message
+        said,
+    ), said
     assert 0 <= span.i_start <= span.i_end < len(tr)
     # the reachable parts are followed
     s = jt.skill_time
@@ -161,10 +155,16 @@ def test_feasibility_message_for_an_orientation_the_wrist_cannot_hold() -> None:
     pe = np.zeros(501)
     oe = np.where((t >= 3.2) & (t <= 4.0), math.radians(25), 0.0)
     f = feasibility(t, pe, oe, "right")
-    assert not f.ok and len(f.spans) == 1
-    assert f.message.startswith("The right gripper cannot turn as taught during 3.2–4.0 s of the skill")
-    assert "25° further than the wrist allows" in f.message
-    assert feasibility(t, pe, np.zeros(501), "left").message == "The left arm can follow the whole skill."
+    assert not f.ok and len(f.spans) == 1 and f.arm == "right"
+    span = f.spans[0]
+    assert span.reason is Unreachable.TURN and span.position_error == 0.0
+    assert (span.t_start, span.t_end) == pytest.approx((3.2, 4.0))
+    assert math.degrees(span.orientation_error) == pytest.approx(25)
+    assert feasibility_words(f).startswith("The right gripper cannot turn as taught during 3.2–4.0 s of the skill")
+    assert "25° further than the wrist allows" in feasibility_words(f)
+    whole = feasibility(t, pe, np.zeros(501), "left")
+    assert whole.ok and not whole.spans
+    assert feasibility_words(whole) == "The left arm can follow the whole skill."
 
 
 def test_an_instant_is_named_as_a_moment_not_a_duration() -> None:
@@ -173,16 +173,18 @@ def test_an_instant_is_named_as_a_moment_not_a_duration() -> None:
     t = np.linspace(0, 21.3, 2131)
     pe = np.where(np.isclose(t, 13.6), 0.05, 0.0)
     f = feasibility(t, pe, np.zeros_like(t), "left", reachable=lambda i: True)
-    assert f.spans[0].reason == "posture"
-    assert f.message.startswith(
+    assert f.spans[0].reason is Unreachable.POSTURE and f.spans[0].t_start == f.spans[0].t_end
+    assert feasibility_words(f).startswith(
         "The left arm has to change its posture at 13.6 s into the skill: it can reach each of the poses there"
-    ), f.message
+    ), feasibility_words(f)
     f = feasibility(t, pe, np.zeros_like(t), "left")
-    assert f.message.startswith(
+    assert f.spans[0].reason is Unreachable.REACH and f.spans[0].position_error == pytest.approx(0.05)
+    assert feasibility_words(f).startswith(
         "The left gripper cannot reach the pose at 13.6 s into the skill: it would need to be 5 cm"
-    ), f.message
+    ), feasibility_words(f)
     f = feasibility(t, np.zeros_like(t), np.where(np.isclose(t, 13.6), 0.5, 0.0), "right")
-    assert f.message.startswith("The right gripper cannot turn as taught at 13.6 s into the skill"), f.message
+    assert f.spans[0].reason is Unreachable.TURN
+    assert feasibility_words(f).startswith("The right gripper cannot turn as taught at 13.6 s into the skill")
 
 
 def test_feasibility_merges_close_spans_and_counts_the_others() -> None:
@@ -194,7 +196,8 @@ def test_feasibility_merges_close_spans_and_counts_the_others() -> None:
     f = feasibility(t, pe, np.zeros(1001), "left")
     assert len(f.spans) == 2
     assert f.spans[0].t_start == pytest.approx(1.0) and f.spans[0].t_end == pytest.approx(2.0)
-    assert "4 cm farther" in f.message and "(and 1 more stretch later)" in f.message
+    assert f.spans[0].position_error == pytest.approx(0.04) and f.spans[1].t_start == pytest.approx(6.0)
+    assert "4 cm farther" in feasibility_words(f) and "(and 1 more stretch later)" in feasibility_words(f)
 
 
 def test_knots_follow_motion_and_time(baxter: Baxter) -> None:
@@ -212,7 +215,7 @@ def test_batch_solver_agrees_with_the_single_pose_solver(baxter: Baxter) -> None
     Q0 = baxter.neutral("left") + rng.normal(0, 0.2, (50, 7))
     pos, ori = baxter.fk_batch("left", baxter.clamp("left", Q0))
     t = np.arange(50, dtype=float)
-    S = _PathSolver(baxter, "left", t, pos, matrix_from_quat_wxyz(ori))
+    S = PathSolver(baxter, "left", t, pos, matrix_from_quat_wxyz(ori))
     seeds = baxter.clamp("left", Q0 + rng.normal(0, 0.05, Q0.shape))
     Qb, conv = S.batch_solve(np.arange(50), seeds)
     assert conv.all()
@@ -252,9 +255,9 @@ def test_a_path_the_wrist_cannot_follow_in_one_posture_is_reported_as_a_posture_
     tr = Demo(t, np.tile(p0, (t.shape[0], 1)), ori, np.full(t.shape[0], 100.0), name="spin")
     jt = joint_trajectory(tr, "left", q0, baxter)
     f = skill_feasibility(jt, tr, baxter)
-    assert f.spans and all(s.reason == "posture" for s in f.spans)
-    assert f.message.startswith("The left arm has to change its posture during ")
-    assert "it can reach each of those poses" in f.message
+    assert f.spans and all(s.reason is Unreachable.POSTURE for s in f.spans)
+    assert feasibility_words(f).startswith("The left arm has to change its posture during ")
+    assert "it can reach each of those poses" in feasibility_words(f)
     assert _limits_ok(baxter, jt.q, jt.t)
 
 
@@ -271,7 +274,7 @@ def test_a_sharp_stop_between_samples_is_followed_not_called_a_posture_change(ba
     jt = joint_trajectory(tr, "left", q0, baxter)
     assert jt.position_error.max() < 2e-4 and jt.orientation_error.max() < 1e-3
     f = skill_feasibility(jt, tr, baxter)
-    assert f.ok, f.message
+    assert f.ok, feasibility_words(f)
 
 
 @pytest.mark.parametrize("seed", [5, 11])
@@ -291,7 +294,9 @@ def test_issue_19_hard_cartesian_pick_place_tracks_every_reachable_stretch(baxte
 def test_the_arms_self_motion_keeps_the_elbow_clear_where_it_can(baxter: Baxter) -> None:
     """A box where the elbow is as the plain IK follows a straight path: with ``avoid`` the path IK turns the elbow
     out of it through the arm's self-motion, the gripper on its path throughout, no posture change."""
-    from studio.core.collision import CollisionModel, Obstacle, RobotGeometry, obstacle_pose
+    from studio.core.collision import CollisionModel
+    from studio.core.obstacles import Obstacle, obstacle_pose
+    from studio.core.robot_geometry import RobotGeometry
 
     q_home = baxter.neutral("left")
     right = baxter.neutral("right")

@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from studio.core.errors import InvalidInput
+from studio.core.frames import Contact, DemoObjects
 from studio.core.kinematics import ACCELERATION_LIMITS, Baxter
-from studio.core.pace import KEEP_S, WINDOW_S, at_speed, remove_pauses, resting, without_pauses
+from studio.core.pace import KEEP_S, PAUSE_S, WINDOW_S, at_speed, remove_pauses, resting, take_clock, without_pauses
 from studio.core.timing import limit_ratio, retime
 from studio.core.types import Demo, JointTrajectory
 
@@ -56,6 +57,53 @@ def test_short_rests_and_a_demo_without_rests_stay_as_they_are() -> None:
 def test_the_gripper_moving_during_a_rest_of_the_hand_is_not_a_pause() -> None:
     d = paused_demo(5.0, grip_in_pause=True)
     assert without_pauses(d)[-1] == pytest.approx(d.t[-1], abs=1e-9)
+
+
+def _take(parts: list[tuple[float, float]], noise: float = 4e-4) -> Demo:
+    """A take at 100 Hz (Baxter's joint states) of ``(seconds, speed m/s)`` parts along x, with sensor noise."""
+    t, x, t0, x0 = [], [], 0.0, 0.6
+    for dur, v in parts:
+        tt = np.arange(0.0, dur, 0.01)
+        t.append(t0 + tt)
+        x.append(x0 + v * tt)
+        t0, x0 = t0 + dur, x0 + v * dur
+    tt, xx = np.concatenate(t), np.concatenate(x)
+    pos = np.column_stack([xx, np.zeros_like(xx), np.zeros_like(xx)])
+    pos += noise * np.random.default_rng(1).standard_normal(pos.shape)
+    return Demo(tt, pos, np.tile([1.0, 0.0, 0.0, 0.0], (len(tt), 1)), np.full(len(tt), 100.0), name="take")
+
+
+def test_a_take_starts_at_its_first_motion_ends_at_its_last_and_its_pauses_are_shortened() -> None:
+    d = _take([(6.0, 0.0), (2.0, 0.05), (20.0, 0.0), (2.0, -0.05), (8.0, 0.0)])  # still, move, think, move, still
+    c = take_clock([d])
+    assert c.take == pytest.approx(37.99, abs=0.02)
+    # from the first motion to the last, with a moment (KEEP_S) of stillness at each end
+    assert 6.0 - KEEP_S - 2 * WINDOW_S <= c.source[0] <= 6.0 - KEEP_S
+    assert 30.0 + KEEP_S <= c.source[-1] <= 30.0 + KEEP_S + 2 * WINDOW_S
+    assert len(c.pauses) == 1 and c.pauses[0][1] - c.pauses[0][0] > 20.0 - 2 * WINDOW_S
+    assert 4.0 + 3 * KEEP_S <= c.duration <= 4.0 + 3 * KEEP_S + 4 * WINDOW_S  # a motion's start and end kept whole
+    assert c.removed == pytest.approx(c.pauses[0][1] - c.pauses[0][0] - KEEP_S)
+    taught = c.demo(d)
+    assert taught.t[0] == 0.0 and np.all(np.diff(taught.t) > 0) and len(taught.t) == c.last - c.first + 1
+    np.testing.assert_array_equal(taught.position, d.position[c.first : c.last + 1])  # the same samples
+    # a grasp at 9 s into the take (1 s after the pause began) comes at the pause's end, less KEEP_S
+    objs = c.objects(DemoObjects((), (Contact(31.0, "release", "block", ()),)))
+    assert objs.contacts[0].t == pytest.approx(c.duration, abs=0.05)
+    kept = take_clock([d], keep=True)
+    assert kept.removed == 0.0 and 24.0 + 2 * KEEP_S <= kept.duration <= 24.0 + 2 * KEEP_S + 2 * WINDOW_S
+
+
+def test_a_slow_careful_drag_is_motion_not_a_pause() -> None:
+    for v in (0.005, 0.01):  # 5 mm/s and 1 cm/s, with a real robot's noise (0.4 mm at 100 Hz)
+        c = take_clock([_take([(2.0, 0.0), (30.0, v), (2.0, 0.0)])])
+        assert c.pauses == () and abs(c.duration - 30.0 - 2 * KEEP_S) <= 2 * WINDOW_S, v
+
+
+def test_a_short_stop_stays_and_a_still_take_is_kept_whole() -> None:
+    c = take_clock([_take([(2.0, 0.05), (PAUSE_S * 0.6, 0.0), (2.0, 0.05)])])
+    assert c.pauses == () and c.duration == pytest.approx(c.take)  # moving at both ends: nothing cut
+    still = take_clock([_take([(5.0, 0.0)])])
+    assert still.first == 0 and still.duration == pytest.approx(4.99, abs=0.02)
 
 
 def test_bad_keep() -> None:

@@ -15,16 +15,18 @@ from studio.core import quality as Q
 from studio.core.errors import InvalidInput, NotEnoughData
 from studio.core.learn_settings import LearnSettings
 from studio.core.pipeline import learn_skill
+from studio.core.quality.judgement import Close, CutsCorner
+from studio.core.quality.notes import OddDemo
 from studio.core.thresholds import auto_params
 from studio.core.types import Demo
-from studio.panels.train import REMEDIES as STUDIO
 from studio.shapes import ShapeSpec, joint_angles, shape_corners, shape_demo, shape_demos
+from studio.words import quality as WQ
 from tests.core.teacher_demos import demos as task_demos
 
 
 def say(v: Q.Verdict) -> tuple[str, ...]:
     """The verdict's lines as the Train panel shows them."""
-    return W.verdict_lines(v, STUDIO)
+    return WQ.verdict_lines(v, WQ.STUDIO_REMEDIES)
 
 
 @functools.lru_cache(maxsize=8)
@@ -166,7 +168,7 @@ def test_length_words():
 def test_good():
     ds = zigzag()
     v = Q.verdict(Q.assess(learn_skill(ds), ds))
-    assert v.level == "good" and v.headline.issue is Q.Issue.CLOSE and v.notes == ()
+    assert v.level == "good" and isinstance(v.headline, Close) and v.notes == ()
     assert len(say(v)) == 1
     assert say(v)[0].startswith("Good: the skill follows your demonstrations closely (within ")
     assert say(v)[0].endswith(" mm on average).")
@@ -178,7 +180,7 @@ def test_fair_cuts_the_corner_and_lowering_corner_sharpness_helps():
     r = Q.assess(learn_skill(ds, LearnSettings(params=params, generalization="paper")), ds)
     v = Q.verdict(r)
     assert v.level == "fair"
-    assert v.headline.issue is Q.Issue.CUTS_CORNER and v.headline.remedy is Q.Remedy.SHARPER_CORNERS
+    assert isinstance(v.headline, CutsCorner) and WQ.FINDING_WORDS[CutsCorner].remedy is WQ.Remedy.SHARPER_CORNERS
     head = say(v)[0]
     assert head.startswith("Fair: it cuts the corner at ") and " s by " in head
     assert head.endswith(" cm — press Suggest, or lower Corner sharpness.")
@@ -209,7 +211,7 @@ def test_poor():
     v = Q.verdict(
         Q.assess(learn_skill(ds, LearnSettings(params=KeypointParams(), generalization="paper")), ds)
     )  # the old fixed values
-    assert v.level == "poor" and v.headline.remedy is Q.Remedy.MORE_KEYPOINTS
+    assert v.level == "poor" and WQ.FINDING_WORDS[type(v.headline)].remedy is WQ.Remedy.MORE_KEYPOINTS
     assert say(v)[0].startswith("Poor: the skill strays from your demonstrations (")
     assert say(v)[0].endswith(" on average) — press Suggest, or move Detail towards more key-points.")
 
@@ -223,12 +225,12 @@ def test_outlier_demo_is_named():
     assert [o.name for o in r.outliers] == ["demo 4"]
     v = Q.verdict(r)
     assert v.level == "fair"
-    assert [(f.issue, f.demo, f.remedy) for f in v.notes] == [(Q.Issue.OUTLIER, "demo 4", Q.Remedy.REDO_DEMO)]
+    assert [(type(f), getattr(f, "demo", "")) for f in v.notes] == [(OddDemo, "demo 4")]
     assert "demo 4 differs a lot from the others — re-record or hide it." in say(v)
     fits = Q.demo_fits(r)  # the Train panel's per-demo list: the odd one fits poorly, the others well
     assert [(f.name, f.well) for f in fits] == [("demo 1", True), ("demo 2", True), ("demo 3", True), ("demo 4", False)]
     assert fits[3].why is Q.Misfit.SHAPE and fits[0].why is None
-    assert W.fit_note(fits[3]) == "It differs a lot from the others." and W.fit_note(fits[0]) == ""
+    assert WQ.fit_note(fits[3]) == "It differs a lot from the others." and WQ.fit_note(fits[0]) == ""
 
 
 def test_every_demo_fits_a_good_skill_well():

@@ -29,12 +29,24 @@ expect.set_options(timeout=30_000)
 ROOT = Path(__file__).resolve().parents[2]
 ARTIFACTS = ROOT / "test-artifacts"
 
+#: Simulated seconds per wall second of the robot in the walks (studios in a subprocess) that are not about
+#: timing (docs/decisions/093): the arm gets where it is sent sooner; takes are in the robot's own time.
+FAST = 3.0
+
 
 class StudioProcess:
     """`python -m studio serve` in a subprocess (so "restart the server" is a real restart)."""
 
-    def __init__(self, sessions_dir: Path, session: str, port: int | None = None, log: Path | None = None) -> None:
+    def __init__(
+        self,
+        sessions_dir: Path,
+        session: str,
+        port: int | None = None,
+        log: Path | None = None,
+        time_scale: float = 1.0,
+    ) -> None:
         self.sessions_dir = sessions_dir
+        self.time_scale = time_scale
         self.session = session
         self.port = port or free_port()
         self.log = log
@@ -56,11 +68,11 @@ class StudioProcess:
     def start(self, timeout: float = 60.0) -> StudioProcess:
         env = dict(os.environ, PYTHONUNBUFFERED="1")
         self.output = []
+        studio = ["-m", "studio"] if self.time_scale == 1.0 else ["-m", "tests.e2e.fast_robot", str(self.time_scale)]
         self.proc = subprocess.Popen(
             [
                 sys.executable,
-                "-m",
-                "studio",
+                *studio,
                 "serve",
                 "--port",
                 str(self.port),
@@ -159,11 +171,13 @@ def studio_factory(tmp_path: Path, request) -> Iterator:
     """Start studios on fresh ports; every one started is stopped at the end of the test."""
     started: list[StudioProcess] = []
 
-    def make(session: str = "fresh", sessions_dir: Path | None = None, port: int | None = None) -> StudioProcess:
+    def make(
+        session: str = "fresh", sessions_dir: Path | None = None, port: int | None = None, time_scale: float = 1.0
+    ) -> StudioProcess:
         d = sessions_dir or (tmp_path / "sessions")
         d.mkdir(parents=True, exist_ok=True)
         log = ARTIFACTS / re.sub(r"[^A-Za-z0-9_.-]+", "_", request.node.name) / f"server-{len(started)}.log"
-        s = StudioProcess(d, session, port=port, log=log)
+        s = StudioProcess(d, session, port=port, log=log, time_scale=time_scale)
         started.append(s)
         return s.start()
 

@@ -23,6 +23,7 @@ from playwright.sync_api import FloatRect
 from studio.app import build_app
 from studio.core.kinematics import matrix_from_quat_wxyz
 from studio.robot_backend.simulated import SimulatedBaxter
+from tests.conftest import wait_for
 from tests.e2e import ui
 from tests.e2e.conftest import ARTIFACTS, free_port
 
@@ -145,9 +146,7 @@ def test_drawn_grippers_cover_their_fk_points(browser, tmp_path) -> None:
             if name.startswith("/table/"):
                 node.visible = False
         page = ui.open_studio(browser, app.url())
-        deadline = time.monotonic() + 10
-        while not app.server.get_clients() and time.monotonic() < deadline:
-            time.sleep(0.1)
+        assert wait_for(lambda: bool(app.server.get_clients()))
         client = next(iter(app.server.get_clients().values()))
         box = page.locator("canvas").first.bounding_box()
         assert box is not None

@@ -22,6 +22,7 @@ from playwright.sync_api import Page, expect
 from studio.app import Studio, build_app
 from studio.core.kinematics import Baxter
 from studio.teacher import PICK_PLACE_A, PICK_PLACE_B
+from tests.conftest import trained_copy
 from tests.e2e import ui
 from tests.e2e.conftest import ARTIFACTS, free_port
 from tests.viser_client import ViserClient, drawn_at
@@ -57,10 +58,15 @@ def gripper(page: Page) -> np.ndarray:
     return np.array([float(el.get_attribute(f"data-{k}") or "nan") for k in ("x", "y", "z")])
 
 
-def start(tmp_path: Path) -> Studio:
+def start(tmp_path: Path, trained: Path | None = None) -> Studio:
+    """The studio in-process on the pick-and-place example: as shipped, or as trained once per worker
+    (``trained``: :func:`tests.conftest.trained_examples`)."""
     sessions = tmp_path / "sessions"
-    sessions.mkdir()
-    shutil.copytree(ROOT / "sessions" / "pick-place", sessions / "pick-place")
+    if trained is None:
+        sessions.mkdir()
+        shutil.copytree(ROOT / "sessions" / "pick-place", sessions / "pick-place")
+    else:
+        trained_copy(trained, "pick-place", sessions)
     return build_app(port=free_port(), session="pick-place", sessions_dir=sessions)
 
 
@@ -124,7 +130,9 @@ def test_run_on_robot_follows_the_plan_and_does_the_task(browser, tmp_path) -> N
         (out / "result.txt").write_text(text + "\n")
         ctl = app.controller
         plan, report = ctl.execution.plan, ctl.execution.report
-        assert plan is not None and report is not None and report.max_path_error < 1e-3
+        # the simulator lags 1.3 mm for a few ms where the plan asks for more than a joint's acceleration (the
+        # skill's start, its still start cut): as in tests/test_controller_execution.py
+        assert plan is not None and report is not None and report.max_path_error < 3e-3
         # What the page draws is what was computed: the executed path lies on the plan, ...
         b = Baxter.load()
         planned = b.fk_batch("left", plan.q[::5, :7])[0]
@@ -162,14 +170,13 @@ def test_run_on_robot_follows_the_plan_and_does_the_task(browser, tmp_path) -> N
         app.stop()
 
 
-def test_emergency_stop_mid_run_halts_the_robot(browser, tmp_path) -> None:
+def test_emergency_stop_mid_run_halts_the_robot(browser, tmp_path, trained_examples) -> None:
     out = ARTIFACTS / "execution-emergency-stop"
     shutil.rmtree(out, ignore_errors=True)
     out.mkdir(parents=True)
-    app = start(tmp_path)
+    app = start(tmp_path, trained_examples)  # (training in the page is the test above)
     page = None
     try:
-        app.controller.training.train().result()  # (training in the page is the test above)
         page = ui.open_studio(browser, app.url())
         ui.tab(page, "Preview")
         page.get_by_role("button", name="Run on robot").click()
@@ -211,17 +218,16 @@ def test_emergency_stop_mid_run_halts_the_robot(browser, tmp_path) -> None:
         app.stop()
 
 
-def test_the_robots_own_estop_button_during_a_run(browser, tmp_path) -> None:
+def test_the_robots_own_estop_button_during_a_run(browser, tmp_path, trained_examples) -> None:
     """The simulated Baxter's red button pressed during Run on robot (as a real one's can be): the run ends in
     words — when, how much was done, never "the skill works" — the light turns red, nothing moves, and the robot
     runs again only after its button is released and the teacher presses Enable robot."""
     out = ARTIFACTS / "execution-robot-estop"
     shutil.rmtree(out, ignore_errors=True)
     out.mkdir(parents=True)
-    app = start(tmp_path)
+    app = start(tmp_path, trained_examples)
     page = None
     try:
-        app.controller.training.train().result()
         page = ui.open_studio(browser, app.url())
         expect(page.locator('.robot-light[data-light="enabled"]')).to_contain_text("Robot connected and enabled")
         ui.open_folder(page, "Simulated robot (try its faults)")

@@ -8,6 +8,7 @@ import pytest
 from playwright.sync_api import expect
 
 from tests.e2e import ui
+from tests.e2e.conftest import FAST
 
 pytestmark = pytest.mark.e2e
 
@@ -45,7 +46,7 @@ def test_corrupt_upload_shows_error_and_changes_nothing(browser, studio_factory,
 
 
 def test_two_tabs_see_the_same_robot_and_session(browser, studio_factory, shots, tmp_path) -> None:
-    server = studio_factory("shared", sessions_dir=tmp_path / "sessions")
+    server = studio_factory("shared", sessions_dir=tmp_path / "sessions", time_scale=FAST)  # not about timing
     a = ui.open_studio(browser, server.url)
     b = ui.open_studio(browser, server.url)
 

@@ -19,7 +19,7 @@ from playwright.sync_api import Page, expect
 from studio.app import Studio, build_app
 from studio.controller import Controller
 from studio.world import preset
-from tests.conftest import wait_for
+from tests.conftest import trained_copy, wait_for
 from tests.e2e import mouse_flow, ui
 from tests.e2e.conftest import ARTIFACTS, free_port
 
@@ -191,14 +191,16 @@ def test_hints_close_status_lines_keep_their_place_and_shift_takes_big_steps(bro
         page.close()
 
 
-def test_after_a_preview_teach_shows_the_live_robot_and_the_objects_as_placed(browser, sessions: Path) -> None:
+def test_after_a_preview_teach_shows_the_live_robot_and_the_objects_as_placed(
+    browser, tmp_path: Path, trained_examples: Path
+) -> None:
     out = OUT
     out.mkdir(parents=True, exist_ok=True)
+    sessions = trained_copy(trained_examples, "stack-cup", tmp_path / "sessions")  # trained as Train does
     app = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
     page = ui.open_studio(browser, app.url())
     ctl = app.controller
     try:
-        ctl.training.train().result()
         ui.tab(page, "Preview")
         ui.choose(page, "Watch at", "4×")
         ui.click_in_row(page, "Playback", "Play")

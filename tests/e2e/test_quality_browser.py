@@ -43,10 +43,13 @@ def test_live_path_suggest_and_verdict(browser, studio_factory, shots, sessions)
     # One arrow-key step on the focused ε5 slider: new key-points, and the live path (thin, dashed) is
     # recomputed and redrawn with its figure.
     auto5 = ui.threshold_value(page, EPS5)
+    shown = ui.threshold(page, EPS5).locator("input.mantine-NumberInput-input").input_value()
     thumb = ui.threshold(page, EPS5).locator("[role=slider]").first
     thumb.focus()
     page.keyboard.press("ArrowRight")
     expect(page.locator(".live-path").first).to_contain_text("The learned path would stay within", timeout=30_000)
+    box = ui.threshold(page, EPS5).locator("input.mantine-NumberInput-input")
+    expect(box).not_to_have_value(shown, timeout=30_000)  # the step reached the slider's box
     v1 = live_version(page)
     assert ui.threshold_value(page, EPS5) > auto5
     expect(page.locator("label", has_text=f"{EPS5} · yours")).to_be_visible()  # the teacher's value now

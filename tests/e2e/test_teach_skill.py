@@ -14,6 +14,7 @@ from playwright.sync_api import TimeoutError as PlaywrightTimeout
 from studio.app import CAMERA_FOV_DEG, CAMERA_LOOK_AT, CAMERA_POSITION
 from studio.core.kinematics import Baxter
 from tests.e2e import ui
+from tests.e2e.conftest import FAST
 
 pytestmark = pytest.mark.e2e
 
@@ -118,7 +119,7 @@ def teach_one_demo(page: Page, variant: int) -> None:
 
 def test_teach_a_skill_like_a_user(browser, studio_factory, shots, tmp_path) -> None:
     sessions = tmp_path / "sessions"
-    server = studio_factory(SESSION, sessions_dir=sessions)
+    server = studio_factory(SESSION, sessions_dir=sessions, time_scale=FAST)  # the walk is not about timing
     page = ui.open_studio(browser, server.url)
     shots(page, "fresh session")
     expect(page.get_by_text("No demonstrations yet")).to_be_visible()
@@ -220,7 +221,7 @@ def test_teach_a_skill_like_a_user(browser, studio_factory, shots, tmp_path) -> 
     page.close()
     server.stop()
 
-    server2 = studio_factory("stack-cup", sessions_dir=sessions)
+    server2 = studio_factory("stack-cup", sessions_dir=sessions, time_scale=FAST)
     page = ui.open_studio(browser, server2.url)
     ui.tab(page, "Sessions")
     ui.choose(page, "Open session", SESSION)

@@ -1,7 +1,7 @@
 """In real Chromium, the studio's words for a newcomer: the tab title, no developer settings button, the task of
 the set-up, what closing the gripper did ("Holding the cup" / "Missed the …"), the stand under the cup held out,
 a double-click on Record without a warning, Undo after Discard, the x/y/z of the chosen object, the skill
-speed and Remove pauses controls, the model's terms behind a fold, an empty "New name" after New, and no text
+speed control, the model's terms behind a fold, an empty "New name" after New, and no text
 wider than the panel. Screenshots of each step go to test-artifacts/words/ (looked at by a person)."""
 
 from __future__ import annotations
@@ -125,10 +125,8 @@ def test_words_for_a_newcomer(browser, sessions) -> None:
         expect(page.locator(".kp-counts")).to_be_attached()
         shot(page, out, "6-keypoints")
 
-        # Train with Remove pauses; the model's terms are folded away, each with a sentence
+        # Train; the model's terms are folded away, each with a sentence
         ui.tab(page, "Train")
-        ui.row(page, "Remove pauses").locator("input[type=checkbox]").click()
-        assert wait_for(lambda: ctl.training.remove_pauses)
         page.get_by_role("button", name="Train", exact=True).click()
         ui.wait_text(page, "Trained", timeout=180)
         expect(page.locator("details.advanced").first).to_be_attached()

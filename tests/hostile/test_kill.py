@@ -18,14 +18,18 @@ from pathlib import Path
 
 import pytest
 
+from studio.recorder.files import read_recording_file
 from studio.storage import SessionStore
+from tests.conftest import wait_for
 from tests.hostile.builders import ROOT, make_rec
 
 SAVER = """
 import sys, itertools
 import numpy as np
 sys.path.insert(0, {root!r})
+from studio.recorder.files import read_recording_file
 from studio.storage import SessionStore
+from tests.conftest import wait_for
 from tests.hostile.builders import make_rec
 s = SessionStore({sessions!r}).open("victim")
 print("ready", flush=True)
@@ -46,7 +50,9 @@ for i in itertools.count():
 RECORDER = """
 import sys, time
 sys.path.insert(0, {root!r})
+from studio.recorder.files import read_recording_file
 from studio.storage import SessionStore
+from tests.conftest import wait_for
 from studio.recorder import Recorder
 from studio.robot_backend.simulated import SimulatedBaxter
 s = SessionStore({sessions!r}).open("victim")
@@ -103,16 +109,37 @@ def test_kill_9_during_saves_loses_nothing_saved_and_opening_cleans_up(tmp_path:
         assert leftovers(opened.path) == [], f"run {run}: opening left {leftovers(opened.path)}"
 
 
+def kill_when_flushed(proc: subprocess.Popen[str], folder: Path, seconds: float) -> float:
+    """Wait until the take being recorded holds ``seconds`` on disk (the recorder flushes as it goes), then
+    kill -9; returns the seconds the file held just before the kill."""
+    assert proc.stdout is not None
+    line = proc.stdout.readline()
+    assert "recording" in line, (line, proc.stderr.read() if proc.stderr else "")
+
+    def held() -> float:
+        files = list(folder.rglob("*.rec"))
+        demo = read_recording_file(files[0], poses=False) if len(files) == 1 else None
+        return demo.recording.duration if demo is not None else 0.0
+
+    assert wait_for(lambda: held() >= seconds), f"the take never held {seconds} s on disk"
+    on_disk = held()
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.communicate(timeout=10)  # reaps it and closes its pipes
+    return on_disk
+
+
 @pytest.mark.slow
 def test_kill_9_while_recording_loses_at_most_the_last_flush(tmp_path: Path) -> None:
+    """Whatever the take held on disk when the recorder was killed is recovered (only what was not flushed yet
+    is lost)."""
     store = SessionStore(tmp_path / "sessions")
     store.create("victim")
     for run in range(2):
         proc = start(RECORDER.format(root=str(ROOT), sessions=str(store.root)))
-        alive = kill_after(proc, 1.5 + run, "recording")
+        on_disk = kill_when_flushed(proc, store.root / "victim", 1.5 + run)
         s = store.open("victim")
         assert "recovered" in s.recovery_message, s.recovery_message
         got = s.recordings[-1]
-        assert got.name.startswith("interrupted") and got.duration >= alive - 0.5, (got.duration, alive)
+        assert got.name.startswith("interrupted") and got.duration >= on_disk, (got.duration, on_disk)
         assert leftovers(s.path) == []
     assert len(store.open("victim").recordings) == 2

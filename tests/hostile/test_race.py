@@ -80,39 +80,73 @@ def test_a_take_is_saved_into_the_session_it_started_in(ctl: Controller, session
 
 
 @pytest.mark.slow
-def test_two_websocket_clients_racing_open_and_record(sessions: Path) -> None:
+def test_two_websocket_clients_racing_open_and_record(sessions: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Tab b opens another session while tab a presses Record then Stop: the take lands in the session that
+    was open when it started, and the session does not change while it runs (b's Open may come before the take
+    or after its Stop, never during it)."""
     from studio.app import build_app
     from tests.viser_client import ViserClient
 
     app = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
     ctl = app.controller
-    started_in: list[str] = []
-    ctl.events.on(Topic.RECORDING, lambda: started_in.append(ctl.session.name) if ctl.teaching.recording else None)
+    # (what, the open session then) as the take starts, as it stops (told under the controller's lock: no
+    # switch comes between the Stop and this note) and once it is saved.
+    takes: list[tuple[str, str]] = []
+
+    def on_recording() -> None:
+        if ctl.teaching.recording:
+            takes.append(("start", ctl.session.name))
+        elif ctl.teaching.saving:
+            takes.append(("stop", ctl.session.name))
+        elif takes and takes[-1][0] == "stop":
+            takes.append(("saved", ctl.session.name))
+
+    ctl.events.on(Topic.RECORDING, on_recording)
+    opens: list[str] = []  # each Open of tab b, once handled (opened or refused)
+    real_open = ctl.sessions.open
+
+    def open_and_note(name: str) -> None:
+        try:
+            real_open(name)
+        finally:
+            opens.append(name)
+
+    monkeypatch.setattr(ctl.sessions, "open", open_and_note)
     a, b = ViserClient.tab_of(app), ViserClient.tab_of(app)
     try:
         for c in (a, b):
             c.wait_gui("Record")
             c.wait_gui("Session action")
-        for delay_ms in (0, 5, 10, 20):
+        for i, delay_ms in enumerate((0, 5, 10, 20)):
             counts = demo_counts(sessions)
             start = ctl.session.name
             other = "pick-place" if start == "stack-cup" else "stack-cup"
-            started_in.clear()
+            takes.clear()
             b.set_value("Open session", other)
-            time.sleep(0.3)
+
+            def chosen(o: str = other) -> bool:
+                return bool(app.panels.sessions.pick.value == o)
+
+            assert wait_for(chosen), "tab b's choice did not arrive"
             b.set_value("Session action", "Open")
             time.sleep(delay_ms / 1000)
             a.set_value("Record", True)
-            assert wait_for(lambda: bool(started_in)), "the recording did not start"
-            time.sleep(0.5)
+            assert wait_for(lambda: bool(takes)), "the recording did not start"
+            time.sleep(0.5)  # the take's length (its samples), not a bound
             a.set_value("Stop", True)
-            assert wait_for(lambda: not ctl.teaching.recording)
-            time.sleep(0.5)
+            assert wait_for(lambda: len(takes) == 3), f"the take was not saved: {takes}"
+
+            def opened(n: int = i + 1) -> bool:
+                return len(opens) == n
+
+            assert wait_for(opened), "tab b's Open was not handled"
             after = demo_counts(sessions)
-            where = started_in[0]
+            where = takes[0][1]
             expected = {**counts, where: counts[where] + 1}
             assert after == expected, f"delay {delay_ms} ms: started in {where}, counts {counts} -> {after}"
-            assert ctl.session.name == where, "the session changed under a running take"
+            assert takes == [("start", where), ("stop", where), ("saved", where)], (
+                f"delay {delay_ms} ms: the session changed under a running take: {takes}"
+            )
     finally:
         a.close()
         b.close()

@@ -1,8 +1,8 @@
 """How good is a learned skill? Positions of the gripper compared with the demonstrations (GUI-free, no words).
 
-``curves`` (smoothing, normalised DTW, Fréchet), ``metrics`` (fidelity, corners, gripper, smoothness, outliers,
-execution), ``holdout`` (leave one demo out), ``report`` (:func:`assess` gathers them) and ``judgement`` (the
-judgement as data: level, findings, the knob that would help). The words are in :mod:`studio.words`.
+``curves`` (smoothing, normalised DTW, Fréchet), ``metrics`` (fidelity, corners, gripper, outliers, execution),
+``holdout`` (leave one demo out), ``report`` (:func:`assess` gathers them), ``notes`` (each kind of finding and
+its check) and ``judgement`` (the verdict as data: level, headline, notes). The words are in :mod:`studio.words`.
 """
 
 from studio.core.quality.curves import (
@@ -20,7 +20,7 @@ from studio.core.quality.curves import (
     time_normalised_mean,
 )
 from studio.core.quality.holdout import HeldOut, held_out
-from studio.core.quality.judgement import DemoFit, Finding, Issue, Level, Misfit, Remedy, Verdict, demo_fits, verdict
+from studio.core.quality.judgement import DemoFit, Level, Misfit, Verdict, demo_fits, verdict
 from studio.core.quality.metrics import (
     CORNER_TURN,
     Corner,
@@ -38,11 +38,11 @@ from studio.core.quality.metrics import (
     fidelity,
     find_corners,
     gripper_checks,
-    mean_squared_jerk,
     outliers,
     shared_corners,
     task_error,
 )
+from studio.core.quality.notes import Finding
 from studio.core.quality.report import QualityReport, assess
 
 __all__ = [
@@ -58,13 +58,11 @@ __all__ = [
     "GripperCheck",
     "GripperMismatch",
     "HeldOut",
-    "Issue",
     "Level",
     "Misfit",
     "OddIn",
     "Outlier",
     "QualityReport",
-    "Remedy",
     "Verdict",
     "arc_length",
     "arc_resample",
@@ -82,7 +80,6 @@ __all__ = [
     "frechet_many",
     "gripper_checks",
     "held_out",
-    "mean_squared_jerk",
     "ndtw",
     "outliers",
     "shared_corners",

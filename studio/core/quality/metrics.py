@@ -1,5 +1,5 @@
 """Measures of a learned path against the demonstrations, in metres and seconds: fidelity (G/R, F/B1),
-shared sharp corners, gripper actions, smoothness (jerk), outlier demos and how well the IK tracks the path."""
+shared sharp corners, gripper actions, outlier demos and how well the IK tracks the path."""
 
 from __future__ import annotations
 
@@ -9,10 +9,9 @@ from dataclasses import dataclass
 from enum import StrEnum
 
 import numpy as np
-from scipy.ndimage import uniform_filter1d
 
 from studio.core.errors import NotEnoughData
-from studio.core.quality.curves import arc_length, arc_resample, extent, frechet, ndtw, samples, smoothed, spread
+from studio.core.quality.curves import arc_length, arc_resample, extent, frechet, ndtw, smoothed, spread
 from studio.core.types import Demo, Skill
 
 #: A bend is a sharp corner when the path turns by more than this (radians) within :func:`corner_stride`
@@ -339,25 +338,6 @@ def corner_checks(traj: Demo, demos: Sequence[Demo], size: float) -> tuple[Corne
         i = int(np.argmin(d))
         out.append(Corner(_xyz(pos), float(traj.t[i] - traj.t[0]), float(d[i]), turn))
     return tuple(out)
-
-
-def mean_squared_jerk(demo: Demo) -> float:
-    """Mean squared jerk of the path low-passed over 0.1 s and resampled at 50 Hz, normalised by duration⁵ and
-    path length² (dimensionless, so a fast and a slow demo of one shape compare)."""
-    t = np.asarray(demo.t)
-    if demo.duration <= 0.2:
-        return float("nan")
-    p = uniform_filter1d(np.asarray(demo.position, dtype=np.float64), samples(t, 0.1), axis=0, mode="nearest")
-    grid = np.arange(t[0], t[-1], 0.02)
-    if grid.shape[0] < 8:
-        return float("nan")
-    q = np.column_stack([np.interp(grid, t, p[:, k]) for k in range(3)])
-    j = np.diff(q, n=3, axis=0) / 0.02**3
-    length = float(arc_length(q)[-1])
-    if length <= 1e-9:
-        return 0.0
-    dur = float(grid[-1] - grid[0])
-    return float(np.mean(np.sum(j * j, axis=1)) * dur**5 / length**2 / dur)
 
 
 def outliers(

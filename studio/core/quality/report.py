@@ -1,9 +1,9 @@
-"""The quality report: every measure of a learned skill against its demonstrations, gathered by :func:`assess`
-in one frozen :class:`QualityReport` (metres, seconds)."""
+"""The quality report: the measures of a learned skill against its demonstrations that the headline and several
+notes share, and what was measured, gathered by :func:`assess` in one frozen :class:`QualityReport` (metres,
+seconds)."""
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -23,7 +23,6 @@ from studio.core.quality.metrics import (
     execution,
     fidelity,
     gripper_checks,
-    mean_squared_jerk,
     outliers,
 )
 from studio.core.types import Demo, Skill, SkillRoute
@@ -42,7 +41,6 @@ class QualityReport:
         gripper: shared gripper actions; gripper_mismatch: how the demos' or the skill's gripper actions
             disagree (None when they agree).
         corners: shared sharp corners.
-        smoothness: mean squared jerk of the path ÷ the demos' median (both low-passed); 1 = as smooth.
         execution: from the joint trajectory, when there is one.
         duration: length of the learned path, s; demo_durations: each demo's, s.
         outliers: demos that differ a lot from the others.
@@ -50,6 +48,8 @@ class QualityReport:
         demo_names: names in order.
         routes: the ways the demonstrations went when more than one (the skill's ``routes``); route: which one
             the skill learned (its demonstrations are ``demo_names``); route_where: (3,) m, where they part most.
+        trajectory, skill, demos: what was measured (a check of :mod:`~studio.core.quality.notes` may measure
+            more on them); skill is None when only a trajectory was.
     """
 
     n_demos: int
@@ -61,7 +61,6 @@ class QualityReport:
     gripper: tuple[GripperCheck, ...]
     gripper_mismatch: GripperMismatch | None
     corners: tuple[Corner, ...]
-    smoothness: float
     execution: Execution | None
     duration: float
     demo_durations: tuple[float, ...]
@@ -71,6 +70,9 @@ class QualityReport:
     routes: tuple[SkillRoute, ...] = ()
     route: int = 0
     route_where: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    trajectory: Demo | None = field(default=None, repr=False, compare=False)
+    skill: Skill | None = field(default=None, repr=False, compare=False)
+    demos: tuple[Demo, ...] = field(default=(), repr=False, compare=False)
 
 
 def assess(
@@ -106,10 +108,6 @@ def assess(
     ends = np.mean([d.position[-1] for d in demos], axis=0)
     checks, mismatch = gripper_checks(traj, demos)
     corners = corner_checks(traj, demos, size)
-    jd = [mean_squared_jerk(d) for d in demos]
-    jd = [x for x in jd if math.isfinite(x) and x > 0]
-    js = mean_squared_jerk(traj)
-    smooth = js / float(np.median(jd)) if jd and math.isfinite(js) else float("nan")
     ll: np.ndarray | None
     if isinstance(skill, Skill):
         ll = skill.loglik if loglik is None else loglik
@@ -129,7 +127,6 @@ def assess(
         gripper=checks,
         gripper_mismatch=mismatch,
         corners=corners,
-        smoothness=smooth,
         execution=ex,
         duration=traj.duration,
         demo_durations=tuple(d.duration for d in demos),
@@ -139,4 +136,7 @@ def assess(
         routes=skill.routes if isinstance(skill, Skill) else (),
         route=skill.route if isinstance(skill, Skill) else 0,
         route_where=skill.route_where if isinstance(skill, Skill) else (0.0, 0.0, 0.0),
+        trajectory=traj,
+        skill=skill if isinstance(skill, Skill) else None,
+        demos=tuple(demos),
     )

@@ -1,8 +1,7 @@
-"""The skill's quality and Suggest's outcome in plain words for the teacher.
+"""The studio's facts in plain words for the teacher: distances, routes, Suggest's outcome, the task and its
+goal, grasps, frames, contacts and hits (the verdict on a skill: :mod:`studio.words.quality`).
 
-The core gives the facts (:mod:`studio.core.quality`, :mod:`studio.core.autotune`); the sentences are here,
-shared by the studio and ``studio learn``. How to reach the knob that would help differs by audience, so each
-passes its own :data:`Remedies` (the studio's controls: ``panels/train.py``; the options: ``commands.py``).
+The core and the world give the facts; the sentences are here, shared by the studio and ``studio learn``.
 """
 
 from __future__ import annotations
@@ -11,28 +10,15 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Protocol
 
-from studio.core.quality import DemoFit, Disagreement, Finding, Issue, Level, Misfit, Remedy, Verdict
 from studio.core.quality.judgement import GOOD_G_OVER_R, POOR_G_OVER_R
 from studio.core.types import SkillRoute
 
 if TYPE_CHECKING:
     from studio.core.autotune import TuneResult
-    from studio.core.collision import Part, Touch
+    from studio.core.robot_geometry import Part
     from studio.core.segment_view import SegmentFit
     from studio.core.segments import FrameChoice
-
-#: How an audience says each :class:`Remedy` (a phrase that follows a dash, lower case, no full stop).
-Remedies = Mapping[Remedy, str]
-
-#: Remedies said the same way everywhere.
-SHARED_REMEDIES: dict[Remedy, str] = {
-    Remedy.MORE_DEMOS: "record one or two more demonstrations",
-    Remedy.WITHIN_REACH: "teach it closer to the robot, with the gripper in a direction the arm can hold",
-}
-
-_PAST = {"close": "closed", "open": "opened"}
-_VERB = {"close": "closes", "open": "opens"}
-_HEAD = {Level.GOOD: "Good", Level.FAIR: "Fair", Level.POOR: "Poor"}
+    from studio.core.touches import Touch
 
 
 def length_words(metres: float) -> str:
@@ -44,70 +30,6 @@ def length_words(metres: float) -> str:
         cm = m * 100
         return f"{cm:.0f} cm" if cm >= 9.95 else f"{cm:.1f} cm".replace(".0 cm", " cm")
     return f"{m:.1f} m"
-
-
-def _headline(v: Verdict, remedies: Remedies) -> str:
-    h = v.headline
-    d = length_words(h.distance)
-    fix = f" — {remedies[h.remedy]}." if h.remedy is not None else "."
-    head = _HEAD[v.level]
-    if h.issue is Issue.STRAYS:
-        return f"{head}: the skill strays from your demonstrations ({d} on average){fix}"
-    if h.issue is Issue.CUTS_CORNER:
-        return f"{head}: it cuts the corner at {h.time:.1f} s by {d}{fix}"
-    if h.issue is Issue.LOOSE:
-        return (
-            f"{head}: the skill stays within {d} of your demonstrations on average, but they are closer to each "
-            f"other than that{fix}"
-        )
-    if v.notes:
-        return f"{head}: the skill follows your demonstrations closely (within {d} on average), but:"
-    return f"{head}: the skill follows your demonstrations closely (within {d} on average)."
-
-
-def _gripper_mismatch(f: Finding) -> str:
-    m = f.mismatch
-    if m is None or m.kind is Disagreement.DEMOS_DIFFER:
-        return "Your demonstrations do not use the gripper the same way (not the same closes and opens)."
-    if m.kind is Disagreement.UNTAUGHT:
-        return "The skill moves the gripper though your demonstrations do not."
-    return (
-        f"The skill does not use the gripper as you did ({m.skill_actions} gripper actions instead of "
-        f"{m.demo_actions})."
-    )
-
-
-def _note(f: Finding, remedies: Remedies) -> str:
-    d = length_words(f.distance) if math.isfinite(f.distance) else ""
-    fix = f" — {remedies[f.remedy]}." if f.remedy is not None else "."
-    if f.issue is Issue.START_OFF:
-        return f"It starts {d} away from where your demonstrations start."
-    if f.issue is Issue.END_OFF:
-        return f"It ends {d} away from where your demonstrations end."
-    if f.issue is Issue.GRIPPER_MISMATCH:
-        return _gripper_mismatch(f)
-    if f.issue is Issue.GRIPPER_MISSED:
-        return f"It never {_VERB[f.action][:-1]}s the gripper where you {_PAST[f.action]} it{fix}"
-    if f.issue is Issue.GRIPPER_OFF:
-        return f"It {_VERB[f.action]} the gripper {d} away from where you {_PAST[f.action]} it (at {f.time:.1f} s){fix}"
-    if f.issue is Issue.UNREACHABLE:
-        return f"The robot cannot follow {100 * f.share:.0f} % of it (up to {d} off at {f.time:.1f} s){fix}"
-    if f.issue is Issue.OFF_PATH:
-        return f"The robot strays up to {d} from it (at {f.time:.1f} s){fix}"
-    if f.issue is Issue.SLOW:
-        robot, shortest, longest = f.durations
-        return (
-            f"The robot needs {robot:.1f} s for it (your demonstrations took {shortest:.1f}–{longest:.1f} s): its "
-            "joints cannot move that fast."
-        )
-    if f.issue is Issue.HELD_OUT:
-        fix = f": {remedies[f.remedy]}." if f.remedy is not None else "."
-        return f"Learned without one of your demonstrations, it misses that one by {d} on average{fix}"
-    if f.issue is Issue.OUTLIER:
-        return f"{f.demo} differs a lot from the others{fix}"
-    if f.issue is Issue.ROUTES:
-        return f"{routes_words(f.routes, f.route)}, never a path between them{fix}"
-    return f"{f.issue}{fix}"
 
 
 _COUNT = {2: "two", 3: "three"}
@@ -148,22 +70,6 @@ def routes_words(routes: Sequence[SkillRoute], route: int) -> str:
         f"Your demonstrations go {_COUNT.get(len(routes), str(len(routes)))} ways ({ways}). "
         f"I learned the way {sides[route]}"
     )
-
-
-def verdict_lines(v: Verdict, remedies: Remedies) -> tuple[str, ...]:
-    """The verdict in plain words: the headline ("Good: …", "Fair: …" or "Poor: …"), then one line per note."""
-    return (_headline(v, remedies), *(_note(f, remedies) for f in v.notes))
-
-
-def fit_note(fit: DemoFit) -> str:
-    """Why a demonstration fits the skill poorly ("" when it fits well)."""
-    if fit.why is Misfit.SHAPE:
-        return "It differs a lot from the others."
-    if fit.why is Misfit.LIKELIHOOD:
-        return "The skill's model finds it much less likely than the others."
-    if fit.why is Misfit.FAR:
-        return f"The learned path stays {length_words(fit.distance)} from it on average, far more than from the others."
-    return ""
 
 
 def _frame_words(role: str, robot: str = "the robot") -> str:
@@ -410,7 +316,7 @@ def moved_words(name: str, distance: float) -> str:
     )
 
 
-# -- contacts: what the robot touches (facts: studio.core.collision.Touch, studio.world.contacts) --------------
+# -- contacts: what the robot touches (facts: studio.core.touches.Touch, studio.world.contacts) --------------
 
 
 def part_words(p: Part) -> str:
@@ -538,15 +444,12 @@ def blocked_words(x: Touch) -> str:
 __all__ = [
     "GOAL_SOURCES",
     "OWN_TASK",
-    "SHARED_REMEDIES",
     "TASKS",
     "PlacementFacts",
-    "Remedies",
     "blocked_words",
     "contact_advice",
     "contact_sentence",
     "count_words",
-    "fit_note",
     "frame_lines",
     "goal_words",
     "grasp_words",
@@ -562,5 +465,4 @@ __all__ = [
     "task_words",
     "touch_words",
     "tune_summary",
-    "verdict_lines",
 ]
