@@ -15,8 +15,9 @@ from studio.core.errors import StudioError
 from studio.core.frames import DemoObjects, ObjectAt
 from studio.core.kinematics import Baxter
 from studio.core.learn_settings import LearnSettings
-from studio.core.pipeline import learn_path, learn_skill, routes_of
+from studio.core.pipeline import learn_path, learn_skill
 from studio.core.quality import DemoFit, QualityReport, Verdict
+from studio.core.routes import routes_of
 from studio.core.segment_view import SegmentFit, demos_in_frames, segment_fits, taught_placement
 from studio.core.segments import FrameChoice, choose_frames, learn_relative, place_skill
 from studio.core.thresholds import ThresholdSettings

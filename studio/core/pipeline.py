@@ -21,7 +21,7 @@ from studio.core.errors import InvalidInput, NotEnoughData
 from studio.core.generalize import PathBasis, joint_trajectory, learned_path
 from studio.core.kinematics import Baxter
 from studio.core.learn_settings import LearnSettings
-from studio.core.routes import Routes, find_routes
+from studio.core.routes import Routes, routes_of
 from studio.core.types import Arm, Demo, Generalization, KeypointParams, Recording, Skill, SkillRoute, check_arm
 
 #: DTW features besides the scaled pose: orientation is weighted down (on a drawn shape the hand's small
@@ -68,12 +68,6 @@ def _scaled(X: np.ndarray, scale: FeatureScale, ref_quat: np.ndarray) -> np.ndar
     X = np.array(X, dtype=np.float64)
     X[:, 3:7] = align_hemisphere(X[:, 3:7], ref_quat)
     return X / scale.divisors
-
-
-def routes_of(demos: Sequence[Demo], caches: LearningCaches | None = None) -> Routes:
-    """Which demonstrations go which way (:func:`studio.core.routes.find_routes`, remembered per set of demos)."""
-    demos = list(demos)
-    return (caches or LearningCaches()).routes.get_set(demos, ("routes",), lambda: find_routes(demos))
 
 
 def _route_demos(
@@ -438,5 +432,4 @@ __all__ = [
     "learn_path",
     "learn_skill",
     "preview_path",
-    "routes_of",
 ]
