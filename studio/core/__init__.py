@@ -1,7 +1,7 @@
 """The GUI-free core: the paper's pipeline over numpy arrays. It never imports viser; threading only for the
-robot model's per-thread solver data (kinematics) and Suggest's cancel flag (autotune). Learning keeps no
-module-level state: what it reuses is a :class:`~studio.core.caches.LearningCaches` its caller owns (Suggest's
-worker processes keep their search's data, autotune)."""
+robot model's per-thread solver data (kinematics) and the auto-tune's cancel flag (autotune). Learning keeps
+no module-level state: what it reuses is a :class:`~studio.core.caches.LearningCaches` its caller owns (the
+auto-tune's worker processes keep their search's data, autotune)."""
 
 from typing import TYPE_CHECKING
 
