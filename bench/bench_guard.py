@@ -26,8 +26,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+import studio.core.generalize as G
 import studio.core.pipeline as P
+from studio.core.caches import LearningCaches
 from studio.core.kinematics import Baxter
+from studio.core.learn_settings import LearnSettings
 from studio.core.thresholds import auto_params
 from studio.core.types import Demo
 from studio.shapes import ShapeSpec, shape_demos
@@ -48,12 +51,12 @@ def _sets() -> dict[str, list[Demo]]:
 @contextlib.contextmanager
 def _share(decide: Callable[..., float]) -> Iterator[Callable[..., float]]:
     """The guard's decision replaced by ``decide`` (:func:`_off`: never moved) inside the block; yields the studio's."""
-    plain = P._plain_mean_share
-    P._plain_mean_share = decide
+    plain = G._plain_mean_share
+    G._plain_mean_share = decide
     try:
         yield plain
     finally:
-        P._plain_mean_share = plain
+        G._plain_mean_share = plain
 
 
 def _off(*a: Any) -> float:
@@ -86,7 +89,7 @@ def _suggest_cpu(repeat: int) -> dict[str, float]:
     demos = _long_demos()
     cpu: dict[str, list[float]] = {"without": [], "with": []}
     for rep in range(repeat):
-        for label, decide in (("without", _off), ("with", P._plain_mean_share)):
+        for label, decide in (("without", _off), ("with", G._plain_mean_share)):
             with _share(decide):
                 ds = _renamed(demos, f"{label}-{rep}")
                 c0 = time.process_time()
@@ -119,9 +122,10 @@ def main() -> None:
 
 
 def _measure(demos: list[Demo], repeat: int) -> list[tuple[str, dict[str, float], list[float]]]:
-    plain = P._plain_mean_share
-    params = auto_params(demos)
-    P.learn_skill(demos, params)  # warm the series and DTW caches: what is timed is the rest
+    plain = G._plain_mean_share
+    settings = LearnSettings(params=auto_params(demos))
+    caches = LearningCaches()
+    P.learn_skill(demos, settings, caches=caches)  # warm the series and DTW caches: what is timed is the rest
     taken: list[float] = []
 
     def spy(*a: Any) -> float:
@@ -129,15 +133,15 @@ def _measure(demos: list[Demo], repeat: int) -> list[tuple[str, dict[str, float]
         return taken[-1]
 
     def train() -> None:
-        P.learn_skill(demos, params)
+        P.learn_skill(demos, settings, caches=caches)
 
     def move() -> None:
-        P.preview_path(demos, params)
+        P.preview_path(demos, settings, caches=caches)
 
     figures: dict[str, dict[str, float]] = {"Train (learn_skill), cold": {}, "slider move (preview_path)": {}}
     for label, decide in (("without", _off), ("with", spy)):
         with _share(decide):
-            figures["Train (learn_skill), cold"][label] = _median_s(train, repeat, P._GUARD_SHARES.clear)
+            figures["Train (learn_skill), cold"][label] = _median_s(train, repeat, caches.shares.clear)
             move()  # the first move fills the guard's memory; the next ones find it
             figures["slider move (preview_path)"][label] = _median_s(move, repeat, lambda: None)
     return [(what, f, taken) for what, f in figures.items()]

@@ -263,7 +263,10 @@ def part_websocket(args: argparse.Namespace) -> list[dict[str, Any]]:
 def part_skill(args: argparse.Namespace) -> list[dict[str, Any]]:
     import numpy as np
 
-    from studio.core import pipeline, sampling
+    from studio.core import sampling
+    from studio.core.learn import learn
+    from studio.core.learn_settings import LearnSettings
+    from studio.core.pipeline import demo_from_recording
     from studio.storage import SessionStore
 
     tmp = Path(tempfile.mkdtemp(prefix="bench-hostile-skill-"))
@@ -271,7 +274,8 @@ def part_skill(args: argparse.Namespace) -> list[dict[str, Any]]:
         shutil.copytree(ROOT / "sessions" / "stack-cup", tmp / "stack-cup")
         store = SessionStore(tmp)
         s = store.open("stack-cup")
-        skills = pipeline.learn_arms(s.recordings, params=s.params, arms=("left",), seed=0)
+        demos = [demo_from_recording(r, "left") for r in s.recordings if "left" in r.arms]
+        skills = {"left": learn(demos, None, LearnSettings(params=s.params), arm="left").skill}
         s.set_skills(skills)
         sk = skills["left"]
         jt = sk.joint_trajectory

@@ -50,7 +50,7 @@ def _patch(name: str) -> None:
     import studio.core.pipeline as P
 
     if name != "default":
-        P._plain_mean_share = lambda *a: 0.0
+        G._plain_mean_share = lambda *a: 0.0
     if name.startswith("dir"):
         P.DTW_DIRECTION_WEIGHT *= float(name[3:])
     elif name.startswith("from-"):
@@ -80,17 +80,18 @@ def _patch(name: str) -> None:
 
         dtai.warping_path_fast = path
     elif name.startswith("dba"):
-        P._aligned_mean = functools.partial(_realigned, int(name[3:]))
+        G._aligned_mean = functools.partial(_realigned, int(name[3:]))
 
 
 def _realigned(times: int, demos, fm, t, cache):  # type: ignore[no-untyped-def]
     """The aligned mean, then ``times`` rounds of: every demo aligned to it by DTW, averaged again."""
+    import studio.core.generalize as G
     import studio.core.pipeline as P
     from studio.core import alignment
     from studio.core.clustering import FeatureScale
     from studio.core.types import Demo
 
-    pose, grip = P._mean_pose(demos, fm.inverse, fm.ref, t, cache)
+    pose, grip = G._mean_pose(demos, fm.inverse, fm.ref, t, cache)
     scale = FeatureScale.for_demos(demos)
     ref_quat = np.asarray(demos[fm.ref].orientation[0], dtype=np.float64)
     rate = alignment.common_rate([d.duration for d in demos])
@@ -103,7 +104,7 @@ def _realigned(times: int, demos, fm, t, cache):  # type: ignore[no-untyped-def]
             g = alignment.time_grid(d.t[0], d.t[-1], rate)
             _, p = alignment.dtw(sm, P._dtw_series(alignment.resample(d.t, d.features, g), scale, ref_quat, "shape"))
             inverse.append(P._warp_to(alignment.time_map(p, gm, g), g, float(d.t[0]), gm - t[0], float(t[0])))
-        pose, grip = P._mean_pose(demos, inverse, fm.ref, t, cache)
+        pose, grip = G._mean_pose(demos, inverse, fm.ref, t, cache)
     return pose
 
 

@@ -26,6 +26,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from _timer import median_ms
 
 from studio.core.alignment import MAX_POINTS
+from studio.core.caches import LearningCaches
 from studio.core.clustering import cluster
 from studio.core.keypoints import KeypointCache
 from studio.core.kinematics import Baxter
@@ -119,9 +120,9 @@ def main() -> None:
     # 2. learn_skill 3 × 30,000 -------------------------------------------------------------------------
     cold = median_ms(lambda: learn_skill(demos3), rep)
     cold_cpu = median_ms(lambda: learn_skill(demos3), rep, time.process_time)
-    warm_cache = KeypointCache()
-    learn_skill(demos3, cache=warm_cache)
-    warm = median_ms(lambda: learn_skill(demos3, cache=warm_cache), rep)
+    warm_cache = LearningCaches()
+    learn_skill(demos3, caches=warm_cache)
+    warm = median_ms(lambda: learn_skill(demos3, caches=warm_cache), rep)
     b = Baxter.load()
     with_ik = median_ms(lambda: learn_skill(demos3, arm="left", baxter=b), max(3, rep // 3))
     print(

@@ -57,9 +57,11 @@ from _timer import median_ms
 
 from studio.core import autotune
 from studio.core import quality as Q
+from studio.core.caches import LearningCaches
 from studio.core.errors import StudioError
 from studio.core.keypoints import KeypointCache
 from studio.core.kinematics import Baxter
+from studio.core.learn_settings import LearnSettings
 from studio.core.pipeline import demo_from_recording, learn_path, learn_skill, preview_path
 from studio.core.thresholds import auto_params
 from studio.core.types import Demo
@@ -149,7 +151,7 @@ def peer_gmr(demos: list[Demo]) -> np.ndarray:
 
 def studio_path(mode: str) -> Callable[[list[Demo]], np.ndarray]:
     def fit(demos: list[Demo]) -> np.ndarray:
-        return np.asarray(learn_path(demos, generalization=mode, rate_hz=200.0).position)
+        return np.asarray(learn_path(demos, LearnSettings(generalization=mode), rate_hz=200.0).position)
 
     return fit
 
@@ -380,7 +382,7 @@ def _suggest(demos: list[Demo], ref: Ref, held: bool) -> dict[str, Any]:
     t0 = time.perf_counter()
     tr = autotune.suggest(demos)
     secs = time.perf_counter() - t0
-    sk2 = learn_skill(demos, tr.params, n_clusters=tr.n_clusters)
+    sk2 = learn_skill(demos, LearnSettings(params=tr.params, n_clusters=tr.n_clusters))
     out: dict[str, Any] = ref.score(np.asarray(sk2.trajectory.position))
     out.update(changed=tr.changed, seconds=secs, before=tr.before.g_over_r, after=tr.after.g_over_r)
     # held out as the default's figure is (studio_path): the thresholds resolved on the demos each fold learns
@@ -388,7 +390,9 @@ def _suggest(demos: list[Demo], ref: Ref, held: bool) -> dict[str, Any]:
     out["held"] = (
         ref.held_out(
             lambda dd: np.asarray(
-                learn_path(dd, tr.settings.resolve(dd), n_clusters=tr.n_clusters, rate_hz=200.0).position
+                learn_path(
+                    dd, LearnSettings(params=tr.settings.resolve(dd), n_clusters=tr.n_clusters), rate_hz=200.0
+                ).position
             )
         )
         if held
@@ -581,15 +585,17 @@ def timing(quick: bool) -> None:
     for b in ("numpy", "sklearn", "numpy", "sklearn"):
         ms = median_ms(lambda b=b: slider(b), rep)
         print(f"slider move (re-extract + re-cluster), k-means {b:<8}: median {ms:6.1f} ms  (budget 30 ms)")
-    preview_path(demos, base, cache=cache)  # DTW maps cached, as during a slider drag
+    caches = LearningCaches(cache)
+    preview_path(demos, LearnSettings(params=base), caches=caches)  # DTW maps cached, as during a slider drag
 
     def prev() -> None:
         nonlocal i
         i += 1
-        preview_path(demos, replace(base, eps5=base.eps5 * (1.0 + 0.05 * (i % 5))), cache=cache)
+        moved = replace(base, eps5=base.eps5 * (1.0 + 0.05 * (i % 5)))
+        preview_path(demos, LearnSettings(params=moved), caches=caches)
 
     print(f"live preview path (preview_path, warm caches): median {median_ms(prev, rep):6.1f} ms  (budget 150 ms)")
-    ms = median_ms(lambda: learn_skill(demos, base, cache=cache), max(3, rep // 3))
+    ms = median_ms(lambda: learn_skill(demos, LearnSettings(params=base), caches=caches), max(3, rep // 3))
     print(f"learn_skill (warm key-point cache):            median {ms:6.1f} ms")
     suggest_timing(demos, 1 if quick else 3)
 

@@ -130,10 +130,8 @@ def learn(args: argparse.Namespace, out: TextIO | None = None) -> int:
                 )
             elif res is not None:
                 print(f"{arm.capitalize()} arm — searched in {res.seconds:.1f} s. {tune_summary(res)}", file=out)
-        skills = ctl.training.train(arms).result()
-        elapsed = time.perf_counter() - t0
-        assert skills is not None and ctl.training.judgement is not None  # a headless controller raises failures
-        ctl.training.judgement.result()
+        skills = train(ctl, arms)
+        elapsed = time.perf_counter() - t0  # Suggest, learning and judging
         verdicts = ctl.training.verdicts()
         touching = ctl.scene.contact_reason()  # what the skill would touch, with the objects of the session's scene
     print(report(session, skills, elapsed), file=out)

@@ -139,8 +139,7 @@ def test_learn_needs_two_demos(tmp_path: Path, capsys: pytest.CaptureFixture) ->
 def test_learn_uses_the_sessions_k_and_remembers_each_arms_demos(
     tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    pipeline = pytest.importorskip("studio.core.pipeline")
-    quality = pytest.importorskip("studio.core.quality")
+    learn = pytest.importorskip("studio.core.learn")
     calls: list[dict] = []
 
     class FakeSkill:  # what `studio learn` saves and reports, without learning
@@ -158,15 +157,15 @@ def test_learn_uses_the_sessions_k_and_remembers_each_arms_demos(
         def to_arrays(self) -> dict[str, np.ndarray]:
             return {"x": np.zeros(1)}
 
-    def fake_learn_skill(demos, params=None, *, n_clusters=None, arm="left", **kwargs):
-        calls.append({"arm": arm, "n_clusters": n_clusters})
+    def fake_learn_skill(demos, settings, *, arm="left", **kwargs):
+        calls.append({"arm": arm, "n_clusters": settings.n_clusters})
         return FakeSkill(tuple(d.name for d in demos))
 
-    monkeypatch.setattr(pipeline, "learn_skill", fake_learn_skill)
+    monkeypatch.setattr(learn, "learn_skill", fake_learn_skill)
     verdict = SimpleNamespace(level="fake")
-    monkeypatch.setattr(pipeline, "judge_skill", lambda skill, demos, fixed_k: (None, verdict))
+    judged = SimpleNamespace(verdict=verdict, fits=(), segments=(), choices=())
+    monkeypatch.setattr(learn, "judge", lambda skill, demos, *a, **kw: judged)
     monkeypatch.setattr(commands, "verdict_words", lambda v, remedies: ("fits",) if v is verdict else ())
-    monkeypatch.setattr(quality, "demo_fits", lambda report: ())
     store = SessionStore(tmp_path)
     s = store.create("both arms", arms=("left", "right"))
     n = 300

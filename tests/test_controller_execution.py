@@ -318,12 +318,12 @@ def test_refusals_are_plain(rig, trained: Path) -> None:
 
 
 def test_both_arms_run_together_when_both_are_taught(rig) -> None:
-    from studio.core.pipeline import learn_arms
     from studio.teacher import recording_from_plan, teach
+    from tests.core.teacher_demos import skills_of
 
     ctl, sim, _ = rig
     recs = [recording_from_plan(teach("stack-cup", s, arm="both")) for s in (0, 1)]
-    ctl.session.set_skills(learn_arms(recs))
+    ctl.session.set_skills(skills_of(recs))
     ctl.events.emit(Topic.SKILL)
     assert ctl.execution.why_not() == ""
     ctl.execution.run()

@@ -204,12 +204,12 @@ def test_skill_export_prefers_the_joint_trajectory_gripper(tmp_path: Path) -> No
 def test_exported_skills_respect_velocity_and_acceleration_limits_at_1khz(tmp_path: Path) -> None:
     """Both arms' learned skills, exported as the SDK CSV and read back: every row-to-row velocity and
     acceleration at 1 kHz is within Baxter's limits (URDF velocity, ACCELERATION_LIMITS)."""
-    from studio.core.pipeline import learn_arms
     from studio.teacher import recording_from_plan, teach
+    from tests.core.teacher_demos import skills_of
 
     b = Baxter.load()
     recs = [recording_from_plan(teach("pick-place", s, arm="both")) for s in (0, 1)]
-    skills = learn_arms(recs, baxter=b)
+    skills = skills_of(recs, baxter=b)
     assert set(skills) == {"left", "right"}
     f = tmp_path / "both.csv"
     n = export_joint_trajectory_csv(skills, f)

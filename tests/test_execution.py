@@ -225,11 +225,11 @@ def test_refusals_are_plain() -> None:
 
 
 def test_both_arms_run_together_and_a_partial_run_is_reported(tmp_path: Path) -> None:
-    from studio.core.pipeline import learn_arms
     from studio.teacher import recording_from_plan, teach
+    from tests.core.teacher_demos import skills_of
 
     recs = [recording_from_plan(teach("stack-cup", s, arm="both")) for s in (0, 1)]
-    skills = learn_arms(recs)
+    skills = skills_of(recs)
     jts = {a: s.joint_trajectory for a, s in skills.items() if s.joint_trajectory is not None}
     assert set(jts) == {"left", "right"}
     sim = SimulatedBaxter()

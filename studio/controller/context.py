@@ -1,7 +1,7 @@
 """What every part of the controller shares: the open session and its taught arms, one lock, the events,
-notifications, the pose the scene draws, the checks before the session changes, one work thread for heavy jobs
-and the helper threads they spread tasks over. Failures become plain-words notifications; the studio keeps
-running."""
+notifications, the pose the scene draws, what learning reuses, the checks before the session changes, one work
+thread for heavy jobs and the helper threads they spread tasks over. Failures become plain-words notifications;
+the studio keeps running."""
 
 from __future__ import annotations
 
@@ -15,6 +15,7 @@ from typing import Literal, ParamSpec, Protocol, TypeVar
 from studio.controller.events import Events, Topic
 from studio.controller.pose import Display
 from studio.core.arms import normalize_arms
+from studio.core.caches import LearningCaches
 from studio.core.errors import InvalidInput, StudioError
 from studio.core.kinematics import Baxter
 from studio.core.types import Arm
@@ -83,6 +84,9 @@ class Context:
         self.events = Events()
         self.lock = threading.RLock()
         self.display = Display()
+        #: what learning reuses across calls (key-point series, DTW maps, ways): the sliders, the live path and
+        #: training share it
+        self.caches = LearningCaches()
         self.headless = headless
         self._leaving: list[Callable[[str], None]] = []
         self._work = ThreadPoolExecutor(max_workers=1, thread_name_prefix="studio-work")

@@ -85,7 +85,8 @@ class KeypointTuning:
     def __init__(self, ctx: Context, demos: ShownDemos) -> None:
         self.ctx = ctx
         self.demos = demos
-        self.cache = KeypointCache()  # per-demo derived series, reused across ε changes (weak keys)
+        #: per-demo derived series, reused across ε changes (weak keys; the controller's, shared with learning)
+        self.cache: KeypointCache = ctx.caches.keypoints
         self.view: KeypointView | None = None
         self.followers: list[Follower] = []
         self._session: Session = ctx.session  # the session the settings belong to

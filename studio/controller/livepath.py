@@ -14,7 +14,7 @@ import numpy as np
 from studio.controller.context import Context
 from studio.controller.events import Topic
 from studio.controller.learning import Follower, KeypointView, ShownDemos
-from studio.core.keypoints import KeypointCache
+from studio.core.learn_settings import LearnSettings
 from studio.core.types import Arm, Demo, SkillRoute
 
 
@@ -65,7 +65,6 @@ class KeypointSource(Protocol):
     """The key-point view and its settings (:class:`~studio.controller.learning.KeypointTuning`)."""
 
     view: KeypointView | None
-    cache: KeypointCache
 
     @property
     def k(self) -> int | None: ...
@@ -90,15 +89,12 @@ class LivePaths:
         wanted: Callable[[], bool],
         route: Callable[[Arm], int | None] = lambda arm: None,
     ) -> None:
-        from studio.core.pipeline import AlignmentCache
-
         self.ctx = ctx
         self.demos = demos
         self.tuning = tuning
         self.wanted = wanted
         self.route = route  #: the way the teacher chose for an arm (None: the way most demonstrations go)
         self.paths: dict[Arm, LivePath] = {}
-        self.align_cache = AlignmentCache()
         self.computed_ms: float = math.nan  # how long the last set of paths took (for the bench)
         tuning.add_follower(self.follow)
         ctx.events.on(Topic.VIEW, self.refresh_if_wanted)
@@ -126,16 +122,13 @@ class LivePaths:
                     return
                 if not demos or idx is None or len(idx) != len(demos):
                     continue
-                pp = preview_path(
-                    demos,
-                    params,
+                settings = LearnSettings(
+                    params=params,
                     n_clusters=view.k.get(arm) if self.tuning.k is not None else None,
                     generalization=mode,
-                    cache=self.tuning.cache,
-                    align_cache=self.align_cache,
-                    keypoints=idx,
                     route=self.route(arm),
                 )
+                pp = preview_path(demos, settings, caches=self.ctx.caches, keypoints=idx)
                 out[arm] = LivePath(
                     arm,
                     view.version,

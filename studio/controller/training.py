@@ -1,5 +1,6 @@
 """Training: learn the skill of every taught arm on the work thread, then judge it (the verdict in plain words
-and how well each demonstration fits), and answer what the panels show about the learned skill."""
+and how well each demonstration fits), and answer what the panels show about the learned skill. The learning
+and the judging are the core's (:mod:`studio.core.learn`); this part schedules them and keeps the session."""
 
 from __future__ import annotations
 
@@ -15,9 +16,10 @@ from studio.controller.events import Topic
 from studio.controller.learning import ShownDemos
 from studio.controller.placed import rules_of
 from studio.core.errors import NotEnoughData, StudioError
-from studio.core.frames import DemoObjects
-from studio.core.keypoints import KeypointCache
-from studio.core.quality import DemoFit, QualityReport, Verdict
+from studio.core.frames import ObjectAt
+from studio.core.learn import TaughtObjects
+from studio.core.learn_settings import LearnSettings
+from studio.core.quality import DemoFit, Verdict
 from studio.core.segment_view import SegmentFit
 from studio.core.segments import FrameChoice
 from studio.core.thresholds import ThresholdSettings
@@ -60,8 +62,6 @@ class DemoSource(ShownDemos, Protocol):
 
 class Settings(Protocol):
     """The thresholds and k a skill is learned with (:class:`~studio.controller.learning.KeypointTuning`)."""
-
-    cache: KeypointCache
 
     @property
     def k(self) -> int | None: ...
@@ -142,8 +142,7 @@ class Training:
     def train(self, arms: Sequence[Arm] | None = None) -> Future[dict[Arm, Skill] | None]:
         """Learn the skill of every taught arm (or of ``arms``) from the shown demos on the work thread, then
         judge it."""
-        from studio.core.pipeline import learn_skill, routes_of
-        from studio.core.segments import learn_relative
+        from studio.core.learn import learn
 
         with self.ctx.lock:
             if self.busy:
@@ -157,57 +156,43 @@ class Training:
                         f"The {arm} arm needs at least two shown demonstrations to learn from "
                         f"(it has {len(demos)}). Record more, or show hidden ones."
                     )
-            settings, k = self.tuning.settings(), self.tuning.k
-            params = {arm: self.tuning.params(arm, settings) for arm in per_arm}
-            mode, frames = self.ctx.session.generalization, self.ctx.session.frames
-            routes = dict(self._routes)
+            thresholds, k = self.tuning.settings(), self.tuning.k
+            params = {arm: self.tuning.params(arm, thresholds) for arm in per_arm}
             session = self.ctx.session  # the skill belongs to the session it was learned from
+            frames = session.frames
+            settings = {
+                arm: LearnSettings(
+                    params=params[arm],
+                    n_clusters=k,
+                    generalization=session.generalization,
+                    frames=frames,
+                    route=self._routes.get(arm),
+                )
+                for arm in per_arm
+            }
             used = [session.recordings[i] for demos in per_arm.values() for i, _ in demos]
             self.busy = True
         self.ctx.emit(Topic.TRAINING)
-        baxter, cache = self.ctx.baxter, self.tuning.cache
-
-        relative = {arm: self._objects(arm, demos) for arm, demos in per_arm.items()} if frames == "objects" else {}
-        rules = {
-            arm: rules_of(session, o, [i for i, _ in per_arm[arm]])
-            for arm, o in relative.items()
-            if not isinstance(o, str)
+        now = tuple(objects_now(session.objects.scene))
+        objects = {
+            arm: self._taught(arm, [i for i, _ in demos], now) if frames == "objects" else None
+            for arm, demos in per_arm.items()
         }
-        now = objects_now(session.objects.scene)
-
-        def way(arm: Arm, demos: list[Demo]) -> int | None:
-            r = routes.get(arm)
-            return r if r is not None and r < len(routes_of(demos)) else None  # the demos changed since
 
         def job() -> dict[Arm, Skill]:
             out: dict[Arm, Skill] = {}
             for arm, demos in per_arm.items():
-                objs = relative.get(arm)
-                if objs is not None and not isinstance(objs, str):
-                    out[arm] = learn_relative(
-                        [d for _, d in demos],
-                        objs,
-                        params[arm],
-                        now=now,
-                        arm=arm,
-                        baxter=baxter,
-                        generalization=mode,
-                        rules=rules.get(arm),
-                    )
-                    continue
-                if isinstance(objs, str):
-                    self.ctx.notify("The skill follows fixed places", objs, kind="info")
-                out[arm] = learn_skill(
+                learned = learn(
                     [d for _, d in demos],
-                    params[arm],
-                    n_clusters=k,
-                    seed=0,
+                    objects[arm],
+                    settings[arm],
                     arm=arm,
-                    baxter=baxter,
-                    cache=cache,
-                    generalization=mode,
-                    route=way(arm, [d for _, d in demos]),
+                    baxter=self.ctx.baxter,
+                    caches=self.ctx.caches,
                 )
+                if learned.note:
+                    self.ctx.notify("The skill follows fixed places", learned.note, kind="info")
+                out[arm] = learned.skill
             return out
 
         def done(skills: dict[Arm, Skill]) -> None:
@@ -245,9 +230,13 @@ class Training:
         fut.add_done_callback(lambda f: self._finished())
         return fut
 
-    def _objects(self, arm: Arm, demos: list[tuple[int, Demo]]) -> list[DemoObjects] | str:
-        """The objects and ``arm``'s contacts of each demonstration, or why the skill cannot follow them."""
-        return self.demos.objects_of(arm, [i for i, _ in demos])
+    def _taught(self, arm: Arm, indices: list[int], now: tuple[ObjectAt, ...] | None = None) -> TaughtObjects:
+        """The objects and ``arm``'s contacts of the demonstrations ``indices`` (each contact at its moment in the
+        demonstration as taught), or why the skill cannot follow them; ``now``: where the objects stand now."""
+        objs = self.demos.objects_of(arm, indices)
+        if isinstance(objs, str):
+            return TaughtObjects(why_not=objs)
+        return TaughtObjects(tuple(objs), rules=rules_of(self.ctx.session, objs, indices), now=now)
 
     def _finished(self) -> None:
         if self.busy:  # the job failed: done() never ran
@@ -269,10 +258,10 @@ class Training:
         with self.ctx.lock:
             self.judging = bool(skills)
         self.ctx.emit(Topic.VERDICT)
-        fixed_k = session.n_clusters is not None
+        settings = LearnSettings(n_clusters=session.n_clusters)
 
         def job() -> None:
-            out = {arm: self._judge_one(arm, skill, fixed_k) for arm, skill in skills.items()}
+            out = {arm: self._judge_one(arm, skill, settings) for arm, skill in skills.items()}
             with self.ctx.lock:
                 if session is self.ctx.session:
                     self._verdicts.update(out)
@@ -287,12 +276,11 @@ class Training:
         self.judgement = fut
         return fut
 
-    def _judge_one(self, arm: Arm, skill: Skill, fixed_k: bool) -> SkillVerdict:
-        from studio.core.pipeline import judge_skill
-        from studio.core.quality import demo_fits
+    def _judge_one(self, arm: Arm, skill: Skill, settings: LearnSettings) -> SkillVerdict:
+        from studio.core.learn import judge
 
         used = self.skill_demos(arm)
-        demos = [u.demo for u in used if u.demo is not None]
+        demos = [u.demo for u in used if u.demo is not None]  # as taught
         if len(demos) != len(used) or not demos:
             return SkillVerdict(
                 skill,
@@ -300,60 +288,14 @@ class Training:
                 message="Some demonstrations this skill learned from were renamed or deleted since: train again "
                 "to see how good it is.",
             )
+        indices = [u.index for u in used if u.index is not None]
         if any(len(k) and int(np.max(k)) >= len(d) for k, d in zip(skill.keypoints, demos, strict=False)):
             return SkillVerdict(
                 skill, None, message="Demonstrations were trimmed since this skill was learned: train again."
             )
-        relative = self._in_frames(arm, skill, used, demos)
-        if relative is None:
-            report, verdict = judge_skill(skill, demos, fixed_k=fixed_k)
-            return SkillVerdict(skill, verdict, demo_fits(report))
-        report, verdict, segments, choices = relative
-        return SkillVerdict(skill, verdict, demo_fits(report), segments=segments, choices=choices)
-
-    def _in_frames(
-        self, arm: Arm, skill: Skill, used: list[UsedDemo], demos: list[Demo]
-    ) -> tuple[QualityReport, Verdict, tuple[SegmentFit, ...], tuple[FrameChoice, ...]] | None:
-        """A skill that follows the objects, judged where the demonstrations had them (the one nearest the
-        middle of their places, never where the objects stand now): its path placed there against the
-        demonstrations moved there (each stretch with its object), held out with the skill learned the same way
-        without one demonstration, and each stretch measured in its own frame; with how each border's frame was
-        chosen. None for any other skill."""
-        from studio.core import quality
-        from studio.core.segment_view import demos_in_frames, segment_fits, taught_placement
-        from studio.core.segments import choose_frames, learn_relative, place_skill
-
-        if skill.frames is None:
-            return None
-        indices = [u.index for u in used if u.index is not None]
-        objs = self.demos.objects_of(arm, indices)
-        if isinstance(objs, str):
-            return None
-        rules = rules_of(self.ctx.session, objs, indices)
-        _, choices, _ = choose_frames(objs, rules)
-        now = taught_placement(objs)
-        moved = demos_in_frames(demos, objs, now, skill.frames)
-        if moved is None:
-            return None
-        try:  # where the demonstrations had the objects: the arm's reach is judged there too
-            placed = place_skill(skill, now, arm=arm, baxter=self.ctx.baxter)
-        except StudioError:  # an object the skill needs is missing from them, or the arm cannot follow it there
-            return None
-
-        def learn(dd: list[Demo]) -> Demo:
-            keep = [i for i, m in enumerate(moved) if any(m is d for d in dd)]
-            return learn_relative(
-                [demos[i] for i in keep],
-                [objs[i] for i in keep],
-                skill.params,
-                now=now,
-                generalization=skill.generalization,
-                rules=rules,
-            ).trajectory
-
-        held = quality.held_out(moved, learn, folds=list(range(min(len(moved), 3))))
-        report = quality.assess(placed, moved, held_out_result=held)
-        return report, quality.verdict(report), segment_fits(skill.frames, demos, objs), choices
+        objects = self._taught(arm, indices) if skill.frames is not None else None
+        j = judge(skill, demos, objects, settings, arm=arm, baxter=self.ctx.baxter, caches=self.ctx.caches)
+        return SkillVerdict(skill, j.verdict, j.fits, segments=j.segments, choices=j.choices)
 
     def _on_session(self) -> None:
         with self.ctx.lock:

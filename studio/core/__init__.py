@@ -1,4 +1,7 @@
-"""The GUI-free core: the paper's pipeline over numpy arrays (never imports viser or threading)."""
+"""The GUI-free core: the paper's pipeline over numpy arrays. It never imports viser; threading only for the
+robot model's per-thread solver data (kinematics) and the auto-tune's cancel flag (autotune). Learning keeps
+no module-level state: what it reuses is a :class:`~studio.core.caches.LearningCaches` its caller owns (the
+auto-tune's worker processes keep their search's data, autotune)."""
 
 from typing import TYPE_CHECKING
 
@@ -24,7 +27,8 @@ from studio.core.types import (
 
 if TYPE_CHECKING:  # loaded lazily below; named here for the type checker
     from studio.core.keypoints import KeypointCache, extract_keypoints
-    from studio.core.pipeline import demo_from_recording, learn_arms, learn_skill
+    from studio.core.learn import learn, learn_and_judge
+    from studio.core.pipeline import demo_from_recording, learn_skill
 
 # The learning pipeline pulls in pinocchio, scipy and hmmlearn; load it on first use so that importing
 # the types (sessions, backends) stays light.
@@ -32,7 +36,8 @@ _LAZY = {
     "KeypointCache": "studio.core.keypoints",
     "extract_keypoints": "studio.core.keypoints",
     "demo_from_recording": "studio.core.pipeline",
-    "learn_arms": "studio.core.pipeline",
+    "learn": "studio.core.learn",
+    "learn_and_judge": "studio.core.learn",
     "learn_skill": "studio.core.pipeline",
     "compare_execution": "studio.core.execution",
     "joint_trajectory": "studio.core.execution",
@@ -72,7 +77,8 @@ __all__ = [
     "demo_from_recording",
     "extract_keypoints",
     "joint_trajectory",
-    "learn_arms",
+    "learn",
+    "learn_and_judge",
     "learn_skill",
     "plan_execution",
     "skill_feasibility",

@@ -142,8 +142,7 @@ _STATE: dict[str, tuple] = {}
 
 def _state(token: str, demos: list[Demo], generalization: str) -> tuple:
     from studio.core import quality
-    from studio.core.keypoints import KeypointCache
-    from studio.core.pipeline import AlignmentCache
+    from studio.core.caches import LearningCaches
 
     st = _STATE.get(token)
     if st is None:
@@ -153,8 +152,7 @@ def _state(token: str, demos: list[Demo], generalization: str) -> tuple:
         actions = [quality.demo_actions(d) for d in demos]
         st = _STATE[token] = (
             demos,
-            KeypointCache(),
-            AlignmentCache(),
+            LearningCaches(),
             curves,
             r,
             DemoStats.of(demos),
@@ -173,11 +171,12 @@ def _params(c: Candidate, stats: DemoStats) -> KeypointParams:
 def _score(c: Candidate, st: tuple, folds: Sequence[int]) -> Score:
     from studio.core import quality
     from studio.core.clustering import default_n_clusters
+    from studio.core.learn_settings import LearnSettings
     from studio.core.pipeline import learn_path
 
-    demos, kc, ac, curves, r, stats, generalization, actions = st
+    demos, caches, curves, r, stats, generalization, actions = st
     params = _params(c, stats)
-    kps_all = [kc.extract(d, params) for d in demos]
+    kps_all = [caches.keypoints.extract(d, params) for d in demos]
     msd, ks, task = [], [], []
     for i in folds:
         train = [d for j, d in enumerate(demos) if j != i]
@@ -187,7 +186,8 @@ def _score(c: Candidate, st: tuple, folds: Sequence[int]) -> Score:
         else:
             k = max(2, round(c.k_factor * default_n_clusters(kps)))
         try:
-            tr = learn_path(train, params, n_clusters=k, generalization=generalization, cache=kc, align_cache=ac)
+            settings = LearnSettings(params=params, n_clusters=k, generalization=generalization)
+            tr = learn_path(train, settings, caches=caches)
         except StudioError:
             return Score(math.inf, math.inf, float(np.mean([len(x) for x in kps_all])), float(k), math.inf)
         msd.append(quality.ndtw(quality.curve(tr, 300), curves[i]))
@@ -302,7 +302,7 @@ class _Search:
     def key(self, c: Candidate) -> tuple:
         """What decides a candidate's figures: its thresholds in real units and its k (or k factor)."""
         k = ("k", c.k) if c.k is not None else ("factor", c.k_factor)
-        return (tuple(_params(c, self.st[5]).as_dict().items()), k)
+        return (tuple(_params(c, self.st[4]).as_dict().items()), k)
 
     def run(self, cands: list[Candidate], msg: str) -> list[Score] | None:
         """Score candidates, each set of thresholds once per search (:meth:`key`); None if cancelled."""
@@ -431,7 +431,8 @@ def suggest(
     Raises:
         NotEnoughData: fewer than two demonstrations.
     """
-    from studio.core.pipeline import DEFAULT_GENERALIZATION, _validate
+    from studio.core.pipeline import _validate
+    from studio.core.types import DEFAULT_GENERALIZATION
 
     t0 = time.perf_counter()
     demos = _validate(demos)

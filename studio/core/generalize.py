@@ -1,19 +1,23 @@
-"""The generalized trajectory (paper § Generalized Trajectory) and its joint-space execution (§ Robot Execution).
-
-The timed path points are joined by a cubic smoothing spline (scipy ``make_smoothing_spline``), position and
-quaternion components together, weighted by the key-points behind each point (the ends most), and sampled at
-the demonstrations' rate; the gripper is a step signal between levels, switching at the gripper-event
-key-points. Choices and figures: docs/decisions/015. :func:`joint_trajectory` (from
-:mod:`studio.core.execution`) turns the path into timed joint angles."""
+"""The generalized trajectory (paper § Generalized Trajectory): :func:`learned_path` makes the skill's path from the
+timed path points, either the paper's cubic smoothing spline (:func:`generalize`: position and quaternion
+together, weighted by the key-points behind each point, the gripper a step signal; decision 015) or the demos
+averaged along their DTW alignment, pinned to their mean start, end, grasps and releases (decisions 003, 083).
+:func:`joint_trajectory` (from :mod:`studio.core.execution`) turns a path into timed joint angles."""
 
 from __future__ import annotations
 
+import hashlib
 import math
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.interpolate import make_interp_spline, make_smoothing_spline
 
+from studio.core import quality
+from studio.core.caches import LearningCaches
 from studio.core.errors import InvalidInput
+from studio.core.keypoints import KeypointCache
 from studio.core.kinematics import make_sign_continuous
 from studio.core.types import Demo
 
@@ -27,6 +31,10 @@ GRIPPER_LEVEL_TOL = 10.0
 MIN_SPACING_S = 0.02
 #: Seconds either side over which a path is bent onto a pinned pose (:func:`pin_poses`).
 PIN_S = 0.15
+#: Points per curve when the plain mean is matched to the aligned mean (:func:`_plain_mean_along`).
+_ALONG_POINTS = 400
+#: Shares of the plain mean tried when the aligned mean is farther from the demos than it (decision 083).
+PLAIN_MEAN_SHARES = (0.25, 0.5, 0.75, 1.0)
 
 
 def _merge_close(
@@ -232,18 +240,184 @@ def demo_pins(demos: list[Demo], t: np.ndarray, gripper: np.ndarray) -> list[tup
     return pins
 
 
+# -- the learned path: the paper's spline or the aligned mean ----------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class PathBasis:
+    """What a learned path is made of: the timed path points (the spline's) and, per demo, the smoothed inverse
+    of its DTW time map onto the reference's time line (the aligned mean's).
+
+    Attributes:
+        times: (P,) path point times, s from the reference's start; points: (P, 8); weights: (P,) key-points
+            behind each point.
+        ref: index of the reference demo.
+        inverse: per demo, reference time (from its start) -> demo time (from its start).
+    """
+
+    times: np.ndarray
+    points: np.ndarray
+    weights: np.ndarray
+    ref: int
+    inverse: list[Callable[[np.ndarray], np.ndarray]]
+
+
+def learned_path(
+    demos: list[Demo],
+    basis: PathBasis,
+    *,
+    generalization: str,
+    smoothing: float,
+    caches: LearningCaches,
+    rate_hz: float | None = None,
+) -> Demo:
+    """The skill's path: the smoothing spline through the path points (``generalization="paper"``) or the demos
+    averaged along their DTW alignment, pinned to their mean start, end, grasps and releases and moved toward
+    the plain mean where that is nearer the demos (decision 083); at ``rate_hz`` (default: the demos' rate)."""
+    ref_demo = demos[basis.ref]
+    dt = float(np.median(np.diff(ref_demo.t)))
+    traj = generalize(
+        basis.times,
+        basis.points,
+        weights=basis.weights,
+        t_start=0.0,
+        t_end=ref_demo.duration,
+        rate_hz=rate_hz or 1.0 / dt,
+        smoothing=smoothing,
+        name="learned skill",
+    )
+    if generalization == "paper":
+        return traj
+    t = np.asarray(traj.t)
+    pose = _aligned_mean(demos, basis, t, caches.keypoints)
+    pins = demo_pins(demos, t, traj.gripper)
+    ori = make_sign_continuous(pose[:, 3:])
+    pos, ori = pin_poses(t, pose[:, :3], ori, pins)
+    if len(demos) > 1:
+        tf, pf = t, pose
+        if rate_hz is not None and t.shape[0] > 1 and abs((t[1] - t[0]) - dt) > 1e-12:
+            # decided on the path at the demos' rate, as learn_skill makes it: the preview shows the skill
+            tf = sample_times(0.0, ref_demo.duration, 1.0 / dt)
+            pf = _aligned_mean(demos, basis, tf, caches.keypoints)
+            grip = gripper_at(basis.times, basis.points, basis.weights, tf)
+            share = _plain_mean_share(demos, tf, pf, demo_pins(demos, tf, grip), caches)
+        else:
+            share = _plain_mean_share(demos, t, pose, pins, caches)
+        if share:
+            along = _plain_mean_along(quality.time_normalised_mean(demos), tf, pf[:, :3])
+            if tf is not t:
+                along = np.column_stack([np.interp(t, tf, along[:, k]) for k in range(3)])
+            pos = pin_poses(t, (1.0 - share) * pose[:, :3] + share * along, ori, pins)[0]
+    return Demo(traj.t, pos, ori, traj.gripper, name="learned skill")
+
+
+def _mean_pose(
+    demos: list[Demo], inverse: list[Callable[[np.ndarray], np.ndarray]], ref: int, t: np.ndarray, cache: KeypointCache
+) -> tuple[np.ndarray, np.ndarray]:
+    """(len(t), 7) position and orientation and (len(t),) gripper: at each time of the reference, the mean of all
+    demos (their 50 ms smoothed series) at the time DTW matched to it.
+
+    Quaternions are averaged on one side: the reference's (sign-continuous) series keeps its own sign, and
+    each other demo's quaternion takes the sign of the reference's at the same instant. (Against one fixed
+    quaternion instead, a hand that turns past 180° from it flips sign there and the average jumps.)"""
+    acc = np.zeros((t.shape[0], 7))
+    grip = np.zeros(t.shape[0])
+    q_ref: np.ndarray | None = None
+    for d in [ref, *(i for i in range(len(demos)) if i != ref)]:
+        demo = demos[d]
+        ser = cache.series(demo)
+        td_all = np.asarray(demo.t) - demo.t[0]
+        w = np.clip(inverse[d](t), 0.0, td_all[-1])
+        pos = np.column_stack([np.interp(w, td_all, ser.position[:, k]) for k in range(3)])
+        q = np.column_stack([np.interp(w, td_all, ser.orientation[:, k]) for k in range(4)])
+        if q_ref is None:
+            q_ref = q
+        else:
+            q *= np.where(np.einsum("ij,ij->i", q, q_ref) < 0, -1.0, 1.0)[:, None]
+        acc[:, :3] += pos
+        acc[:, 3:] += q
+        grip += np.interp(w, td_all, np.asarray(demo.gripper, dtype=np.float64))
+    acc /= len(demos)
+    acc[:, 3:] /= np.linalg.norm(acc[:, 3:], axis=1, keepdims=True)
+    return acc, grip / len(demos)
+
+
+def _aligned_mean(demos: list[Demo], basis: PathBasis, t: np.ndarray, cache: KeypointCache) -> np.ndarray:
+    """(len(t), 7) position and orientation of the aligned mean (:func:`_mean_pose`)."""
+    return _mean_pose(demos, basis.inverse, basis.ref, t, cache)[0]
+
+
+def _plain_mean_along(b1: np.ndarray, t: np.ndarray, position: np.ndarray) -> np.ndarray:
+    """(len(t), 3) the plain mean ``b1`` (:func:`quality.time_normalised_mean`) walked on the path's own time line:
+    at each instant, the plain mean's point DTW matches to ``position`` (len(t), 3) there (its shape, this timing)."""
+    from dtaidistance import dtw as dtai
+
+    m = _ALONG_POINTS
+    tm = np.linspace(float(t[0]), float(t[-1]), m)
+    a = np.column_stack([np.interp(tm, t, position[:, k]) for k in range(3)])
+    grid = np.linspace(0.0, b1.shape[0] - 1.0, m)
+    b = np.column_stack([np.interp(grid, np.arange(b1.shape[0]), b1[:, k]) for k in range(3)])
+    path = np.asarray(dtai.warping_path_fast(np.ascontiguousarray(a), np.ascontiguousarray(b)), dtype=np.int64)
+    at = np.bincount(path[:, 0], weights=grid[path[:, 1]], minlength=m) / np.bincount(path[:, 0], minlength=m)
+    index = np.interp(t, tm, at)
+    return np.column_stack([np.interp(index, np.arange(b1.shape[0]), b1[:, k]) for k in range(3)])
+
+
+def _plain_mean_share(
+    demos: list[Demo],
+    t: np.ndarray,
+    pose: np.ndarray,
+    pins: list[tuple[float, np.ndarray, np.ndarray]],
+    caches: LearningCaches,
+) -> float:
+    """How far the aligned mean ``pose`` (len(t), 7), bent onto ``pins``, is moved toward the plain mean: 0 when its
+    mean Fréchet distance to the demos is not larger than the plain mean's, else the first of
+    :data:`PLAIN_MEAN_SHARES` that is not farther (or the least far). Remembered per path. Decision 083."""
+
+    def choose() -> float:
+        curves = np.stack(caches.guard_curves.get(demos)[0])
+        D = curves.shape[0]
+
+        def far(paths: list[np.ndarray]) -> np.ndarray:
+            a = np.repeat(np.stack([quality.arc_resample(p) for p in paths]), D, axis=0)
+            return quality.frechet_many(a, np.tile(curves, (len(paths), 1, 1))).reshape(len(paths), D).mean(axis=1)
+
+        def bent(share: float) -> np.ndarray:
+            return pin_poses(t, (1.0 - share) * pose[:, :3] + share * along, pose[:, 3:], pins)[0]
+
+        b1 = quality.time_normalised_mean(demos)
+        along = _plain_mean_along(b1, t, pose[:, :3])
+        b1_far, own = far([b1, bent(0.0)])
+        if own <= b1_far:
+            return 0.0
+        fars = far([bent(x) for x in PLAIN_MEAN_SHARES])
+        near = [x for x, f in zip(PLAIN_MEAN_SHARES, fars, strict=True) if f <= b1_far]
+        best = int(np.argmin(fars))
+        return near[0] if near else (PLAIN_MEAN_SHARES[best] if fars[best] < own else 0.0)
+
+    return float(caches.shares.get(_guard_key(demos, t, pose, pins), choose))
+
+
+def _guard_key(demos: list[Demo], t: np.ndarray, pose: np.ndarray, pins: list) -> tuple:
+    h = hashlib.blake2b(digest_size=16)
+    for a in (t, pose[:, :3], *(np.r_[p[0], p[1]] for p in pins)):
+        h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
+    return (tuple(id(d) for d in demos), h.hexdigest())
+
+
 # Execution (whole-path IK and timing within the limits) lives in studio.core.execution; re-exported here.
 from studio.core.execution import joint_trajectory  # noqa: E402
 
 __all__ = [
     "GRIPPER_LEVEL_TOL",
     "PIN_S",
+    "PLAIN_MEAN_SHARES",
     "SMOOTHING",
+    "PathBasis",
     "demo_pins",
     "generalize",
     "gripper_at",
     "gripper_steps",
     "joint_trajectory",
+    "learned_path",
     "pin_poses",
     "sample_times",
 ]

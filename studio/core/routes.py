@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from studio.core.caches import LearningCaches
 from studio.core.types import Demo
 
 #: Groups are routes when they are this share of the demos' size apart (median distance along the alignment)…
@@ -176,6 +177,12 @@ def _where(demos: list[Demo], groups: list[tuple[int, ...]]) -> Routes:
     return Routes(routes, (float(where[0]), float(where[1]), float(where[2])))
 
 
+def routes_of(demos: Sequence[Demo], caches: LearningCaches | None = None) -> Routes:
+    """Which demonstrations go which way (:func:`find_routes`, remembered per set of demos in ``caches``)."""
+    demos = list(demos)
+    return (caches or LearningCaches()).routes.get_set(demos, ("routes",), lambda: find_routes(demos))
+
+
 __all__ = [
     "N_CURVE",
     "ROUTE_RATIO",
@@ -185,4 +192,5 @@ __all__ = [
     "Routes",
     "find_routes",
     "route_distances",
+    "routes_of",
 ]

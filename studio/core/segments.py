@@ -39,8 +39,10 @@ from studio.core.frames import (
     turn,
 )
 from studio.core.kinematics import Baxter
-from studio.core.types import DEFAULT_GENERALIZATION, Arm, Demo, Generalization, KeypointParams, Skill
+from studio.core.learn_settings import LearnSettings
+from studio.core.types import Arm, Demo, Generalization, KeypointParams, Skill
 
+_DEFAULT = LearnSettings()
 #: Frames whose landing spreads differ by less than this (m) are equally good: the more specific one is kept.
 TIE_M = 0.005
 #: The demonstrations' spread below this (m) is noise (it keeps the weights from trusting 3 demos too much).
@@ -319,8 +321,7 @@ def _learn_segment(
     cuts: Sequence[list[int]],
     roles: tuple[str, str],
     params: KeypointParams,
-    generalization: str,
-    seed: int,
+    settings: LearnSettings,
 ) -> tuple[Segment, Skill]:
     from studio.core.pipeline import learn_skill
     from studio.core.thresholds import auto_params
@@ -332,11 +333,12 @@ def _learn_segment(
         fp, fo = segment_frames(o, k, roles)
         parts.append((in_frame(d, c[k], c[k + 1], fp), in_frame(d, c[k], c[k + 1], fo)))
     seg_demos = [p[0] for p in parts]
+    # each stretch keeps every demo (one way) and finds its own k; only the thresholds, seed and mode carry over
+    part = LearnSettings(params=params, seed=settings.seed, generalization=settings.generalization, split_routes=False)
     try:
-        sk = learn_skill(seg_demos, params, seed=seed, generalization=generalization, split_routes=False)
+        sk = learn_skill(seg_demos, part)
     except NotEnoughData:
-        auto = auto_params(seg_demos)
-        sk = learn_skill(seg_demos, auto, seed=seed, generalization=generalization, split_routes=False)
+        sk = learn_skill(seg_demos, dataclasses.replace(part, params=auto_params(seg_demos)))
     t, pos, q, g = _resampled(sk.trajectory)
     mp, mo, qp, qo, vp, vo = _statistics(t, pos, parts)
     pi_end = minjerk(t / max(t[-1], 1e-9))
@@ -355,20 +357,19 @@ def _learn_segment(
 def learn_relative(
     demos: Sequence[Demo],
     objects: Sequence[DemoObjects],
-    params: KeypointParams | None = None,
+    settings: LearnSettings = _DEFAULT,
     *,
     now: Sequence[ObjectAt] | None = None,
-    seed: int = 0,
     arm: Arm | None = None,
     baxter: Baxter | None = None,
-    generalization: str = DEFAULT_GENERALIZATION,
     rules: Mapping[int, str] | None = None,
 ) -> Skill:
     """Learn a skill that follows the objects (module docstring).
 
     Args:
         demos: one arm's demonstrations; objects: their objects and that arm's contacts, in the same order.
-        params: key-point thresholds (default automatic; a segment they find too few key-points in gets its own).
+        settings: the thresholds (default automatic for all the demos; a segment they find too few key-points in
+            gets its own), seed and mode; each segment finds its own k.
         now: where the objects are now (default: as at the first demonstration's start).
         arm: when given, the path placed ``now`` gets its joint trajectory (whole-path IK).
         rules: the frame each release follows by its meaning (:func:`plan`).
@@ -376,24 +377,22 @@ def learn_relative(
     Raises:
         InvalidInput: the demonstrations share no grasps and releases (the message says why).
     """
-    from studio.core.thresholds import auto_params
-
     demos, objects = list(demos), list(objects)
     if len(demos) != len(objects) or not demos:
         raise InvalidInput("Give the objects of every demonstration.")
     borders, why = plan(objects, rules)
     if not borders:
         raise InvalidInput(why)
-    params = params or auto_params(demos)
+    params = settings.thresholds(demos)
     cuts = [contact_cuts(d, o) for d, o in zip(demos, objects, strict=True)]
     roles = [ROBOT, *(b.role for b in borders), ROBOT]
     segs, parts = [], []
     for k in range(len(borders) + 1):
-        seg, sk = _learn_segment(k, demos, objects, cuts, (roles[k], roles[k + 1]), params, generalization, seed)
+        seg, sk = _learn_segment(k, demos, objects, cuts, (roles[k], roles[k + 1]), params, settings)
         segs.append(seg)
         parts.append(sk)
     frames = ObjectFrames(borders, tuple(segs), regions(objects, borders))
-    skill = _combine(parts, cuts, frames, params, generalization, tuple(d.name for d in demos))
+    skill = _combine(parts, cuts, frames, params, settings.generalization, tuple(d.name for d in demos))
     here = list(now) if now is not None else list(objects[0].start)
     seed_q = demos[0].q[0] if demos[0].q is not None else None
     return place_skill(skill, here, arm=arm, baxter=baxter, q_seed=seed_q)

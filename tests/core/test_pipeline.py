@@ -14,17 +14,18 @@ from studio.core.clustering import FeatureScale
 from studio.core.errors import InvalidInput, NotEnoughData, StudioError
 from studio.core.keypoints import precompute
 from studio.core.kinematics import Baxter, quat_angle
-from studio.core.pipeline import demo_from_recording, learn_arms
+from studio.core.learn_settings import LearnSettings
+from studio.core.pipeline import demo_from_recording
 from studio.teacher import recording_from_plan, teach
 from tests.core.execution_demos import cartesian_pick_place
-from tests.core.teacher_demos import demos, plans
+from tests.core.teacher_demos import demos, plans, skills_of
 
 CASES = [("stack-cup", (0, 1, 2)), ("pick-place", (0, 1, 2)), ("stack-cup", (3, 4, 5)), ("pick-place", (3, 4, 5))]
 
 
 @functools.lru_cache(maxsize=16)
 def skill(task, seeds, mode="state-means"):
-    return learn_skill(list(demos(task, seeds)), spline_through=mode)
+    return learn_skill(list(demos(task, seeds)), LearnSettings(spline_through=mode))
 
 
 def _mean_quat(qs):
@@ -201,10 +202,10 @@ def test_one_demo_learns_with_k_equal_to_its_keypoints():
     assert np.linalg.norm(sk.trajectory.position[0] - d.position[0]) < 0.005
 
 
-def test_learn_arms_from_recordings():
+def test_each_taught_arm_learns_from_its_recordings():
     b = Baxter.load()
     recs = [recording_from_plan(teach("stack-cup", s, arm="right")) for s in (0, 1)]
-    skills = learn_arms(recs, baxter=b)
+    skills = skills_of(recs, baxter=b)
     assert set(skills) == {"right"}
     sk = skills["right"]
     assert sk.joint_trajectory is not None and sk.joint_trajectory.position_error.max() < 1e-3
@@ -227,9 +228,9 @@ def test_bad_input_is_explained_in_plain_words():
     with pytest.raises(NotEnoughData, match="sample"):
         learn_skill([Demo(d.t[:1], d.position[:1], d.orientation[:1], d.gripper[:1], name="Demo 9")])
     with pytest.raises(NotEnoughData, match="clusters"):
-        learn_skill([d], n_clusters=500)
+        learn_skill([d], LearnSettings(n_clusters=500))
     with pytest.raises(InvalidInput):
-        learn_skill([d], spline_through="straight lines")
+        learn_skill([d], LearnSettings(spline_through="straight lines"))
     with pytest.raises(InvalidInput):
         learn_skill(d)  # type: ignore[arg-type]  # on purpose: a single Demo instead of a list
     with pytest.raises(InvalidInput):
@@ -237,13 +238,13 @@ def test_bad_input_is_explained_in_plain_words():
     assert issubclass(NotEnoughData, StudioError)
 
 
-def test_a_keypoint_cache_gives_the_same_skill():
-    from studio.core import KeypointCache
+def test_caches_give_the_same_skill():
+    from studio.core.caches import LearningCaches
 
     ds = list(demos("stack-cup"))
-    cache = KeypointCache()
-    a = learn_skill(ds, cache=cache)
-    b = learn_skill(ds, cache=cache)
+    caches = LearningCaches()
+    a = learn_skill(ds, caches=caches)
+    b = learn_skill(ds, caches=caches)
     c = learn_skill(ds)
     assert np.array_equal(a.trajectory.position, c.trajectory.position)
     assert np.array_equal(b.trajectory.position, c.trajectory.position)
@@ -251,8 +252,8 @@ def test_a_keypoint_cache_gives_the_same_skill():
 
 def test_different_thresholds_change_the_skill():
     ds = list(demos("stack-cup"))
-    a = learn_skill(ds, KeypointParams())
-    b = learn_skill(ds, KeypointParams(eps5=0.06, eps7=0.06))
+    a = learn_skill(ds, LearnSettings(params=KeypointParams()))
+    b = learn_skill(ds, LearnSettings(params=KeypointParams(eps5=0.06, eps7=0.06)))
     assert sum(map(len, b.keypoints)) > sum(map(len, a.keypoints))
     assert a.params == KeypointParams() and b.params.eps5 == 0.06
 
@@ -267,7 +268,7 @@ def test_default_thresholds_follow_the_demonstrations():
 
 
 def test_older_skill_files_load_as_paper_mode(tmp_path):
-    sk = learn_skill(list(demos("stack-cup"))[:2], generalization="paper")
+    sk = learn_skill(list(demos("stack-cup"))[:2], LearnSettings(generalization="paper"))
     arrays = {k: v for k, v in sk.to_arrays().items() if k != "generalization"}  # as saved before the field
     back = Skill.from_arrays(arrays)
     assert back.generalization == "paper" and np.array_equal(back.trajectory.position, sk.trajectory.position)
@@ -309,30 +310,30 @@ def _frechet_ratio(path: np.ndarray, ds: list[Demo]) -> float:
 def test_the_path_is_not_farther_from_the_demonstrations_than_their_plain_mean(monkeypatch):
     """The aligned mean of these 7 loosely drawn spirals is 1.1 % farther (Fréchet) from them than the plain mean;
     the learned path is moved toward the plain mean until it is not, and still starts and ends on the demos."""
-    import studio.core.pipeline as P
+    import studio.core.generalize as G
 
     ds = _loose_spiral()
     path = learn_skill(ds).trajectory.position
     assert _frechet_ratio(path, ds) <= 1.0005
     for k in (0, -1):
         assert np.linalg.norm(path[k] - np.mean([d.position[k] for d in ds], axis=0)) < 1e-4
-    monkeypatch.setattr(P, "_plain_mean_share", lambda *a: 0.0)
+    monkeypatch.setattr(G, "_plain_mean_share", lambda *a: 0.0)
     assert _frechet_ratio(learn_skill(ds).trajectory.position, ds) > 1.005
 
 
 def test_a_path_nearer_the_demonstrations_than_their_plain_mean_is_left_as_it_is(monkeypatch):
-    import studio.core.pipeline as P
+    import studio.core.generalize as G
     from studio.shapes import ShapeSpec, shape_demos
 
     ds = list(shape_demos(ShapeSpec("zigzag", 0.15, 2.0), 3))
     shares = []
-    plain = P._plain_mean_share
+    plain = G._plain_mean_share
 
     def spy(*a):
         shares.append(plain(*a))
         return shares[-1]
 
-    monkeypatch.setattr(P, "_plain_mean_share", spy)
+    monkeypatch.setattr(G, "_plain_mean_share", spy)
     path = learn_skill(ds).trajectory.position
     assert shares == [0.0] and _frechet_ratio(path, ds) < 1.0
 
@@ -340,17 +341,18 @@ def test_a_path_nearer_the_demonstrations_than_their_plain_mean_is_left_as_it_is
 def test_the_live_preview_moves_toward_the_plain_mean_as_the_skill_does(monkeypatch):
     """The preview (50 samples a second) takes the share the skill (the demos' rate) takes, decided on the
     skill's own samples."""
+    import studio.core.generalize as G
     import studio.core.pipeline as P
 
     ds = _loose_spiral()
     calls = []
-    plain = P._plain_mean_share
+    plain = G._plain_mean_share
 
     def spy(d, t, *a):
         calls.append((t.shape[0], plain(d, t, *a)))
         return calls[-1][1]
 
-    monkeypatch.setattr(P, "_plain_mean_share", spy)
+    monkeypatch.setattr(G, "_plain_mean_share", spy)
     skill_path = learn_skill(ds).trajectory
     preview = P.learn_path(ds, rate_hz=50.0)
     assert len(calls) == 2 and calls[0] == calls[1] and calls[0][1] > 0

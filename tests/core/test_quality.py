@@ -13,6 +13,7 @@ import pytest
 from studio import words as W
 from studio.core import quality as Q
 from studio.core.errors import InvalidInput, NotEnoughData
+from studio.core.learn_settings import LearnSettings
 from studio.core.pipeline import learn_skill
 from studio.core.quality.judgement import Close, CutsCorner
 from studio.core.quality.notes import OddDemo
@@ -176,7 +177,7 @@ def test_good():
 def test_fair_cuts_the_corner_and_lowering_corner_sharpness_helps():
     ds = zigzag()
     params = auto_params(ds, -3.0)  # few key-points, paper mode: the spline cuts the zigzag's corners
-    r = Q.assess(learn_skill(ds, params, generalization="paper"), ds)
+    r = Q.assess(learn_skill(ds, LearnSettings(params=params, generalization="paper")), ds)
     v = Q.verdict(r)
     assert v.level == "fair"
     assert isinstance(v.headline, CutsCorner) and WQ.FINDING_WORDS[CutsCorner].remedy is WQ.Remedy.SHARPER_CORNERS
@@ -187,13 +188,15 @@ def test_fair_cuts_the_corner_and_lowering_corner_sharpness_helps():
     # the advice works: a lower corner sharpness (every bend counts) makes the corners key-points
     from dataclasses import replace
 
-    r2 = Q.assess(learn_skill(ds, replace(params, eps1=math.pi + 0.3, eps4=0.0), generalization="paper"), ds)
+    r2 = Q.assess(
+        learn_skill(ds, LearnSettings(params=replace(params, eps1=math.pi + 0.3, eps4=0.0), generalization="paper")), ds
+    )
     assert max(c.error for c in r2.corners) < worst / 2
 
 
 def test_fair_not_as_close_as_the_demos_are_to_each_other():
     ds = list(task_demos("pick-place"))
-    v = Q.verdict(Q.assess(learn_skill(ds, auto_params(ds, -1.0), generalization="paper"), ds))
+    v = Q.verdict(Q.assess(learn_skill(ds, LearnSettings(params=auto_params(ds, -1.0), generalization="paper")), ds))
     assert say(v)[0].startswith("Fair: the skill stays within ")
     assert say(v)[0].endswith(
         " of your demonstrations on average, but they are closer to each other than that — press Suggest, or move "
@@ -205,7 +208,9 @@ def test_poor():
     ds = list(shape_demos(ShapeSpec("circle", 0.03, 2.0), 3))
     from studio.core.types import KeypointParams
 
-    v = Q.verdict(Q.assess(learn_skill(ds, KeypointParams(), generalization="paper"), ds))  # the old fixed values
+    v = Q.verdict(
+        Q.assess(learn_skill(ds, LearnSettings(params=KeypointParams(), generalization="paper")), ds)
+    )  # the old fixed values
     assert v.level == "poor" and WQ.FINDING_WORDS[type(v.headline)].remedy is WQ.Remedy.MORE_KEYPOINTS
     assert say(v)[0].startswith("Poor: the skill strays from your demonstrations (")
     assert say(v)[0].endswith(" on average) — press Suggest, or move Detail towards more key-points.")
@@ -236,7 +241,7 @@ def test_every_demo_fits_a_good_skill_well():
 
 def test_start_and_end_away_from_the_demonstrations():
     ds = list(shape_demos(ShapeSpec("handwriting", 0.6, 2.0), 3))
-    v = Q.verdict(Q.assess(learn_skill(ds, generalization="paper"), ds))
+    v = Q.verdict(Q.assess(learn_skill(ds, LearnSettings(generalization="paper")), ds))
     assert say(v)[0].startswith("Fair: the skill follows your demonstrations closely (within ")
     assert say(v)[0].endswith(" on average), but:")
     assert any(
@@ -250,7 +255,9 @@ def test_start_and_end_away_from_the_demonstrations():
 
 def test_grasp_and_release_away_from_the_demonstrated_poses():
     ds = list(task_demos("pick-place"))
-    v = Q.verdict(Q.assess(learn_skill(ds, generalization="paper", smoothing=0.5), ds))  # an over-smoothed spline
+    v = Q.verdict(
+        Q.assess(learn_skill(ds, LearnSettings(generalization="paper", smoothing=0.5)), ds)
+    )  # an over-smoothed spline
     lines = [line for line in say(v) if line.startswith("It closes the gripper ")]
     assert lines and " away from where you closed it (at " in lines[0]
     assert lines[0].endswith(" s) — press Suggest, or move Detail towards more key-points.")
@@ -266,8 +273,10 @@ def test_demonstrations_that_use_the_gripper_differently():
 def test_held_out_misses_the_left_out_demo():
     ds = zigzag()
     params = auto_params(ds, -3.0)
-    h = Q.held_out(ds, lambda dd: learn_skill(dd, params, generalization="paper").trajectory)
-    v = Q.verdict(Q.assess(learn_skill(ds, params, generalization="paper"), ds, held_out_result=h))
+    h = Q.held_out(ds, lambda dd: learn_skill(dd, LearnSettings(params=params, generalization="paper")).trajectory)
+    v = Q.verdict(
+        Q.assess(learn_skill(ds, LearnSettings(params=params, generalization="paper")), ds, held_out_result=h)
+    )
     assert any(
         line.startswith("Learned without one of your demonstrations, it misses that one by ")
         and line.endswith(" on average: record one or two more demonstrations.")

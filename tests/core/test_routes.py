@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from studio.core.errors import InvalidInput
+from studio.core.learn_settings import LearnSettings
 from studio.core.pipeline import learn_skill
 from studio.core.routes import find_routes
 from studio.core.types import Skill
@@ -53,7 +54,7 @@ def test_the_skill_learns_one_way_and_keeps_the_others():
         for n in other
     )
     assert near < 0.25 * far
-    again = learn_skill(list(demos), route=1 - sk.route)
+    again = learn_skill(list(demos), LearnSettings(route=1 - sk.route))
     assert again.demo_names == sk.routes[1 - sk.route].demos and again.route == 1 - sk.route
     back = Skill.from_arrays(sk.to_arrays())
     assert back.routes == sk.routes and back.route == sk.route and back.route_where == pytest.approx(sk.route_where)
@@ -61,6 +62,6 @@ def test_the_skill_learns_one_way_and_keeps_the_others():
     assert words.startswith("Your demonstrations go two ways (on the robot's ") and "I learned the way on" in words
     assert "on the robot's left: " in words and "on the robot's right: " in words
     with pytest.raises(InvalidInput, match="choose one of them"):
-        learn_skill(list(demos), route=2)
+        learn_skill(list(demos), LearnSettings(route=2))
     with pytest.raises(InvalidInput, match="all go the same way"):
-        learn_skill(list(shape_demos(ShapeSpec("circle", 0.15, 2.0), 3)), route=1)
+        learn_skill(list(shape_demos(ShapeSpec("circle", 0.15, 2.0), 3)), LearnSettings(route=1))

@@ -13,8 +13,10 @@ import numpy as np
 import pytest
 
 from studio.core import autotune
+from studio.core.caches import LearningCaches
 from studio.core.errors import InvalidInput, NotEnoughData
 from studio.core.keypoints import KeypointCache
+from studio.core.learn_settings import LearnSettings
 from studio.core.pipeline import preview_path
 from studio.core.thresholds import DemoStats, ThresholdSettings, auto_params
 from studio.core.types import KeypointParams
@@ -124,14 +126,13 @@ def test_suggest_needs_two_demonstrations():
 def test_preview_path_follows_the_sliders():
     ds = list(task_demos("stack-cup"))
     cache = KeypointCache()
-    p = preview_path(ds, auto_params(ds), cache=cache)
+    p = preview_path(ds, LearnSettings(params=auto_params(ds)), caches=LearningCaches(cache))
     assert p.message == "" and p.position.shape == (p.t.shape[0], 3) and p.t[1] - p.t[0] == pytest.approx(0.02)
     assert 0 < p.g_over_r < 0.6 and p.distance < 0.03
     assert [len(k) for k in p.keypoints] == [len(cache.extract(d, auto_params(ds))) for d in ds]
     # thresholds that find no key-points explain themselves instead of raising
-    none = preview_path(
-        ds, KeypointParams(eps5=5.0, eps7=5.0, eps4=5.0, eps12=2.0, eps14=2.0, eps11=1.5), n_clusters=500
-    )
+    nothing = KeypointParams(eps5=5.0, eps7=5.0, eps4=5.0, eps12=2.0, eps14=2.0, eps11=1.5)
+    none = preview_path(ds, LearnSettings(params=nothing, n_clusters=500))
     assert none.message and none.position.shape == (0, 3) and math.isnan(none.g_over_r)
 
 
@@ -152,7 +153,7 @@ def _held_out(ds, params, k, mode):
     from studio.core.pipeline import learn_path
 
     def learn(train):
-        return learn_path(train, params, n_clusters=k, generalization=mode)
+        return learn_path(train, LearnSettings(params=params, n_clusters=k, generalization=mode))
 
     path = quality.held_out(ds, learn).g_over_r
     task = [

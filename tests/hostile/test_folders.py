@@ -351,9 +351,10 @@ def test_a_session_larger_than_the_free_memory_is_refused_in_plain_words(
 
 def test_a_skill_whose_time_axis_is_stretched_is_refused(store: SessionStore, three: Session, tmp_path: Path) -> None:
     """×10⁶ on the time axis: 6 months of trajectory that export and Preview would sample."""
-    from studio.core import pipeline
+    from studio.core.learn_settings import LearnSettings
+    from tests.core.teacher_demos import skills_of
 
-    skills = pipeline.learn_arms(three.recordings, params=three.params, arms=("left",), seed=0)
+    skills = skills_of(three.recordings, LearnSettings(params=three.params), arms=("left",))
     three.set_skills(skills)
     p = three.path / "skills" / "left.npz"
     with np.load(p) as z:
