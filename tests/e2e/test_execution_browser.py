@@ -102,14 +102,14 @@ def test_run_on_robot_follows_the_plan_and_does_the_task(browser, tmp_path) -> N
         )
         camera(app, "front")
 
-        def block() -> ObjectPose:
+        def block_pose() -> ObjectPose:
             return next(p for p in app.controller.scene.live.poses() if p.name == "block")
 
         with ViserClient.tab_of(app) as tab:  # a second tab, opened ahead: it has the scene when the block is there
             # the world puts the block on the pad when the robot's joint states let go of it (a loaded machine's
             # robot can be behind the run's clock): waited for, not timed
-            assert wait_for(lambda: block().on == "pad", 60), block()
-            world = block()
+            assert wait_for(lambda: block_pose().on == "pad", 60), block_pose()
+            world = block_pose()
             drawn = tab.wait_drawn_at("/objects/block-", world.position)
         assert np.allclose(drawn, world.position, atol=1e-6), (drawn, world)
         assert np.hypot(*(drawn[:2] - np.array(PICK_PLACE_B[:2]))) < 0.03
