@@ -16,7 +16,7 @@ echo "==> lint (ruff) and types (mypy)"
 .venv/bin/ruff check studio tests bench scripts
 .venv/bin/mypy
 echo "==> tests"
-# Two workers (the machine has two cores): each runs one group of browser tests one after another
-# (tests/conftest.py) and the other tests around them.
+# Two workers (the machine has two cores), each handed the next test when it is free (no test is in a group, so
+# "loadgroup" hands them out one by one), the slowest browser walks first (tests/conftest.py, decision 099).
 # No reruns: a test that fails under load is a bug in the test or the code. The 15 slowest tests are listed.
 exec .venv/bin/python -m pytest -n 2 --dist loadgroup --durations=15 -ra "$@"

@@ -340,23 +340,37 @@ class _Drawn:
         return page
 
 
-#: The browser test files of the first of two groups (the rest form the second), balanced on their durations.
-BROWSER_GROUP_A = {
-    "test_scene_walk.py",
-    "test_teach_mouse.py",
-    "test_routes_browser.py",
-    "test_quality_browser.py",
-}
+#: The browser walks, slowest first (bench/README.md, "Issue 28 — a faster suite"); the other browser tests follow
+#: them, then every other test as collected.
+SLOWEST_FIRST = (
+    "test_scene_walk.py::test_teach_with_objects_to_the_task_result",
+    "test_teach_skill.py::test_teach_a_skill_like_a_user",
+    "test_first_skill.py::test_first_skill_from_the_sessions_step",
+    "test_teach_mouse.py::test_teach_stack_cup_with_mouse_and_keys",
+    "test_drawing_browser.py::test_drawn_grippers_cover_their_fk_points",
+    "test_execution_browser.py::test_run_on_robot_follows_the_plan_and_does_the_task",
+    "test_handle_browser.py::test_the_blocks_handle_in_top_view_goes_the_way_the_mouse_goes",
+    "test_failures_and_tabs.py::test_two_tabs_see_the_same_robot_and_session",
+    "test_quality_browser.py::test_live_path_suggest_and_verdict",
+    "test_words_browser.py::test_words_for_a_newcomer",
+    "test_objects_browser.py::test_move_the_cup_and_the_skill_follows_it",
+)
+
+
+def _rank(item: pytest.Item) -> int:
+    """Where ``item`` runs in the order handed out: a listed walk by its place, then other browser tests, then the
+    rest."""
+    nodeid = item.nodeid.replace("\\", "/")
+    name = nodeid.rsplit("/", 1)[-1]
+    if name in SLOWEST_FIRST:
+        return SLOWEST_FIRST.index(name)
+    return len(SLOWEST_FIRST) + (0 if "tests/e2e/" in nodeid or nodeid.startswith("e2e/") else 1)
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """With ``-n 2 --dist loadgroup`` (scripts/run-tests.sh): the browser tests form two groups, each run one
-    test after another on one worker (one Chromium per worker), and the other tests fill in around them."""
-    for item in items:
-        nodeid = item.nodeid.replace("\\", "/")
-        if "tests/e2e/" in nodeid or nodeid.startswith("e2e/"):
-            name = nodeid.split("::")[0].rsplit("/", 1)[-1]
-            item.add_marker(pytest.mark.xdist_group("browser-a" if name in BROWSER_GROUP_A else "browser-b"))
+    """With ``-n 2`` (scripts/run-tests.sh) each worker is handed the next test when it is free: the slowest
+    browser walks go first, so that the many short tests fill in at the end and both workers end together."""
+    items.sort(key=_rank)
 
 
 class Collector:

@@ -65,7 +65,7 @@ class StudioProcess:
         """The address the studio printed (with its key): what a person opens."""
         return self.printed_url
 
-    def start(self, timeout: float = 60.0) -> StudioProcess:
+    def start(self, timeout: float = 180.0) -> StudioProcess:
         env = dict(os.environ, PYTHONUNBUFFERED="1")
         self.output = []
         studio = ["-m", "studio"] if self.time_scale == 1.0 else ["-m", "tests.e2e.fast_robot", str(self.time_scale)]

@@ -268,11 +268,6 @@ def demonstrate(t: Teacher) -> None:
     take(t, "cup", "bottom cup")
 
 
-def demonstrate_pick_place(t: Teacher) -> None:
-    """One take of pick-place as a newcomer shows it: the block onto the pad (no way back)."""
-    take(t, "block", "pad")
-
-
 def out_of_reach_and_back(t: Teacher) -> dict[str, object]:
     """Carrying the cup: drag the handle's x arrow (Top view) far beyond reach and back in one drag, then its y
     arrow towards the bottom cup; returns what was seen."""

@@ -1,7 +1,7 @@
 """A new user's first skill, from the Sessions step: a new pick-place session, the block moved with its handle in
-the Top view, three takes (one with a 20 s pause while holding the block), Train, Preview — counted actions, the
-pause shown as removed in the list, one skill length in Train and Preview within 1.5× the demonstrations' median,
-the block on the pad; screenshots of the handle in the Top view and of Teach after the preview."""
+the Top view, three takes at that one place (one with a 20 s pause holding the block), Train, Preview — counted
+actions, the pause removed, one skill length within 1.5× the demos' median, the block on the pad; then the block
+moved 8 cm and previewed: words that agree with where it ended. Screenshots in test-artifacts/."""
 
 from __future__ import annotations
 
@@ -42,6 +42,7 @@ def test_first_skill_from_the_sessions_step(browser, studio_factory, tmp_path: P
     try:
         t = Teacher(page, shots)
         new_session(t, "my-first", table="pick-place")
+        expect(page.locator('.task-goal[data-source="set-up"]')).to_contain_text("Put the block on the pad.")
 
         # The block moved 4 cm with its handle, in the Top view (the handle's arrows are the room's axes).
         choose_object(t, "block")
@@ -93,7 +94,8 @@ def test_first_skill_from_the_sessions_step(browser, studio_factory, tmp_path: P
         )
         assert shown is not None and float(shown.group(1)) == length, (shown, length)  # one length everywhere
         assert length <= 1.5 * median, (length, lengths)
-        assert re.fullmatch(r"The skill does the task\. The block ended on the pad, .* from its centre\.", words), words
+        done = r"The block ended on the pad, ([\d.]+ cm|less than 1 mm) from its centre\."
+        assert re.fullmatch(r"The skill does the task\. " + done, words), words
 
         # Played again and left on the way: Teach shows the live robot at home and the block as the teacher left
         # it (on the pad), not the preview's pose.
@@ -110,8 +112,48 @@ def test_first_skill_from_the_sessions_step(browser, studio_factory, tmp_path: P
         print(f"\nactions {dict(t.counts)} total {actions}; demonstrations {lengths} s (median {median:.1f}); "
               f"skill {length:.1f} s; block moved to {moved}; {words!r}; listed {listed}")  # fmt: skip
         assert actions <= 60, f"the first skill took {actions} actions"
+
+        # Taught at one place, the block moved 8 cm with its handle along its own sideways arrow (the pad stays):
+        # the preview's words agree with where the block really ended, as the page draws it.
+        t.step("Train")
+        expect(page.locator(".verdict-frames").first).to_contain_text(
+            "Every demonstration had the block in the same place: I will follow the block for the grasp and the pad "
+            "for the release."
+        )
+        choose_object(t, "block")
+        assert watch.wait_for(lambda _m: watch.scene().get("/objects_handle", {}).get("visible"), 30)
+        handle = watch.scene()["/objects_handle"]
+        at = np.asarray(handle["position"], dtype=float)  # on the block's top, where the teacher left it
+        drag_handle(t, at, np.asarray(handle.get("wxyz") or (1.0, 0.0, 0.0, 0.0), dtype=float), axis=1, metres=0.08)
+        assert watch.wait_for(lambda _m: np.linalg.norm(_drawn_objects(watch)["block"][:2] - at[:2]) > 0.05, 30)
+        moved = _drawn_objects(watch)["block"]
+        t.shot("block moved again")
+        words = preview_to_the_end(t, "preview after the block moved")
+        end = _drawn_objects(watch)
+        block, pad = end["block"], end["pad"]
+        assert np.linalg.norm(block[:2] - moved[:2]) > 0.05, "the preview did not move the block"
+        d = float(np.hypot(*(block[:2] - pad[:2])))
+        on_pad = d <= 0.06 and block[2] > pad[2] + 0.002  # its centre on the 12 cm pad, resting on it
+        said = re.search(done, words)
+        if on_pad:
+            assert said is not None, words
+            cm = 0.0 if said.group(1).startswith("less") else float(said.group(1).split()[0])
+            assert abs(cm / 100 - d) < 0.006, (words, d)
+            assert "does the task" in words and "misses" not in words
+        else:
+            assert said is None and "did not do the task" in words and "The skill misses the task" in words, words
+        print(f"\nafter the move: {words!r}; the block drawn {d * 100:.1f} cm from the pad's centre")
     finally:
         watch.close()
+
+
+def _drawn_objects(tab: ViserClient) -> dict[str, np.ndarray]:
+    """Where the page draws each object (its bottom centre, m), by its name in the world."""
+    return {
+        n.split("/")[2].rsplit("-", 1)[0]: np.asarray(v["position"], dtype=float)
+        for n, v in tab.scene().items()
+        if n.count("/") == 2 and n.startswith("/objects/") and v.get("position") is not None
+    }
 
 
 def _block_y(watch: ViserClient) -> float:
@@ -122,7 +164,4 @@ def _block_y(watch: ViserClient) -> float:
 
 def _block(watch: ViserClient) -> np.ndarray | None:
     """Where the page draws the block (its bottom centre, m)."""
-    for name, v in watch.scene().items():
-        if name.startswith("/objects/block") and name.count("/") == 2 and v.get("position") is not None:
-            return np.asarray(v["position"], dtype=float)
-    return None
+    return _drawn_objects(watch).get("block")

@@ -102,8 +102,7 @@ def test_the_blocks_handle_in_top_view_goes_the_way_the_mouse_goes(browser, stud
         ui.choose(page, "Object", "block")
         ui.click_in_row(page, "View", "Top")
         page.mouse.move(20, ui.VIEWPORT["height"] - 20)  # the pointer leaves the button
-        ui.settle(page)
-        page.screenshot(path=str(out / "block-handle-top.png"))
+        ui.settle(page, path=str(out / "block-handle-top.png"))
         block = ctl.scene.scene.object("block")
         centre = mouse_flow.project("Top", np.add(block.position, (0.0, 0.0, block.size[2])))
         assert abs(block.yaw) > 0.1  # the block stands turned; its handle does not
@@ -116,8 +115,7 @@ def test_the_blocks_handle_in_top_view_goes_the_way_the_mouse_goes(browser, stud
         # the turn is behind the toggle: then a ring only
         ui.row(page, "Turn with the handle").locator("input[type=checkbox]").first.click()
         assert wait_for(lambda: ctl.guide.turning)
-        ui.settle(page)
-        page.screenshot(path=str(out / "block-handle-top-turning.png"))
+        ui.settle(page, path=str(out / "block-handle-top-turning.png"))
         block = ctl.scene.scene.object("block")
         centre = mouse_flow.project("Top", np.add(block.position, (0.0, 0.0, block.size[2])))
         assert colour_near(page, centre, BLUE, 80) > 20
@@ -207,8 +205,7 @@ def test_after_a_preview_teach_shows_the_live_robot_and_the_objects_as_placed(
         source = page.locator(".robot-source").first
         expect(source).to_contain_text("(preview), playing")
         expect(source).to_contain_text("(preview), at its end", timeout=120_000)  # "playing" ends with it
-        ui.settle(page)
-        page.screenshot(path=str(out / "preview-at-its-end.png"))
+        ui.settle(page, path=str(out / "preview-at-its-end.png"))
         ended = {p.name: p.position for p in ctl.scene.shown()[1]}
         placed = ctl.scene.scene.object("cup").position  # held out for the robot
         assert np.hypot(*np.subtract(ended["cup"], placed)[:2]) > 0.05  # the preview put the cup elsewhere
@@ -217,8 +214,7 @@ def test_after_a_preview_teach_shows_the_live_robot_and_the_objects_as_placed(
         assert {p.name: p.position for p in ctl.scene.shown()[1]}["cup"] == pytest.approx(placed)
         live, _ = ctl.baxter.fk("left", ctl.teaching.arm_q("left"))  # the robot itself, not the preview's pose
         ui.wait_status(page, f"Math.hypot(s.x - {live[0]:.4f}, s.y - {live[1]:.4f}, s.z - {live[2]:.4f}) < 0.005")
-        ui.settle(page)
-        page.screenshot(path=str(out / "teach-after-preview.png"))
+        ui.settle(page, path=str(out / "teach-after-preview.png"))
         ui.tab(page, "Preview")  # back: the preview where it ended
         expect(source).to_contain_text("(preview), at its end")
         assert {p.name: p.position for p in ctl.scene.shown()[1]}["cup"] == pytest.approx(ended["cup"])

@@ -20,7 +20,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 from playwright.sync_api import Page, expect
-from playwright.sync_api import TimeoutError as PlaywrightTimeout
 
 from studio.app import build_app
 from studio.core.kinematics import Baxter
@@ -78,20 +77,32 @@ def set_joints(page: Page, deg: np.ndarray) -> None:
 
     While the arm moves the studio keeps the sliders showing the robot's angles (not for a moment after one
     was touched); on a busy machine that can overwrite a box being typed into, so a person (and this test)
-    types the angles again when the arm did not get there."""
+    types the angles again when the arm came to rest somewhere else."""
     x, y, z = Baxter.load().fk("left", np.radians(deg))[0]
     there = f"Math.hypot(s.x - {x:.4f}, s.y - {y:.4f}, s.z - {z:.4f}) < 0.006"
-    for attempt in range(3):
+    for attempt in range(4):
         for j, v in zip(JOINTS, deg, strict=True):
             if attempt == 0 or abs(ui.number_value(page, LABELS[j]) - float(v)) > 0.25:
                 ui.set_number(page, LABELS[j], float(v))
-        try:
-            ui.wait_status(page, there, timeout=30)
+        page.evaluate("() => { delete window.__restJoints; }")
+        page.wait_for_function(_THERE_OR_AT_REST, arg=[there, 1500], polling=100, timeout=40_000)
+        if page.evaluate(_THERE_OR_AT_REST, [there, 1e12]):  # there (not only at rest)
             break
-        except PlaywrightTimeout:
-            if attempt == 2:
-                raise
+    ui.wait_status(page, there, timeout=30)  # (after the last attempt: fails here if the arm is not there)
     ui.wait_arm_settled(page)
+
+
+#: The gripper is where ``there`` (a status expression) says, or the arm has stood still for ``restMs`` elsewhere.
+_THERE_OR_AT_REST = """([there, restMs]) => {
+    const el = document.querySelector('.gripper-status[data-arm="left"]');
+    if (!el) return false;
+    const s = Object.fromEntries(["x", "y", "z", "open"].map(k => [k, parseFloat(el.dataset[k])]));
+    if (Function("s", "return (" + there + ");")(s)) return true;
+    const v = ["x", "y", "z", "open"].map(k => el.dataset[k]).join(","), now = performance.now();
+    const st = window.__restJoints;
+    if (!st || st.v !== v) { window.__restJoints = {v, since: now}; return false; }
+    return now - st.since >= restMs;
+}"""
 
 
 def gripper_open(page: Page) -> float:

@@ -226,28 +226,34 @@ def wait_keypoint_counts_change(page: Page, before: dict[str, int], timeout: flo
     return keypoint_counts(page)
 
 
-def _screenshot_array(page: Page):
+def _screenshot(page: Page):
+    """A screenshot of ``page``: its PNG bytes and its pixels (RGB, int)."""
     import io
 
     import numpy as np
     from PIL import Image
 
-    return np.asarray(Image.open(io.BytesIO(page.screenshot())).convert("RGB")).astype(int)
+    png = page.screenshot()
+    return png, np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(int)
 
 
-def settle(page: Page, timeout: float = 30.0):
-    """Screenshots until three in a row agree (camera and drawing have come to rest); returns the last."""
+def settle(page: Page, timeout: float = 30.0, path=None):
+    """Screenshots until three in a row agree (camera and drawing have come to rest); returns the last (and
+    writes it to ``path`` if given)."""
     import time
+    from pathlib import Path
 
     import numpy as np
 
-    shots = [_screenshot_array(page)]
+    shots = [_screenshot(page)]
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         page.wait_for_timeout(200)
-        shots.append(_screenshot_array(page))
-        if len(shots) >= 3 and all(np.abs(a - shots[-1]).max() <= 8 for a in shots[-3:-1]):
-            return shots[-1]
+        shots.append(_screenshot(page))
+        if len(shots) >= 3 and all(np.abs(a - shots[-1][1]).max() <= 8 for _, a in shots[-3:-1]):
+            if path is not None:
+                Path(path).write_bytes(shots[-1][0])
+            return shots[-1][1]
     raise AssertionError("the page never came to rest")
 
 
@@ -291,8 +297,9 @@ def views(server, page: Page, out, step: str, poses: dict, rest: bool = True) ->
     for view, (pos, at) in poses.items():
         look(client, pos, at)
         dismiss_notifications(page, only_webgl=False)
+        path = out / f"{step}-{view}.png"
         if rest:
-            settle(page)
+            settle(page, path=path)  # the last of the screenshots that agree
         else:
             page.evaluate("() => new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
-        page.screenshot(path=str(out / f"{step}-{view}.png"))
+            page.screenshot(path=str(path))
