@@ -442,9 +442,9 @@ def test_sliders_show_real_units_and_whose_values_they_are(app: Studio, page: Vi
 def test_a_slider_the_teacher_just_moved_is_not_put_back_by_a_view_computed_before(app: Studio) -> None:
     kp, ctl = app.panels.keypoints, app.controller
     ctl.keypoints.refresh()
-    s5 = kp.sliders["eps5"]
+    s5 = kp.thresholds.sliders["eps5"]
     auto5 = float(s5.value)
-    s5.value = auto5 + 0.5  # the teacher's move reached the slider; its callback has not run yet
+    s5.value = auto5 + 0.5  # type: ignore[misc]  # the teacher's move reached the slider; its callback has not run yet
     kp.thresholds.sync()  # a key-point view computed before the move is shown meanwhile
     assert s5.value == pytest.approx(auto5 + 0.5)
     ctl.keypoints.set_param("eps5", (auto5 + 0.5) / 100)  # the callback
