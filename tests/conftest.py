@@ -50,7 +50,8 @@ NATIVE_FRAMES = os.environ.get("STUDIO_TEST_FRAMES") == "native"
 def page_js(frame_ms: int = FRAME_MS, heartbeat_ms: int = HEARTBEAT_MS) -> str:
     """A page script (run before the page's own): a callback asking for the next animation frame again (the
     render loop) waits until ``frame_ms`` after the last such frame, a one-off (a transition) does not, nor does
-    any while the mouse acts on the page (a drag draws as it does for a person);
+    any while the mouse acts on the 3D view (a drag draws as it does for a person; a click on the panel does not);
+    WebGL without multisampling;
     viser's heartbeat every ``heartbeat_ms``; frames counted (``window.__studioFrames``) and one asked for on
     demand (``window.__studioDrawNow()``)."""
     return _PAGE_JS.replace("FRAME_MS_", str(int(frame_ms))).replace("HEARTBEAT_MS_", str(int(heartbeat_ms)))
@@ -94,7 +95,8 @@ _PAGE_JS = """(() => {
     };
     // the mouse on the page (a drag of a handle, an orbit): frames as a person sees them, until POINTER_MS after
     let handled = -Infinity;
-    const pointer = () => {
+    const pointer = (e) => {
+        if (!(e.target instanceof HTMLCanvasElement)) return;  // a click on the panel draws nothing new
         handled = performance.now() + POINTER_MS;
         if (timer !== null) { clearTimeout(timer); timer = null; raf(run); }
     };
@@ -103,6 +105,12 @@ _PAGE_JS = """(() => {
     window.cancelAnimationFrame = (id) => {
         due.delete(id);
         if (native.has(id)) { caf(native.get(id)); native.delete(id); }
+    };
+    // software WebGL spends about a third of a frame on multisampling: test pages draw without it
+    const getContext = HTMLCanvasElement.prototype.getContext;
+    HTMLCanvasElement.prototype.getContext = function (type, attrs) {
+        if (type === "webgl2" || type === "webgl") attrs = Object.assign({}, attrs || {}, { antialias: false });
+        return getContext.call(this, type, attrs);
     };
     // viser's render heartbeat is its only one-second interval: slowed, and kept as the way to ask for a frame
     window.setInterval = (fn, ms, ...args) => {
