@@ -210,6 +210,31 @@ def wait_status(page: Page, expr: str, arm: str = "left", timeout: float = 30.0)
     page.wait_for_function(_STATUS_JS, arg=[arm, expr], polling=100, timeout=timeout * 1000)
 
 
+_AT_GOAL_JS = """([arm, metres]) => {
+    const at = document.querySelector(`.gripper-status[data-arm="${arm}"]`);
+    const goal = document.querySelector(`.gripper-goal[data-arm="${arm}"]`);
+    if (!at || !goal) return false;
+    const d = ["x", "y", "z"].map(k => parseFloat(at.dataset[k]) - parseFloat(goal.dataset[k]) / 100);
+    return Math.hypot(...d) < metres;
+}"""
+
+
+def wait_at_goal(page: Page, arm: str = "left", metres: float = 0.005, timeout: float = 30.0) -> None:
+    """Wait until the gripper (its status) is within ``metres`` of where the Move panel says it is going, read
+    anew at each look (a move in two legs shows its first leg, then the goal); a timeout says both."""
+    try:
+        page.wait_for_function(_AT_GOAL_JS, arg=[arm, metres], polling=100, timeout=timeout * 1000)
+    except Exception as e:
+        shown = page.evaluate(
+            """arm => [".gripper-status", ".gripper-goal"].map(c => {
+                const el = document.querySelector(`${c}[data-arm="${arm}"]`);
+                return el ? `${c}: ${JSON.stringify(el.dataset)}` : `${c}: none`;
+            })""",
+            arm,
+        )
+        raise AssertionError(f"the {arm} gripper did not reach its goal within {timeout:g} s: {shown}") from e
+
+
 _COUNTS_JS = """before => {
     const now = {};
     for (const el of document.querySelectorAll(".kp-count")) {
