@@ -1,0 +1,102 @@
+"""What the browser tests' page script (tests/conftest.py ``page_js``) costs headless Chromium per frame asked for
+and per click on the panel: Chromium's CPU seconds (this bench's own processes) for ten frames (``drawn``) and for
+ten clicks on the panel's text, with the script as it is, with multisampling asked for again, and with a click
+anywhere drawing frames freely again (as before decision 099's last part), in alternating rounds of one run, with
+medians and ratios against the script as it is.
+
+    .venv/bin/python bench/bench_test_page.py [--rounds 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from bench_suite import Sampler  # noqa: E402
+from playwright.sync_api import sync_playwright  # noqa: E402
+
+from studio.panels.move import CLOSE, OPEN  # noqa: E402
+from tests.conftest import CHROMIUM, CHROMIUM_ARGS, drawn, free_port, page_js  # noqa: E402
+from tests.e2e import ui  # noqa: E402
+
+#: Added before the page script, whose own wrapper then calls this one: WebGL with multisampling again.
+MULTISAMPLING = """(() => {
+    const g = HTMLCanvasElement.prototype.getContext;
+    HTMLCanvasElement.prototype.getContext = function (type, attrs) {
+        if (type === "webgl2" || type === "webgl") attrs = Object.assign({}, attrs || {}, { antialias: true });
+        return g.call(this, type, attrs);
+    };
+})();"""
+CANVAS_ONLY = "if (!(e.target instanceof HTMLCanvasElement)) return;"
+SETTINGS = ("the page script as it is", "with multisampling", "a click anywhere draws freely")
+
+
+def chromium_cpu(sampler: Sampler) -> float:
+    """CPU seconds of the Chromium processes started by this process (not other people's)."""
+    sampler.sweep()
+    return sum(c for k, c in sampler.last.values() if k.startswith("chromium"))
+
+
+def main() -> None:
+    from studio.app import build_app
+
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--rounds", type=int, default=3)
+    args = ap.parse_args()
+    script = page_js()
+    assert CANVAS_ONLY in script, "the page script changed: update this bench"
+    sessions = Path(tempfile.mkdtemp())
+    shutil.copytree(ROOT / "sessions" / "stack-cup", sessions / "stack-cup")
+    app = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
+    sampler = Sampler()
+    sampler.root = str(os.getpid())
+    frames: dict[str, list[float]] = {s: [] for s in SETTINGS}
+    clicks: dict[str, list[float]] = {s: [] for s in SETTINGS}
+    try:
+        with sync_playwright() as p:
+            browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
+            for _ in range(args.rounds):
+                for setting in SETTINGS:
+                    page = browser.new_page(viewport=ui.VIEWPORT)
+                    if setting == "with multisampling":
+                        page.add_init_script(MULTISAMPLING)
+                    page.add_init_script(script.replace(CANVAS_ONLY, "") if setting.startswith("a click") else script)
+                    page.goto(app.url())
+                    ui.wait_ready(page)
+                    time.sleep(3.0)  # the first frames after loading are not the standing page's
+                    c0 = chromium_cpu(sampler)
+                    for _ in range(10):
+                        drawn(page)
+                    frames[setting].append((chromium_cpu(sampler) - c0) / 10)
+                    row = ui.row(page, "Gripper")
+                    c0 = chromium_cpu(sampler)
+                    for i in range(10):
+                        row.get_by_role("button", name=(CLOSE, OPEN)[i % 2], exact=True).click()
+                        ui.wait_status(page, ("s.open < 1", "s.open > 99")[i % 2])
+                        time.sleep(1.0)
+                    clicks[setting].append((chromium_cpu(sampler) - c0) / 10)
+                    page.close()
+            browser.close()
+    finally:
+        app.stop()
+        shutil.rmtree(sessions, ignore_errors=True)
+    print(f"the browser tests' page script, Chromium's CPU seconds (median of {args.rounds} rounds):")
+    for name, table in (("a frame asked for", frames), ("a click on a gripper button", clicks)):
+        base = statistics.median(table[SETTINGS[0]])
+        for setting, v in table.items():
+            med = statistics.median(v)
+            print(f"  {name:28} {setting:32}: {med:5.3f} s  ×{med / base:4.2f}")
+    print(f"load {os.getloadavg()[0]:.1f} (2 cores shared)")
+
+
+if __name__ == "__main__":
+    main()
