@@ -143,6 +143,10 @@ def _dispatch(args: argparse.Namespace) -> int:
         logging.getLogger(library).setLevel(logging.ERROR)
     try:
         if args.command == "serve":
+            from studio.security import Access
+
+            key = serve_key(args)
+            Access(args.host, key)  # a host or key it refuses is said before the studio's slower imports
             from studio.app import robot_backend, serve
 
             backend = robot_backend(args.robot)  # the app knows the backends; the CLI only parses
@@ -152,7 +156,7 @@ def _dispatch(args: argparse.Namespace) -> int:
                 session=args.session,
                 sessions_dir=args.sessions_dir,
                 meshes=args.meshes,
-                key=serve_key(args),
+                key=key,
                 backend=backend,
             )
             return 0

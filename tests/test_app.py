@@ -429,9 +429,12 @@ def test_sliders_show_real_units_and_whose_values_they_are(app: Studio, page: Vi
     assert s5.label == "Travel distance, cm" and s5.value == pytest.approx(100 * auto.eps5, abs=0.05)
     assert "follows your demonstrations" in kp.thresholds.whose.content and kp.thresholds.make_auto.disabled
     page.set_value("Travel distance, cm", 4.5)  # the teacher drags it
-    assert wait_for(lambda: s5.label == "Travel distance, cm · yours")
+    # the label first, then the line saying whose values they are: both waited for (the panel sets them in turn)
+    assert wait_for(
+        lambda: s5.label == "Travel distance, cm · yours" and 'data-yours="1"' in kp.thresholds.whose.content
+    )
     assert ctl.keypoints.params().eps5 == pytest.approx(0.045)
-    assert 'data-yours="1"' in kp.thresholds.whose.content and kp.thresholds.yours.value == s5.label.split(" ·")[0]
+    assert kp.thresholds.yours.value == s5.label.split(" ·")[0]
     ctl.keypoints.set_detail(-2.0)  # Detail moves the automatic ones, the teacher's stays
     assert kp.detail.value == -2.0 and s5.value == 4.5 and ctl.keypoints.params().eps7 > auto.eps7
     page.set_value("Make it automatic", True)

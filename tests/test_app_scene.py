@@ -16,13 +16,24 @@ from studio.controller import REPLAY, Layer, Step
 from studio.controller.teaching import DISCARD_CONFIRM_S, REACH_HOLD_S
 from studio.core.rotations import matrix_from_quat_wxyz
 from studio.panels.steps import HOME_CAMERA_LOOK_AT, HOME_CAMERA_POSITION
-from tests.conftest import ROOT, RecordingNotifier, free_port, wait_for
+from tests.conftest import ROOT, RecordingNotifier, free_port, trained_copy, wait_for
 from tests.viser_client import ViserClient
 
 
 @pytest.fixture
 def app(sessions: Path) -> Iterator[Studio]:
     shutil.copytree(ROOT / "sessions" / "pick-place", sessions / "pick-place")
+    a = build_app(port=free_port(), session="pick-place", sessions_dir=sessions)
+    a.controller.notifier = RecordingNotifier(then=a.notifier)
+    yield a
+    a.stop()
+
+
+@pytest.fixture
+def trained_app(trained_examples: Path, sessions: Path) -> Iterator[Studio]:
+    """The studio on the "pick-place" example trained as the Train button trains (once per worker): for a test
+    whose subject comes after training."""
+    trained_copy(trained_examples, "pick-place", sessions)
     a = build_app(port=free_port(), session="pick-place", sessions_dir=sessions)
     a.controller.notifier = RecordingNotifier(then=a.notifier)
     yield a
@@ -362,9 +373,9 @@ def test_the_preview_stays_in_the_preview_step(app: Studio, page: ViserClient) -
     assert {p.name: p.position for p in ctl.scene.shown()[1]}["block"] == pytest.approx(moved["block"])
 
 
-def test_playing_ends_when_the_playback_ends(app: Studio) -> None:
-    ctl = app.controller
-    ctl.training.train().result()
+def test_playing_ends_when_the_playback_ends(trained_app: Studio) -> None:
+    ctl = trained_app.controller
+    assert ctl.session.skills
     ctl.view.set_step(Step.PREVIEW)
     ctl.playback.play_preview(speed=4.0)
     assert ctl.playback.label() == "Showing the learned skill (preview), playing."
@@ -474,11 +485,11 @@ def test_the_teach_step_says_the_goal_and_the_teacher_confirms_or_corrects_it(ap
     assert ctl.session.objects.scene.goal == ctl.scene.scene.goal  # kept with the session's scene
 
 
-def test_the_path_drawn_in_preview_is_the_path_play_plays(app: Studio) -> None:
+def test_the_path_drawn_in_preview_is_the_path_play_plays(trained_app: Studio) -> None:
     """The cyan path is where the gripper goes when the joints Play plays are followed, with the objects where
     they are now: moved with the block, it reaches the block where it now stands."""
-    ctl, panel = app.controller, app.panels.preview
-    ctl.training.train().result()
+    ctl, panel = trained_app.controller, trained_app.panels.preview
+    assert ctl.session.skills
     assert wait_for(lambda: "path_left" in panel._nodes)
     block = ctl.scene.scene.object("block")
 

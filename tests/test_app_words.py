@@ -6,13 +6,24 @@ last session."""
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
 from studio.app import Studio, build_app
 from studio.controller import Topic
+from studio.robot_backend.simulated import SimulatedBaxter
 from tests.conftest import free_port, wait_for
+
+
+@pytest.fixture
+def fast_app(sessions: Path) -> Iterator[Studio]:
+    """The studio on the "stack-cup" example whose simulated robot runs 8× faster than real time (for a run
+    whose subject is not its timing)."""
+    a = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions, backend=SimulatedBaxter(time_scale=8))
+    yield a
+    a.stop()
 
 
 def test_the_task_and_the_stand_under_the_cup_held_out(app: Studio) -> None:
@@ -42,7 +53,8 @@ def test_discard_then_undo(app: Studio) -> None:
     assert len(ctl.session.recordings) == n + 1 and panel.undo.disabled and panel.undo.visible
 
 
-def test_the_last_run_goes_out_of_date_when_the_objects_move(app: Studio) -> None:
+def test_the_last_run_goes_out_of_date_when_the_objects_move(fast_app: Studio) -> None:
+    app = fast_app
     ctl = app.controller
     ctl.training.set_frames("robot")
     ctl.training.train().result()

@@ -40,7 +40,7 @@ ALLOWED = {
         "controller",
         "commands",
     },
-    "cli": {"core", "storage", "app", "commands", "cli"},
+    "cli": {"core", "storage", "security", "app", "commands", "cli"},  # security: an address refused first
 }
 #: A ceiling, not a target: below it, cohesion decides (one concept a module, one responsibility a class).
 MAX_MODULE_LINES = 600

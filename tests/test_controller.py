@@ -418,3 +418,39 @@ def test_the_live_path_follows_the_thresholds_in_the_key_points_step(ctl: Contro
     assert wait_for(lambda: ctl.live.paths["left"].version > first.version, 60)
     view = ctl.keypoints.view
     assert view is not None and ctl.live.paths["left"].k == view.k["left"]
+
+
+def test_the_verdict_being_judged_stops_when_the_studio_stops(
+    trained_examples: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Opening a trained session judges its skill on the work thread; stopping the studio meanwhile ends that
+    job before its next held-out fold, silently (its verdict would be shown nowhere)."""
+    import threading
+
+    import studio.core.learn as learn
+    from studio.robot_backend.simulated import SimulatedBaxter
+    from tests.conftest import trained_copy
+
+    real, folds = learn.learn_relative, []
+    started, stopped = threading.Event(), threading.Event()
+
+    def fold(*args, **kwargs):  # the first held-out fold waits until the studio has stopped
+        folds.append(1)
+        started.set()
+        assert stopped.wait(30)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(learn, "learn_relative", fold)
+    sessions = trained_copy(trained_examples, "pick-place", tmp_path / "sessions")
+    notifier = RecordingNotifier()
+    c = Controller(store=SessionStore(sessions), session="pick-place", backend=SimulatedBaxter(), notifier=notifier)
+    c.start()
+    judgement = c.training.judgement
+    assert judgement is not None and started.wait(30), "the skill was not being judged"
+    c.close()
+    c.shutdown()
+    stopped.set()
+    assert judgement.result(timeout=30) is None
+    assert folds == [1], "the judge went on to its next fold after the studio stopped"
+    assert not c.training.verdicts() and not c.training.judging
+    assert notifier.notes == [], notifier.notes

@@ -16,7 +16,7 @@ from studio.controller.events import Events, Topic
 from studio.controller.pose import Display
 from studio.core.arms import normalize_arms
 from studio.core.caches import LearningCaches
-from studio.core.errors import InvalidInput, StudioError
+from studio.core.errors import Cancelled, InvalidInput, StudioError
 from studio.core.kinematics import Baxter
 from studio.core.types import Arm
 from studio.storage import Session, SessionStore
@@ -63,6 +63,8 @@ class Context:
         helpers: the threads a job on the work thread spreads its tasks over (Suggest's candidates).
         headless: a failed job on the work thread stays in its future (the caller raises it) instead of
             becoming a notification.
+        stopping: set by :meth:`shutdown`: a job that can stop early (the verdict) stops (raises
+            :class:`~studio.core.errors.Cancelled`, its future's result is None).
         controls: how the audience reaches a :class:`~studio.words.controls.Control` its sentences point to.
     """
 
@@ -91,6 +93,7 @@ class Context:
         self._leaving: list[Callable[[str], None]] = []
         self._work = ThreadPoolExecutor(max_workers=1, thread_name_prefix="studio-work")
         self.helpers = ThreadPoolExecutor(max_workers=HELPERS, thread_name_prefix="studio-helper")
+        self.stopping = threading.Event()
 
     @property
     def arms(self) -> tuple[Arm, ...]:
@@ -164,6 +167,8 @@ class Context:
                 if done is not None:
                     done(result)
                 return result
+            except Cancelled:
+                return None
             except Exception as exc:
                 if self.headless:
                     raise
@@ -173,7 +178,8 @@ class Context:
         return self._work.submit(run)
 
     def shutdown(self) -> None:
-        """Drop queued work (a running job finishes on its own)."""
+        """Drop queued work; a running job finishes on its own, or stops early where it can (:attr:`stopping`)."""
+        self.stopping.set()
         self._work.shutdown(wait=False, cancel_futures=True)
         self.helpers.shutdown(wait=False, cancel_futures=True)
 

@@ -8,6 +8,7 @@ shown; a run on the robot restarts the objects (:meth:`SceneActions.begin_run`, 
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import math
 import threading
@@ -61,6 +62,13 @@ class Playing(Protocol):
     @property
     def loaded(self) -> Playback | None: ...
     def preview_recording(self) -> Recording: ...
+
+
+#: What a demonstration went through, in words, by all it depends on (its samples, the scene, the objects at its
+#: start, the robot's model file): shared by the controllers of one process (the studio built again on a session).
+_SAID: dict[tuple[object, ...], str] = {}
+_SAID_LOCK = threading.Lock()
+_SAID_MAX = 1024
 
 
 class SceneActions:
@@ -345,8 +353,20 @@ class SceneActions:
         step = max(1, round(len(rec) / max(rec.duration * 100.0, 1.0)))  # about 100 a second
         t, q, g = rec.t[::step], rec.q[::step], rec.gripper[::step]
         start = next((e.poses for e in events if e.kind == "start"), None)
-        run = simulate(t, q, g, self.scene, baxter=self.ctx.baxter, start=start)
-        said = recorded_touch_words(touches(t, q, g, self.scene, run, self.ctx.baxter))
+        scene, baxter = self.scene, self.ctx.baxter
+        samples = hashlib.blake2b(digest_size=16)
+        for a in (t, q, g):
+            samples.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
+        key = (samples.digest(), t.shape, q.shape, g.shape, scene, start, str(baxter.urdf_path))
+        with _SAID_LOCK:
+            said = _SAID.get(key)
+        if said is None:
+            run = simulate(t, q, g, scene, baxter=baxter, start=start)
+            said = recorded_touch_words(touches(t, q, g, scene, run, baxter))
+            with _SAID_LOCK:
+                if len(_SAID) >= _SAID_MAX:
+                    _SAID.clear()
+                _SAID[key] = said
         with self._lock:
             self._demo_said[id(rec)] = (rec, said)
         return said

@@ -15,7 +15,7 @@ from studio.controller.context import Context
 from studio.controller.events import Topic
 from studio.controller.learning import ShownDemos
 from studio.controller.placed import rules_of
-from studio.core.errors import NotEnoughData, StudioError
+from studio.core.errors import Cancelled, NotEnoughData, StudioError
 from studio.core.frames import ObjectAt
 from studio.core.learn import TaughtObjects
 from studio.core.learn_settings import LearnSettings
@@ -261,7 +261,7 @@ class Training:
         settings = LearnSettings(n_clusters=session.n_clusters)
 
         def job() -> None:
-            out = {arm: self._judge_one(arm, skill, settings) for arm, skill in skills.items()}
+            out = {arm: self._judge_one(arm, skill, settings) for arm, skill in skills.items()}  # may be Cancelled
             with self.ctx.lock:
                 if session is self.ctx.session:
                     self._verdicts.update(out)
@@ -293,8 +293,19 @@ class Training:
             return SkillVerdict(
                 skill, None, message="Demonstrations were trimmed since this skill was learned: train again."
             )
+        if self.ctx.stopping.is_set():
+            raise Cancelled
         objects = self._taught(arm, indices) if skill.frames is not None else None
-        j = judge(skill, demos, objects, settings, arm=arm, baxter=self.ctx.baxter, caches=self.ctx.caches)
+        j = judge(
+            skill,
+            demos,
+            objects,
+            settings,
+            arm=arm,
+            baxter=self.ctx.baxter,
+            caches=self.ctx.caches,
+            stopping=self.ctx.stopping.is_set,
+        )
         return SkillVerdict(skill, j.verdict, j.fits, segments=j.segments, choices=j.choices)
 
     def _on_session(self) -> None:

@@ -7,6 +7,10 @@ went wrong in plain words and what to do about it.
 from __future__ import annotations
 
 
+class Cancelled(Exception):
+    """A job was stopped because nobody wants its result any more (the studio is stopping); never shown."""
+
+
 class StudioError(Exception):
     """Base of every error the studio raises on purpose."""
 

@@ -6,12 +6,12 @@ docs/decisions/095."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 
 from studio.core import quality
 from studio.core.caches import LearningCaches
-from studio.core.errors import StudioError
+from studio.core.errors import Cancelled, StudioError
 from studio.core.frames import DemoObjects, ObjectAt
 from studio.core.kinematics import Baxter
 from studio.core.learn_settings import LearnSettings
@@ -127,6 +127,7 @@ def judge(
     arm: Arm | None = None,
     baxter: Baxter | None = None,
     caches: LearningCaches | None = None,
+    stopping: Callable[[], bool] | None = None,
 ) -> Judgement:
     """How good ``skill`` is against the demonstrations it learned from (in the skill's order, as taught):
     held out (at most ``settings.folds`` demos left out in turn, learned again the same way; with the skill's
@@ -136,26 +137,40 @@ def judge(
     of their places, never where the objects stand now): its path placed there against the demonstrations
     moved there, each stretch with its object, and each stretch measured in its own frame. When the objects do
     not allow that (one is missing, the arm cannot follow it there) it is judged in the robot's frame.
+
+    ``stopping()`` true (the caller no longer wants the verdict) raises :class:`Cancelled` before the next
+    held-out fold.
     """
     caches = caches or LearningCaches()
     demos = list(demos)
     objs = objects.demos if objects is not None and skill.frames is not None else ()
     if objs:
         rules = objects.rules if objects is not None else None
-        framed = _judge_in_frames(skill, demos, objs, rules, settings.folds, arm, baxter)
+        framed = _judge_in_frames(skill, demos, objs, rules, settings.folds, arm, baxter, stopping)
         if framed is not None:
             return framed
-    return _judge_in_robot_frame(skill, demos, settings, caches)
+    return _judge_in_robot_frame(skill, demos, settings, caches, stopping)
+
+
+def _go_on(stopping: Callable[[], bool] | None) -> None:
+    """Raise :class:`Cancelled` when the caller no longer wants the result."""
+    if stopping is not None and stopping():
+        raise Cancelled
 
 
 def _judge_in_robot_frame(
-    skill: Skill, demos: list[Demo], settings: LearnSettings, caches: LearningCaches
+    skill: Skill,
+    demos: list[Demo],
+    settings: LearnSettings,
+    caches: LearningCaches,
+    stopping: Callable[[], bool] | None,
 ) -> Judgement:
     held = None
     if len(demos) >= 2:
         k = skill.n_clusters if settings.n_clusters is not None else None
 
         def learn_without(dd: list[Demo]) -> Demo:
+            _go_on(stopping)
             kk = None if k is None else min(k, sum(len(x) for x in skill.keypoints))
             again = LearnSettings(params=skill.params, n_clusters=kk, generalization=skill.generalization)
             return learn_path(dd, again, caches=caches)
@@ -176,6 +191,7 @@ def _judge_in_frames(
     folds: int,
     arm: Arm | None,
     baxter: Baxter | None,
+    stopping: Callable[[], bool] | None,
 ) -> Judgement | None:
     assert skill.frames is not None
     _, choices, _ = choose_frames(objs, rules)
@@ -190,6 +206,7 @@ def _judge_in_frames(
     again = LearnSettings(params=skill.params, generalization=skill.generalization)
 
     def learn_without(dd: list[Demo]) -> Demo:
+        _go_on(stopping)
         keep = [i for i, m in enumerate(moved) if any(m is d for d in dd)]
         parts = [demos[i] for i in keep]
         return learn_relative(parts, [objs[i] for i in keep], again, now=now, rules=rules).trajectory

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import html
 import math
+import threading
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +26,33 @@ ARM_CHOICES = {"Left arm": ("left",), "Right arm": ("right",), "Both arms": ("le
 MESSAGE_SLOT = "min-height:3.2em"
 
 
+_MODELS: dict[tuple[Path, int, int], Any] = {}
+_MODELS_LOCK = threading.Lock()
+
+
+def robot_model(urdf_path: Path) -> Any:
+    """The robot's model (a ``yourdfpy.URDF`` with its meshes) read from ``urdf_path``, once per process for
+    the file as it is (its size and modification time). Shared read-only: ``ViserUrdf`` copies the meshes it
+    draws, and only its ``update_cfg`` (never called on a shared model, see :class:`RobotPanel`) changes it."""
+    import yourdfpy
+
+    st = urdf_path.stat()
+    key = (urdf_path.resolve(), st.st_size, st.st_mtime_ns)
+    with _MODELS_LOCK:
+        model = _MODELS.get(key)
+        if model is None:
+            model = yourdfpy.URDF.load(
+                urdf_path,
+                build_scene_graph=True,
+                load_meshes=True,
+                build_collision_scene_graph=False,
+                load_collision_meshes=False,
+                filename_handler=partial(yourdfpy.filename_handler_magic, dir=urdf_path.parent),
+            )
+            _MODELS[key] = model
+        return model
+
+
 def arms_label(arms: tuple[str, ...]) -> str:
     for label, a in ARM_CHOICES.items():
         if tuple(a) == tuple(arms):
@@ -38,7 +67,7 @@ class RobotPanel:
         self.ctl = ctl
         self.server = server
         gui = server.gui
-        self.urdf = ViserUrdf(server, urdf_or_path=urdf_path, root_node_name="/robot")
+        self.urdf = ViserUrdf(server, urdf_or_path=robot_model(urdf_path), root_node_name="/robot")
         names = self.urdf.get_actuated_joint_names()
         # yourdfpy orders joints differently from the backend (head, right, left, grippers): map by name.
         self._arm_idx = np.array([ALL_ARM_JOINTS.index(n) if n in ALL_ARM_JOINTS else -1 for n in names])
@@ -48,6 +77,9 @@ class RobotPanel:
         self.updates = 0  # scene pose updates sent (the benchmark reads it)
         with server.atomic():
             self._fast = _FastPose.build(self.urdf)  # places the fixed joints' frames once
+        if self._fast is None:  # posed by ViserUrdf.update_cfg, which changes its model: a model of its own
+            self.urdf.remove()
+            self.urdf = ViserUrdf(server, urdf_or_path=urdf_path, root_node_name="/robot")
         _v, _t, q0, grip0 = ctl.display.get()
         self.show_pose(q0, grip0)  # and the movable ones: the robot is drawn where it is from the start
         self._status_dirty = True

@@ -172,7 +172,8 @@ def _recording(store: SessionStore) -> tuple[Controller, RecordingNotifier]:
 
     store.create("s")
     told = RecordingNotifier()
-    ctl = Controller(store=store, session="s", backend=SimulatedBaxter(), notifier=told)
+    # the robot streams 4 simulated seconds a wall second: the subject is what a take holds, not its timing
+    ctl = Controller(store=store, session="s", backend=SimulatedBaxter(time_scale=4.0), notifier=told)
     ctl.start()
     ctl.teaching.start_recording()
     return ctl, told

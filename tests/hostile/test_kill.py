@@ -25,11 +25,8 @@ from tests.hostile.builders import ROOT, make_rec
 
 SAVER = """
 import sys, itertools
-import numpy as np
 sys.path.insert(0, {root!r})
-from studio.recorder.files import read_recording_file
 from studio.storage import SessionStore
-from tests.conftest import wait_for
 from tests.hostile.builders import make_rec
 s = SessionStore({sessions!r}).open("victim")
 print("ready", flush=True)
@@ -50,9 +47,7 @@ for i in itertools.count():
 RECORDER = """
 import sys, time
 sys.path.insert(0, {root!r})
-from studio.recorder.files import read_recording_file
 from studio.storage import SessionStore
-from tests.conftest import wait_for
 from studio.recorder import Recorder
 from studio.robot_backend.simulated import SimulatedBaxter
 s = SessionStore({sessions!r}).open("victim")
