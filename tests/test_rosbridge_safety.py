@@ -407,8 +407,11 @@ def test_a_stall_never_replays_late_targets_in_a_burst(bed: BaxterBed, robot: Ro
     robot.command_joints("left", robot.state().q[:7] + np.array([0.05, 0, 0, 0, 0, 0, 0]))
     time.sleep(1.2)
     times = np.array([t for t, _ in bed.by_op("publish", LEFT_CMD) if t > start])
-    assert times.size > 20 and not slow["once"]
+    assert times.size > 20 and not slow["once"], (times.size, slow)
     after = times[int(np.argmax(np.diff(times))) + 1]  # the first target after the stall
-    burst = int(np.sum((times >= after) & (times < after + 0.03)))
-    assert burst <= 4, f"{burst} targets arrived within 30 ms after the stall"  # 40-50 without dropping
-    assert robot._link.skipped > 0  # the late targets were dropped (how many depends on how busy the machine is)
+    # 100 ms after the stall holds about 10 targets at 100 Hz; the 0.5 s stall's own targets replayed would add
+    # about 50. Generous: a busy machine delivers a few at once (a quiet fresh clone saw 5 within 30 ms).
+    burst = int(np.sum((times >= after) & (times < after + 0.1)))
+    assert burst <= 20, f"{burst} targets arrived within 100 ms after the stall"
+    # the late targets were dropped (how many depends on how busy the machine is)
+    assert robot._link.skipped > 0, (robot._link.skipped, np.round(np.diff(times), 3).tolist())
