@@ -21,6 +21,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from bench_page import chromium_cpu  # noqa: E402
 from bench_suite import Sampler  # noqa: E402
 from playwright.sync_api import sync_playwright  # noqa: E402
 
@@ -38,12 +39,6 @@ MULTISAMPLING = """(() => {
 })();"""
 CANVAS_ONLY = "if (!(e.target instanceof HTMLCanvasElement)) return;"
 SETTINGS = ("the page script as it is", "with multisampling", "a click anywhere draws freely")
-
-
-def chromium_cpu(sampler: Sampler) -> float:
-    """CPU seconds of the Chromium processes started by this process (not other people's)."""
-    sampler.sweep()
-    return sum(c for k, c in sampler.last.values() if k.startswith("chromium"))
 
 
 def main() -> None:
