@@ -3,18 +3,21 @@ training, preview, replay and sessions, on a copy of the example session with a 
 
 from __future__ import annotations
 
+import threading
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+import studio.core.learn as learn
 from studio.controller import PREVIEW, REPLAY, Controller, Topic
 from studio.core.errors import NotEnoughData, SessionFormatError, StudioError
 from studio.core.quality.judgement import Close
 from studio.core.quality.notes import OddDemo
 from studio.core.types import Arm
+from studio.robot_backend.simulated import SimulatedBaxter
 from studio.storage import SessionStore
-from tests.conftest import RecordingNotifier, wait_for
+from tests.conftest import RecordingNotifier, trained_copy, wait_for
 
 
 def notes(ctl: Controller) -> list[tuple[str, str, str]]:
@@ -425,12 +428,6 @@ def test_the_verdict_being_judged_stops_when_the_studio_stops(
 ) -> None:
     """Opening a trained session judges its skill on the work thread; stopping the studio meanwhile ends that
     job before its next held-out fold, silently (its verdict would be shown nowhere)."""
-    import threading
-
-    import studio.core.learn as learn
-    from studio.robot_backend.simulated import SimulatedBaxter
-    from tests.conftest import trained_copy
-
     real, folds = learn.learn_relative, []
     started, stopped = threading.Event(), threading.Event()
 
