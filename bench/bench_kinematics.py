@@ -1,5 +1,6 @@
 """Kinematics benchmark: FK per call and per batch, IK per solve, and the studio's IK against pink and pyroki.
 
+    bash scripts/bootstrap.sh "test,mesh,bench"   # pink and its QP solver are the bench extra
     .venv/bin/python bench/bench_kinematics.py [--quick] [--skip-fk] [--poses N] [--paths N]
 
 1. FK per call and per 30,000-configuration batch against pinocchio's own per-call loop (same run).

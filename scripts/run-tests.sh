@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Runs the whole test suite on a fresh machine: virtual environment, packages, Debian's chromium for the
-# browser tests (installed with apt-get when missing), lint and type checks, then pytest. Extra arguments go to pytest.
+# browser tests (installed with apt-get when missing), lint, then pytest with the type check running beside it (its
+# result is printed after the tests'; either failing fails the command). Extra arguments go to pytest.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
@@ -12,11 +13,23 @@ if [ ! -x /usr/bin/chromium ]; then
   $SUDO apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq chromium >/dev/null
 fi
-echo "==> lint (ruff) and types (mypy)"
+echo "==> lint (ruff); types (mypy) run beside the tests and are reported after them"
 .venv/bin/ruff check studio tests bench scripts
-.venv/bin/mypy
+TYPES_LOG="$(mktemp)"
+.venv/bin/mypy >"$TYPES_LOG" 2>&1 &
+TYPES_PID=$!
+trap 'kill "$TYPES_PID" 2>/dev/null || true; rm -f "$TYPES_LOG"' EXIT
 echo "==> tests"
 # Two workers (the machine has two cores), each handed the next test when it is free (no test is in a group, so
 # "loadgroup" hands them out one by one), the slowest browser walks first (tests/conftest.py, decision 099).
 # No reruns: a test that fails under load is a bug in the test or the code. The 15 slowest tests are listed.
-exec .venv/bin/python -m pytest -n 2 --dist loadgroup --durations=15 -ra "$@"
+set +e
+.venv/bin/python -m pytest -n 2 --dist loadgroup --durations=15 -ra "$@"
+tests=$?
+wait "$TYPES_PID"
+types=$?
+set -e
+echo "==> types (mypy)"
+cat "$TYPES_LOG"
+if [ "$tests" -ne 0 ]; then exit "$tests"; fi
+exit "$types"
