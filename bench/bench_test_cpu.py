@@ -25,35 +25,19 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from bench_suite import Sampler
 
 ROOT = Path(__file__).resolve().parents[1]
-TICK = os.sysconf("SC_CLK_TCK")
 OUT_ENV = "STUDIO_TEST_CPU_OUT"
 
 
 # -- the plugin (loaded in each pytest worker with ``-p bench_test_cpu``) ---------------------------------------
-def _descendants_cpu() -> dict[int, float]:
-    """CPU seconds of every live descendant of this process, by pid."""
-    parent: dict[int, int] = {}
-    cpu: dict[int, float] = {}
-    for name in os.listdir("/proc"):
-        if not name.isdigit():
-            continue
-        try:
-            with open(f"/proc/{name}/stat") as f:
-                fields = f.read().rsplit(")", 1)[1].split()
-        except OSError:
-            continue
-        parent[int(name)] = int(fields[1])
-        cpu[int(name)] = (int(fields[11]) + int(fields[12])) / TICK
-    mine, grew = {os.getpid()}, True
-    while grew:
-        grew = False
-        for pid, pp in parent.items():
-            if pp in mine and pid not in mine:
-                mine.add(pid)
-                grew = True
-    return {pid: cpu[pid] for pid in mine if pid != os.getpid()}
+def _descendants_cpu() -> dict[str, float]:
+    """CPU seconds of every live descendant of this process, by pid (read as ``bench_suite.Sampler`` reads them)."""
+    sampler = Sampler()
+    sampler.root = str(os.getpid())
+    sampler.sweep()
+    return {pid: cpu for pid, (_, cpu) in sampler.last.items() if pid != sampler.root}
 
 
 def _ended_children_cpu() -> float:
