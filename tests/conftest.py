@@ -39,9 +39,10 @@ CHROMIUM_ARGS = [
 ]
 
 
-#: Test pages draw at most one frame every FRAME_MS while something moves (but freely while the mouse acts on the
-#: page) and viser's once-a-second safety-net frame every HEARTBEAT_MS (docs/decisions/093).
-#: ``drawn()`` asks for a frame and waits until it is drawn, so a screenshot shows what the page holds.
+#: Test pages run at most one frame every FRAME_MS while something moves (but freely while the mouse acts on the
+#: page) and viser's once-a-second safety-net frame every HEARTBEAT_MS (docs/decisions/093); they paint the 3D view
+#: only when a test looks at it (decision 099). ``drawn()`` asks for a painted frame and waits until it is
+#: painted, so a screenshot shows what the page holds.
 #: ``STUDIO_TEST_FRAMES=native`` leaves pages as they are (to measure the difference: bench/README.md).
 FRAME_MS, HEARTBEAT_MS = 1000, 10_000
 NATIVE_FRAMES = os.environ.get("STUDIO_TEST_FRAMES") == "native"
@@ -51,9 +52,9 @@ def page_js(frame_ms: int = FRAME_MS, heartbeat_ms: int = HEARTBEAT_MS) -> str:
     """A page script (run before the page's own): a callback asking for the next animation frame again (the
     render loop) waits until ``frame_ms`` after the last such frame, a one-off (a transition) does not, nor does
     any while the mouse acts on the 3D view (a drag draws as it does for a person; a click on the panel does not);
-    WebGL without multisampling;
-    viser's heartbeat every ``heartbeat_ms``; frames counted (``window.__studioFrames``) and one asked for on
-    demand (``window.__studioDrawNow()``)."""
+    WebGL without multisampling; the 3D view painted only in a frame asked for (``window.__studioDrawNow()``, which
+    counts ``window.__studioLooks`` once painted): the other frames run as they do for a person, their draws on the
+    page's canvas skipped; viser's heartbeat every ``heartbeat_ms``; frames counted (``window.__studioFrames``)."""
     return _PAGE_JS.replace("FRAME_MS_", str(int(frame_ms))).replace("HEARTBEAT_MS_", str(int(heartbeat_ms)))
 
 
@@ -88,8 +89,37 @@ _PAGE_JS = """(() => {
         }
         return id;
     };
-    // a frame now (for a screenshot): the render loop asked for one, and one that waits is not kept waiting
+    // The 3D view is painted only when a test looks at it: software WebGL spends nearly all of a frame's CPU in the
+    // draws on the page's canvas (decision 099). Every frame still runs (the render loop, the handles, viser's
+    // messages); between looks its draws on the canvas are skipped and the canvas keeps the last painted picture
+    // (viser asks for preserveDrawingBuffer). Draws into off-screen targets (the renderer's own passes) always run.
+    let look = false, ending = false;
+    window.__studioLooks = 0;
+    for (const P of [WebGLRenderingContext.prototype, WebGL2RenderingContext.prototype]) {
+        const bind = P.bindFramebuffer;
+        P.bindFramebuffer = function (target, fb) {
+            if (target !== 0x8CA8) this.__studioTarget = fb;  // not READ_FRAMEBUFFER: where draws go
+            return bind.call(this, target, fb);
+        };
+        for (const name of ["clear", "drawArrays", "drawElements", "drawArraysInstanced", "drawElementsInstanced",
+                            "drawRangeElements", "blitFramebuffer"]) {
+            const draw = P[name];
+            if (!draw) continue;
+            P[name] = function (...args) {
+                if (!this.__studioTarget) {  // the page's canvas
+                    if (!look) return undefined;
+                    if (!ending) {  // the whole frame is painted: it ends when the frame's task has run
+                        ending = true;
+                        queueMicrotask(() => { ending = false; look = false; window.__studioLooks += 1; });
+                    }
+                }
+                return draw.apply(this, args);
+            };
+        }
+    }
+    // a painted frame now (for a screenshot): the render loop asked for one, and one that waits is not kept waiting
     window.__studioDrawNow = () => {
+        look = true;
         if (window.__studioDraw) window.__studioDraw();
         if (timer !== null) { clearTimeout(timer); timer = null; raf(run); }
     };
@@ -301,17 +331,17 @@ def browser() -> Iterator[Browser]:
 
 
 def drawn(page: Page, timeout: float = 30.0) -> None:
-    """Ask ``page`` for a frame and wait until it is drawn: what the page holds is then on screen (a page that
-    draws no scene, e.g. a refusal, after its next paint)."""
+    """Ask ``page`` for a frame with the 3D view painted and wait until it is: what the page holds is then on
+    screen (a page that draws no scene, e.g. a refusal, after its next paint)."""
     done = page.evaluate(
         """(timeout) => new Promise((resolve) => {
             if (window.__studioFrames === undefined) return resolve(true);  // a page without page_js()
             // a page without a render loop (not the studio's: a refusal, another site): its next paint will do
             if (!window.__studioDraw) return requestAnimationFrame(() => resolve(true));
-            const n = window.__studioFrames, until = performance.now() + timeout;
+            const n = window.__studioLooks, until = performance.now() + timeout;
             window.__studioDrawNow();
             const check = () => {
-                if (window.__studioFrames > n) resolve(true);
+                if (window.__studioLooks > n) resolve(true);
                 else if (performance.now() > until) resolve(false);
                 else setTimeout(check, 20);
             };
