@@ -15,7 +15,7 @@ from studio.robot_backend._clock import BatchClock
 from studio.robot_backend.base import JointStateBatch, RobotBackend
 from studio.robot_backend.replay import ReplayBackend
 from studio.robot_backend.simulated import SimulatedBaxter, rate_limited, rate_limited_series
-from tests.conftest import Collector
+from tests.conftest import Collector, wait_for
 
 
 def _busy(stop: threading.Event) -> None:
@@ -288,3 +288,54 @@ def test_clock_never_runs_two_threads_after_a_stop_that_timed_out() -> None:
     finally:
         clock.stop()
     assert not clock.running
+
+
+def test_a_stop_while_the_clock_starts_in_another_thread_stops_it(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Two tabs: one presses Play (the replay's clock starts), the other seeks at that moment (the clock stops).
+    The stop waits for the start and then stops the clock; it never joins a thread that has not started."""
+    gate, starting = threading.Event(), threading.Event()
+    plain = threading.Thread
+
+    class SlowToStart(threading.Thread):
+        def start(self) -> None:
+            if self.name == "test-clock":
+                starting.set()
+                gate.wait(10)
+            super().start()
+
+    clock = BatchClock(lambda _t: None, period=0.005, name="test-clock")
+    starter = plain(target=clock.start)
+    errors: list[BaseException] = []
+
+    def stop() -> None:
+        try:
+            clock.stop()
+        except BaseException as exc:  # the race as it was: "cannot join thread before it is started"
+            errors.append(exc)
+
+    stopper = plain(target=stop)
+    monkeypatch.setattr(threading, "Thread", SlowToStart)
+    try:
+        starter.start()
+        assert starting.wait(5)
+        stopper.start()
+        stopper.join(timeout=0.5)  # gives a stop that does not wait for the start the time to fail
+    finally:
+        gate.set()
+        monkeypatch.undo()
+    starter.join(10)
+    stopper.join(10)
+    assert not errors, errors
+    assert not clock.running
+    assert wait_for(lambda: "test-clock" not in [t.name for t in threading.enumerate()], 10)
+
+
+def test_a_closed_playback_never_plays_again() -> None:
+    """A playback unloaded by one tab while another pressed Play: Play on the closed one starts nothing."""
+    from studio.controller.playback import PREVIEW, Playback
+
+    rec = Recording(t=np.linspace(0, 1, 11), q=np.zeros((11, 14)), gripper=np.full((11, 2), 50.0), name="r")
+    pb = Playback(PREVIEW, rec, key=None)
+    pb.close()
+    pb.play()
+    assert not pb.backend.running

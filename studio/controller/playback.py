@@ -7,6 +7,7 @@ playback is loaded; the scene follows it while it is shown (:class:`~studio.cont
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable, Mapping
 from enum import StrEnum
 
@@ -50,6 +51,8 @@ class Playback:
         st = self.backend.state()
         self.source.set(st.t, st.q, st.gripper)
         self._unsub = self.backend.subscribe(self._on_batch)
+        self._lock = threading.Lock()
+        self._closed = False
 
     def _on_batch(self, batch: JointStateBatch) -> None:
         if len(batch):
@@ -69,7 +72,10 @@ class Playback:
         return self.backend.finished
 
     def play(self) -> None:
-        self.backend.start()
+        """Play from where it is; nothing once closed (another tab may have unloaded it meanwhile)."""
+        with self._lock:
+            if not self._closed:
+                self.backend.start()
 
     def pause(self) -> None:
         self.backend.stop()
@@ -83,8 +89,10 @@ class Playback:
         self.source.set(float(self.recording.t[i]), self.recording.q[i], self.recording.gripper[i])
 
     def close(self) -> None:
-        self._unsub()
-        self.backend.stop()
+        with self._lock:
+            self._closed = True
+            self._unsub()
+            self.backend.stop()
 
 
 class Player:

@@ -41,6 +41,7 @@ class BatchClock:
         self.time_scale = float(time_scale)
         self._name = name
         self._thread: threading.Thread | None = None
+        self._lock = threading.Lock()  # start and stop from different threads (two tabs: Play and a seek)
         self._stop = threading.Event()
         self._wall0 = 0.0
         self._sim0 = 0.0
@@ -54,26 +55,32 @@ class BatchClock:
         return self._thread is not None and self._thread.is_alive() and not self._stop.is_set()
 
     def start(self, sim_start: float = 0.0) -> None:
-        """Start ticking; simulated time ``sim_start`` corresponds to now.
+        """Start ticking; simulated time ``sim_start`` corresponds to now. Safe beside :meth:`stop` from another
+        thread: a thread is published only once it runs.
 
         Raises:
             StudioError: the previous ticking thread is still busy after :meth:`stop` (never two at once).
         """
-        if self.running:
-            return
-        old = self._thread
-        if old is not None and old.is_alive():  # stopped, but its last wakeup has not returned yet
-            if old is not threading.current_thread():
-                old.join(timeout=self.join_timeout)
-            if old.is_alive():
+        with self._lock:
+            if self.running:
+                return
+            old = self._thread
+        if old is not None and old.is_alive() and old is not threading.current_thread():
+            old.join(timeout=self.join_timeout)  # stopped, but its last wakeup has not returned yet
+        with self._lock:
+            if self.running:
+                return
+            old = self._thread
+            if old is not None and old.is_alive():
                 raise StudioError(
                     f'The "{self._name}" clock is still finishing its previous work; try again in a moment.'
                 )
-        self._stop.clear()
-        self._wall0 = time.perf_counter()
-        self._sim0 = float(sim_start)
-        self._thread = threading.Thread(target=self._run, name=self._name, daemon=True)
-        self._thread.start()
+            self._stop.clear()
+            self._wall0 = time.perf_counter()
+            self._sim0 = float(sim_start)
+            t = threading.Thread(target=self._run, name=self._name, daemon=True)
+            t.start()
+            self._thread = t
 
     def rebase(self, sim_now: float) -> None:
         """Declare that simulated time ``sim_now`` corresponds to the wall clock now (after pause/seek)."""
@@ -85,14 +92,17 @@ class BatchClock:
         return self._sim0 + (time.perf_counter() - self._wall0) * self.time_scale
 
     def stop(self) -> None:
-        t = self._thread
-        if t is None:
-            return
-        self._stop.set()
+        """Stop ticking and wait (up to :attr:`join_timeout`) for the thread's last wakeup."""
+        with self._lock:
+            t = self._thread
+            if t is None:
+                return
+            self._stop.set()
         if t is not threading.current_thread():
             t.join(timeout=self.join_timeout)
-        if not t.is_alive():  # keep a thread that is still busy: start() must not run a second one beside it
-            self._thread = None
+        with self._lock:
+            if self._thread is t and not t.is_alive():  # a thread still busy is kept: start() must not run two
+                self._thread = None
 
     def _run(self) -> None:
         next_wake = time.perf_counter()

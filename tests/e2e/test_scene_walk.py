@@ -26,7 +26,7 @@ from studio.core.kinematics import Baxter
 from studio.core.rotations import quat_wxyz_from_matrix
 from studio.teacher import PICK_PLACE_A, PICK_PLACE_B, PICK_PLACE_YAW_A, PICK_PLACE_YAW_B
 from studio.world import simulate
-from tests.conftest import wait_for
+from tests.conftest import quiet_for, wait_for
 from tests.e2e import ui
 from tests.e2e.conftest import ARTIFACTS, free_port
 from tests.viser_client import drawn_at
@@ -233,6 +233,8 @@ def test_arrow_keys_on_a_slider_leave_the_camera_alone(browser, sessions) -> Non
         client = next(iter(app.server.get_clients().values()))
         thumb = ui.row(page, "Left gripper width (%)").get_by_role("slider")
         before_value = ui.number_value(page, "Left gripper width (%)")
+        # the page reports its camera in its first frames: read it once it has stayed put for a second
+        assert quiet_for(lambda: tuple(client.camera.position), 1.0)
         before_cam = np.array(client.camera.position)
         thumb.focus()
         for _ in range(5):
