@@ -41,8 +41,8 @@ CHROMIUM_ARGS = [
 
 #: Test pages run at most one frame every FRAME_MS while something moves (but freely while the mouse acts on the
 #: page) and viser's once-a-second safety-net frame every HEARTBEAT_MS (docs/decisions/093); they paint the 3D view
-#: only when a test looks at it, which makes a frame cheap enough to run four a second (decision 099). ``drawn()`` asks for a painted frame and waits until it is
-#: painted, so a screenshot shows what the page holds.
+#: only when a test looks at it, which makes a frame cheap enough to run four a second (decision 099). ``drawn()``
+#: asks for a painted frame and waits until it is painted, so a screenshot shows what the page holds.
 #: ``STUDIO_TEST_FRAMES=native`` leaves pages as they are (to measure the difference: bench/README.md).
 FRAME_MS, HEARTBEAT_MS = 250, 10_000
 NATIVE_FRAMES = os.environ.get("STUDIO_TEST_FRAMES") == "native"
