@@ -365,6 +365,7 @@ def preview_to_the_end(t: Teacher, shot: str = "preview: the skill works") -> st
         polling=200,
         timeout=120_000,
     )
+    ui.wait_text(t.page, "learned skill \\(preview\\), at its end")  # the picture is the skill's end
     t.shot(shot)
     return result.inner_text()
 
