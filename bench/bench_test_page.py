@@ -1,8 +1,9 @@
-"""What the browser tests' page script (tests/conftest.py ``page_js``) costs headless Chromium per frame asked for
-and per click on the panel: Chromium's CPU seconds (this bench's own processes) for ten frames (``drawn``) and for
-ten clicks on the panel's text, with the script as it is, with multisampling asked for again, and with a click
-anywhere drawing frames freely again (as before decision 099's last part), in alternating rounds of one run, with
-medians and ratios against the script as it is.
+"""What the browser tests' page script (tests/conftest.py ``page_js``) costs headless Chromium per frame asked for,
+per click on the panel and while the arm moves: Chromium's CPU seconds (this bench's own processes) for ten frames
+(``drawn``), ten clicks on the panel's gripper buttons and ten seconds of the left arm sent back and forth, with the
+script as it is, with multisampling asked for again, with a click anywhere drawing frames freely again, and with
+every frame painted and one a second (as before decision 099's last paragraph), in alternating rounds of one run,
+with medians and ratios against the script as it is.
 
     .venv/bin/python bench/bench_test_page.py [--rounds 3]
 """
@@ -17,6 +18,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -38,7 +41,14 @@ MULTISAMPLING = """(() => {
     };
 })();"""
 CANVAS_ONLY = "if (!(e.target instanceof HTMLCanvasElement)) return;"
-SETTINGS = ("the page script as it is", "with multisampling", "a click anywhere draws freely")
+#: The draws on the canvas are skipped between looks; replaced, every frame is painted.
+LOOKS_ONLY = "if (!look) return undefined;"
+SETTINGS = (
+    "the page script as it is",
+    "with multisampling",
+    "a click anywhere draws freely",
+    "every frame painted, 1 a second",
+)
 
 
 def main() -> None:
@@ -48,7 +58,8 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=3)
     args = ap.parse_args()
     script = page_js()
-    assert CANVAS_ONLY in script, "the page script changed: update this bench"
+    assert CANVAS_ONLY in script and LOOKS_ONLY in script, "the page script changed: update this bench"
+    painted = page_js(frame_ms=1000).replace(LOOKS_ONLY, "")
     sessions = Path(tempfile.mkdtemp())
     shutil.copytree(ROOT / "sessions" / "stack-cup", sessions / "stack-cup")
     app = build_app(port=free_port(), session="stack-cup", sessions_dir=sessions)
@@ -56,6 +67,8 @@ def main() -> None:
     sampler.root = str(os.getpid())
     frames: dict[str, list[float]] = {s: [] for s in SETTINGS}
     clicks: dict[str, list[float]] = {s: [] for s in SETTINGS}
+    moving: dict[str, list[float]] = {s: [] for s in SETTINGS}
+    guide = app.controller.guide
     try:
         with sync_playwright() as p:
             browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
@@ -64,7 +77,10 @@ def main() -> None:
                     page = browser.new_page(viewport=ui.VIEWPORT)
                     if setting == "with multisampling":
                         page.add_init_script(MULTISAMPLING)
-                    page.add_init_script(script.replace(CANVAS_ONLY, "") if setting.startswith("a click") else script)
+                    if setting.startswith("a click"):
+                        page.add_init_script(script.replace(CANVAS_ONLY, ""))
+                    else:
+                        page.add_init_script(painted if setting.startswith("every frame") else script)
                     page.goto(app.url())
                     ui.wait_ready(page)
                     time.sleep(3.0)  # the first frames after loading are not the standing page's
@@ -79,13 +95,22 @@ def main() -> None:
                         ui.wait_status(page, ("s.open < 1", "s.open > 99")[i % 2])
                         time.sleep(1.0)
                     clicks[setting].append((chromium_cpu(sampler) - c0) / 10)
+                    c0 = chromium_cpu(sampler)
+                    for i in range(4):  # 15 cm to the side and back, twice: about 10 s of a moving arm
+                        guide.move("left", guide.pose("left")[0] + np.array([0.0, 0.15 * (-1) ** i, 0.0]))
+                        time.sleep(2.5)
+                    moving[setting].append(chromium_cpu(sampler) - c0)
                     page.close()
             browser.close()
     finally:
         app.stop()
         shutil.rmtree(sessions, ignore_errors=True)
     print(f"the browser tests' page script, Chromium's CPU seconds (median of {args.rounds} rounds):")
-    for name, table in (("a frame asked for", frames), ("a click on a gripper button", clicks)):
+    for name, table in (
+        ("a frame asked for", frames),
+        ("a click on a gripper button", clicks),
+        ("10 s of the arm moving", moving),
+    ):
         base = statistics.median(table[SETTINGS[0]])
         for setting, v in table.items():
             med = statistics.median(v)
