@@ -287,8 +287,10 @@ def out_of_reach_and_back(t: Teacher) -> dict[str, object]:
     out_label = out_of_reach_label(t.page)
 
     def beyond() -> None:
-        seen["far shot"] = t.shot("handle out of reach")
         expect(out_label).to_be_visible()
+        # held out of reach, the arm reaches out as far as it can at the speed it moves (the caller checks how far)
+        _wait_status_or_go_on(t.page, f"s.x > {float(p[0]) + 0.22:.4f}")
+        seen["far shot"] = t.shot("handle out of reach")
         seen["far gripper"] = t.gripper()
 
     t.drag([start, far, back], during=beyond)
