@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Creates .venv (Python 3.11+) and installs the studio, only when what it installs changed: the pinned packages of
-# scripts/runtime-requirements.txt without pip's resolver (docs/decisions/091), then the given extras, if any.
+# scripts/runtime-requirements.txt without pip's resolver (docs/decisions/091), then the given extras, if any (the
+# test command's, "test,mesh", pinned in scripts/test-requirements.txt, also without the resolver).
 # Usage: bash scripts/bootstrap.sh [extras]   e.g. "test,mesh"
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -14,7 +15,7 @@ if [ ! -x "$VPY" ]; then
   echo "==> creating the virtual environment in .venv"
   "$PY" -m venv "$ROOT/.venv"
 fi
-STAMP="$ROOT/.venv/.installed-$(cat "$ROOT/pyproject.toml" "$LOCK" | sha1sum | cut -c1-12)-${EXTRAS//,/_}"
+STAMP="$ROOT/.venv/.installed-$(cat "$ROOT/pyproject.toml" "$LOCK" "$ROOT/scripts/test-requirements.txt" | sha1sum | cut -c1-12)-${EXTRAS//,/_}"
 if [ ! -f "$STAMP" ]; then
   export PIP_DISABLE_PIP_VERSION_CHECK=1
   count="$(grep -c '^[a-zA-Z]' "$LOCK")"
@@ -29,11 +30,25 @@ if [ ! -f "$STAMP" ]; then
       "run the command again." >&2
     exit 1
   fi
-  if [ -n "$EXTRAS" ]; then
+  if [ "$EXTRAS" = "test,mesh" ]; then
+    # The test command's extras, pinned beside the run-time ones (scripts/test-requirements.txt): no resolver.
+    echo "==> installing the extras: $EXTRAS"
+    set +e
+    "$VPY" -m pip install --no-deps --no-compile --quiet -r "$ROOT/scripts/test-requirements.txt" 2>&1 \
+      | grep -v "^WARNING: Location"
+    status=("${PIPESTATUS[@]}")
+    set -e
+    if [ "${status[0]}" -ne 0 ]; then
+      echo "Installing the test packages failed (see what pip said above)." >&2
+      exit 1
+    fi
+  elif [ -n "$EXTRAS" ]; then
     echo "==> installing the extras: $EXTRAS"
     "$VPY" -m pip install --quiet -e "$ROOT[$EXTRAS]" 2>&1 | grep -v "^WARNING: Location" || true
   fi
-  "$VPY" -c "import studio.app" \
+  # Loading the studio once also keeps its modules compiled, even where the environment says not to
+  # (PYTHONDONTWRITEBYTECODE): every later start then reads them instead of compiling again (bench/bench_bytecode.py).
+  PYTHONDONTWRITEBYTECODE="" "$VPY" -c "import studio.app" \
     || { echo "The studio's packages are installed but do not load (see above)." >&2; exit 1; }
   touch "$STAMP"
 fi

@@ -1,8 +1,9 @@
-"""The packages the studio needs to run, pinned: what `scripts/bootstrap.sh` installs without pip's resolver.
+"""The packages the studio needs to run, and those its tests add, pinned: what `scripts/bootstrap.sh` installs
+without pip's resolver.
 
-It follows pyproject.toml's dependencies through the installed packages' metadata, leaving out what the
-studio never imports (OMITTED, decision 091). Writes scripts/runtime-requirements.txt from this virtual
-environment; `--check` says how the file differs from it."""
+It follows pyproject.toml's dependencies (and those of the TESTED extras) through the installed packages'
+metadata, leaving out what is never imported (OMITTED, decision 091). Writes scripts/runtime-requirements.txt and
+scripts/test-requirements.txt from this virtual environment; `--check` says how the files differ from it."""
 
 from __future__ import annotations
 
@@ -18,16 +19,24 @@ from packaging.version import Version
 
 ROOT = Path(__file__).resolve().parents[1]
 LOCK = ROOT / "scripts" / "runtime-requirements.txt"
+#: What the test command installs beside LOCK: the TESTED extras' packages and theirs, less those in LOCK.
+TEST_LOCK = ROOT / "scripts" / "test-requirements.txt"
+#: The extras the test command asks for (scripts/run-tests.sh), in bootstrap.sh's spelling.
+TESTED = "test,mesh"
 #: (package, what it asks for) → why the studio runs without it (installed with `--no-deps`).
 OMITTED: dict[tuple[str, str], str] = {
     ("yourdfpy", "trimesh[easy]"): "trimesh alone loads the light robot's .glb meshes; its extras (embree, shapely, "
     "rtree, manifold3d, …) are for other formats and mesh processing",
-    ("toppra", "matplotlib"): "toppra imports matplotlib only to plot (ParametrizeConstAccel.plot_parametrization)",
 }
 HEADER = (
     "# What scripts/bootstrap.sh installs to run the studio, with --no-deps (no resolver): pyproject.toml's\n"
     "# dependencies and theirs, pinned. Written by `python scripts/lock_runtime.py` in a virtual environment\n"
     "# that has them; tests/test_install.py checks it. Left out on purpose: scripts/lock_runtime.py OMITTED.\n"
+)
+TEST_HEADER = (
+    f"# What scripts/bootstrap.sh installs for the extras {TESTED} (the test command), with --no-deps, beside\n"
+    "# scripts/runtime-requirements.txt: those extras' packages and theirs, pinned, less the run-time ones. Written\n"
+    "# by `python scripts/lock_runtime.py`; tests/test_install.py checks it.\n"
 )
 
 
@@ -35,6 +44,12 @@ def runtime_requirements(pyproject: Path = ROOT / "pyproject.toml") -> list[Requ
     """The studio's own run-time dependencies (pyproject.toml's [project] dependencies)."""
     data = tomllib.loads(pyproject.read_text())
     return [Requirement(r) for r in data["project"]["dependencies"]]
+
+
+def extra_requirements(extras: str = TESTED, pyproject: Path = ROOT / "pyproject.toml") -> list[Requirement]:
+    """The packages pyproject.toml's optional dependencies ``extras`` (comma-separated) ask for."""
+    data = tomllib.loads(pyproject.read_text())["project"]["optional-dependencies"]
+    return [Requirement(r) for extra in extras.split(",") for r in data[extra]]
 
 
 def closure(roots: list[Requirement]) -> dict[str, Requirement]:
@@ -94,8 +109,15 @@ def read_lock(path: Path = LOCK) -> dict[str, Version]:
     return out
 
 
-def lock_text(versions: dict[str, Version]) -> str:
-    return HEADER + "".join(f"{n}=={v}\n" for n, v in sorted(versions.items()))
+def lock_text(versions: dict[str, Version], header: str = HEADER) -> str:
+    return header + "".join(f"{n}=={v}\n" for n, v in sorted(versions.items()))
+
+
+def test_differences(runtime: dict[str, Version], tests: dict[str, Version]) -> list[str]:
+    """How the test lock ``tests`` differs from what the tested extras need beside ``runtime``: the two together
+    closed and consistent (:func:`differences`), and nothing pinned twice."""
+    out = [f"pinned twice: {n}" for n in sorted(set(runtime) & set(tests))]
+    return out + differences(runtime | tests, runtime_requirements() + extra_requirements())
 
 
 def differences(lock: dict[str, Version], roots: list[Requirement]) -> list[str]:
@@ -123,11 +145,14 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     roots = runtime_requirements()
     if args.check:
-        diff = differences(read_lock(), roots)
-        print("\n".join(diff) or "scripts/runtime-requirements.txt is closed and consistent")
+        diff = differences(read_lock(), roots) + test_differences(read_lock(), read_lock(TEST_LOCK))
+        print("\n".join(diff) or "scripts/runtime-requirements.txt and test-requirements.txt are closed and consistent")
         return 1 if diff else 0
-    LOCK.write_text(lock_text(pinned(closure(roots))))
-    print(f"wrote {LOCK.relative_to(ROOT)}")
+    runtime = closure(roots)
+    LOCK.write_text(lock_text(pinned(runtime)))
+    tests = {n: r for n, r in closure(roots + extra_requirements()).items() if n not in runtime}
+    TEST_LOCK.write_text(lock_text(pinned(tests), TEST_HEADER))
+    print(f"wrote {LOCK.relative_to(ROOT)} and {TEST_LOCK.relative_to(ROOT)}")
     return 0
 
 

@@ -20,11 +20,16 @@ TYPES_LOG="$(mktemp)"
 TYPES_PID=$!
 trap 'kill "$TYPES_PID" 2>/dev/null || true; rm -f "$TYPES_LOG"' EXIT
 echo "==> tests"
-# Two workers (the machine has two cores), each handed the next test when it is free (no test is in a group, so
-# "loadgroup" hands them out one by one), the slowest browser walks first (tests/conftest.py, decision 099).
+# Python keeps what it compiles, even where the environment says not to: the studios, workers and commands the
+# tests start then read the modules the first of them compiled (bench/bench_bytecode.py).
+export PYTHONDONTWRITEBYTECODE=""
+# Three workers on the two cores: the tests wait on the clock part of the time (a robot moving in real time, a
+# studio starting), and a third worker uses the cores meanwhile (bench/README.md). Each is handed the next test when
+# it is free, the slowest browser walks first (tests/conftest.py, decision 099); a module in an xdist_group goes to
+# one worker whole, so its module fixture is built once.
 # No reruns: a test that fails under load is a bug in the test or the code. The 15 slowest tests are listed.
 set +e
-.venv/bin/python -m pytest -n 2 --dist loadgroup --durations=15 -ra "$@"
+.venv/bin/python -m pytest -n 3 --dist loadgroup --durations=15 -ra "$@"
 tests=$?
 wait "$TYPES_PID"
 types=$?

@@ -3,6 +3,7 @@ records, and one headless Chromium for the browser tests (Debian's, never ``play
 
 from __future__ import annotations
 
+import fcntl
 import os
 import shutil
 import socket
@@ -10,6 +11,7 @@ import subprocess
 import threading
 import time
 from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, cast
 
@@ -236,17 +238,37 @@ def sessions(tmp_path: Path) -> Path:
     return d
 
 
+@contextmanager
+def run_wide(tmp_path_factory: pytest.TempPathFactory, name: str) -> Iterator[Path]:
+    """A folder ``name`` that the whole run shares (every worker of ``-n``), held under a lock: the first worker
+    to come fills it, the others wait and find it filled (``name/done`` exists once it is)."""
+    base = tmp_path_factory.getbasetemp()
+    root = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base  # the run's own folder either way
+    with open(root / f"{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            d = root / name
+            d.mkdir(exist_ok=True)
+            yield d
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+
+
 @pytest.fixture(scope="session")
 def trained_examples(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A folder holding the "pick-place" and "stack-cup" examples, each trained once per worker as the Train
+    """A folder holding the "pick-place" and "stack-cup" examples, each trained once in the run as the Train
     button trains (``studio learn``) and saved: copied by the tests whose subject comes after training."""
     from studio.cli import main
 
-    d = tmp_path_factory.mktemp("trained") / "sessions"
-    d.mkdir()
-    for name in ("pick-place", "stack-cup"):
-        shutil.copytree(ROOT / "sessions" / name, d / name)
-        assert main(["learn", name, "--sessions-dir", str(d)]) == 0
+    with run_wide(tmp_path_factory, "trained") as shared:
+        d = shared / "sessions"
+        if not (shared / "done").exists():
+            shutil.rmtree(d, ignore_errors=True)
+            d.mkdir()
+            for name in ("pick-place", "stack-cup"):
+                shutil.copytree(ROOT / "sessions" / name, d / name)
+                assert main(["learn", name, "--sessions-dir", str(d)]) == 0
+            (shared / "done").touch()
     return d
 
 
@@ -406,8 +428,8 @@ def _rank(item: pytest.Item) -> int:
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """With ``-n 2`` (scripts/run-tests.sh) each worker is handed the next test when it is free: the slowest
-    browser walks go first, so that the many short tests fill in at the end and both workers end together."""
+    """With ``-n 3`` (scripts/run-tests.sh) each worker is handed the next test when it is free: the slowest
+    browser walks go first, so that the many short tests fill in at the end and the workers end together."""
     items.sort(key=_rank)
 
 

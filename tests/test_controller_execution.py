@@ -28,24 +28,28 @@ from studio.robot_backend.simulated import SimulatedBaxter
 from studio.storage import SessionStore
 from studio.teacher import PICK_PLACE_A, PICK_PLACE_B
 from studio.world import simulate
-from tests.conftest import ROOT, Collector, RecordingNotifier, wait_for
+from tests.conftest import ROOT, Collector, RecordingNotifier, run_wide, wait_for
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
 
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The pick-and-place example with its skill learned (once for the module)."""
-    root = tmp_path_factory.mktemp("trained")
-    shutil.copytree(ROOT / "sessions" / "pick-place", root / "pick-place")
-    sim = SimulatedBaxter()
-    ctl = Controller(store=SessionStore(root), session="pick-place", backend=sim, notifier=RecordingNotifier())
-    try:
-        ctl.training.train().result()
-        assert ctl.session.skills, "training failed"
-    finally:
-        ctl.close()
-        ctl.shutdown()
+    """The pick-and-place example with its skill learned (once in the run)."""
+    with run_wide(tmp_path_factory, "executed") as shared:
+        root = shared / "sessions"
+        if not (shared / "done").exists():
+            shutil.rmtree(root, ignore_errors=True)
+            shutil.copytree(ROOT / "sessions" / "pick-place", root / "pick-place")
+            sim = SimulatedBaxter()
+            ctl = Controller(store=SessionStore(root), session="pick-place", backend=sim, notifier=RecordingNotifier())
+            try:
+                ctl.training.train().result()
+                assert ctl.session.skills, "training failed"
+            finally:
+                ctl.close()
+                ctl.shutdown()
+            (shared / "done").touch()
     return root
 
 
