@@ -26,7 +26,7 @@ export PYTHONDONTWRITEBYTECODE=""
 # Three workers on the two cores: the tests wait on the clock part of the time (a robot moving in real time, a
 # studio starting), and a third worker uses the cores meanwhile (bench/README.md). Each is handed the next test when
 # it is free, the slowest browser walks first (tests/conftest.py, decision 099); the fixtures that train are built
-# once for all three (run_wide, decision 100).
+# once for all three (run_once, decision 100).
 # No reruns: a test that fails under load is a bug in the test or the code. The 15 slowest tests are listed.
 set +e
 .venv/bin/python -m pytest -n 3 --dist loadgroup --durations=15 -ra "$@"

@@ -11,7 +11,6 @@ import subprocess
 import threading
 import time
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, cast
 
@@ -238,20 +237,20 @@ def sessions(tmp_path: Path) -> Path:
     return d
 
 
-@contextmanager
-def run_wide(tmp_path_factory: pytest.TempPathFactory, name: str) -> Iterator[Path]:
-    """A folder ``name`` that the whole run shares (every worker of ``-n``), held under a lock: the first worker
-    to come fills it, the others wait and find it filled (``name/done`` exists once it is)."""
+def run_once(tmp_path_factory: pytest.TempPathFactory, name: str, fill: Callable[[Path], None]) -> Path:
+    """A sessions folder that the whole run shares (every worker of ``-n``), filled by ``fill(folder)`` once: the
+    first worker to come fills it under a file lock, the others wait and find it filled."""
     base = tmp_path_factory.getbasetemp()
     root = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base  # the run's own folder either way
+    shared = root / name
     with open(root / f"{name}.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        try:
-            d = root / name
-            d.mkdir(exist_ok=True)
-            yield d
-        finally:
-            fcntl.flock(lock, fcntl.LOCK_UN)
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file is closed
+        if not (shared / "done").exists():
+            shutil.rmtree(shared, ignore_errors=True)  # a worker's filling that failed
+            (shared / "sessions").mkdir(parents=True)
+            fill(shared / "sessions")
+            (shared / "done").touch()
+    return shared / "sessions"
 
 
 @pytest.fixture(scope="session")
@@ -260,16 +259,12 @@ def trained_examples(tmp_path_factory: pytest.TempPathFactory) -> Path:
     button trains (``studio learn``) and saved: copied by the tests whose subject comes after training."""
     from studio.cli import main
 
-    with run_wide(tmp_path_factory, "trained") as shared:
-        d = shared / "sessions"
-        if not (shared / "done").exists():
-            shutil.rmtree(d, ignore_errors=True)
-            d.mkdir()
-            for name in ("pick-place", "stack-cup"):
-                shutil.copytree(ROOT / "sessions" / name, d / name)
-                assert main(["learn", name, "--sessions-dir", str(d)]) == 0
-            (shared / "done").touch()
-    return d
+    def fill(d: Path) -> None:
+        for name in ("pick-place", "stack-cup"):
+            shutil.copytree(ROOT / "sessions" / name, d / name)
+            assert main(["learn", name, "--sessions-dir", str(d)]) == 0
+
+    return run_once(tmp_path_factory, "trained", fill)
 
 
 def trained_copy(trained: Path, name: str, sessions: Path) -> Path:

@@ -23,7 +23,7 @@ from studio.core.obstacles import Obstacle, obstacle_pose
 from studio.robot_backend.simulated import SimulatedBaxter
 from studio.storage import SessionStore
 from studio.world import preset
-from tests.conftest import RecordingNotifier, run_wide, wait_for
+from tests.conftest import RecordingNotifier, run_once, wait_for
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 TABLE_TOP = -0.07
@@ -47,21 +47,19 @@ def table_depth(q14: np.ndarray, gripper: np.ndarray) -> float:
 def store(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Two pick-and-place sessions taught by the scripted teacher, trained once in the run: "sags" carries the
     block 20 cm lower half-way (through the table), "low" 10 cm lower (clear of the table)."""
-    with run_wide(tmp_path_factory, "contacts") as shared:
-        root = shared / "sessions"
-        if not (shared / "done").exists():
-            shutil.rmtree(root, ignore_errors=True)
-            st = SessionStore(root)
-            for name, dip in (("sags", 0.2), ("low", 0.1)):
-                session = st.create(name, arms=("left",))
-                session.set_scene(preset("pick-place", ("left",)))
-                for i, seed in enumerate((1, 2, 3)):
-                    plan = teacher.teach("pick-place", seed, arm="left", dip=dip)
-                    record_plan(session, plan, f"demo {i + 1}", noise_seed=i)
-                with headless(st, session) as ctl:
-                    train(ctl)
-            (shared / "done").touch()
-    return root
+
+    def fill(root: Path) -> None:
+        st = SessionStore(root)
+        for name, dip in (("sags", 0.2), ("low", 0.1)):
+            session = st.create(name, arms=("left",))
+            session.set_scene(preset("pick-place", ("left",)))
+            for i, seed in enumerate((1, 2, 3)):
+                plan = teacher.teach("pick-place", seed, arm="left", dip=dip)
+                record_plan(session, plan, f"demo {i + 1}", noise_seed=i)
+            with headless(st, session) as ctl:
+                train(ctl)
+
+    return run_once(tmp_path_factory, "contacts", fill)
 
 
 def open_rig(store: Path, tmp_path: Path, name: str) -> tuple[Controller, SimulatedBaxter]:

@@ -28,7 +28,7 @@ from studio.robot_backend.simulated import SimulatedBaxter
 from studio.storage import SessionStore
 from studio.teacher import PICK_PLACE_A, PICK_PLACE_B
 from studio.world import simulate
-from tests.conftest import ROOT, Collector, RecordingNotifier, run_wide, wait_for
+from tests.conftest import ROOT, Collector, RecordingNotifier, run_once, wait_for
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
@@ -36,21 +36,19 @@ pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The pick-and-place example with its skill learned (once in the run)."""
-    with run_wide(tmp_path_factory, "executed") as shared:
-        root = shared / "sessions"
-        if not (shared / "done").exists():
-            shutil.rmtree(root, ignore_errors=True)
-            shutil.copytree(ROOT / "sessions" / "pick-place", root / "pick-place")
-            sim = SimulatedBaxter()
-            ctl = Controller(store=SessionStore(root), session="pick-place", backend=sim, notifier=RecordingNotifier())
-            try:
-                ctl.training.train().result()
-                assert ctl.session.skills, "training failed"
-            finally:
-                ctl.close()
-                ctl.shutdown()
-            (shared / "done").touch()
-    return root
+
+    def fill(root: Path) -> None:
+        shutil.copytree(ROOT / "sessions" / "pick-place", root / "pick-place")
+        sim = SimulatedBaxter()
+        ctl = Controller(store=SessionStore(root), session="pick-place", backend=sim, notifier=RecordingNotifier())
+        try:
+            ctl.training.train().result()
+            assert ctl.session.skills, "training failed"
+        finally:
+            ctl.close()
+            ctl.shutdown()
+
+    return run_once(tmp_path_factory, "executed", fill)
 
 
 def make(trained: Path, tmp_path: Path, **sim_args: object) -> tuple[Controller, SimulatedBaxter, RecordingNotifier]:
