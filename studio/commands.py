@@ -217,7 +217,10 @@ def _distances_to_demos(path: np.ndarray, recordings: list[Recording], arm: Arm)
     p = np.asarray(path)[:: max(1, len(path) // 2000)]
     for r in recordings:
         pos, _ = b.fk_batch(arm, r.arm_q(arm)[:: max(1, len(r) // 2000)])
-        d = np.sqrt(((p[:, None, :] - pos[None, :, :]) ** 2).sum(-1)).min(axis=1)
+        # a few hundred path points at a time: the whole (path × demo) difference array is ~100 MB
+        d = np.concatenate(
+            [np.sqrt(((c[:, None, :] - pos[None, :, :]) ** 2).sum(-1)).min(axis=1) for c in np.array_split(p, 8)]
+        )
         dists.append(float(d.mean()))
     return dists
 

@@ -102,10 +102,29 @@ def test_the_bootstrap_installs_the_pins_without_the_resolver() -> None:
     assert "--no-deps" in install and "--no-compile" in install and '-e "$ROOT"' in install
     assert "--upgrade pip" not in script  # no self-upgrade of pip
     assert "install_progress.py" in script
-    tests = next(line for line in script.splitlines() if 'test-requirements.txt" 2>&1' in line)
+    tests = next(line for line in script.splitlines() if '-r "$ROOT/scripts/test-requirements.txt"' in line)
     assert "--no-deps" in tests  # the test command's extras, pinned too
     run = (ROOT / "scripts" / "run-studio.sh").read_text()
     assert "--robot" in run and 'EXTRAS="robot"' in run
+
+
+def test_no_file_belongs_to_two_installed_packages() -> None:
+    """The bootstrap installs the test pins while the run-time pins install: safe while no two packages write the
+    same file (a shared folder is fine)."""
+    from importlib import metadata
+
+    owner: dict[str, str] = {}
+    twice = []
+    for dist in metadata.distributions():
+        name = dist.metadata["Name"].lower()
+        for f in dist.files or []:
+            path = str(f)
+            if "__pycache__" in path or ".dist-info/" in path:
+                continue
+            if owner.setdefault(path, name) != name:
+                twice.append((path, owner[path], name))
+    assert owner, "no installed package lists its files"
+    assert not twice, twice[:10]
 
 
 def test_the_progress_line_counts_then_says_installing() -> None:

@@ -167,6 +167,35 @@ def _mean_quat(qs: np.ndarray | list[np.ndarray]) -> np.ndarray:
     return m / np.linalg.norm(m)
 
 
+def _pin_weights(t: np.ndarray, pins: list[tuple[float, np.ndarray, np.ndarray]]) -> list[tuple[int, np.ndarray]]:
+    """Per pin (``pins`` sorted by time): its sample and its weight over ``t`` (1 there, a raised cosine fading
+    out over :data:`PIN_S` or half the way to the neighbouring pin)."""
+    idx = [int(np.argmin(np.abs(t - p[0]))) for p in pins]
+    times = [float(t[i]) for i in idx]
+    out = []
+    for n, i in enumerate(idx):
+        lo = min(PIN_S, (times[n] - times[n - 1]) / 2) if n > 0 else PIN_S
+        hi = min(PIN_S, (times[n + 1] - times[n]) / 2) if n + 1 < len(pins) else PIN_S
+        d = t - times[n]
+        half = np.where(d < 0, max(lo, 1e-9), max(hi, 1e-9))
+        w = np.where(np.abs(d) < half, 0.5 + 0.5 * np.cos(np.pi * np.clip(d / half, -1.0, 1.0)), 0.0)
+        w[i] = 1.0
+        out.append((i, w))
+    return out
+
+
+def pin_positions(t: np.ndarray, position: np.ndarray, pins: list[tuple[float, np.ndarray, np.ndarray]]) -> np.ndarray:
+    """The positions :func:`pin_poses` gives (the same numbers), without turning the orientation."""
+    pos = np.array(position, dtype=np.float64)
+    if not pins:
+        return pos
+    pins = sorted(pins, key=lambda p: p[0])
+    corr = np.zeros_like(pos)
+    for (_, target, _), (i, w) in zip(pins, _pin_weights(t, pins), strict=True):
+        corr += w[:, None] * (np.asarray(target, dtype=np.float64) - pos[i])
+    return pos + corr
+
+
 def pin_poses(
     t: np.ndarray, position: np.ndarray, orientation: np.ndarray, pins: list[tuple[float, np.ndarray, np.ndarray]]
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -187,17 +216,9 @@ def pin_poses(
     if not pins:
         return pos, ori
     pins = sorted(pins, key=lambda p: p[0])
-    idx = [int(np.argmin(np.abs(t - p[0]))) for p in pins]
-    times = [float(t[i]) for i in idx]
     corr_p = np.zeros_like(pos)
     corr_r = np.zeros((pos.shape[0], 3))
-    for n, ((_, target, q_target), i) in enumerate(zip(pins, idx, strict=True)):
-        lo = min(PIN_S, (times[n] - times[n - 1]) / 2) if n > 0 else PIN_S
-        hi = min(PIN_S, (times[n + 1] - times[n]) / 2) if n + 1 < len(pins) else PIN_S
-        d = t - times[n]
-        half = np.where(d < 0, max(lo, 1e-9), max(hi, 1e-9))
-        w = np.where(np.abs(d) < half, 0.5 + 0.5 * np.cos(np.pi * np.clip(d / half, -1.0, 1.0)), 0.0)
-        w[i] = 1.0
+    for (_, target, q_target), (i, w) in zip(pins, _pin_weights(t, pins), strict=True):
         corr_p += w[:, None] * (np.asarray(target, dtype=np.float64) - pos[i])
         qt = np.asarray(q_target, dtype=np.float64)
         qi = ori[i] * (1.0 if float(np.dot(ori[i], qt)) >= 0 else -1.0)
@@ -305,7 +326,7 @@ def learned_path(
             along = _plain_mean_along(quality.time_normalised_mean(demos), tf, pf[:, :3])
             if tf is not t:
                 along = np.column_stack([np.interp(t, tf, along[:, k]) for k in range(3)])
-            pos = pin_poses(t, (1.0 - share) * pose[:, :3] + share * along, ori, pins)[0]
+            pos = pin_positions(t, (1.0 - share) * pose[:, :3] + share * along, pins)
     return Demo(traj.t, pos, ori, traj.gripper, name="learned skill")
 
 
@@ -381,7 +402,7 @@ def _plain_mean_share(
             return quality.frechet_many(a, np.tile(curves, (len(paths), 1, 1))).reshape(len(paths), D).mean(axis=1)
 
         def bent(share: float) -> np.ndarray:
-            return pin_poses(t, (1.0 - share) * pose[:, :3] + share * along, pose[:, 3:], pins)[0]
+            return pin_positions(t, (1.0 - share) * pose[:, :3] + share * along, pins)
 
         b1 = quality.time_normalised_mean(demos)
         along = _plain_mean_along(b1, t, pose[:, :3])

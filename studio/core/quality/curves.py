@@ -74,6 +74,20 @@ def frechet(a: np.ndarray, b: np.ndarray) -> float:
     return float(frechet_many(a[None], b[None])[0])
 
 
+def frechet_pairs(pairs: Sequence[tuple[np.ndarray, np.ndarray]]) -> list[float]:
+    """The discrete Fréchet distance of each pair of curves, as :func:`frechet` gives it, measured together
+    (:func:`frechet_many`) where the pairs' shapes agree."""
+    out = [0.0] * len(pairs)
+    groups: dict[tuple[tuple[int, ...], tuple[int, ...]], list[int]] = {}
+    for k, (a, b) in enumerate(pairs):
+        groups.setdefault((np.shape(a), np.shape(b)), []).append(k)
+    for ks in groups.values():
+        values = frechet_many(np.stack([pairs[k][0] for k in ks]), np.stack([pairs[k][1] for k in ks]))
+        for k, v in zip(ks, values, strict=True):
+            out[k] = float(v)
+    return out
+
+
 def frechet_many(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(K,) discrete Fréchet distances of K pairs of curves, a (K, M, D) and b (K, N, D), computed together.
 

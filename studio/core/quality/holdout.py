@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from studio.core.errors import NotEnoughData, StudioError
-from studio.core.quality.curves import curve, frechet, ndtw, spread
+from studio.core.quality.curves import curve, frechet_pairs, ndtw, spread
 from studio.core.types import Demo
 
 
@@ -57,7 +57,7 @@ def held_out(
     if r is None:
         r = spread(curves)[0]
     idx = list(range(len(demos))) if folds is None else list(folds)
-    per, fr, failed = [], [], []
+    per, pairs, failed = [], [], []
     for i in idx:
         try:
             tr = learn([d for j, d in enumerate(demos) if j != i])
@@ -67,7 +67,8 @@ def held_out(
             continue
         c = curve(tr)
         per.append(ndtw(c, curves[i]))
-        fr.append(frechet(c, curves[i]))
+        pairs.append((c, curves[i]))
+    fr = frechet_pairs(pairs)
     ok = [p for p in per if math.isfinite(p)]
     g = float(np.mean(ok)) if ok else float("inf")
     return HeldOut(

@@ -11,7 +11,7 @@ from enum import StrEnum
 import numpy as np
 
 from studio.core.errors import NotEnoughData
-from studio.core.quality.curves import arc_length, arc_resample, extent, frechet, ndtw, smoothed, spread
+from studio.core.quality.curves import arc_length, arc_resample, extent, frechet_pairs, ndtw, smoothed, spread
 from studio.core.types import Demo, Skill
 
 #: A bend is a sharp corner when the path turns by more than this (radians) within :func:`corner_stride`
@@ -141,13 +141,13 @@ def fidelity(
     g = float(np.mean(per))
     if r is None:
         r = spread(demo_curves)[0]
-    fr = float(np.mean([frechet(path, c) for c in demo_curves]))
+    fr = float(np.mean(frechet_pairs([(path, c) for c in demo_curves])))
     if b1_frechet is None:
         if b1 is None:
             b1_frechet = float("nan")
         else:
             bc = arc_resample(b1, len(path))
-            b1_frechet = float(np.mean([frechet(bc, c) for c in demo_curves]))
+            b1_frechet = float(np.mean(frechet_pairs([(bc, c) for c in demo_curves])))
     return Fidelity(
         distance=math.sqrt(g),
         spread=math.sqrt(r) if r >= 0 else float("nan"),
