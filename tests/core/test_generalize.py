@@ -112,7 +112,7 @@ def test_joint_trajectory_slows_down_when_too_fast():
 
 
 def test_pinned_poses_are_met_exactly_and_the_rest_is_untouched():
-    from studio.core.generalize import pin_poses
+    from studio.core.generalize import pin_poses, pin_positions
 
     t = np.linspace(0.0, 2.0, 201)
     pos = np.column_stack([t, np.sin(t), np.zeros_like(t)])
@@ -120,6 +120,7 @@ def test_pinned_poses_are_met_exactly_and_the_rest_is_untouched():
     turned = np.array([np.cos(0.1), 0.0, 0.0, np.sin(0.1)])
     pins = [(0.0, np.array([0.0, 0.01, 0.0]), ori[0]), (1.0, np.array([1.0, 0.9, 0.0]), turned)]
     p, q = pin_poses(t, pos, ori, pins)
+    assert np.array_equal(pin_positions(t, pos, pins), p)  # the positions alone, the same numbers
     assert np.allclose(p[0], pins[0][1]) and np.allclose(p[100], pins[1][1])
     assert abs(abs(float(q[100] @ turned)) - 1.0) < 1e-12
     far = np.abs(t - 1.0) > 0.15

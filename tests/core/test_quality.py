@@ -79,6 +79,13 @@ def test_frechet_of_many_pairs_at_once_equals_one_pair_at_a_time():
         Q.frechet_many(np.zeros((2, 3, 3)), np.zeros((3, 3, 3)))
 
 
+def test_frechet_pairs_of_mixed_lengths_equal_one_pair_at_a_time_exactly():
+    rng = np.random.default_rng(5)
+    pairs = [(rng.normal(size=(m, 3)), rng.normal(size=(n, 3))) for m, n in ((30, 20), (7, 7), (30, 20), (1, 9))]
+    assert Q.frechet_pairs(pairs) == [Q.frechet(a, b) for a, b in pairs]
+    assert Q.frechet_pairs([]) == []
+
+
 def test_normalised_dtw_is_the_mean_squared_distance_of_matched_points():
     a = Q.arc_resample(np.array([[0.0, 0, 0], [1, 0, 0]]), 11)
     assert Q.ndtw(a, a) == 0.0

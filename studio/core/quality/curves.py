@@ -93,7 +93,7 @@ def frechet_many(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
     F(i, j) = max(‖a_i − b_j‖, min(F(i−1, j), F(i−1, j−1), F(i, j−1))), evaluated one anti-diagonal at a
     time (all cells with i + j = d depend only on diagonals d − 1 and d − 2; in the flattened distance matrix
-    a diagonal is a slice with stride N − 1).
+    a diagonal is a slice with stride N − 1, each cell holding the K pairs' distances side by side).
     """
     from scipy.spatial.distance import cdist
 
@@ -106,24 +106,25 @@ def frechet_many(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         return np.concatenate(
             [frechet_many(a[k : k + _FRECHET_BATCH], b[k : k + _FRECHET_BATCH]) for k in range(0, K, _FRECHET_BATCH)]
         )
-    flat = np.empty((K, R * T))
+    flat = np.empty((R * T, K))  # the K pairs' distances side by side, cell after cell
     for k in range(K):
-        flat[k] = cdist(a[k], b[k]).ravel()
+        flat[:, k] = cdist(a[k], b[k]).ravel()
     step = max(T - 1, 1)
     inf = np.inf
-    bufs = [np.full((K, R + 1), inf), np.full((K, R + 1), inf), np.full((K, R + 1), inf)]
-    bufs[0][:, 0] = 0.0
+    bufs = [np.full((R + 1, K), inf), np.full((R + 1, K), inf), np.full((R + 1, K), inf)]
+    bufs[0][0] = 0.0
     for d in range(2, R + T + 1):
         prev2, prev1, cur = bufs[(d - 2) % 3], bufs[(d - 1) % 3], bufs[d % 3]
         x0, x1 = max(1, d - T), min(R, d - 1)
         first = (x0 - 1) * (T - 1) + d - 2  # cell (x0 − 1, d − x0 − 1)
-        local = flat[:, first : first + (x1 - x0) * step + 1 : step]
-        best = np.minimum(np.minimum(prev1[:, x0 - 1 : x1], prev1[:, x0 : x1 + 1]), prev2[:, x0 - 1 : x1])
-        np.maximum(local, best, out=cur[:, x0 : x1 + 1])
-        cur[:, x0 - 1] = inf
+        local = flat[first : first + (x1 - x0) * step + 1 : step]
+        best = np.minimum(prev1[x0 - 1 : x1], prev1[x0 : x1 + 1])
+        np.minimum(best, prev2[x0 - 1 : x1], out=best)
+        np.maximum(local, best, out=cur[x0 : x1 + 1])
+        cur[x0 - 1] = inf
         if x1 + 1 <= R:
-            cur[:, x1 + 1] = inf
-    return bufs[(R + T) % 3][:, R].copy()
+            cur[x1 + 1] = inf
+    return bufs[(R + T) % 3][R].copy()
 
 
 def time_normalised_mean(demos: Sequence[Demo], n: int = 2000) -> np.ndarray:
