@@ -12,6 +12,8 @@ from pathlib import Path
 from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from studio.core.errors import StudioError
 
 if TYPE_CHECKING:
@@ -58,7 +60,7 @@ def _takes(fn: Any, args: list[str]) -> bool:
 
 def _classes() -> list[tuple[str, bool]]:
     """What the classes must show, with or without a server: (the piece, whether this viser has it)."""
-    from viser import _gui_handles, _messages
+    from viser import _gui_handles, _messages, _scene_handles
     from viser._viser import ClientHandle
     from viser.extras import ViserUrdf
     from viser.infra import WebsockServer, _infra
@@ -72,6 +74,9 @@ def _classes() -> list[tuple[str, bool]]:
     out.append(
         ("WebsockServer._handle_incoming_message", callable(getattr(WebsockServer, "_handle_incoming_message", None)))
     )
+    node = getattr(_scene_handles, "_SceneNodeHandleState", None)
+    fields = {f.name for f in dataclasses.fields(node)} if dataclasses.is_dataclass(node) else set()
+    out.append(("_SceneNodeHandleState.wxyz and .position", {"wxyz", "position"} <= fields))
     out.append(("ClientHandle._websock_connection", _sets(ClientHandle, "_websock_connection")))
     out.append(("ViserUrdf._urdf and ._joint_frames", _sets(ViserUrdf, "_urdf", "_joint_frames")))
     reader, sender = getattr(_infra, "_message_consumer", None), getattr(_infra, "_message_producer", None)
@@ -155,6 +160,23 @@ def set_value_quietly(handle: Any, value: Any) -> None:
     impl = state(handle)
     if impl is not None:
         impl.value = value
+
+
+def pose_sent(handle: Any) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
+    """A transform handle's orientation (wxyz) and position as its tab last sent them, or None for a control."""
+    import viser
+
+    impl = state(handle)
+    if impl is None or not isinstance(handle, viser.TransformControlsHandle):
+        return None
+    return tuple(float(v) for v in impl.wxyz), tuple(float(v) for v in impl.position)
+
+
+def set_pose_quietly(handle: Any, pose: tuple[tuple[float, ...], tuple[float, ...]]) -> None:
+    """Set a transform handle's orientation and position on the server only (no message to the tabs)."""
+    impl = state(handle)
+    if impl is not None:
+        impl.wxyz, impl.position = np.array(pose[0], dtype=np.float64), np.array(pose[1], dtype=np.float64)
 
 
 def urdf_parts(urdf: ViserUrdf) -> tuple[list[Any], list[Any]]:

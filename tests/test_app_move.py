@@ -5,6 +5,7 @@ position boxes follow the gripper, the View buttons and a camera kept above the 
 from __future__ import annotations
 
 import contextlib
+import threading
 from collections.abc import Iterator
 
 import numpy as np
@@ -115,3 +116,39 @@ def test_a_tab_moves_and_turns_the_gripper_with_the_handle_and_the_buttons(app: 
     assert wait_for(lambda: abs(float(g.pose("left")[0][2]) - (z0 - STEP_M + BIG_STEP_M)) < 2e-3)
     tab.set_value("H home pose", True)
     assert wait_for(lambda: np.allclose(ctl.teaching.target_q("left"), ctl.teaching.home_q("left")))
+
+
+def test_a_drag_waiting_behind_a_press_runs_its_steps_in_order_with_its_poses(app: Studio, tab: ViserClient) -> None:
+    """A busy studio: the release of one drag and the whole next one wait behind a press. Each step then runs in
+    the order and with the pose the tab sent: the first drag (move mode) never turns the gripper, the second (turn
+    mode) turns it by its own 30 degrees, and the handle is back in room axes."""
+    g = app.controller.guide
+    presses = app.access.presses
+    assert presses is not None
+    gate, held = threading.Event(), threading.Event()
+    hold = app.server.gui.add_button("Hold (test)")
+
+    @hold.on_click
+    def _(_event: object) -> None:
+        held.set()
+        gate.wait(60)
+
+    p0, w0 = g.pose("left")
+    t = p0 + np.array([0.04, 0.0, 0.0])
+    target = (float(t[0]), float(t[1]), float(t[2]))
+    tab.drag("/teach/left_handle", target, wxyz=(0.9659, 0.0, 0.0, 0.2588), end=False)  # move mode: no turn
+    assert wait_for(lambda: np.allclose(g.pose("left")[0], target, atol=2e-3))
+    tab.set_value("Hold (test)", True)
+    assert held.wait(30)
+    tab.send({"type": "TransformControlsDragEndMessage", "name": "/teach/left_handle", "owner": ""})
+    g.set_turning(True)
+    turn = Rotation.from_euler("z", 30, degrees=True)
+    x, y, z, w = (float(v) for v in turn.as_quat())
+    tab.drag("/teach/left_handle", target, wxyz=(w, x, y, z))
+    # the release, the grab, the move and the release wait, each its own step
+    assert wait_for(lambda: sum(len(tb.waiting) for tb in list(presses._tabs.values())) == 4)
+    gate.set()
+    expected = turn * Rotation.from_quat(np.roll(w0, -1))
+    assert wait_for(lambda: (Rotation.from_quat(np.roll(g.pose("left")[1], -1)) * expected.inv()).magnitude() < 1e-2)
+    assert wait_for(lambda: tuple(app.panels.teach.handles["left"].wxyz) == (1.0, 0.0, 0.0, 0.0))
+    assert np.allclose(g.pose("left")[0], target, atol=2e-3)

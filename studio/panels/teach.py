@@ -189,11 +189,12 @@ class TeachPanel:
                 # the handle starts in room axes: its turn from there is the gripper's turn
                 self._turn_from[arm] = matrix_from_quat_wxyz(guide.pose(arm)[1])
             try:
-                if guide.turning:
-                    R = matrix_from_quat_wxyz(np.asarray(h.wxyz)) @ self._turn_from[arm]
-                    guide.move(arm, np.asarray(h.position), quat_wxyz_from_matrix(R))
-                else:
-                    guide.move(arm, np.asarray(h.position))
+                if phase not in ("start", "end"):  # a grab and a release bring no new pose
+                    if guide.turning:
+                        R = matrix_from_quat_wxyz(np.asarray(h.wxyz)) @ self._turn_from[arm]
+                        guide.move(arm, np.asarray(h.position), quat_wxyz_from_matrix(R))
+                    else:
+                        guide.move(arm, np.asarray(h.position))
             except Exception as exc:
                 self.ctl.report(exc, title="Could not move the arm", client=event.client)
             if phase == "end":

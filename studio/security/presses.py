@@ -50,6 +50,8 @@ class _Job:
     #: the control (viser's handle) and the value its tab sent (the newest, when presses joined)
     target: Any = None
     value: Any = None
+    #: a transform handle's orientation and position as its tab sent them (the newest, when steps joined)
+    pose: tuple[tuple[float, ...], tuple[float, ...]] | None = None
 
 
 @dataclass
@@ -62,6 +64,8 @@ class _Tab:
     running: bool = False
     waiting: deque[_Job] = field(default_factory=deque)
     keys: dict[tuple[int, int, Any], _Job] = field(default_factory=dict)
+    #: the newest waiting callback of each control (by id of its handle): only that one takes a newer value
+    last: dict[int, _Job] = field(default_factory=dict)
     #: buttons whose (coroutine) callback is being awaited
     pressing: set[str] = field(default_factory=set)
     gone: bool = False
@@ -266,22 +270,27 @@ class Presses:
         impl = viser_adapter.state(target)
         # The value this tab sent (viser stored it just now, on its event loop). A button group's options are
         # different presses, and a handle's drag start, moves and end different steps; any other control's newer
-        # value replaces the one still waiting.
+        # value replaces the one still waiting, unless another of its presses or steps came after it. A handle's
+        # pose is kept as its tab sent it with this step of the drag.
         value = getattr(impl, "value", None)
+        pose = viser_adapter.pose_sent(target)
         button = bool(getattr(impl, "is_button", False))
         kind = value if button and isinstance(value, str) else getattr(event, "phase", None)
         key = (id(target), id(fn), kind)
         with self._lock:
             tab = self._tabs.setdefault(client_id, _Tab())
             waiting = tab.keys.get(key)
+            if waiting is not None and tab.last.get(id(target)) is not waiting:
+                waiting = None  # another press or step of the same control came after it: this one runs after that
             if waiting is not None:
-                waiting.value = value
+                waiting.value, waiting.pose = value, pose
             if self._closed or waiting is not None or len(tab.waiting) >= MAX_WAITING:
                 self.counts.joined += 1
                 future.set_result(None)
                 return future
-            job = _Job(key, fn, args, kwargs, future, target if impl is not None else None, value)
+            job = _Job(key, fn, args, kwargs, future, target if impl is not None else None, value, pose)
             tab.keys[key] = job
+            tab.last[id(target)] = job
             tab.waiting.append(job)
             start = not tab.running
             tab.running = True
@@ -301,11 +310,15 @@ class Presses:
                             job.future.set_result(None)
                         tab.waiting.clear()
                         tab.keys.clear()
+                        tab.last.clear()
                         if tab.gone:
                             del self._tabs[client_id]
                     return
                 job = tab.waiting.popleft()
-                tab.keys.pop(job.key, None)
+                if tab.keys.get(job.key) is job:
+                    del tab.keys[job.key]
+                if tab.last.get(job.key[0]) is job:
+                    del tab.last[job.key[0]]
             if not self._as_sent(job):
                 job.future.set_result(None)
                 continue
@@ -319,6 +332,9 @@ class Presses:
         """Give the control back the value its tab sent before its callback reads it: the studio may have
         redrawn the control since (another tab's action), and the callback acts on what this tab asked for.
         False when that value no longer fits the control (its options changed meanwhile)."""
+        if job.pose is not None:
+            viser_adapter.set_pose_quietly(job.target, job.pose)
+            return True
         impl = viser_adapter.state(job.target)
         if impl is None or getattr(impl, "value", None) == job.value:
             return True
