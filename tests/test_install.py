@@ -116,7 +116,7 @@ def test_no_file_belongs_to_two_installed_packages() -> None:
     owner: dict[str, str] = {}
     twice = []
     for dist in metadata.distributions():
-        name = dist.metadata["Name"].lower()
+        name = lock_runtime.canonicalize_name(dist.metadata["Name"])
         for f in dist.files or []:
             path = str(f)
             if "__pycache__" in path or ".dist-info/" in path:

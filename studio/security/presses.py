@@ -64,8 +64,6 @@ class _Tab:
     running: bool = False
     waiting: deque[_Job] = field(default_factory=deque)
     keys: dict[tuple[int, int, Any], _Job] = field(default_factory=dict)
-    #: the newest waiting callback of each control (by id of its handle): only that one takes a newer value
-    last: dict[int, _Job] = field(default_factory=dict)
     #: buttons whose (coroutine) callback is being awaited
     pressing: set[str] = field(default_factory=set)
     gone: bool = False
@@ -280,7 +278,7 @@ class Presses:
         with self._lock:
             tab = self._tabs.setdefault(client_id, _Tab())
             waiting = tab.keys.get(key)
-            if waiting is not None and tab.last.get(id(target)) is not waiting:
+            if waiting is not None and next(j for j in reversed(tab.waiting) if j.key[0] == key[0]) is not waiting:
                 waiting = None  # another press or step of the same control came after it: this one runs after that
             if waiting is not None:
                 waiting.value, waiting.pose = value, pose
@@ -290,7 +288,6 @@ class Presses:
                 return future
             job = _Job(key, fn, args, kwargs, future, target if impl is not None else None, value, pose)
             tab.keys[key] = job
-            tab.last[id(target)] = job
             tab.waiting.append(job)
             start = not tab.running
             tab.running = True
@@ -310,15 +307,12 @@ class Presses:
                             job.future.set_result(None)
                         tab.waiting.clear()
                         tab.keys.clear()
-                        tab.last.clear()
                         if tab.gone:
                             del self._tabs[client_id]
                     return
                 job = tab.waiting.popleft()
-                if tab.keys.get(job.key) is job:
+                if tab.keys.get(job.key) is job:  # a later job of the same key may wait too
                     del tab.keys[job.key]
-                if tab.last.get(job.key[0]) is job:
-                    del tab.last[job.key[0]]
             if not self._as_sent(job):
                 job.future.set_result(None)
                 continue
